@@ -1,0 +1,8 @@
+"""The component library (vectorized, analytic Jacobians)."""
+from .base import LibraryComponent
+from .chambers import Container, LinearAccumulator
+from .sources import MassFlowSource, PressureSource, VolumeFlowSource
+from .tubes import CircularTube
+
+__all__ = ["LibraryComponent", "PressureSource", "MassFlowSource", "VolumeFlowSource",
+           "CircularTube", "Container", "LinearAccumulator"]

@@ -1,0 +1,130 @@
+"""Volumes that store fluid: rigid containers and linear accumulators."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..constants import pressure_atmospheric
+from .base import FLUID_PORT, LibraryComponent
+
+
+class Container(LibraryComponent):
+    """Rigid chamber with one terminal ``a``.
+
+    A compressible fluid is stored as mass m (state, backward Euler
+    m_new = m + dt·mdot) with density(p) · volume = m_new. With an
+    incompressible fluid a rigid chamber admits no flow (mdot = 0).
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    volume : float [m^3]
+    initial_pressure : float [Pa], default 1 atm
+        Absolute pressure at t = 0 (sets the initial mass).
+    """
+
+    terminal_spec = (("a", FLUID_PORT),)
+    state_spec = (("mass", "mass"),)
+    param_names = ("volume",)
+    jac_pattern = ((0, 0), (0, 1))
+
+    def __init__(self, label, fluid, volume, initial_pressure=pressure_atmospheric):
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
+        self.volume = self._si(volume, "m**3", "volume", positive=True)
+        self.initial_pressure = self._si(initial_pressure, "Pa", "initial_pressure",
+                                         positive=True)
+        self.terminals[0].variables[0].initial_value = self.initial_pressure
+
+    def initial_states(self):
+        return [float(self.fluid.density(self.initial_pressure)) * self.volume]
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        if not P.fluid.compressible:
+            return S
+        return S + dt * V[:, 1:2]
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, mf = V[:, 0], V[:, 1]
+        if not P.fluid.compressible:
+            F = mf[:, None].copy()
+            J = np.tile([0.0, 1.0], (P.n, 1)) if jac else None
+            return F, J
+        m_new = S[:, 0] + dt * mf
+        F = (P.fluid.density(p) * P.volume - m_new)[:, None]
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 2))
+        J[:, 0] = P.fluid.density_dp(p) * P.volume
+        J[:, 1] = -dt
+        return F, J
+
+
+class LinearAccumulator(LibraryComponent):
+    """Compliant chamber whose fluid volume grows linearly with pressure:
+    V(p) = volume + compliance · (p - reference_pressure), terminal ``a``.
+
+    The stored mass (state) satisfies m_new = density(p) · V(p). With water and a
+    laminar tube it forms the fluidic RC circuit (tau = R·C).
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    volume : float [m^3]
+        Fluid volume at the reference pressure.
+    compliance : float [m^3/Pa]
+        dV/dp.
+    reference_pressure : float [Pa], default 1 atm
+    initial_pressure : float [Pa], default reference_pressure
+    """
+
+    terminal_spec = (("a", FLUID_PORT),)
+    state_spec = (("mass", "mass"),)
+    param_names = ("volume", "compliance", "reference_pressure")
+    jac_pattern = ((0, 0), (0, 1))
+
+    def __init__(self, label, fluid, volume, compliance,
+                 reference_pressure=pressure_atmospheric, initial_pressure=None):
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
+        self.volume = self._si(volume, "m**3", "volume", positive=True)
+        self.compliance = self._si(compliance, "m**4*s**2/kg", "compliance", positive=True)
+        self.reference_pressure = self._si(reference_pressure, "Pa", "reference_pressure",
+                                           positive=True)
+        p0 = reference_pressure if initial_pressure is None else initial_pressure
+        self.initial_pressure = self._si(p0, "Pa", "initial_pressure", positive=True)
+        if self._fluid_volume(self.initial_pressure) <= 0:
+            raise ValueError(f"{self.describe()}: the fluid volume at initial_pressure is <= 0")
+        self.terminals[0].variables[0].initial_value = self.initial_pressure
+
+    def _fluid_volume(self, p):
+        return self.volume + self.compliance * (p - self.reference_pressure)
+
+    def initial_states(self):
+        p = self.initial_pressure
+        return [float(self.fluid.density(p)) * self._fluid_volume(p)]
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        return S + dt * V[:, 1:2]
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, mf = V[:, 0], V[:, 1]
+        vol = P.volume + P.compliance * (p - P.reference_pressure)
+        rho = P.fluid.density(p)
+        m_new = S[:, 0] + dt * mf
+        F = (rho * vol - m_new)[:, None]
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 2))
+        J[:, 0] = P.fluid.density_dp(p) * vol + rho * P.compliance
+        J[:, 1] = -dt
+        return F, J
+
+    def outputs(self):
+        fl = self.fluid
+        return {"volume": ("volume", lambda get: get("mass") / fl.density(get("pressure")))}

@@ -1,0 +1,150 @@
+"""Reading measured data from CSV files that may carry a title line and a units row.
+
+Layout understood (as in ``shared/data/latex_balloon_60mm_pv.csv``)::
+
+    Latex balloon actuator 60 mm,2017-11-16,MECH1A1   <- optional title line(s)
+    Time,Volume,Pressure                               <- column names
+    s,ml,mbar                                          <- units row (optional)
+    14.31,1,22                                         <- numeric data
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pint
+
+from ..units import UnitError, ureg
+
+
+class DataFileError(ValueError):
+    """A data file could not be read as expected (names the file and line)."""
+
+
+def _is_number(cell):
+    try:
+        float(cell)
+        return True
+    except ValueError:
+        return False
+
+
+def _parse_unit(cell):
+    cell = cell.strip()
+    if cell in ("", "-", "1"):
+        return ureg.dimensionless
+    return ureg.Unit(cell)
+
+
+class Table:
+    """Columns of a CSV file with their units.
+
+    Attributes
+    ----------
+    names : list[str]
+    units : list[pint.Unit or None]
+        None where the file has no units row.
+    data : ndarray (rows, columns)
+    path : Path
+    first_data_line : int
+        1-based line number of the first data row.
+    """
+
+    def __init__(self, path, names, units, data, first_data_line):
+        self.path, self.names, self.units, self.data = path, names, units, data
+        self.first_data_line = first_data_line
+
+    def index(self, name):
+        lowered = [n.strip().lower() for n in self.names]
+        key = name.strip().lower()
+        if key in lowered:
+            return lowered.index(key)
+        raise DataFileError(f"{self.path}: no column named {name!r}; columns are {self.names}")
+
+    def column(self, name, unit, *, default_unit=None):
+        """Column ``name`` converted to ``unit`` (an SI unit string).
+
+        If the file has no units row, ``default_unit`` says what the numbers are in;
+        without it that is an error.
+        """
+        i = self.index(name)
+        src = self.units[i] if self.units is not None else None
+        if src is None:
+            if default_unit is None:
+                raise DataFileError(
+                    f"{self.path}: column {self.names[i]!r} has no unit (no units row); "
+                    f"give its unit explicitly")
+            src = ureg.Unit(default_unit)
+        values = self.data[:, i]
+        try:
+            return ureg.Quantity(values, src).to(unit).magnitude
+        except pint.DimensionalityError:
+            raise UnitError(
+                f"{self.path}: column {self.names[i]!r} is in {src:~P}, which cannot be "
+                f"converted to {unit}") from None
+
+
+def read_table(path) -> Table:
+    """Read a CSV file with optional title lines, a names row and an optional units row."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"data file not found: {path}")
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        rows = [(i + 1, [c.strip() for c in row]) for i, row in enumerate(csv.reader(fh))]
+    rows = [(n, r) for n, r in rows if any(r)]
+    header = []
+    k = 0
+    while k < len(rows) and not all(_is_number(c) for c in rows[k][1] if c != ""):
+        header.append(rows[k])
+        k += 1
+    body = rows[k:]
+    if not body:
+        raise DataFileError(f"{path}: no numeric data rows found")
+    if not header:
+        raise DataFileError(f"{path}: no column-names row above the data (line {body[0][0]})")
+    ncol = len(body[0][1])
+    units = None
+    names_row = header[-1]
+    if len(header) >= 2 and len(header[-1][1]) == ncol:
+        parsed = []
+        try:
+            for cell in header[-1][1]:
+                parsed.append(_parse_unit(cell))
+        except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
+                AttributeError, TypeError):
+            parsed = None
+        if parsed is not None and len(header[-2][1]) == ncol:
+            units = parsed
+            names_row = header[-2]
+        elif parsed is None and len(header[-2][1]) == ncol and not _looks_like_names(header[-1][1]):
+            bad = [c for c in header[-1][1] if not _unit_ok(c)]
+            raise DataFileError(f"{path}, line {header[-1][0]}: unknown unit(s) {bad}")
+    names = names_row[1]
+    if len(names) != ncol:
+        raise DataFileError(f"{path}, line {names_row[0]}: {len(names)} column names for "
+                            f"{ncol} data columns")
+    data = np.empty((len(body), ncol))
+    for r, (lineno, cells) in enumerate(body):
+        if len(cells) != ncol:
+            raise DataFileError(f"{path}, line {lineno}: expected {ncol} cells, got {len(cells)}")
+        for c, cell in enumerate(cells):
+            try:
+                data[r, c] = float(cell)
+            except ValueError:
+                raise DataFileError(f"{path}, line {lineno}: column {names[c]!r} holds "
+                                    f"{cell!r}, which is not a number") from None
+    return Table(path, names, units, data, body[0][0])
+
+
+def _unit_ok(cell):
+    try:
+        _parse_unit(cell)
+        return True
+    except Exception:
+        return False
+
+
+def _looks_like_names(cells):
+    """A row of words none of which is a unit is taken as names, not units."""
+    return not any(_unit_ok(c) for c in cells)

@@ -1,0 +1,174 @@
+"""The Component base class: the paper's interface for user-written components.
+
+A user component declares terminals and states, then assigns ``evaluate``
+(algebraic residuals) and, if it has states, ``update_state`` (the implicit
+Euler update of its states). Wrapping them in :meth:`Component.auto` and
+:meth:`Component.auto_state` tells softflow to obtain their derivatives by
+finite differences. Library components (see ``softflow.components``) instead
+evaluate all instances of a class in one vectorized call with analytic
+Jacobians.
+"""
+from __future__ import annotations
+
+import inspect
+
+from .variable import Terminal, Variable
+
+
+class AutoFunction:
+    """A user function whose derivatives softflow approximates by finite differences.
+
+    Arguments are matched to the component's variables by name (a variable's
+    label, or ``label_terminal`` when the label occurs at several terminals);
+    ``t`` is the time and, for ``update_state``, ``dt`` is the step.
+    """
+
+    def __init__(self, func, kind):
+        if not callable(func):
+            raise TypeError(f"auto: expected a function, got {func!r}")
+        self.func = func
+        self.kind = kind
+        params = inspect.signature(func).parameters.values()
+        for p in params:
+            if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+                raise TypeError(
+                    f"{kind} function {func.__name__!r}: *args/**kwargs are not "
+                    "supported; name each variable it needs")
+        self.argnames = tuple(p.name for p in params)
+
+    def __call__(self, *args, **kwargs):
+        return self.func(*args, **kwargs)
+
+    def __repr__(self):
+        return f"<{self.kind} {self.func.__name__}{self.argnames}>"
+
+
+class Component:
+    """Base class of every network component.
+
+    Parameters
+    ----------
+    label : str
+        Unique name of the component within its System.
+    """
+
+    #: True for library classes that evaluate all their instances at once.
+    vectorized = False
+
+    def __init__(self, label):
+        if not isinstance(label, str) or not label:
+            raise ValueError(
+                f"{type(self).__name__}: label must be a non-empty string, got {label!r}")
+        self.label = label
+        self.terminals: list[Terminal] = []
+        self.states: list[Variable] = []
+        self.locals: list[Variable] = []
+        self.evaluate = None
+        self.update_state = None
+        self._result = None
+
+    # -- declaring the interface -------------------------------------------------
+    def set_terminals(self, *terminals):
+        """Declare the component's terminals (Terminal objects), in order."""
+        if len(terminals) == 1 and isinstance(terminals[0], (list, tuple)):
+            terminals = tuple(terminals[0])
+        labels = [t.label for t in terminals]
+        if len(set(labels)) != len(labels):
+            raise ValueError(f"{self.describe()}: duplicate terminal labels {labels}")
+        for t in terminals:
+            if not isinstance(t, Terminal):
+                raise TypeError(f"{self.describe()}: set_terminals expects Terminal objects, got {t!r}")
+            t.component = self
+        self.terminals = list(terminals)
+
+    def set_states(self, *variables):
+        """Declare state variables, integrated in time by ``update_state``."""
+        self.states = [self._check_local(v, "set_states") for v in _flatten(variables)]
+
+    def set_locals(self, *variables):
+        """Declare algebraic local unknowns (each adds one equation to ``evaluate``)."""
+        self.locals = [self._check_local(v, "set_locals") for v in _flatten(variables)]
+
+    def _check_local(self, v, where):
+        if not isinstance(v, Variable):
+            raise TypeError(f"{self.describe()}: {where} expects Variable objects, got {v!r}")
+        if v.role != "local":
+            raise ValueError(f"{self.describe()}: {where} got variable {v.label!r} with role "
+                             f"{v.role!r}; it must be 'local'")
+        return v.copy()
+
+    def auto(self, func):
+        """Wrap an ``evaluate(t, <variables>...)`` function; derivatives by finite differences."""
+        return AutoFunction(func, "evaluate")
+
+    def auto_state(self, func):
+        """Wrap an ``update_state(dt, <variables>...)`` function returning
+        ``{state_label: new_value}``; derivatives by finite differences."""
+        return AutoFunction(func, "update_state")
+
+    # -- introspection --------------------------------------------------------------
+    def describe(self) -> str:
+        return f"{type(self).__name__} {self.label!r}"
+
+    def get_terminal(self, label):
+        for t in self.terminals:
+            if t.label == label:
+                return t
+        raise KeyError(f"{self.describe()} has no terminal {label!r}; "
+                       f"its terminals are {[t.label for t in self.terminals]}")
+
+    def interface_variables(self):
+        """(terminal_label or None, Variable) for every algebraic variable, in order:
+        terminal variables first, then locals. This is the order of V in kernels."""
+        out = [(t.label, v) for t in self.terminals for v in t.variables]
+        out += [(None, v) for v in self.locals]
+        return out
+
+    def variable_names(self):
+        """Names by which evaluate/update_state arguments address each variable.
+
+        Returns (names of interface variables, names of states)."""
+        iface = self.interface_variables()
+        counts = {}
+        for _, v in iface:
+            counts[v.label] = counts.get(v.label, 0) + 1
+        names = [v.label if counts[v.label] == 1 else f"{v.label}_{term}"
+                 for term, v in iface]
+        return names, [s.label for s in self.states]
+
+    @property
+    def n_equations(self) -> int:
+        """Equations the component must provide: one per through variable and local."""
+        return sum(len(t.through) for t in self.terminals) + len(self.locals)
+
+    def breakpoints(self):
+        """Times at which this component's inputs are discontinuous (for the integrator)."""
+        return ()
+
+    def outputs(self):
+        """Derived result quantities: {name: function(get) -> array}; see Result.get."""
+        return {}
+
+    # -- results ------------------------------------------------------------------------
+    def get(self, name, terminal=None, *, as_quantity=False):
+        """Values of a variable over the last simulation run, as a NumPy array.
+
+        ``name`` is a variable label, a quantity name (``'pressure'``) or a state;
+        give ``terminal`` when the name occurs at several terminals.
+        """
+        if self._result is None:
+            raise RuntimeError(f"{self.describe()}: no results yet; run a Simulation first")
+        return self._result.get(self.label, name, terminal=terminal, as_quantity=as_quantity)
+
+    def __repr__(self):
+        return f"<{self.describe()}>"
+
+
+def _flatten(items):
+    out = []
+    for it in items:
+        if isinstance(it, (list, tuple)):
+            out.extend(it)
+        else:
+            out.append(it)
+    return out

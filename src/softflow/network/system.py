@@ -1,0 +1,174 @@
+"""System: a set of components and the nodes that join their terminals."""
+from __future__ import annotations
+
+from .component import Component
+from .variable import Terminal
+
+
+class NetworkError(ValueError):
+    """The network is ill-formed: bad labels, bad connections, wrong equation counts."""
+
+
+class Node:
+    """A junction of terminals: one unknown per across quantity, one
+    conservation equation per through quantity."""
+
+    def __init__(self, index, terminals):
+        self.index = index
+        self.terminals = list(terminals)
+
+    @property
+    def name(self):
+        return "node(" + ", ".join(t.name for t in self.terminals) + ")"
+
+    def quantities(self, role):
+        seen = []
+        for t in self.terminals:
+            for v in t.variables:
+                if v.role == role and v.quantity not in seen:
+                    seen.append(v.quantity)
+        return seen
+
+    def __repr__(self):
+        return f"<Node {self.index}: {[t.name for t in self.terminals]}>"
+
+
+class System:
+    """A fluidic network: components plus connections.
+
+    Add components with ``system += component`` or ``system.add(...)`` and join
+    terminals with :meth:`connect`.
+    """
+
+    def __init__(self, label="system"):
+        self.label = label
+        self.components: list[Component] = []
+        self._by_label: dict[str, Component] = {}
+        self._parent: dict[int, Terminal] = {}  # union-find over terminal ids
+        self._terminal_by_id: dict[int, Terminal] = {}
+        self._connected: set[int] = set()
+
+    # -- building -----------------------------------------------------------------
+    def add(self, *components):
+        """Add one or more components; their labels must be unique."""
+        for c in components:
+            if isinstance(c, (list, tuple)):
+                self.add(*c)
+                continue
+            if not isinstance(c, Component):
+                raise NetworkError(f"System.add expects Component objects, got {c!r}")
+            if c.label in self._by_label:
+                raise NetworkError(f"System: duplicate component label {c.label!r}")
+            if not c.terminals:
+                raise NetworkError(f"{c.describe()} has no terminals; call set_terminals "
+                                   "in its __init__")
+            self.components.append(c)
+            self._by_label[c.label] = c
+            for t in c.terminals:
+                self._terminal_by_id[id(t)] = t
+                self._parent[id(t)] = id(t)
+        return self
+
+    def __iadd__(self, component):
+        self.add(component)
+        return self
+
+    def get(self, label) -> Component:
+        """The component with this label."""
+        try:
+            return self._by_label[label]
+        except KeyError:
+            raise KeyError(self._unknown_label(label)) from None
+
+    def _unknown_label(self, label):
+        import difflib
+        close = difflib.get_close_matches(str(label), list(self._by_label), n=3)
+        hint = f"; did you mean {close}?" if close else ""
+        return f"System has no component {label!r}{hint}"
+
+    def _find(self, tid):
+        root = tid
+        while self._parent[root] != root:
+            root = self._parent[root]
+        while self._parent[tid] != root:
+            self._parent[tid], tid = root, self._parent[tid]
+        return root
+
+    def _resolve(self, spec, taken):
+        """Turn a connect() argument into a Terminal."""
+        if isinstance(spec, Terminal):
+            if id(spec) not in self._terminal_by_id:
+                raise NetworkError(f"connect: terminal {spec.name!r} belongs to no component "
+                                   "of this system")
+            return spec
+        if isinstance(spec, Component):
+            spec = spec.label
+        if isinstance(spec, tuple) and len(spec) == 2:
+            label, term = spec
+            if label not in self._by_label:
+                raise NetworkError("connect: " + self._unknown_label(label))
+            comp = self._by_label[label]
+            try:
+                return comp.get_terminal(term)
+            except KeyError as err:
+                raise NetworkError(f"connect: {err.args[0]}") from None
+        if isinstance(spec, str):
+            if spec not in self._by_label:
+                raise NetworkError("connect: " + self._unknown_label(spec))
+            comp = self._by_label[spec]
+            for t in comp.terminals:
+                if id(t) not in self._connected and id(t) not in taken:
+                    return t
+            raise NetworkError(
+                f"connect: {comp.describe()} has no unconnected terminal left; name the "
+                f"terminal explicitly, e.g. connect(({spec!r}, {comp.terminals[0].label!r}), ...)")
+        raise NetworkError(
+            "connect: expected a component label, a (label, terminal) tuple, a Component "
+            f"or a Terminal, got {spec!r}")
+
+    def connect(self, *specs):
+        """Join terminals into one node.
+
+        Each argument is a component label (its first unconnected terminal is
+        used, as in the FONS paper), a ``(label, terminal_label)`` tuple, a
+        Component or a Terminal. Connecting a terminal that is already part of a
+        node merges the nodes.
+        """
+        if len(specs) < 2:
+            raise NetworkError("connect: give at least two terminals to join")
+        taken = []
+        for s in specs:
+            t = self._resolve(s, taken)
+            if id(t) in taken:
+                raise NetworkError(f"connect: terminal {t.name!r} is given twice; a component "
+                                   "cannot be connected to itself through one terminal")
+            taken.append(id(t))
+        roots = [self._find(tid) for tid in taken]
+        for r in roots[1:]:
+            self._parent[r] = roots[0]
+        self._connected.update(taken)
+        return self
+
+    # -- topology -----------------------------------------------------------------
+    def nodes(self) -> list[Node]:
+        """Current nodes, in the order of the components' terminals."""
+        groups: dict[int, list[Terminal]] = {}
+        for c in self.components:
+            for t in c.terminals:
+                groups.setdefault(self._find(id(t)), []).append(t)
+        return [Node(i, ts) for i, ts in enumerate(groups.values())]
+
+    def unconnected_terminals(self) -> list[Terminal]:
+        return [t for c in self.components for t in c.terminals if id(t) not in self._connected]
+
+    def __contains__(self, label):
+        return label in self._by_label
+
+    def __iter__(self):
+        return iter(self.components)
+
+    def __len__(self):
+        return len(self.components)
+
+    def __repr__(self):
+        return f"<System {self.label!r}: {len(self.components)} components>"

@@ -1,0 +1,100 @@
+"""Variables and terminals, the paper's vocabulary for a component's interface."""
+from __future__ import annotations
+
+from ..units import quantity_unit, to_si
+
+ROLES = ("across", "through", "local")
+
+
+class Variable:
+    """One scalar quantity of a component.
+
+    Parameters
+    ----------
+    quantity : str
+        Physical quantity, e.g. ``'pressure'``, ``'massflow'``, ``'mass'``.
+        Terminals meeting at a node share one unknown per *across* quantity
+        and conserve each *through* quantity.
+    role : {'across', 'through', 'local'}
+        ``across`` (potential, e.g. absolute pressure [Pa]), ``through``
+        (flow into the component, e.g. mass flow [kg/s]) or ``local``
+        (internal to the component: a state or an algebraic unknown).
+    label : str, optional
+        Name by which ``evaluate``/``update_state`` arguments and results
+        refer to it; defaults to ``quantity``.
+    initial_value : float or pint.Quantity, optional
+        Starting value (SI) for the solver or, for a state, its value at t = 0.
+    """
+
+    __slots__ = ("quantity", "role", "label", "initial_value")
+
+    def __init__(self, quantity, role, label=None, initial_value=None):
+        if not isinstance(quantity, str) or not quantity:
+            raise ValueError(f"Variable: quantity must be a non-empty string, got {quantity!r}")
+        if role not in ROLES:
+            raise ValueError(
+                f"Variable {label or quantity!r}: role must be one of {ROLES}, got {role!r}"
+            )
+        self.quantity = quantity
+        self.role = role
+        self.label = label if label is not None else quantity
+        if initial_value is not None:
+            unit = quantity_unit(quantity)
+            if unit is not None:
+                initial_value = to_si(initial_value, unit, name="initial_value",
+                                      owner=f"Variable {self.label!r}")
+            else:
+                initial_value = float(initial_value)
+        self.initial_value = initial_value
+
+    def copy(self) -> "Variable":
+        new = Variable.__new__(Variable)
+        for name in self.__slots__:
+            setattr(new, name, getattr(self, name))
+        return new
+
+    def __repr__(self):
+        return (f"Variable({self.quantity!r}, {self.role!r}, label={self.label!r}, "
+                f"initial_value={self.initial_value!r})")
+
+
+class Terminal:
+    """A connection point of a component: a label and its across/through variables.
+
+    The variables are copied, so one set of Variable templates can serve
+    several terminals.
+    """
+
+    def __init__(self, label, variables):
+        if not isinstance(label, str) or not label:
+            raise ValueError(f"Terminal: label must be a non-empty string, got {label!r}")
+        variables = list(variables)
+        for v in variables:
+            if not isinstance(v, Variable):
+                raise TypeError(f"Terminal {label!r}: expected Variable objects, got {v!r}")
+            if v.role == "local":
+                raise ValueError(
+                    f"Terminal {label!r}: variable {v.label!r} has role 'local'; "
+                    "terminals hold only 'across' and 'through' variables")
+        quantities = [(v.quantity, v.role) for v in variables]
+        if len(set(quantities)) != len(quantities):
+            raise ValueError(f"Terminal {label!r}: a quantity appears twice")
+        self.label = label
+        self.variables = [v.copy() for v in variables]
+        self.component = None  # set by Component.set_terminals
+
+    @property
+    def across(self):
+        return [v for v in self.variables if v.role == "across"]
+
+    @property
+    def through(self):
+        return [v for v in self.variables if v.role == "through"]
+
+    @property
+    def name(self) -> str:
+        owner = self.component.label if self.component is not None else "?"
+        return f"{owner}.{self.label}"
+
+    def __repr__(self):
+        return f"Terminal({self.name!r}, {[v.label for v in self.variables]})"

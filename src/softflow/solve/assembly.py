@@ -1,0 +1,270 @@
+"""Assembly: the network compiled once into index maps and a sparsity pattern.
+
+Unknowns x: one per node and across quantity (e.g. the node's pressure), one
+per terminal through variable (the mass flow into the component there) and one
+per algebraic local. States S are kept apart and eliminated per component
+(backward Euler), so they never become unknowns of the linear solve.
+
+Rows: one conservation equation per node and through quantity, then each group
+of components' equations, contiguous per group.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import csc_matrix
+from scipy.sparse.csgraph import maximum_bipartite_matching
+
+from ..network.system import NetworkError
+from .userkernel import UserKernel
+
+
+class Group:
+    """Components evaluated by one kernel call, and where they live in x, F, S and J."""
+
+    def __init__(self, comps, kernel, update, pattern, neq, ns, has_states):
+        self.comps = comps
+        self.n = len(comps)
+        self.kernel = kernel
+        self.update = update
+        self.pattern = pattern
+        self.neq = neq
+        self.ns = ns
+        self.has_states = has_states
+        self.col = None  # (n, nv) global unknown index of each interface variable
+        self.r0 = self.r1 = self.s0 = self.s1 = self.j0 = self.j1 = 0
+
+
+def _library_group(cls, comps):
+    P = cls.make_params(comps)
+    g = Group(comps,
+              kernel=lambda V, S, t, dt, jac: cls.kernel(P, V, S, t, dt, jac),
+              update=lambda V, S, dt: cls.update(P, V, S, dt),
+              pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
+              has_states=bool(cls.state_spec))
+    g.params = P
+    return g
+
+
+def _user_group(comp):
+    uk = UserKernel(comp)
+    return Group([comp], kernel=uk.kernel, update=uk.update, pattern=uk.pattern,
+                 neq=uk.neq, ns=uk.ns, has_states=uk.ns > 0)
+
+
+class Assembly:
+    """Compiled network: evaluates residuals F(x) and Jacobian values for given
+    states, time and step, with no knowledge of components beyond their kernels."""
+
+    def __init__(self, system, *, allow_unconnected=False):
+        comps = list(system.components)
+        if not comps:
+            raise NetworkError("System is empty: add components before simulating")
+        self.system = system
+        unconnected = system.unconnected_terminals()
+        if unconnected and not allow_unconnected:
+            names = ", ".join(t.name for t in unconnected)
+            raise NetworkError(
+                f"unconnected terminal(s): {names}. Connect them, or pass "
+                "allow_unconnected=True to treat them as closed ends (zero flow)")
+        nodes = system.nodes()
+        self.nodes = nodes
+        node_of = {id(t): nd for nd in nodes for t in nd.terminals}
+
+        names, quantities = [], []
+        across = {}
+        for nd in nodes:
+            for q in nd.quantities("across"):
+                across[(nd.index, q)] = len(names)
+                names.append(f"{nd.name} {q}")
+                quantities.append(q)
+        node_rows = {}
+        row_names = []
+        for nd in nodes:
+            for q in nd.quantities("through"):
+                node_rows[(nd.index, q)] = len(row_names)
+                row_names.append(f"conservation of {q} at {nd.name}")
+        self.n_node_rows = len(row_names)
+
+        # groups, in first-appearance order
+        groups, keyed = [], {}
+        for c in comps:
+            if c.vectorized:
+                key = c.group_key()
+                if key not in keyed:
+                    keyed[key] = []
+                    groups.append(("lib", key))
+                keyed[key].append(c)
+            else:
+                groups.append(("user", c))
+        self.groups = []
+        for kind, item in groups:
+            if kind == "lib":
+                members = keyed[item]
+                self.groups.append(_library_group(type(members[0]), members))
+            else:
+                self.groups.append(_user_group(item))
+
+        # unknown indices per component interface variable
+        through_rows, through_cols = [], []
+        initial = {}
+        x_owner = {}  # unknown index -> (component label, variable label, terminal)
+        for g in self.groups:
+            col = np.empty((g.n, len(g.comps[0].interface_variables())), dtype=np.int64)
+            for i, c in enumerate(g.comps):
+                for k, (term, v) in enumerate(c.interface_variables()):
+                    if v.role == "across":
+                        nd = node_of[id(c.get_terminal(term))]
+                        idx = across[(nd.index, v.quantity)]
+                        if v.initial_value is not None and idx not in initial:
+                            initial[idx] = v.initial_value
+                    else:
+                        idx = len(names)
+                        where = f"{c.label}.{term}" if term else c.label
+                        names.append(f"{where} {v.label}")
+                        quantities.append(v.quantity)
+                        x_owner[idx] = c.label
+                        if v.initial_value is not None:
+                            initial[idx] = v.initial_value
+                        if v.role == "through":
+                            nd = node_of[id(c.get_terminal(term))]
+                            through_rows.append(node_rows[(nd.index, v.quantity)])
+                            through_cols.append(idx)
+                    col[i, k] = idx
+            g.col = col
+        self.n = len(names)
+        self.x_names = names
+        self.x_quantity = quantities
+        self.x_owner = x_owner
+        self.through_rows = np.array(through_rows, dtype=np.int64)
+        self.through_cols = np.array(through_cols, dtype=np.int64)
+        self.x0 = np.zeros(self.n)
+        for idx, val in initial.items():
+            self.x0[idx] = val
+
+        # rows, states and Jacobian slots per group
+        r = self.n_node_rows
+        s = 0
+        j = len(through_rows)
+        s_quantity, s_names, S0 = [], [], []
+        self.row_names = row_names
+        for g in self.groups:
+            g.r0, g.r1 = r, r + g.n * g.neq
+            r = g.r1
+            g.s0, g.s1 = s, s + g.n * g.ns
+            s = g.s1
+            g.j0, g.j1 = j, j + g.n * len(g.pattern)
+            j = g.j1
+            for c in g.comps:
+                for e in range(g.neq):
+                    row_names.append(f"equation {e} of {c.describe()}")
+                if g.ns:
+                    vals = (c.initial_states() if c.vectorized
+                            else [sv.initial_value if sv.initial_value is not None else 0.0
+                                  for sv in c.states])
+                    S0.extend(float(v) for v in vals)
+                    for sv in c.states:
+                        s_names.append(f"{c.label} {sv.label}")
+                        s_quantity.append(sv.quantity)
+        self.n_rows = r
+        self.S0 = np.array(S0, dtype=float)
+        self.s_names = s_names
+        self.s_quantity = s_quantity
+        if self.n_rows != self.n:
+            raise NetworkError(
+                f"the network has {self.n} unknowns but {self.n_rows} equations; every node "
+                "needs as many through quantities (conservation laws) as across quantities")
+
+        # sparsity pattern: constant node entries, then each group's local patterns
+        rows = [self.through_rows]
+        cols = [self.through_cols]
+        for g in self.groups:
+            if not g.pattern:
+                continue
+            pe = np.array([e for e, _ in g.pattern], dtype=np.int64)
+            pv = np.array([v for _, v in g.pattern], dtype=np.int64)
+            inst = np.arange(g.n)[:, None]
+            rows.append((g.r0 + inst * g.neq + pe[None, :]).ravel())
+            cols.append(g.col[:, pv].ravel())
+        rows = np.concatenate(rows)
+        cols = np.concatenate(cols)
+        self.raw = np.zeros(len(rows))
+        self.raw[: len(through_rows)] = 1.0
+        self.n_const = len(through_rows)
+        key = cols * self.n + rows
+        ukey, inv = np.unique(key, return_inverse=True)
+        self.nnz = len(ukey)
+        self.indices = (ukey % self.n).astype(np.int32)
+        ucols = ukey // self.n
+        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(ucols, minlength=self.n))]).astype(np.int32)
+        self.duplicates = self.nnz != len(key)
+        self._inv = inv
+        if not self.duplicates:
+            order = np.empty_like(inv)
+            order[inv] = np.arange(len(inv))
+            self._order = order
+        self.pattern_rows = rows
+        self.pattern_cols = cols
+        self._check_structure()
+
+    # -- checks ---------------------------------------------------------------------------
+    def _check_structure(self):
+        pat = csc_matrix((np.ones(self.nnz), self.indices, self.indptr), shape=(self.n, self.n))
+        match = maximum_bipartite_matching(pat.tocsr(), perm_type="column")
+        unmatched_rows = np.flatnonzero(match < 0)
+        if len(unmatched_rows):
+            matched = set(match[match >= 0].tolist())
+            free = [self.x_names[i] for i in range(self.n) if i not in matched]
+            rows = [self.row_names[i] for i in unmatched_rows[:5]]
+            raise NetworkError(
+                "the network is structurally singular: some unknowns are not determined by "
+                f"any equation ({', '.join(free[:5])}) while some equations have nothing to "
+                f"determine ({'; '.join(rows)}). Look for floating sub-networks or "
+                "components without a pressure or flow reference")
+
+    def describe_row(self, row):
+        return self.row_names[row]
+
+    def component_of_row(self, row):
+        for g in self.groups:
+            if g.r0 <= row < g.r1:
+                return g.comps[(row - g.r0) // g.neq].label, (row - g.r0) % g.neq
+        return None, None
+
+    # -- evaluation ------------------------------------------------------------------------
+    def residual(self, x, S, t, dt, jac=False):
+        """F(x) for states S at the start of the step; with jac, also fills self.raw."""
+        F = np.empty(self.n)
+        nr = self.n_node_rows
+        if nr:
+            F[:nr] = np.bincount(self.through_rows, weights=x[self.through_cols], minlength=nr)
+        raw = self.raw
+        for g in self.groups:
+            V = x[g.col]
+            Sg = S[g.s0:g.s1].reshape(g.n, g.ns)
+            Fg, Jg = g.kernel(V, Sg, t, dt, jac)
+            F[g.r0:g.r1] = Fg.reshape(-1)
+            if jac and g.j1 > g.j0:
+                raw[g.j0:g.j1] = Jg.reshape(-1)
+        return F
+
+    def update_states(self, x, S, dt):
+        """States at the end of a step, given the converged unknowns."""
+        out = S.copy()
+        for g in self.groups:
+            if g.has_states:
+                out[g.s0:g.s1] = g.update(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns), dt).reshape(-1)
+        return out
+
+    def jacobian_data(self):
+        """Values of the Jacobian in CSC order (after :meth:`residual` with jac=True)."""
+        if self.duplicates:
+            return np.bincount(self._inv, weights=self.raw, minlength=self.nnz)
+        return self.raw[self._order]
+
+    def jacobian_csc(self):
+        return csc_matrix((self.jacobian_data(), self.indices, self.indptr), shape=(self.n, self.n))
+
+    def jacobian_dense(self):
+        J = np.zeros((self.n, self.n))
+        np.add.at(J, (self.pattern_rows, self.pattern_cols), self.raw)
+        return J

@@ -1,0 +1,79 @@
+"""Linear solvers behind one small interface: factor the current Jacobian, solve."""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.sparse import csc_matrix
+from scipy.sparse.linalg import splu
+
+#: Below this many unknowns a dense LU beats SuperLU (see benchmarks/README.md).
+DENSE_MAX = 100
+
+
+class SingularJacobian(RuntimeError):
+    pass
+
+
+class DenseLU:
+    """LAPACK LU of the assembled Jacobian (small systems)."""
+
+    kind = "dense"
+
+    def __init__(self, asm):
+        self.asm = asm
+        self.n = asm.n
+        self.flat = asm.pattern_rows * asm.n + asm.pattern_cols
+        self.lu = None
+
+    def factor(self):
+        J = np.bincount(self.flat, weights=self.asm.raw, minlength=self.n * self.n)
+        J = J.reshape(self.n, self.n)
+        if not np.isfinite(J).all():
+            raise SingularJacobian("Jacobian contains NaN or inf")
+        lu, piv = sla.lu_factor(J, check_finite=False)
+        d = np.abs(np.diag(lu))
+        if d.min() <= 1e-14 * max(d.max(), 1e-300):
+            raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))
+        self.lu = (lu, piv)
+        self.row_scale = 1.0 / np.maximum(np.abs(J).max(axis=1), 1e-300)
+
+    def solve(self, b):
+        return sla.lu_solve(self.lu, b, check_finite=False)
+
+
+class SparseLU:
+    """SuperLU with a COLAMD fill-reducing column ordering (large systems)."""
+
+    kind = "sparse"
+
+    def __init__(self, asm, permc_spec="COLAMD"):
+        self.asm = asm
+        self.n = asm.n
+        self.permc_spec = permc_spec
+        self.lu = None
+
+    def factor(self):
+        data = self.asm.jacobian_data()
+        if not np.isfinite(data).all():
+            raise SingularJacobian("Jacobian contains NaN or inf")
+        A = csc_matrix((data, self.asm.indices, self.asm.indptr), shape=(self.n, self.n))
+        try:
+            self.lu = splu(A, permc_spec=self.permc_spec)
+        except RuntimeError as err:  # "Factor is exactly singular"
+            raise SingularJacobian(str(err)) from None
+        rs = np.zeros(self.n)
+        np.maximum.at(rs, self.asm.indices, np.abs(data))
+        self.row_scale = 1.0 / np.maximum(rs, 1e-300)
+
+    def solve(self, b):
+        return self.lu.solve(b)
+
+
+def make_linear_solver(asm, kind="auto"):
+    if kind == "auto":
+        kind = "dense" if asm.n <= DENSE_MAX else "sparse"
+    if kind == "dense":
+        return DenseLU(asm)
+    if kind == "sparse":
+        return SparseLU(asm)
+    raise ValueError(f"linear_solver must be 'auto', 'dense' or 'sparse', got {kind!r}")

@@ -1,0 +1,204 @@
+"""Newton–Raphson for one implicit-Euler step, with Jacobian/LU reuse.
+
+Three stages, each tried only if the cheaper one before it fails:
+
+1. *reuse*: chord iterations with the LU factors of an earlier Jacobian (modified
+   Newton, as SUNDIALS IDA does), while the step size stays within a factor of
+   the one it was built for;
+2. *fresh*: a new Jacobian at the predictor, then chord iterations;
+3. *full*: a new Jacobian every iteration, with backtracking on the scaled
+   residual norm (damped Newton).
+
+Convergence is judged on the scaled update: max_i |dx_i| / (atol_i + rtol |x_i|),
+corrected by the observed contraction rate (Hairer & Wanner, Solving ODEs II,
+sec. IV.8).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .linalg import SingularJacobian
+
+
+@dataclass
+class Stats:
+    """Solver counters."""
+
+    steps: int = 0
+    rejected_steps: int = 0
+    newton_iterations: int = 0
+    residual_evaluations: int = 0
+    jacobian_evaluations: int = 0
+    factorizations: int = 0
+    newton_failures: int = 0
+    error_test_failures: int = 0
+
+    def as_dict(self):
+        return dict(self.__dict__)
+
+
+@dataclass
+class Outcome:
+    converged: bool
+    x: np.ndarray
+    iterations: int = 0
+    reason: str = ""
+    row: int | None = None
+    extra: dict = field(default_factory=dict)
+
+
+class Newton:
+    """Solves F(x; S, t, dt) = 0 for x, reusing LU factors across iterations and steps."""
+
+    def __init__(self, asm, lin, stats, *, rtol=1e-7, atol=None, max_reuse_iter=4,
+                 max_iter=10, max_age=200, dt_ratio=(0.6, 1.67)):
+        self.asm = asm
+        self.lin = lin
+        self.stats = stats
+        self.rtol = rtol
+        self.atol = np.asarray(atol, dtype=float)
+        self.max_reuse_iter = max_reuse_iter
+        self.max_iter = max_iter
+        self.max_age = max_age
+        self.dt_ratio = dt_ratio
+        self.lu_dt = None      # step size the current factors were built for
+        self.age = 0           # steps since the last factorization
+        self.stale = True      # force a fresh Jacobian at the next solve
+
+    def invalidate(self):
+        """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
+        self.stale = True
+
+    def _eval(self, x, S, t, dt, jac):
+        self.stats.residual_evaluations += 1
+        if jac:
+            self.stats.jacobian_evaluations += 1
+        return self.asm.residual(x, S, t, dt, jac)
+
+    def _factor(self, dt):
+        self.lin.factor()
+        self.stats.factorizations += 1
+        self.lu_dt = dt
+        self.age = 0
+        self.stale = False
+
+    def _norm(self, dx, x):
+        return float(np.max(np.abs(dx) / (self.atol + self.rtol * np.abs(x)))) if dx.size else 0.0
+
+    def _reusable(self, dt):
+        if self.stale or self.lu_dt is None or self.age >= self.max_age:
+            return False
+        if self.lu_dt == 0.0 or dt == 0.0:
+            return self.lu_dt == dt
+        r = dt / self.lu_dt
+        return self.dt_ratio[0] <= r <= self.dt_ratio[1]
+
+    def solve(self, x0, S, t, dt):
+        stages = (["reuse"] if self._reusable(dt) else []) + ["fresh", "full"]
+        last = None
+        for stage in stages:
+            out = self._chord(x0, S, t, dt, stage) if stage != "full" else self._full(x0, S, t, dt)
+            if out.converged:
+                self.age += 1
+                if stage == "reuse" and out.iterations > 2:
+                    self.stale = True  # convergence slowing: refresh at the next step
+                return out
+            last = out
+            if out.reason.startswith("singular"):
+                break
+        self.stats.newton_failures += 1
+        self.stale = True
+        return last
+
+    def _chord(self, x0, S, t, dt, stage):
+        fresh = stage == "fresh"
+        x = x0.copy()
+        try:
+            F = self._eval(x, S, t, dt, jac=fresh)
+        except FloatingPointError:
+            F = np.full(self.asm.n, np.nan)
+        if not np.isfinite(F).all():
+            return Outcome(False, x, 0, "residual not finite at the predictor",
+                           int(np.argmax(~np.isfinite(F))))
+        if fresh:
+            try:
+                self._factor(dt)
+            except SingularJacobian as err:
+                return Outcome(False, x, 0, f"singular Jacobian ({err.args[0]})",
+                               err.args[1] if len(err.args) > 1 else None)
+        limit = self.max_iter if fresh else self.max_reuse_iter
+        prev = None
+        for k in range(limit):
+            dx = -self.lin.solve(F)
+            self.stats.newton_iterations += 1
+            nrm = self._norm(dx, x)
+            if not np.isfinite(nrm):
+                return Outcome(False, x, k + 1, "Newton update not finite")
+            if prev is not None:
+                rate = nrm / prev
+                if rate >= 0.9:
+                    return Outcome(False, x, k + 1, f"Newton diverging (rate {rate:.2f})",
+                                   self._worst_row(F))
+                done = nrm * rate / (1.0 - rate) <= 1.0
+            else:
+                done = nrm <= 1.0
+            # damp only to keep the residual finite (e.g. negative pressure in a gas)
+            lam = 1.0
+            for _ in range(6):
+                xn = x + lam * dx
+                if done:
+                    break
+                Fn = self._eval(xn, S, t, dt, jac=False)
+                if np.isfinite(Fn).all():
+                    break
+                lam *= 0.25
+            else:
+                return Outcome(False, x, k + 1, "residual not finite along the Newton step",
+                               int(np.argmax(~np.isfinite(Fn))))
+            x = xn
+            if done or nrm <= 1e-3:
+                return Outcome(True, x, k + 1)
+            F = Fn
+            prev = nrm
+        return Outcome(False, x, limit, f"no convergence in {limit} iterations ({stage} Jacobian)",
+                       self._worst_row(F))
+
+    def _full(self, x0, S, t, dt):
+        x = x0.copy()
+        F = self._eval(x, S, t, dt, jac=True)
+        if not np.isfinite(F).all():
+            return Outcome(False, x, 0, "residual not finite", int(np.argmax(~np.isfinite(F))))
+        for k in range(self.max_iter * 2):
+            try:
+                self._factor(dt)
+            except SingularJacobian as err:
+                return Outcome(False, x, k, f"singular Jacobian ({err.args[0]})",
+                               err.args[1] if len(err.args) > 1 else None)
+            rs = self.lin.row_scale
+            f0 = float(np.linalg.norm(F * rs))
+            dx = -self.lin.solve(F)
+            self.stats.newton_iterations += 1
+            nrm = self._norm(dx, x)
+            if nrm <= 1.0:
+                return Outcome(True, x + dx, k + 1)
+            lam = 1.0
+            while True:
+                xn = x + lam * dx
+                Fn = self._eval(xn, S, t, dt, jac=True)
+                if np.isfinite(Fn).all() and np.linalg.norm(Fn * rs) <= (1 - 1e-4 * lam) * f0:
+                    break
+                lam *= 0.5
+                if lam < 1e-4:
+                    return Outcome(False, x, k + 1, "line search failed: no decrease of the "
+                                   "residual along the Newton direction", self._worst_row(F))
+            x, F = xn, Fn
+        return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
+                       self._worst_row(F))
+
+    def _worst_row(self, F):
+        rs = getattr(self.lin, "row_scale", None)
+        scaled = np.abs(F) * (rs if rs is not None else 1.0)
+        scaled = np.where(np.isfinite(scaled), scaled, np.inf)
+        return int(np.argmax(scaled)) if scaled.size else None

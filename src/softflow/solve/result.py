@@ -1,0 +1,131 @@
+"""Simulation results: times and every variable as arrays, by component and label."""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+
+from ..units import to_quantity
+
+
+class Result:
+    """Outcome of a simulation run.
+
+    Attributes
+    ----------
+    times : ndarray [s]
+    status : str
+        ``'success'`` or ``'failed'``.
+    message : str
+        Why a run failed (time, component, equation), or ``''``.
+    stats : dict
+        Counters: steps, rejected_steps, newton_iterations, jacobian_evaluations,
+        factorizations, ...
+    """
+
+    def __init__(self, asm, times, X, S, status="success", message="", stats=None):
+        self.times = times
+        self.X = X
+        self.S = S
+        self.status = status
+        self.message = message
+        self.stats = dict(stats or {})
+        self._index = {}
+        self._components = {}
+        for g in asm.groups:
+            for i, c in enumerate(g.comps):
+                self._components[c.label] = c
+                entries = []
+                for k, (term, v) in enumerate(c.interface_variables()):
+                    entries.append((v.label, v.quantity, term, "x", int(g.col[i, k])))
+                for j, sv in enumerate(c.states):
+                    entries.append((sv.label, sv.quantity, None, "s", g.s0 + i * g.ns + j))
+                self._index[c.label] = entries
+
+    @property
+    def success(self):
+        return self.status == "success"
+
+    def _entry(self, label, name, terminal):
+        if label not in self._index:
+            raise KeyError(f"no component {label!r} in this result")
+        entries = self._index[label]
+        by_label = [e for e in entries if e[0] == name or f"{e[0]}_{e[2]}" == name]
+        cands = by_label or [e for e in entries if e[1] == name]
+        if terminal is not None:
+            cands = [e for e in cands if e[2] == terminal]
+        if len(cands) == 1:
+            return cands[0]
+        if not cands:
+            outs = self._components[label].outputs()
+            if name in outs and terminal is None:
+                return ("output", name)
+            names = sorted({e[0] for e in entries} | {e[1] for e in entries} | set(outs))
+            raise KeyError(f"component {label!r} has no variable {name!r}"
+                           + (f" at terminal {terminal!r}" if terminal else "")
+                           + f"; it has {names}")
+        terms = [e[2] for e in cands]
+        raise KeyError(f"component {label!r}: {name!r} is ambiguous (terminals {terms}); "
+                       f"pass terminal=, e.g. get({name!r}, {terms[0]!r})")
+
+    def get(self, label, name, terminal=None, *, as_quantity=False):
+        """Values of variable ``name`` (label, quantity or output name) of component ``label``."""
+        e = self._entry(label, name, terminal)
+        if e[0] == "output":
+            quantity, fn = self._components[label].outputs()[name]
+            values = np.asarray(fn(lambda n, term=None: self.get(label, n, term)), dtype=float)
+        else:
+            _, quantity, _, where, idx = e
+            values = (self.X if where == "x" else self.S)[:, idx]
+        return to_quantity(values, quantity) if as_quantity else values
+
+    def __getitem__(self, key):
+        """``result['tube.massflow']`` or ``result['tube', 'massflow', 'a']``."""
+        if isinstance(key, tuple):
+            return self.get(*key)
+        label, _, name = key.rpartition(".")
+        return self.get(label, name)
+
+    def columns(self):
+        """Unique column names ``component.variable[_terminal]`` of every variable."""
+        cols = []
+        for label, entries in self._index.items():
+            counts = {}
+            for e in entries:
+                counts[e[0]] = counts.get(e[0], 0) + 1
+            for e in entries:
+                name = e[0] if counts[e[0]] == 1 else f"{e[0]}_{e[2]}"
+                cols.append((f"{label}.{name}", e))
+        return cols
+
+    def to_dict(self):
+        """{'time': times, 'component.variable': values, ...} (SI units)."""
+        out = {"time": self.times}
+        for name, e in self.columns():
+            out[name] = (self.X if e[3] == "x" else self.S)[:, e[4]]
+        return out
+
+    def to_csv(self, path):
+        """Write every variable to a CSV file with a names row and an SI units row."""
+        from ..units import quantity_unit
+        d = self.to_dict()
+        units = ["s"] + [quantity_unit(e[1]) or "" for _, e in self.columns()]
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(list(d))
+            w.writerow(units)
+            w.writerows(np.column_stack(list(d.values())).tolist())
+
+    def to_dataframe(self):
+        """A pandas DataFrame indexed by time (needs the optional pandas extra)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("to_dataframe needs pandas: pip install 'softflow[pandas]'") from None
+        d = self.to_dict()
+        t = d.pop("time")
+        return pd.DataFrame(d, index=pd.Index(t, name="time"))
+
+    def __repr__(self):
+        return (f"<Result {self.status}: {len(self.times)} points, "
+                f"t = {self.times[0] if len(self.times) else 0:g}..{self.times[-1] if len(self.times) else 0:g} s>")

@@ -1,0 +1,158 @@
+"""Simulation: compile a System once, integrate it in time, return a Result."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..network.system import NetworkError
+from ..units import quantity_unit, to_si
+from .assembly import Assembly
+from .integrator import ImplicitEuler, StepFailure
+from .linalg import make_linear_solver
+from .newton import Newton, Stats
+from .result import Result
+
+#: Default absolute tolerances of the adaptive error test, per quantity [SI].
+DEFAULT_ATOL = {"pressure": 1.0, "massflow": 1e-9, "mass": 1e-12, "volume": 1e-12,
+                "volumeflow": 1e-12, "temperature": 1e-3}
+
+
+class SimulationError(RuntimeError):
+    """A run failed. ``result`` holds everything computed up to the failure;
+    ``time``, ``component`` and ``equation`` say where."""
+
+    def __init__(self, message, result=None, time=None, component=None, equation=None):
+        super().__init__(message)
+        self.result, self.time, self.component, self.equation = result, time, component, equation
+
+
+class Simulation:
+    """Time integration of a System with implicit (backward) Euler.
+
+    Parameters
+    ----------
+    system : System
+    duration : float [s] or Quantity
+    step : float [s] or Quantity, optional
+        Constant step. Without it the step is adaptive (and ``step`` is the
+        first step when ``adaptive=True`` is given).
+    adaptive : bool, optional
+        Force adaptive (True) or fixed (False) stepping.
+    step_min, step_max : float [s], optional
+        Bounds of the adaptive step; defaults duration·1e-9 and duration/200.
+    rtol : float, default 1e-3
+        Relative tolerance of the adaptive error test.
+    atol : dict, optional
+        Absolute tolerances per quantity name, SI (see DEFAULT_ATOL).
+    newton_rtol : float, default 1e-7
+        Relative tolerance of the Newton iteration (absolute ones are atol·1e-3).
+    linear_solver : {'auto', 'dense', 'sparse'}
+        'auto' uses dense LU up to 100 unknowns, SuperLU above.
+    breakpoints : sequence of float [s]
+        Extra times the integrator must land on (input discontinuities);
+        components' waveforms declare theirs themselves.
+    allow_unconnected : bool, default False
+        Treat unconnected terminals as closed ends instead of raising.
+    """
+
+    def __init__(self, system, duration=1.0, step=None, *, adaptive=None, step_min=None,
+                 step_max=None, rtol=1e-3, atol=None, newton_rtol=1e-7, linear_solver="auto",
+                 breakpoints=(), allow_unconnected=False):
+        owner = "Simulation"
+        self.system = system
+        self.duration = to_si(duration, "s", name="duration", owner=owner)
+        if not self.duration > 0:
+            raise ValueError(f"Simulation: duration must be > 0 s, got {self.duration}")
+        self.step = None if step is None else to_si(step, "s", name="step", owner=owner)
+        if self.step is not None and not self.step > 0:
+            raise ValueError(f"Simulation: step must be > 0 s, got {self.step}")
+        self.adaptive = (self.step is None) if adaptive is None else bool(adaptive)
+        self.step_min = (self.duration * 1e-9 if step_min is None
+                         else to_si(step_min, "s", name="step_min", owner=owner))
+        self.step_max = (self.duration / 200 if step_max is None
+                         else to_si(step_max, "s", name="step_max", owner=owner))
+        if not 0 < self.step_min <= self.step_max:
+            raise ValueError(f"Simulation: need 0 < step_min <= step_max, got {self.step_min}, "
+                             f"{self.step_max}")
+        if not rtol > 0 or not newton_rtol > 0:
+            raise ValueError("Simulation: rtol and newton_rtol must be > 0")
+        self.rtol = float(rtol)
+        self.newton_rtol = float(newton_rtol)
+        self.atol = dict(DEFAULT_ATOL)
+        for q, v in (atol or {}).items():
+            unit = quantity_unit(q)
+            self.atol[q] = to_si(v, unit, name=f"atol[{q!r}]", owner=owner) if unit else float(v)
+        self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
+                                 for b in breakpoints)
+        self.asm = Assembly(system, allow_unconnected=allow_unconnected)
+        self.linear_solver_kind = linear_solver
+        self.result = None
+
+    def _atol_vector(self, quantities, factor=1.0):
+        return np.array([self.atol.get(q, 1e-9) * factor for q in quantities], dtype=float)
+
+    @property
+    def times(self):
+        """Times of the last run [s] (the paper's ``sim.times``)."""
+        if self.result is None:
+            raise RuntimeError("Simulation.times: call run() first")
+        return self.result.times
+
+    @property
+    def stats(self):
+        return self.result.stats if self.result is not None else {}
+
+    def run(self, *, raise_on_failure=True):
+        """Integrate from 0 to ``duration``.
+
+        Returns the Result. If the solver fails, raises SimulationError (whose
+        ``result`` holds the steps computed so far), or with
+        ``raise_on_failure=False`` returns that partial Result with
+        ``status == 'failed'`` and a ``message``.
+        """
+        asm = self.asm
+        stats = Stats()
+        lin = make_linear_solver(asm, self.linear_solver_kind)
+        newton = Newton(asm, lin, stats, rtol=self.newton_rtol,
+                        atol=self._atol_vector(asm.x_quantity, 1e-3))
+        breaks = list(self.breakpoints)
+        for c in self.system.components:
+            breaks.extend(float(b) for b in c.breakpoints())
+        integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
+                              adaptive=self.adaptive, step_min=self.step_min,
+                              step_max=self.step_max, rtol=self.rtol,
+                              atol_states=self._atol_vector(asm.s_quantity), breakpoints=breaks)
+        error = None
+        try:
+            with np.errstate(all="ignore"):
+                integ.run()
+        except StepFailure as fail:
+            error = self._describe_failure(fail)
+        except NetworkError as err:
+            t = integ.rec.t[-1] if integ.rec.t else 0.0
+            error = SimulationError(f"after t = {t:.6g} s: {err}", time=t)
+        t, X, S = integ.rec.arrays(asm.n, len(asm.S0))
+        info = stats.as_dict()
+        info["forced_steps"] = integ.forced_steps
+        info["linear_solver"] = lin.kind
+        info["unknowns"] = asm.n
+        result = Result(asm, t, X, S, status="success" if error is None else "failed",
+                        message="" if error is None else str(error), stats=info)
+        self.result = result
+        for c in self.system.components:
+            c._result = result
+        if error is not None:
+            error.result = result
+            if raise_on_failure:
+                raise error
+        return result
+
+    def _describe_failure(self, fail):
+        out = fail.outcome
+        comp = eq = None
+        where = ""
+        if out.row is not None:
+            comp, eq = self.asm.component_of_row(out.row)
+            where = f"; worst equation: {self.asm.describe_row(out.row)}"
+        msg = (f"solver failed at t = {fail.t:.6g} s (step {fail.dt:.3g} s): "
+               f"{out.reason}{where}")
+        return SimulationError(msg, time=fail.t, component=comp, equation=eq)

@@ -1,0 +1,140 @@
+"""The per-instance path for user-written components (the paper's ``Actuator``).
+
+States are eliminated locally: update_state gives the end-of-step states as a
+function of the component's own variables, and the residual's Jacobian picks
+up dF/dS · dS/dV by the chain rule. Derivatives come from forward differences.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..network.component import AutoFunction
+from ..network.system import NetworkError
+
+#: Typical magnitude per quantity, used to size finite-difference steps at zero.
+_TYPICAL = {"pressure": 1e5, "massflow": 1e-4, "mass": 1e-4, "volume": 1e-5,
+            "volumeflow": 1e-6, "temperature": 300.0}
+_REL = 1.5e-8
+
+
+class UserKernel:
+    """Evaluates one user component; exposes the same kernel/update interface as
+    library groups, with n = 1 and a dense local Jacobian pattern."""
+
+    def __init__(self, comp):
+        self.comp = comp
+        names, snames = comp.variable_names()
+        iface = comp.interface_variables()
+        self.nv = len(names)
+        self.ns = len(snames)
+        self.neq = comp.n_equations
+        self.vscale = np.array([_TYPICAL.get(v.quantity, 1.0) for _, v in iface])
+        self.sscale = np.array([_TYPICAL.get(s.quantity, 1.0) for s in comp.states])
+        self.snames = snames
+        ev = comp.evaluate
+        if ev is None:
+            raise NetworkError(f"{comp.describe()}: no evaluate function; assign "
+                               "self.evaluate = self.auto(function) in __init__")
+        if not isinstance(ev, AutoFunction):
+            ev = AutoFunction(ev, "evaluate")
+        self.ev = ev
+        self.ev_args = self._bind(ev, names, snames, special=("t",))
+        up = comp.update_state
+        if self.ns:
+            if up is None:
+                raise NetworkError(f"{comp.describe()}: has states {snames} but no update_state; "
+                                   "assign self.update_state = self.auto_state(function)")
+            if not isinstance(up, AutoFunction):
+                up = AutoFunction(up, "update_state")
+            self.up = up
+            self.up_args = self._bind(up, names, snames, special=("dt",))
+        else:
+            self.up = None
+        self.pattern = tuple((e, k) for e in range(self.neq) for k in range(self.nv))
+        self.ev_v = [k for kind, k in self.ev_args if kind == "v"]
+        self.ev_s = [k for kind, k in self.ev_args if kind == "s"]
+        self.up_v = ([k for kind, k in self.up_args if kind == "v"] if self.up else [])
+
+    def _bind(self, fn, names, snames, special):
+        out = []
+        for a in fn.argnames:
+            if a in special:
+                out.append(("t", 0))
+            elif a in names:
+                out.append(("v", names.index(a)))
+            elif a in snames:
+                out.append(("s", snames.index(a)))
+            else:
+                avail = list(special) + names + snames
+                raise NetworkError(f"{self.comp.describe()}: {fn.kind} argument {a!r} matches no "
+                                   f"variable; available names are {avail}")
+        return out
+
+    # -- calls into user code ---------------------------------------------------------
+    def _call_ev(self, t, v, s):
+        args = [t if kind == "t" else (v[k] if kind == "v" else s[k]) for kind, k in self.ev_args]
+        out = self.ev.func(*args)
+        try:
+            out = np.asarray(out, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise NetworkError(f"{self.comp.describe()}: evaluate must return a list of numbers, "
+                               f"got {out!r}") from None
+        if out.size != self.neq:
+            raise NetworkError(
+                f"{self.comp.describe()}: evaluate returned {out.size} residual(s) but the "
+                f"component has {self.neq} unknown(s) to determine (one per through variable "
+                f"and local variable)")
+        return out
+
+    def _call_up(self, dt, v, s):
+        args = [dt if kind == "t" else (v[k] if kind == "v" else s[k]) for kind, k in self.up_args]
+        out = self.up.func(*args)
+        if isinstance(out, dict):
+            missing = [n for n in self.snames if n not in out]
+            extra = [n for n in out if n not in self.snames]
+            if missing or extra:
+                raise NetworkError(f"{self.comp.describe()}: update_state must return every state "
+                                   f"{self.snames}; missing {missing}, unknown {extra}")
+            return np.array([float(out[n]) for n in self.snames])
+        arr = np.asarray(out, dtype=float).reshape(-1)
+        if arr.size != self.ns:
+            raise NetworkError(f"{self.comp.describe()}: update_state returned {arr.size} values "
+                               f"for {self.ns} state(s)")
+        return arr
+
+    # -- kernel interface ---------------------------------------------------------------
+    def update(self, V, S, dt):
+        if self.up is None:
+            return S
+        return self._call_up(dt, V[0], S[0])[None, :]
+
+    def kernel(self, V, S, t, dt, jac):
+        v = V[0].copy()
+        s_old = S[0]
+        s = self._call_up(dt, v, s_old) if self.up is not None else s_old
+        F = self._call_ev(t, v, s)
+        if not jac:
+            return F[None, :], None
+        J = np.zeros((self.neq, self.nv))
+        for k in self.ev_v:
+            h = _REL * max(abs(v[k]), self.vscale[k])
+            vk = v[k]
+            v[k] = vk + h
+            J[:, k] = (self._call_ev(t, v, s) - F) / h
+            v[k] = vk
+        if self.up is not None and self.ev_s:
+            dFds = np.zeros((self.neq, self.ns))
+            for k in self.ev_s:
+                h = _REL * max(abs(s[k]), self.sscale[k])
+                sp = s.copy()
+                sp[k] += h
+                dFds[:, k] = (self._call_ev(t, v, sp) - F) / h
+            dSdv = np.zeros((self.ns, self.nv))
+            for k in self.up_v:
+                h = _REL * max(abs(v[k]), self.vscale[k])
+                vk = v[k]
+                v[k] = vk + h
+                dSdv[:, k] = (self._call_up(dt, v, s_old) - s) / h
+                v[k] = vk
+            J += dFds @ dSdv
+        return F[None, :], J.reshape(1, -1)
