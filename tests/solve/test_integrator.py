@@ -1,0 +1,167 @@
+"""Time integration: accuracy order, conservation, fixed vs adaptive, breakpoints."""
+import math
+
+import numpy as np
+import pytest
+
+import softflow as sf
+
+P0 = sf.pressure_atmospheric
+
+
+def rc_system(p1=P0 + 1e4, D=0.5e-3, L=1.0, tau=0.1):
+    """Laminar tube charging a linear accumulator with water: an RC circuit."""
+    R = 128 * sf.water.mu * L / (math.pi * D ** 4)   # Pa s / m^3
+    C = tau / R                                       # m^3 / Pa
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=p1)
+    s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=C)
+    s.connect("tube", "src")
+    s.connect("tube", "acc")
+    return s, R * C
+
+
+def rc_exact(t, p1=P0 + 1e4, tau=0.1):
+    return p1 + (P0 - p1) * np.exp(-t / tau)
+
+
+def test_rc_is_laminar_and_matches_exact_solution():
+    s, tau = rc_system()
+    assert tau == pytest.approx(0.1)
+    res = sf.Simulation(s, duration=0.3, step=1e-4).run()
+    p = res.get("acc", "pressure")
+    err = np.max(np.abs(p - rc_exact(res.times))) / 1e4
+    assert err < 2e-3  # backward Euler, dt/tau = 1e-3
+    # Reynolds number stays laminar, so the closed form applies
+    mf = res.get("tube", "massflow", "a")
+    Re = np.abs(mf).max() * 0.5e-3 / (sf.water.mu * math.pi * 0.25e-6 / 4)
+    assert Re < 100
+
+
+def test_implicit_euler_is_first_order():
+    T = 0.3
+    errors, steps = [], []
+    for n in (30, 60, 120, 240, 480):
+        s, _ = rc_system()
+        res = sf.Simulation(s, duration=T, step=T / n).run()
+        assert res.times[-1] == pytest.approx(T, abs=1e-15)
+        assert len(res.times) == n + 1
+        errors.append(abs(res.get("acc", "pressure")[-1] - rc_exact(T)))
+        steps.append(T / n)
+    slope = np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    assert 0.95 < slope < 1.05, (slope, errors)
+
+
+def two_tanks(p_a=3e5, p_b=P0):
+    s = sf.System()
+    s += sf.Container("c1", sf.air, volume=5e-6, initial_pressure=p_a)
+    s += sf.CircularTube("tube", sf.air, length=0.5, diameter=1e-3)
+    s += sf.Container("c2", sf.air, volume=20e-6, initial_pressure=p_b)
+    s.connect("tube", "c1")
+    s.connect("tube", "c2")
+    return s
+
+
+@pytest.mark.parametrize("adaptive", [False, True])
+def test_mass_is_conserved_in_a_closed_network(adaptive):
+    s = two_tanks()
+    sim = sf.Simulation(s, duration=0.2, step=None if adaptive else 1e-3)
+    res = sim.run()
+    m = res.get("c1", "mass") + res.get("c2", "mass")
+    assert np.max(np.abs(m - m[0])) / m[0] < 1e-9
+    # and the tanks equalise
+    p1, p2 = res.get("c1", "pressure")[-1], res.get("c2", "pressure")[-1]
+    assert abs(p1 - p2) < 10.0
+    expected = (3e5 * 5e-6 + P0 * 20e-6) / 25e-6
+    assert p1 == pytest.approx(expected, rel=1e-4)
+
+
+def test_mass_balance_with_a_source_over_a_run():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 0.5e5)
+    for i in range(3):
+        s += sf.CircularTube(f"t{i}", sf.air, length=0.2, diameter=1.5e-3)
+        s += sf.Container(f"c{i}", sf.air, volume=4e-6)
+    s.connect("t0", "src")
+    for i in range(3):
+        s.connect(("t%d" % i, "b"), (f"c{i}", "a"))
+        if i < 2:
+            s.connect((f"c{i}", "a"), (f"t{i + 1}", "a"))
+    res = sf.Simulation(s, duration=0.1).run()
+    stored = sum(res.get(f"c{i}", "mass") for i in range(3))
+    inflow = -res.get("src", "massflow")  # positive into the source
+    dt = np.diff(res.times)
+    supplied = np.concatenate([[0.0], np.cumsum(dt * inflow[1:])])
+    rel = np.max(np.abs((stored - stored[0]) - supplied)) / stored[0]
+    assert rel < 1e-9
+    assert stored[-1] > stored[0] * 1.3
+
+
+def test_adaptive_and_fixed_step_agree():
+    fine = sf.Simulation(two_tanks(), duration=0.1, step=1e-5).run()
+    adapt = sf.Simulation(two_tanks(), duration=0.1, rtol=1e-4).run()
+    p_fine = np.interp(adapt.times, fine.times, fine.get("c2", "pressure"))
+    dev = np.max(np.abs(adapt.get("c2", "pressure") - p_fine)) / (3e5 - P0)
+    assert dev < 5e-3
+    assert adapt.stats["steps"] < 0.2 * fine.stats["steps"]
+
+
+def test_adaptive_tolerance_controls_the_error():
+    ref = sf.Simulation(two_tanks(), duration=0.05, step=2e-6).run()
+    devs = []
+    for rtol in (1e-2, 1e-3, 1e-4):
+        r = sf.Simulation(two_tanks(), duration=0.05, rtol=rtol, step_max=0.05).run()
+        p_ref = np.interp(r.times, ref.times, ref.get("c2", "pressure"))
+        devs.append(np.max(np.abs(r.get("c2", "pressure") - p_ref)))
+    assert devs[0] > devs[1] > devs[2]
+
+
+def stepped(value_before, value_after, t_switch):
+    def f(t):
+        return value_before if t < t_switch else value_after
+    f.breakpoints = (t_switch,)
+    return f
+
+
+@pytest.mark.parametrize("step", [None, 0.003])
+def test_integrator_lands_on_declared_breakpoints(step):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=stepped(P0 + 1e5, P0, 0.0505))
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Container("c", sf.air, volume=5e-6)
+    s.connect("tube", "src")
+    s.connect("tube", "c")
+    res = sf.Simulation(s, duration=0.1, step=step).run()
+    assert 0.0505 in res.times.tolist()
+    i = res.times.tolist().index(0.0505)
+    # backward Euler at the breakpoint uses the value just after it
+    assert res.get("src", "pressure")[i] == pytest.approx(P0)
+    assert res.get("src", "pressure")[i - 1] == pytest.approx(P0 + 1e5)
+
+
+def test_jacobian_reuse_keeps_factorizations_rare():
+    res = sf.Simulation(two_tanks(), duration=0.2, step=1e-3).run()
+    st = res.stats
+    assert st["steps"] == 200
+    assert st["factorizations"] < st["steps"] / 4
+    assert st["newton_iterations"] >= st["steps"]
+
+
+def test_dense_and_sparse_linear_solvers_agree():
+    a = sf.Simulation(two_tanks(), duration=0.05, step=1e-3, linear_solver="dense").run()
+    b = sf.Simulation(two_tanks(), duration=0.05, step=1e-3, linear_solver="sparse").run()
+    assert a.stats["linear_solver"] == "dense" and b.stats["linear_solver"] == "sparse"
+    np.testing.assert_allclose(a.get("c2", "pressure"), b.get("c2", "pressure"), rtol=1e-9)
+
+
+def test_initial_values_are_consistent():
+    s, _ = rc_system()
+    res = sf.Simulation(s, duration=0.01, step=1e-3).run()
+    # t = 0: source pressure imposed, accumulator at its initial pressure,
+    # and the tube flow already follows Poiseuille from that pressure difference
+    assert res.get("src", "pressure")[0] == pytest.approx(P0 + 1e4)
+    assert res.get("acc", "pressure")[0] == pytest.approx(P0)
+    R = 128 * sf.water.mu * 1.0 / (math.pi * (0.5e-3) ** 4)
+    q = res.get("tube", "massflow", "a")[0] / sf.water.rho
+    assert q == pytest.approx(1e4 / R, rel=1e-6)

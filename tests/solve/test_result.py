@@ -1,0 +1,56 @@
+"""Result access and export."""
+import numpy as np
+import pytest
+
+import softflow as sf
+
+
+@pytest.fixture(scope="module")
+def result():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.5, "bar"))
+    s += sf.CircularTube("tube", sf.air, length=sf.Q_(30, "cm"), diameter=sf.Q_(1, "mm"))
+    s += sf.Container("tank", sf.air, volume=sf.Q_(10, "mL"))
+    s.connect("tube", "src")
+    s.connect("tube", "tank")
+    return sf.Simulation(s, duration=sf.Q_(50, "ms"), step=sf.Q_(1, "ms")).run()
+
+
+def test_get_by_label_quantity_and_terminal(result):
+    assert result.success and result.status == "success"
+    p = result.get("tank", "pressure")
+    assert np.array_equal(p, result.get("tank", "p"))
+    assert p[0] == pytest.approx(sf.pressure_atmospheric)
+    a = result.get("tube", "massflow", "a")
+    b = result.get("tube", "mf_b")
+    np.testing.assert_allclose(a, -b, atol=1e-15)
+    with pytest.raises(KeyError, match="ambiguous"):
+        result.get("tube", "pressure")
+    with pytest.raises(KeyError, match="has no variable"):
+        result.get("tank", "temperature")
+    assert np.array_equal(result["tank.mass"], result.get("tank", "mass"))
+
+
+def test_quantities(result):
+    q = result.get("tank", "pressure", as_quantity=True)
+    assert q.to("bar").magnitude[0] == pytest.approx(1.01325)
+    m = result.get("tank", "mass", as_quantity=True)
+    assert str(m.units) == "kilogram"
+
+
+def test_exports(result, tmp_path):
+    d = result.to_dict()
+    assert set(d) >= {"time", "tank.p", "tank.mass", "tube.p_a", "tube.mf_b", "src.mf"}
+    assert len(d["time"]) == 51
+    path = tmp_path / "out.csv"
+    result.to_csv(path)
+    table = sf.read_table(path)
+    np.testing.assert_allclose(table.column("tank.p", "Pa"), d["tank.p"])
+    np.testing.assert_allclose(table.column("time", "ms"), d["time"] * 1e3)
+    df = result.to_dataframe()
+    assert df.index.name == "time" and df.shape == (51, len(d) - 1)
+
+
+def test_component_get_after_run(result):
+    # Simulation.run attaches the result to the components (the paper's API)
+    assert result.get("tank", "p")[-1] > 1.2e5
