@@ -47,13 +47,17 @@ class Table:
         None where the file has no units row.
     data : ndarray (rows, columns)
     path : Path
-    first_data_line : int
-        1-based line number of the first data row.
+    lines : ndarray of int
+        1-based line number in the file of each data row.
     """
 
-    def __init__(self, path, names, units, data, first_data_line):
+    def __init__(self, path, names, units, data, lines):
         self.path, self.names, self.units, self.data = path, names, units, data
-        self.first_data_line = first_data_line
+        self.lines = np.asarray(lines, dtype=np.int64)
+
+    @property
+    def first_data_line(self):
+        return int(self.lines[0])
 
     def index(self, name):
         lowered = [n.strip().lower() for n in self.names]
@@ -93,9 +97,11 @@ def read_table(path) -> Table:
     with open(path, newline="", encoding="utf-8-sig") as fh:
         rows = [(i + 1, [c.strip() for c in row]) for i, row in enumerate(csv.reader(fh))]
     rows = [(n, r) for n, r in rows if any(r)]
+    # data start at the first row whose cells are mostly numbers; a bad cell in
+    # a data row is then reported as such, not mistaken for a header
     header = []
     k = 0
-    while k < len(rows) and not all(_is_number(c) for c in rows[k][1] if c != ""):
+    while k < len(rows) and not _mostly_numeric(rows[k][1]):
         header.append(rows[k])
         k += 1
     body = rows[k:]
@@ -134,7 +140,12 @@ def read_table(path) -> Table:
             except ValueError:
                 raise DataFileError(f"{path}, line {lineno}: column {names[c]!r} holds "
                                     f"{cell!r}, which is not a number") from None
-    return Table(path, names, units, data, body[0][0])
+    return Table(path, names, units, data, [lineno for lineno, _ in body])
+
+
+def _mostly_numeric(cells):
+    filled = [c for c in cells if c != ""]
+    return bool(filled) and 2 * sum(_is_number(c) for c in filled) > len(filled)
 
 
 def _unit_ok(cell):

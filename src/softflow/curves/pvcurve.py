@@ -49,14 +49,14 @@ class PVCurve:
             v = table.column(volume_column, "m**3", default_unit=volume_unit)
             p = table.column(pressure_column, "Pa", default_unit=pressure_unit)
             self.origin = str(Path(source))
-            first_line = table.first_data_line
+            lines = table.lines
         else:
             if volume is None or pressure is None:
                 raise ValueError("PVCurve: give a CSV file, or both volume and pressure")
             v = np.atleast_1d(to_si(volume, "m**3", name="volume", owner="PVCurve"))
             p = np.atleast_1d(to_si(pressure, "Pa", name="pressure", owner="PVCurve"))
             self.origin = "arrays"
-            first_line = None
+            lines = None
         v = np.asarray(v, dtype=float)
         p = np.asarray(p, dtype=float)
         where = f"PVCurve ({self.origin})"
@@ -70,7 +70,7 @@ class PVCurve:
         steps = np.diff(v)
         if (steps <= 0).any():
             i = int(np.argmax(steps <= 0)) + 1
-            loc = (f"line {first_line + i}" if first_line is not None else f"point {i}")
+            loc = f"line {lines[i]}" if lines is not None else f"point {i}"
             raise DataFileError(f"{where}: volume must increase strictly (single-valued p(V)); "
                                 f"it does not at {loc} ({v[i - 1]:.6g} -> {v[i]:.6g} m^3)")
         if self.gauge:

@@ -12,10 +12,33 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.sparse import csc_matrix
-from scipy.sparse.csgraph import maximum_bipartite_matching
+from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
+from scipy.sparse.linalg import splu
 
 from ..network.system import NetworkError
 from .userkernel import UserKernel
+
+
+def _is_regular(A):
+    """Numerical regularity after row and column equilibration (rows of the
+    Jacobian differ by many orders of magnitude: kg vs Pa)."""
+    from scipy.sparse import diags
+    A = A.tocsr()
+    r = np.asarray(abs(A).max(axis=1).todense()).ravel()
+    if (r == 0).any():
+        return False
+    A = diags(1.0 / r) @ A
+    c = np.asarray(abs(A).max(axis=0).todense()).ravel()
+    if (c == 0).any():
+        return False
+    A = (A @ diags(1.0 / c)).tocsc()
+    try:
+        with np.errstate(all="ignore"):
+            lu = splu(A, permc_spec="COLAMD")
+    except RuntimeError:
+        return False
+    d = np.abs(lu.U.diagonal())
+    return bool(d.size == 0 or d.min() > 1e-12)
 
 
 class Group:
@@ -220,6 +243,37 @@ class Assembly:
                 f"any equation ({', '.join(free[:5])}) while some equations have nothing to "
                 f"determine ({'; '.join(rows)}). Look for floating sub-networks or "
                 "components without a pressure or flow reference")
+
+    def check_nonsingular(self, dt):
+        """Factor the Jacobian once at the initial values; if it is singular, name
+        the components of each independent sub-network whose block is singular
+        (e.g. a closed loop of liquid with nothing fixing its pressure)."""
+        with np.errstate(all="ignore"):
+            self.residual(self.x0, self.S0, 0.0, dt, jac=True)
+        A = self.jacobian_csc()
+        if not np.isfinite(A.data).all():
+            return  # reported with time and equation by the first Newton solve
+        if _is_regular(A):
+            return
+        sym = (abs(A) + abs(A).T).tocsr()
+        n_blocks, label = connected_components(sym, directed=False)
+        culprits = []
+        for b in range(n_blocks):
+            idx = np.flatnonzero(label == b)
+            if _is_regular(A[idx][:, idx].tocsc()):
+                continue
+            comps = []
+            for r in idx:
+                c, _ = self.component_of_row(int(r))
+                if c is not None and c not in comps:
+                    comps.append(c)
+            culprits.append(comps)
+        if culprits:
+            names = "; ".join(", ".join(c) for c in culprits)
+            raise NetworkError(
+                f"the network equations are singular in the sub-network(s) of: {names}. "
+                "Something there is undetermined: typically a closed loop of incompressible "
+                "fluid with no pressure reference, or a floating sub-network")
 
     def describe_row(self, row):
         return self.row_names[row]

@@ -22,21 +22,27 @@ class StepFailure(Exception):
 
 
 class Recorder:
-    """Accepted steps, kept in lists and stacked once at the end."""
+    """Accepted steps, written into preallocated arrays that grow by doubling
+    (no stacking of a list of rows at the end: for large networks that copy
+    alone cost as much as the solve)."""
 
-    def __init__(self):
-        self.t, self.x, self.s = [], [], []
+    def __init__(self, n, ns, capacity=64):
+        self.t = []
+        self._X = np.empty((capacity, n))
+        self._S = np.empty((capacity, ns))
 
     def add(self, t, x, s):
+        k = len(self.t)
+        if k == len(self._X):
+            self._X = np.concatenate([self._X, np.empty_like(self._X)])
+            self._S = np.concatenate([self._S, np.empty_like(self._S)])
+        self._X[k] = x
+        self._S[k] = s
         self.t.append(t)
-        self.x.append(x)
-        self.s.append(s)
 
-    def arrays(self, n, ns):
-        t = np.array(self.t, dtype=float)
-        X = np.array(self.x, dtype=float).reshape(len(self.t), n)
-        S = np.array(self.s, dtype=float).reshape(len(self.t), ns)
-        return t, X, S
+    def arrays(self):
+        k = len(self.t)
+        return np.array(self.t, dtype=float), self._X[:k], self._S[:k]
 
 
 class ImplicitEuler:
@@ -54,7 +60,8 @@ class ImplicitEuler:
         self.rtol = rtol
         self.atol_s = atol_states
         self.breaks = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
-        self.rec = Recorder()
+        n_expected = int(duration / step) + 2 + len(self.breaks) if step else 256
+        self.rec = Recorder(asm.n, len(asm.S0), capacity=min(max(n_expected, 16), 100_000))
         self.forced_steps = 0
 
     def _next_break(self, t):

@@ -30,26 +30,33 @@ class Result:
         self.status = status
         self.message = message
         self.stats = dict(stats or {})
-        self._index = {}
-        self._components = {}
-        for g in asm.groups:
-            for i, c in enumerate(g.comps):
-                self._components[c.label] = c
-                entries = []
-                for k, (term, v) in enumerate(c.interface_variables()):
-                    entries.append((v.label, v.quantity, term, "x", int(g.col[i, k])))
-                for j, sv in enumerate(c.states):
-                    entries.append((sv.label, sv.quantity, None, "s", g.s0 + i * g.ns + j))
-                self._index[c.label] = entries
+        # where each component lives; its variable index is built on first access
+        self._where = {c.label: (g, i) for g in asm.groups for i, c in enumerate(g.comps)}
+        self._entries = {}
+
+    def _component_entries(self, label):
+        if label not in self._entries:
+            if label not in self._where:
+                raise KeyError(f"no component {label!r} in this result")
+            g, i = self._where[label]
+            c = g.comps[i]
+            entries = [(v.label, v.quantity, term, "x", int(g.col[i, k]))
+                       for k, (term, v) in enumerate(c.interface_variables())]
+            entries += [(sv.label, sv.quantity, None, "s", g.s0 + i * g.ns + j)
+                        for j, sv in enumerate(c.states)]
+            self._entries[label] = entries
+        return self._entries[label]
+
+    def _component(self, label):
+        g, i = self._where[label]
+        return g.comps[i]
 
     @property
     def success(self):
         return self.status == "success"
 
     def _entry(self, label, name, terminal):
-        if label not in self._index:
-            raise KeyError(f"no component {label!r} in this result")
-        entries = self._index[label]
+        entries = self._component_entries(label)
         by_label = [e for e in entries if e[0] == name or f"{e[0]}_{e[2]}" == name]
         cands = by_label or [e for e in entries if e[1] == name]
         if terminal is not None:
@@ -57,7 +64,7 @@ class Result:
         if len(cands) == 1:
             return cands[0]
         if not cands:
-            outs = self._components[label].outputs()
+            outs = self._component(label).outputs()
             if name in outs and terminal is None:
                 return ("output", name)
             names = sorted({e[0] for e in entries} | {e[1] for e in entries} | set(outs))
@@ -72,7 +79,7 @@ class Result:
         """Values of variable ``name`` (label, quantity or output name) of component ``label``."""
         e = self._entry(label, name, terminal)
         if e[0] == "output":
-            quantity, fn = self._components[label].outputs()[name]
+            quantity, fn = self._component(label).outputs()[name]
             values = np.asarray(fn(lambda n, term=None: self.get(label, n, term)), dtype=float)
         else:
             _, quantity, _, where, idx = e
@@ -89,7 +96,8 @@ class Result:
     def columns(self):
         """Unique column names ``component.variable[_terminal]`` of every variable."""
         cols = []
-        for label, entries in self._index.items():
+        for label in self._where:
+            entries = self._component_entries(label)
             counts = {}
             for e in entries:
                 counts[e[0]] = counts.get(e[0], 0) + 1

@@ -43,8 +43,9 @@ class Simulation:
         Relative tolerance of the adaptive error test.
     atol : dict, optional
         Absolute tolerances per quantity name, SI (see DEFAULT_ATOL).
-    newton_rtol : float, default 1e-7
-        Relative tolerance of the Newton iteration (absolute ones are atol·1e-3).
+    newton_rtol : float, default 1e-6
+        Relative tolerance of the Newton iteration, with respect to the typical
+        magnitude of each quantity in the network (absolute floors atol·1e-3).
     linear_solver : {'auto', 'dense', 'sparse'}
         'auto' uses dense LU up to 100 unknowns, SuperLU above.
     breakpoints : sequence of float [s]
@@ -55,7 +56,7 @@ class Simulation:
     """
 
     def __init__(self, system, duration=1.0, step=None, *, adaptive=None, step_min=None,
-                 step_max=None, rtol=1e-3, atol=None, newton_rtol=1e-7, linear_solver="auto",
+                 step_max=None, rtol=1e-3, atol=None, newton_rtol=1e-6, linear_solver="auto",
                  breakpoints=(), allow_unconnected=False):
         owner = "Simulation"
         self.system = system
@@ -84,6 +85,7 @@ class Simulation:
         self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
                                  for b in breakpoints)
         self.asm = Assembly(system, allow_unconnected=allow_unconnected)
+        self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
         self.linear_solver_kind = linear_solver
         self.result = None
 
@@ -130,7 +132,7 @@ class Simulation:
         except NetworkError as err:
             t = integ.rec.t[-1] if integ.rec.t else 0.0
             error = SimulationError(f"after t = {t:.6g} s: {err}", time=t)
-        t, X, S = integ.rec.arrays(asm.n, len(asm.S0))
+        t, X, S = integ.rec.arrays()
         info = stats.as_dict()
         info["forced_steps"] = integ.forced_steps
         info["linear_solver"] = lin.kind
