@@ -29,9 +29,11 @@ import io
 import sys
 import time
 
+from pathlib import Path
+
 import numpy as np
 
-DEFAULT_PV_CSV = "/work/shared/data/latex_balloon_60mm_pv.csv"
+DEFAULT_PV_CSV = str(Path(__file__).resolve().parents[1] / "examples" / "latex_balloon_60mm_pv.csv")
 
 
 def _import_fonsim():

@@ -78,7 +78,10 @@ class CircularTube(LibraryComponent):
         else:
             rho = fl.rho
         Re = np.abs(mfa) * P.re_per_mf
-        phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi)
+        if Re.max() <= P.Re_lo:   # all laminar: f Re = 64 exactly, skip Haaland
+            phi, dphi = 64.0, 0.0
+        else:
+            phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi)
         c = P.c_mu / rho
         dp_fric = c * phi * mfa
         F = np.empty((P.n, 2))

@@ -3,11 +3,14 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg.lapack import dgetrs
 from scipy.sparse import csc_matrix
 from scipy.sparse.linalg import splu
 
-#: Below this many unknowns a dense LU beats SuperLU (see benchmarks/README.md).
-DENSE_MAX = 100
+#: Up to this many unknowns a dense LU is at least as fast as SuperLU: measured
+#: on chains (benchmarks/bench_linear_solver.py), dense wins 1.03-1.2x up to 130
+#: unknowns and loses 2x at 146 (the n^3 factorization takes over).
+DENSE_MAX = 128
 
 
 class SingularJacobian(RuntimeError):
@@ -38,7 +41,10 @@ class DenseLU:
         self.row_scale = 1.0 / np.maximum(np.abs(J).max(axis=1), 1e-300)
 
     def solve(self, b):
-        return sla.lu_solve(self.lu, b, check_finite=False)
+        # LAPACK getrs directly: scipy.linalg.lu_solve's checks cost more than
+        # the solve itself for the small systems this class serves
+        x, info = dgetrs(self.lu[0], self.lu[1], b)
+        return x
 
 
 class SparseLU:

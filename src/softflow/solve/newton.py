@@ -68,10 +68,11 @@ class Newton:
         self.stats = stats
         self.rtol = rtol
         self.atol = np.asarray(atol, dtype=float)
-        groups = {}
-        for i, q in enumerate(asm.x_quantity):
-            groups.setdefault(q, []).append(i)
-        self.quantity_groups = [np.array(ix, dtype=np.int64) for ix in groups.values()]
+        names = sorted(set(asm.x_quantity))
+        qid = np.array([names.index(q) for q in asm.x_quantity], dtype=np.int64)
+        self._q_order = np.argsort(qid, kind="stable")
+        self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
+        self._qid = qid
         self.tol = self.atol.copy()
         if max_reuse_iter is None:
             max_reuse_iter = 6 if lin.kind == "sparse" else 4
@@ -104,8 +105,9 @@ class Newton:
     def _set_scale(self, x):
         """Per-unknown tolerances for this solve (see module docstring)."""
         mag = np.abs(x)
-        for ix in self.quantity_groups:
-            mag[ix] = np.maximum(mag[ix], mag[ix].max())
+        if mag.size:
+            qmax = np.maximum.reduceat(mag[self._q_order], self._q_starts)
+            mag = np.maximum(mag, qmax[self._qid])
         self.tol = self.atol + self.rtol * mag
 
     def _norm(self, dx, x):
@@ -199,17 +201,23 @@ class Newton:
                        self._worst_row(F))
 
     def _full(self, x0, S, t, dt):
+        """Damped Newton. The factors are kept for the next iteration only when the
+        last full step cut the scaled residual by 4x or more (Shamanskii's
+        variant): far from the solution every iteration refactors, close to it
+        the factorizations are saved."""
         x = x0.copy()
         F = self._eval(x, S, t, dt, jac=True)
         if not np.isfinite(F).all():
             return Outcome(False, x, 0, "residual not finite", int(np.argmax(~np.isfinite(F))))
+        refactor = True
         for k in range(self.max_iter * 2):
-            try:
-                self._factor(dt)
-            except SingularJacobian as err:
-                return Outcome(False, x, k, f"singular Jacobian ({err.args[0]})",
-                               err.args[1] if len(err.args) > 1 else None)
-            rs = self.lin.row_scale
+            if refactor:
+                try:
+                    self._factor(dt)
+                except SingularJacobian as err:
+                    return Outcome(False, x, k, f"singular Jacobian ({err.args[0]})",
+                                   err.args[1] if len(err.args) > 1 else None)
+                rs = self.lin.row_scale
             f0 = float(np.linalg.norm(F * rs))
             dx = -self.lin.solve(F)
             self.stats.newton_iterations += 1
@@ -220,12 +228,20 @@ class Newton:
             while True:
                 xn = x + lam * dx
                 Fn = self._eval(xn, S, t, dt, jac=True)
-                if np.isfinite(Fn).all() and np.linalg.norm(Fn * rs) <= (1 - 1e-4 * lam) * f0:
+                f1 = np.linalg.norm(Fn * rs) if np.isfinite(Fn).all() else np.inf
+                if f1 <= (1 - 1e-4 * lam) * f0:
+                    break
+                if not refactor:   # stale factors gave no descent: refactor here first
                     break
                 lam *= 0.5
                 if lam < 1e-4:
                     return Outcome(False, x, k + 1, "line search failed: no decrease of the "
                                    "residual along the Newton direction", self._worst_row(F))
+            if not refactor and not f1 <= (1 - 1e-4) * f0:
+                refactor = True   # retry this iterate with a Jacobian evaluated at x
+                self._eval(x, S, t, dt, jac=True)
+                continue
+            refactor = lam < 1.0 or f1 > 0.25 * f0
             x, F = xn, Fn
         return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
                        self._worst_row(F))

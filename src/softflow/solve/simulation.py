@@ -47,7 +47,7 @@ class Simulation:
         Relative tolerance of the Newton iteration, with respect to the typical
         magnitude of each quantity in the network (absolute floors atol·1e-3).
     linear_solver : {'auto', 'dense', 'sparse'}
-        'auto' uses dense LU up to 100 unknowns, SuperLU above.
+        'auto' uses dense LU up to 128 unknowns, SuperLU above.
     breakpoints : sequence of float [s]
         Extra times the integrator must land on (input discontinuities);
         components' waveforms declare theirs themselves.
