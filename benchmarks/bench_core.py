@@ -130,6 +130,13 @@ def bench_chain(Ns, repeat, fonsim, duration=0.2):
         sim = sf.Simulation(chain(N), duration=duration, step=1e-3)
         t_build = time.perf_counter() - t0
         t_run, _ = timed(sim.run, rep)
+        if N >= 10_000:
+            # the same run keeping only the ends of the chain (Simulation(record=...))
+            sim_r = sf.Simulation(chain(N), duration=duration, step=1e-3,
+                                  record=["source", "cont0", f"cont{N - 1}"])
+            t_rec, _ = timed(sim_r.run, rep)
+            print(f"  {N:>7} recording 3 components only: run {t_rec:.3f}s, "
+                  f"{sim_r.result.stats['steps'] / t_rec:,.0f} steps/s")
         st = sim.result.stats
         t_it = t_run / st["newton_iterations"]
         floor = splu_floor(sim)

@@ -54,3 +54,24 @@ def test_exports(result, tmp_path):
 def test_component_get_after_run(result):
     # Simulation.run attaches the result to the components (the paper's API)
     assert result.get("tank", "p")[-1] > 1.2e5
+
+
+def test_record_keeps_only_the_chosen_components():
+    def build():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=2e5)
+        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+        s += sf.Container("tank", sf.air, volume=1e-5)
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        return s
+    full = sf.Simulation(build(), duration=0.02, step=1e-3).run()
+    part = sf.Simulation(build(), duration=0.02, step=1e-3, record=["tank"]).run()
+    np.testing.assert_array_equal(part.get("tank", "pressure"), full.get("tank", "pressure"))
+    np.testing.assert_array_equal(part.get("tank", "mass"), full.get("tank", "mass"))
+    assert part.X.shape[1] == 2 and part.S.shape[1] == 1
+    with pytest.raises(KeyError, match="record"):
+        part.get("tube", "massflow", "a")
+    with pytest.raises(KeyError, match="unknown component"):
+        sf.Simulation(build(), duration=0.02, record=["nope"])
+    assert set(part.to_dict()) == {"time", "tank.p", "tank.mf", "tank.mass"}

@@ -26,8 +26,11 @@ class Recorder:
     (no stacking of a list of rows at the end: for large networks that copy
     alone cost as much as the solve)."""
 
-    def __init__(self, n, ns, capacity=64):
+    def __init__(self, x_index, s_index, capacity=64):
         self.t = []
+        self.x_index, self.s_index = x_index, s_index   # None: everything
+        n = x_index if isinstance(x_index, int) else len(x_index)
+        ns = s_index if isinstance(s_index, int) else len(s_index)
         self._X = np.empty((capacity, n))
         self._S = np.empty((capacity, ns))
 
@@ -36,8 +39,8 @@ class Recorder:
         if k == len(self._X):
             self._X = np.concatenate([self._X, np.empty_like(self._X)])
             self._S = np.concatenate([self._S, np.empty_like(self._S)])
-        self._X[k] = x
-        self._S[k] = s
+        self._X[k] = x if isinstance(self.x_index, int) else x[self.x_index]
+        self._S[k] = s if isinstance(self.s_index, int) else s[self.s_index]
         self.t.append(t)
 
     def arrays(self):
@@ -50,7 +53,7 @@ class ImplicitEuler:
     adaptive step (error control on the states, step rejection and retry)."""
 
     def __init__(self, asm, newton, stats, *, duration, step, adaptive, step_min, step_max,
-                 rtol, atol_states, breakpoints=()):
+                 rtol, atol_states, breakpoints=(), record=None):
         self.asm, self.newton, self.stats = asm, newton, stats
         self.T = duration
         self.step = step
@@ -61,7 +64,9 @@ class ImplicitEuler:
         self.atol_s = atol_states
         self.breaks = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
         n_expected = int(duration / step) + 2 + len(self.breaks) if step else 256
-        self.rec = Recorder(asm.n, len(asm.S0), capacity=min(max(n_expected, 16), 100_000))
+        # record: (unknown indices, state indices) to keep, or None for all (given as sizes)
+        x_index, s_index = record if record is not None else (asm.n, len(asm.S0))
+        self.rec = Recorder(x_index, s_index, capacity=min(max(n_expected, 16), 100_000))
         self.forced_steps = 0
 
     def _next_break(self, t):

@@ -23,7 +23,8 @@ class Result:
         factorizations, ...
     """
 
-    def __init__(self, asm, times, X, S, status="success", message="", stats=None):
+    def __init__(self, asm, times, X, S, status="success", message="", stats=None,
+                 recorded=None):
         self.times = times
         self.X = X
         self.S = S
@@ -33,16 +34,28 @@ class Result:
         # where each component lives; its variable index is built on first access
         self._where = {c.label: (g, i) for g in asm.groups for i, c in enumerate(g.comps)}
         self._entries = {}
+        # column of X (S) holding each unknown (state); -1 where it was not recorded
+        if recorded is None:
+            self._xcol = np.arange(asm.n)
+            self._scol = np.arange(len(asm.S0))
+        else:
+            self._xcol = np.full(asm.n, -1)
+            self._xcol[recorded[0]] = np.arange(len(recorded[0]))
+            self._scol = np.full(len(asm.S0), -1)
+            self._scol[recorded[1]] = np.arange(len(recorded[1]))
+            self._where = {k: v for k, v in self._where.items()
+                           if all(self._xcol[j] >= 0 for j in v[0].col[v[1]])}
 
     def _component_entries(self, label):
         if label not in self._entries:
             if label not in self._where:
-                raise KeyError(f"no component {label!r} in this result")
+                raise KeyError(f"no component {label!r} in this result (not in the system, "
+                               "or not among Simulation(record=...))")
             g, i = self._where[label]
             c = g.comps[i]
-            entries = [(v.label, v.quantity, term, "x", int(g.col[i, k]))
+            entries = [(v.label, v.quantity, term, "x", int(self._xcol[g.col[i, k]]))
                        for k, (term, v) in enumerate(c.interface_variables())]
-            entries += [(sv.label, sv.quantity, None, "s", g.s0 + i * g.ns + j)
+            entries += [(sv.label, sv.quantity, None, "s", int(self._scol[g.s0 + i * g.ns + j]))
                         for j, sv in enumerate(c.states)]
             self._entries[label] = entries
         return self._entries[label]
