@@ -18,7 +18,11 @@ def balloon_csv():
 
 
 class PaperActuator(sf.Component):
-    """The paper's user-written actuator: p = PV(mass / rho), dm/dt = mf."""
+    """The paper's user-written actuator: p = PV(mass / rho), dm/dt = mf.
+
+    Parameters: label : str; fluid : Fluid; pvcurve : PVCurve;
+    initial_mass : float [kg] (1 g, as in the paper's listing).
+    """
 
     def __init__(self, label, fluid, pvcurve, initial_mass=1e-3):
         super().__init__(label)

@@ -166,7 +166,8 @@ def test_no_overshoot_keeps_peak_and_valley(balloon):
 # construction from arrays
 # ---------------------------------------------------------------------------------------
 def test_from_quantity_arrays():
-    curve = sf.PVCurve(volume=sf.Q_([1, 2, 3], "ml"), pressure=sf.Q_([0, 100, 150], "mbar"))
+    curve = sf.PVCurve(volume=sf.Q_([1, 2, 3], "ml"), pressure=sf.Q_([0, 100, 150], "mbar"),
+                       gauge=True)
     np.testing.assert_allclose(curve.volume, [1e-6, 2e-6, 3e-6], rtol=1e-12)
     np.testing.assert_allclose(curve.pressure, P0 + np.array([0.0, 1e4, 1.5e4]), rtol=1e-12)
     assert curve(2e-6) == pytest.approx(P0 + 1e4, rel=1e-14)
@@ -181,7 +182,7 @@ def test_from_plain_si_arrays_absolute():
 
 
 def test_two_point_curve_is_linear():
-    curve = sf.PVCurve(volume=[1e-6, 3e-6], pressure=[0.0, 2e4])
+    curve = sf.PVCurve(volume=[1e-6, 3e-6], pressure=[0.0, 2e4], gauge=True)
     x = np.linspace(0, 4e-6, 9)
     np.testing.assert_allclose(curve(x), P0 + 1e10 * (x - 1e-6), rtol=1e-12)
 
@@ -286,3 +287,17 @@ def test_source_and_arrays_are_exclusive():
         sf.PVCurve(volume=[1e-6, 2e-6])
     with pytest.raises(ValueError):
         sf.PVCurve()
+
+
+def test_arrays_are_absolute_unless_gauge_is_named():
+    curve = sf.PVCurve(volume=[1e-6, 3e-6], pressure=[1.2e5, 1.3e5])
+    np.testing.assert_array_equal(curve.pressure, [1.2e5, 1.3e5])
+
+
+def test_fdf_volume_accepts_quantities():
+    curve = sf.PVCurve(volume=[1e-6, 3e-6], pressure=[1.2e5, 1.3e5])
+    p, dp = curve.fdf_volume(sf.Q_(2, "mL"))
+    assert p == pytest.approx(1.25e5)
+    assert curve(sf.Q_([1, 3], "mL")) == pytest.approx([1.2e5, 1.3e5])
+    with pytest.raises(sf.UnitError, match="volume"):
+        curve(sf.Q_(2, "bar"))

@@ -543,3 +543,49 @@ def test_component_variable_names_disambiguate_repeated_labels():
 def test_component_get_before_run():
     with pytest.raises(RuntimeError, match="no results yet"):
         Balloon("b").get("pressure")
+
+
+def test_user_exception_mid_run_keeps_partial_results():
+    class Bomb(sf.Component):
+        def __init__(self, label):
+            super().__init__(label)
+            self.set_terminals(sf.Terminal("a", [sf.Variable("pressure", "across", label="p"),
+                                                 sf.Variable("massflow", "through", label="mf")]))
+
+            def evaluate(t, mf):
+                if t > 0.0045:
+                    raise ZeroDivisionError("boom")
+                return [mf]
+            self.evaluate = self.auto(evaluate)
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=2e5)
+    s += sf.CircularTube("tube", sf.water, length=0.1, diameter=1e-3)
+    s += Bomb("bomb")
+    s.connect("tube", "src")
+    s.connect("tube", "bomb")
+    sim = sf.Simulation(s, duration=0.01, step=1e-3)
+    with pytest.raises(sf.SimulationError, match="ZeroDivisionError: boom") as info:
+        sim.run()
+    assert info.value.result is sim.result
+    assert sim.result.status == "failed"
+    assert sim.result.times[-1] == pytest.approx(0.004)
+
+
+def test_volume_joined_directly_to_a_pressure_source_is_reported_at_creation():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=2e5)
+    s += sf.Container("tank", sf.air, volume=1e-5)
+    s.connect("src", "tank")
+    with pytest.raises(sf.NetworkError, match="initial values at t = 0.*tank"):
+        sf.Simulation(s, duration=0.1)
+
+
+def test_fixed_stepping_without_a_step_is_refused():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=2e5)
+    s += sf.CircularTube("tube", sf.water, length=0.1, diameter=1e-3)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=1e-12)
+    s.connect("tube", "src")
+    s.connect("tube", "acc")
+    with pytest.raises(ValueError, match="adaptive=False needs a step"):
+        sf.Simulation(s, duration=0.1, adaptive=False)

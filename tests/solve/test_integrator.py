@@ -135,9 +135,28 @@ def test_integrator_lands_on_declared_breakpoints(step):
     res = sf.Simulation(s, duration=0.1, step=step).run()
     assert 0.0505 in res.times.tolist()
     i = res.times.tolist().index(0.0505)
-    # backward Euler at the breakpoint uses the value just after it
-    assert res.get("src", "pressure")[i] == pytest.approx(P0)
-    assert res.get("src", "pressure")[i - 1] == pytest.approx(P0 + 1e5)
+    # the step that ends on the breakpoint still sees the input before the switch;
+    # the one that starts there sees the new value (no switch one step early)
+    p = res.get("src", "pressure")
+    assert p[i] == pytest.approx(P0 + 1e5)
+    assert p[i + 1] == pytest.approx(P0)
+    # so the tank keeps filling up to the breakpoint
+    tank = res.get("c", "pressure")
+    assert tank[i] > tank[i - 1]
+
+
+def test_breakpoint_on_a_grid_point_given_as_another_float():
+    # 0.3 is not 3 * 0.1 in floating point; the grid must not land twice
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=stepped(P0 + 1e5, P0, 0.3))
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Container("c", sf.air, volume=5e-6)
+    s.connect("tube", "src")
+    s.connect("tube", "c")
+    res = sf.Simulation(s, duration=0.5, step=0.1).run()
+    assert len(res.times) == 6
+    assert np.all(np.diff(res.times) > 0.09)
+    assert res.stats["rejected_steps"] == 0
 
 
 def test_jacobian_reuse_keeps_factorizations_rare():

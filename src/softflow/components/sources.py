@@ -16,7 +16,8 @@ class _Signal:
         self.name, self.unit, self.owner = name, unit, owner
         if callable(value):
             self.func = value
-            self.breaks = tuple(getattr(value, "breakpoints", ()))
+            self.breaks = tuple(to_si(b, "s", name=f"{name}.breakpoints", owner=owner)
+                                for b in getattr(value, "breakpoints", ()))
             self(0.0)  # validate units and output once, at construction
         else:
             c = to_si(value, unit, name=name, owner=owner)
@@ -30,6 +31,9 @@ class _Signal:
         v = self.func(t)
         if not isinstance(v, float):
             v = to_si(v, self.unit, name=f"{self.name}(t={t:g})", owner=self.owner)
+            if not isinstance(v, float):
+                raise ValueError(f"{self.owner}: {self.name}(t) must return a scalar, "
+                                 f"got an array of shape {np.shape(v)} at t = {t:g} s")
         return v
 
 
@@ -57,9 +61,6 @@ class _Source(LibraryComponent):
     @classmethod
     def make_params(cls, components):
         return _SourceParams(components)
-
-    def group_key(self):
-        return (type(self), id(self.fluid))
 
 
 class PressureSource(_Source):
@@ -123,16 +124,9 @@ class VolumeFlowSource(_Source):
     jac_pattern = ((0, 0), (0, 1))
 
     def __init__(self, label, volumeflow, fluid):
-        super().__init__(label, fluid=self._check_fluid_static(label, fluid))
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
         self.signal = _Signal(volumeflow, "m**3/s", "volumeflow", self.describe())
-
-    @staticmethod
-    def _check_fluid_static(label, fluid):
-        from ..fluids.base import Fluid
-        if not isinstance(fluid, Fluid):
-            raise TypeError(f"VolumeFlowSource {label!r}: fluid must be a softflow Fluid, "
-                            f"got {fluid!r}")
-        return fluid
 
     @classmethod
     def kernel(cls, P, V, S, t, dt, jac):

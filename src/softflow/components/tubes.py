@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..constants import pressure_atmospheric
 from ..correlations.friction import fRe_blended
 from .base import FLUID_PORT, LibraryComponent
 
@@ -59,7 +60,7 @@ class CircularTube(LibraryComponent):
         P = super().make_params(components)
         P.area = np.pi * P.diameter ** 2 / 4.0
         P.eD = P.roughness / P.diameter
-        P.mu = P.fluid.viscosity(np.full(P.n, 1e5))
+        P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
         P.Re_lo = float(P.Re_laminar[0])
         P.Re_hi = float(P.Re_turbulent[0])
         # Re = |mdot| * re_per_mf ; dp = c_mu/rho * (fRe) * mdot

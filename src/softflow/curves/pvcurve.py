@@ -29,19 +29,20 @@ class PVCurve:
         Volumes, strictly increasing (instead of ``source``).
     pressure : array_like [Pa] or Quantity, optional
         Pressures at those volumes (instead of ``source``).
-    gauge : bool, default True
-        The given pressures are gauge (relative to 1 atm), as measured PV
-        data usually are; False means absolute.
+    gauge : bool, optional
+        The given pressures are gauge (relative to 1 atm). Default: True for a
+        CSV file (measured PV data usually are gauge), False for arrays
+        (softflow's convention is absolute pressure).
     volume_column, pressure_column : str
         Column names in the CSV file (case-insensitive).
     volume_unit, pressure_unit : str, optional
         Units of the columns if the file has no units row.
     """
 
-    def __init__(self, source=None, volume=None, pressure=None, *, gauge=True,
+    def __init__(self, source=None, volume=None, pressure=None, *, gauge=None,
                  volume_column="Volume", pressure_column="Pressure",
                  volume_unit=None, pressure_unit=None):
-        self.gauge = bool(gauge)
+        self.gauge = (source is not None) if gauge is None else bool(gauge)
         if source is not None:
             if volume is not None or pressure is not None:
                 raise ValueError("PVCurve: give either a CSV file or volume and pressure arrays")
@@ -87,7 +88,12 @@ class PVCurve:
         return self.fdf_volume(volume)[0]
 
     def fdf_volume(self, volume):
-        """Absolute pressure [Pa] and its derivative dp/dV [Pa/m^3] at ``volume`` [m^3]."""
+        """Absolute pressure [Pa] and its derivative dp/dV [Pa/m^3] at ``volume`` [m^3]
+        (a float, an array or a pint Quantity)."""
+        if isinstance(volume, float):
+            return self._scalar(volume)
+        if not isinstance(volume, int):
+            volume = to_si(volume, "m**3", name="volume", owner="PVCurve.fdf_volume")
         if isinstance(volume, (float, int)):
             return self._scalar(float(volume))
         vol = np.asarray(volume, dtype=float)

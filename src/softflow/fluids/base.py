@@ -45,6 +45,3 @@ class Fluid:
     def __repr__(self):
         return f"<{type(self).__name__} {self.name!r}>"
 
-
-def as_array(x):
-    return np.asarray(x, dtype=float)

@@ -33,7 +33,9 @@ class IdealGas(Fluid):
         self.temperature = to_si(temperature, "K", name="temperature", owner=owner)
         if self.temperature <= 0:
             raise ValueError(f"{owner}: temperature must be > 0 K, got {self.temperature}")
-        self.gamma = float(gamma)
+        self.gamma = to_si(gamma, "", name="gamma", owner=owner)
+        if not (self.molar_mass > 0 and self.mu > 0 and self.gamma > 1):
+            raise ValueError(f"{owner}: need molar_mass > 0, viscosity > 0 and gamma > 1")
         self.R = gas_constant / self.molar_mass
         self._RT = self.R * self.temperature
 

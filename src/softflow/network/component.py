@@ -72,12 +72,13 @@ class Component:
         """Declare the component's terminals (Terminal objects), in order."""
         if len(terminals) == 1 and isinstance(terminals[0], (list, tuple)):
             terminals = tuple(terminals[0])
+        for t in terminals:
+            if not isinstance(t, Terminal):
+                raise TypeError(f"{self.describe()}: set_terminals expects Terminal objects, got {t!r}")
         labels = [t.label for t in terminals]
         if len(set(labels)) != len(labels):
             raise ValueError(f"{self.describe()}: duplicate terminal labels {labels}")
         for t in terminals:
-            if not isinstance(t, Terminal):
-                raise TypeError(f"{self.describe()}: set_terminals expects Terminal objects, got {t!r}")
             t.component = self
         self.terminals = list(terminals)
 

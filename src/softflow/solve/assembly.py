@@ -64,7 +64,6 @@ def _library_group(cls, comps):
               update=lambda V, S, dt: cls.update(P, V, S, dt),
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
-    g.params = P
     return g
 
 
@@ -82,7 +81,6 @@ class Assembly:
         comps = list(system.components)
         if not comps:
             raise NetworkError("System is empty: add components before simulating")
-        self.system = system
         unconnected = system.unconnected_terminals()
         if unconnected and not allow_unconnected:
             names = ", ".join(t.name for t in unconnected)
@@ -130,7 +128,6 @@ class Assembly:
         # unknown indices per component interface variable
         through_rows, through_cols = [], []
         initial = {}
-        x_owner = {}  # unknown index -> (component label, variable label, terminal)
         for g in self.groups:
             col = np.empty((g.n, len(g.comps[0].interface_variables())), dtype=np.int64)
             for i, c in enumerate(g.comps):
@@ -145,7 +142,6 @@ class Assembly:
                         where = f"{c.label}.{term}" if term else c.label
                         names.append(f"{where} {v.label}")
                         quantities.append(v.quantity)
-                        x_owner[idx] = c.label
                         if v.initial_value is not None:
                             initial[idx] = v.initial_value
                         if v.role == "through":
@@ -157,7 +153,6 @@ class Assembly:
         self.n = len(names)
         self.x_names = names
         self.x_quantity = quantities
-        self.x_owner = x_owner
         self.through_rows = np.array(through_rows, dtype=np.int64)
         self.through_cols = np.array(through_cols, dtype=np.int64)
         self.x0 = np.zeros(self.n)
@@ -193,9 +188,12 @@ class Assembly:
         self.s_names = s_names
         self.s_quantity = s_quantity
         if self.n_rows != self.n:
+            odd = [nd.name for nd in nodes
+                   if len(nd.quantities("across")) != len(nd.quantities("through"))]
             raise NetworkError(
                 f"the network has {self.n} unknowns but {self.n_rows} equations; every node "
-                "needs as many through quantities (conservation laws) as across quantities")
+                "needs as many through quantities (conservation laws) as across quantities; "
+                f"these do not: {', '.join(odd[:5])}")
 
         # sparsity pattern: constant node entries, then each group's local patterns
         rows = [self.through_rows]
@@ -212,7 +210,6 @@ class Assembly:
         cols = np.concatenate(cols)
         self.raw = np.zeros(len(rows))
         self.raw[: len(through_rows)] = 1.0
-        self.n_const = len(through_rows)
         key = cols * self.n + rows
         ukey, inv = np.unique(key, return_inverse=True)
         self.nnz = len(ukey)
@@ -247,7 +244,8 @@ class Assembly:
     def check_nonsingular(self, dt):
         """Factor the Jacobian once at the initial values; if it is singular, name
         the components of each independent sub-network whose block is singular
-        (e.g. a closed loop of liquid with nothing fixing its pressure)."""
+        (e.g. a closed loop of liquid with nothing fixing its pressure). With
+        dt = 0 this checks the consistent-initial-value problem at t = 0."""
         with np.errstate(all="ignore"):
             self.residual(self.x0, self.S0, 0.0, dt, jac=True)
         A = self.jacobian_csc()
@@ -268,6 +266,13 @@ class Assembly:
                 if c is not None and c not in comps:
                     comps.append(c)
             culprits.append(comps)
+        if culprits and dt == 0.0:
+            names = "; ".join(", ".join(c) for c in culprits)
+            raise NetworkError(
+                f"the initial values at t = 0 are undetermined in the sub-network(s) of: "
+                f"{names}. Typically a storage volume (Container, accumulator) is joined "
+                "directly to a pressure source or to another volume, so the flow between "
+                "them is not fixed by any equation; put a tube or orifice between them")
         if culprits:
             names = "; ".join(", ".join(c) for c in culprits)
             raise NetworkError(
@@ -317,8 +322,3 @@ class Assembly:
 
     def jacobian_csc(self):
         return csc_matrix((self.jacobian_data(), self.indices, self.indptr), shape=(self.n, self.n))
-
-    def jacobian_dense(self):
-        J = np.zeros((self.n, self.n))
-        np.add.at(J, (self.pattern_rows, self.pattern_cols), self.raw)
-        return J

@@ -2,9 +2,9 @@
 
 The adaptive controller estimates the local error of the states from the
 difference between the backward-Euler solution and a linear predictor
-through the two previous points:  LTE ≈ h/(h + h_prev) · (S_new - S_pred)
-(both are first order, the predictor's error constant is (h + h_prev)/h times
-larger). Algebraic unknowns (pressures, flows) follow from the states and the
+through the two previous points. Backward Euler errs by +h²/2·S'' and the
+predictor by -h(h + h_prev)/2·S'', so their difference is h(2h + h_prev)/2·S''
+and  LTE ≈ h/(2h + h_prev) · (S_new - S_pred). Algebraic unknowns (pressures, flows) follow from the states and the
 inputs, so only states enter the error test; an input jump then does not
 force the step down to its minimum.
 """
@@ -28,7 +28,8 @@ class Recorder:
 
     def __init__(self, x_index, s_index, capacity=64):
         self.t = []
-        self.x_index, self.s_index = x_index, s_index   # None: everything
+        # index arrays of the unknowns/states to keep, or plain sizes to keep all
+        self.x_index, self.s_index = x_index, s_index
         n = x_index if isinstance(x_index, int) else len(x_index)
         ns = s_index if isinstance(s_index, int) else len(s_index)
         self._X = np.empty((capacity, n))
@@ -62,7 +63,17 @@ class ImplicitEuler:
         self.step_max = step_max
         self.rtol = rtol
         self.atol_s = atol_states
-        self.breaks = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
+        breaks = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
+        if not adaptive:
+            # a breakpoint on a grid point must be that grid point's float exactly,
+            # or the step lands twice (0.3 vs 3*0.1) with a ~1e-17 s step between
+            snapped = []
+            for b in breaks:
+                k = round(b / step)
+                snapped.append(k * step if abs(b - k * step) <= 1e-9 * step else b)
+            breaks = sorted(set(snapped))
+        self.breaks = breaks
+        self._break_set = set(breaks)
         n_expected = int(duration / step) + 2 + len(self.breaks) if step else 256
         # record: (unknown indices, state indices) to keep, or None for all (given as sizes)
         x_index, s_index = record if record is not None else (asm.n, len(asm.S0))
@@ -84,6 +95,8 @@ class ImplicitEuler:
         return out.x, asm.S0.copy()
 
     def _attempt(self, x_pred, S, t_new, h):
+        if t_new in self._break_set:
+            t_new = math.nextafter(t_new, -math.inf)   # left limit of the inputs
         out = self.newton.solve(x_pred, S, t_new, h)
         if not out.converged:
             return out, None
@@ -133,7 +146,7 @@ class ImplicitEuler:
             self.rec.add(t, x, S)
             if t == grid_next:
                 k += 1
-            if t in self.breaks:
+            if t in self._break_set:
                 x_prev = None
                 self.newton.invalidate()
 
@@ -165,7 +178,7 @@ class ImplicitEuler:
                 continue
             if S_pred is not None and S.size:
                 scale = self.atol_s + self.rtol * np.maximum(np.abs(S_new), np.abs(S))
-                err = float(np.sqrt(np.mean(((S_new - S_pred) * (h / (h + h_prev)) / scale) ** 2)))
+                err = float(np.sqrt(np.mean(((S_new - S_pred) * (h / (2 * h + h_prev)) / scale) ** 2)))
                 if err > 1.0:
                     if h > self.step_min:
                         self.stats.rejected_steps += 1
@@ -183,7 +196,7 @@ class ImplicitEuler:
             x_prev, S_prev, h_prev = x, S, h
             x, S, t = out.x, S_new, t_new
             self.rec.add(t, x, S)
-            if t in self.breaks:
+            if t in self._break_set:
                 x_prev = S_prev = None
                 self.newton.invalidate()
                 h = h_start

@@ -1,6 +1,8 @@
 """Linear solvers behind one small interface: factor the current Jacobian, solve."""
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.linalg as sla
 from scipy.linalg.lapack import dgetrs
@@ -33,7 +35,9 @@ class DenseLU:
         J = J.reshape(self.n, self.n)
         if not np.isfinite(J).all():
             raise SingularJacobian("Jacobian contains NaN or inf")
-        lu, piv = sla.lu_factor(J, check_finite=False)
+        with warnings.catch_warnings():   # singularity is reported by our own check
+            warnings.simplefilter("ignore", sla.LinAlgWarning)
+            lu, piv = sla.lu_factor(J, check_finite=False)
         d = np.abs(np.diag(lu))
         if d.min() <= 1e-14 * max(d.max(), 1e-300):
             raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..network.system import NetworkError
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .integrator import ImplicitEuler, StepFailure
@@ -39,6 +38,8 @@ class Simulation:
         Force adaptive (True) or fixed (False) stepping.
     step_min, step_max : float [s], optional
         Bounds of the adaptive step; defaults duration·1e-9 and duration/200.
+        The default step_max keeps at least 200 output points and is often
+        what limits the step for loose rtol; raise it to let rtol decide.
     rtol : float, default 1e-3
         Relative tolerance of the adaptive error test.
     atol : dict, optional
@@ -71,6 +72,8 @@ class Simulation:
         if self.step is not None and not self.step > 0:
             raise ValueError(f"Simulation: step must be > 0 s, got {self.step}")
         self.adaptive = (self.step is None) if adaptive is None else bool(adaptive)
+        if not self.adaptive and self.step is None:
+            raise ValueError("Simulation: adaptive=False needs a step")
         self.step_min = (self.duration * 1e-9 if step_min is None
                          else to_si(step_min, "s", name="step_min", owner=owner))
         self.step_max = (self.duration / 200 if step_max is None
@@ -78,10 +81,10 @@ class Simulation:
         if not 0 < self.step_min <= self.step_max:
             raise ValueError(f"Simulation: need 0 < step_min <= step_max, got {self.step_min}, "
                              f"{self.step_max}")
-        if not rtol > 0 or not newton_rtol > 0:
+        self.rtol = to_si(rtol, "", name="rtol", owner=owner)
+        self.newton_rtol = to_si(newton_rtol, "", name="newton_rtol", owner=owner)
+        if not self.rtol > 0 or not self.newton_rtol > 0:
             raise ValueError("Simulation: rtol and newton_rtol must be > 0")
-        self.rtol = float(rtol)
-        self.newton_rtol = float(newton_rtol)
         self.atol = dict(DEFAULT_ATOL)
         for q, v in (atol or {}).items():
             unit = quantity_unit(q)
@@ -90,6 +93,7 @@ class Simulation:
                                  for b in breakpoints)
         self.asm = Assembly(system, allow_unconnected=allow_unconnected)
         self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
+        self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0
         self.linear_solver_kind = linear_solver
         self.record = None if record is None else self._record_indices(record)
         self.result = None
@@ -148,9 +152,10 @@ class Simulation:
                 integ.run()
         except StepFailure as fail:
             error = self._describe_failure(fail)
-        except NetworkError as err:
+        except Exception as err:  # user code or inputs failing mid-run: keep what we have
             t = integ.rec.t[-1] if integ.rec.t else 0.0
-            error = SimulationError(f"after t = {t:.6g} s: {err}", time=t)
+            error = SimulationError(f"after t = {t:.6g} s: {type(err).__name__}: {err}", time=t)
+            error.__cause__ = err
         t, X, S = integ.rec.arrays()
         info = stats.as_dict()
         info["forced_steps"] = integ.forced_steps
