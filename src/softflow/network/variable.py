@@ -44,7 +44,8 @@ class Variable:
                 initial_value = to_si(initial_value, unit, name="initial_value",
                                       owner=f"Variable {self.label!r}")
             else:
-                initial_value = float(initial_value)
+                initial_value = to_si(initial_value, "", name="initial_value",
+                                      owner=f"Variable {self.label!r} ({quantity})")
         self.initial_value = initial_value
 
     def copy(self) -> "Variable":
