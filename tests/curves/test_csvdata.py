@@ -121,12 +121,6 @@ def test_unknown_unit_in_units_row(tmp_path):
     assert "data.csv" in msg
 
 
-def test_unknown_unit_without_title_line(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,furlongs_per_x\n1,1,22\n2,2,25\n")
-    with pytest.raises(DataFileError, match=r"line 2.*'furlongs_per_x'"):
-        read_table(path)
-
-
 def test_non_numeric_cell_names_the_line(tmp_path):
     path = write(tmp_path, "Balloon,2017-11-16,X\nTime,Volume,Pressure\ns,ml,mbar\n"
                            "1,1,22\n2,2,25\n3,3,abc\n4,4,30\n")
@@ -137,18 +131,6 @@ def test_non_numeric_cell_names_the_line(tmp_path):
     assert "'abc'" in msg and "'Pressure'" in msg
 
 
-def test_empty_cell_names_the_line(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,,25\n")
-    with pytest.raises(DataFileError, match=r"line 4.*'Volume'"):
-        read_table(path)
-
-
-def test_non_numeric_cell_in_first_data_row_names_the_line(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,2x2\n2,2,25\n")
-    with pytest.raises(DataFileError, match="line 3"):
-        read_table(path)
-
-
 def test_non_numeric_cell_in_first_data_row_is_reported_as_not_a_number(tmp_path):
     path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,2x2\n2,2,25\n")
     with pytest.raises(DataFileError) as info:
@@ -157,25 +139,16 @@ def test_non_numeric_cell_in_first_data_row_is_reported_as_not_a_number(tmp_path
     assert "'2x2'" in msg and "not a number" in msg
 
 
-def test_row_with_missing_cells(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,2\n")
-    with pytest.raises(DataFileError, match=r"line 4: expected 3 cells, got 2"):
-        read_table(path)
-
-
-def test_no_data_rows(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n")
-    with pytest.raises(DataFileError, match="no numeric data"):
-        read_table(path)
-
-
-def test_no_names_row(tmp_path):
-    path = write(tmp_path, "1,1,22\n2,2,25\n")
-    with pytest.raises(DataFileError, match="no column-names row"):
-        read_table(path)
-
-
-def test_names_row_with_wrong_length(tmp_path):
-    path = write(tmp_path, "Time,Volume\n1,1,22\n2,2,25\n")
-    with pytest.raises(DataFileError, match="line 1: 2 column names for 3 data columns"):
+@pytest.mark.parametrize("content, match", [
+    pytest.param("Time,Volume,Pressure\ns,ml,furlongs_per_x\n1,1,22\n2,2,25\n", r"line 2.*'furlongs_per_x'", id="unknown_unit_without_title_line"),
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,,25\n", r"line 4.*'Volume'", id="empty_cell_names_the_line"),
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,2x2\n2,2,25\n", "line 3", id="non_numeric_cell_in_first_data_row_names_the_line"),
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,2\n", r"line 4: expected 3 cells, got 2", id="row_with_missing_cells"),
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n", "no numeric data", id="no_data_rows"),
+    pytest.param("1,1,22\n2,2,25\n", "no column-names row", id="no_names_row"),
+    pytest.param("Time,Volume\n1,1,22\n2,2,25\n", "line 1: 2 column names for 3 data columns", id="names_row_with_wrong_length"),
+])
+def test_bad_file_is_reported_with_its_line(tmp_path, content, match):
+    path = write(tmp_path, content)
+    with pytest.raises(DataFileError, match=match):
         read_table(path)
