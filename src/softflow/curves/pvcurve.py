@@ -90,16 +90,11 @@ class PVCurve:
     def fdf_volume(self, volume):
         """Absolute pressure [Pa] and its derivative dp/dV [Pa/m^3] at ``volume`` [m^3]
         (a float, an array or a pint Quantity)."""
+        if not isinstance(volume, float):   # ints, arrays, Quantities -> float or ndarray
+            volume = to_si(volume, "m**3", name="volume", owner="PVCurve.fdf_volume")
         if isinstance(volume, float):
             return self._scalar(volume)
-        if not isinstance(volume, int):
-            volume = to_si(volume, "m**3", name="volume", owner="PVCurve.fdf_volume")
-        if isinstance(volume, (float, int)):
-            return self._scalar(float(volume))
-        vol = np.asarray(volume, dtype=float)
-        if vol.ndim == 0:
-            return self._scalar(float(vol))
-        return self._array(vol)
+        return self._array(volume)
 
     def _scalar(self, x):
         v, p, d = self._vl, self._pl, self._dl

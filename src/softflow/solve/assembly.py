@@ -124,6 +124,8 @@ class Assembly:
                 self.groups.append(_library_group(type(members[0]), members))
             else:
                 self.groups.append(_user_group(item))
+        #: component label -> (its Group, its index in the group)
+        self.where = {c.label: (g, i) for g in self.groups for i, c in enumerate(g.comps)}
 
         # unknown indices per component interface variable
         through_rows, through_cols = [], []

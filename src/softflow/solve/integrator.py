@@ -75,8 +75,8 @@ class ImplicitEuler:
         self.breaks = breaks
         self._break_set = set(breaks)
         n_expected = int(duration / step) + 2 + len(self.breaks) if step else 256
-        # record: (unknown indices, state indices) to keep, or None for all (given as sizes)
-        x_index, s_index = record if record is not None else (asm.n, len(asm.S0))
+        # record: (unknown indices, state indices, labels) to keep, or None for all
+        x_index, s_index = record[:2] if record is not None else (asm.n, len(asm.S0))
         self.rec = Recorder(x_index, s_index, capacity=min(max(n_expected, 16), 100_000))
         self.forced_steps = 0
 

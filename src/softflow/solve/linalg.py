@@ -42,7 +42,12 @@ class DenseLU:
         if d.min() <= 1e-14 * max(d.max(), 1e-300):
             raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))
         self.lu = (lu, piv)
-        self.row_scale = 1.0 / np.maximum(np.abs(J).max(axis=1), 1e-300)
+        self._J = J
+
+    @property
+    def row_scale(self):
+        """1 / max |J_ij| per row (for damped Newton and error messages)."""
+        return 1.0 / np.maximum(np.abs(self._J).max(axis=1), 1e-300)
 
     def solve(self, b):
         # LAPACK getrs directly: scipy.linalg.lu_solve's checks cost more than
@@ -71,9 +76,15 @@ class SparseLU:
             self.lu = splu(A, permc_spec=self.permc_spec)
         except RuntimeError as err:  # "Factor is exactly singular"
             raise SingularJacobian(str(err)) from None
+        self._data = data
+
+    @property
+    def row_scale(self):
+        """1 / max |J_ij| per row, computed only when asked for: a pass over all
+        nonzeros that most factorizations never need."""
         rs = np.zeros(self.n)
-        np.maximum.at(rs, self.asm.indices, np.abs(data))
-        self.row_scale = 1.0 / np.maximum(rs, 1e-300)
+        np.maximum.at(rs, self.asm.indices, np.abs(self._data))
+        return 1.0 / np.maximum(rs, 1e-300)
 
     def solve(self, b):
         return self.lu.solve(b)

@@ -109,7 +109,7 @@ class Newton:
             mag = np.maximum(mag, qmax[self._qid])
         self.tol = self.atol + self.rtol * mag
 
-    def _norm(self, dx, x):
+    def _norm(self, dx):
         return float(np.max(np.abs(dx) / self.tol)) if dx.size else 0.0
 
     def _reusable(self, dt):
@@ -156,7 +156,7 @@ class Newton:
         for k in range(limit):
             dx = -self.lin.solve(F)
             self.stats.newton_iterations += 1
-            nrm = self._norm(dx, x)
+            nrm = self._norm(dx)
             if not np.isfinite(nrm):
                 return Outcome(False, x, k + 1, "Newton update not finite")
             if prev is not None:
@@ -217,13 +217,14 @@ class Newton:
             f0 = float(np.linalg.norm(F * rs))
             dx = -self.lin.solve(F)
             self.stats.newton_iterations += 1
-            nrm = self._norm(dx, x)
+            nrm = self._norm(dx)
             if nrm <= 1.0:
                 return Outcome(True, x + dx, k + 1)
             lam = 1.0
             while True:
                 xn = x + lam * dx
-                Fn = self._eval(xn, S, t, dt, jac=False)
+                # the full step is usually taken: evaluate its Jacobian with it
+                Fn = self._eval(xn, S, t, dt, jac=lam == 1.0)
                 f1 = np.linalg.norm(Fn * rs) if np.isfinite(Fn).all() else np.inf
                 if f1 <= (1 - 1e-4 * lam) * f0:
                     break
@@ -239,8 +240,8 @@ class Newton:
                 continue
             refactor = lam < 1.0 or f1 > 0.25 * f0
             x, F = xn, Fn
-            if refactor:
-                self._eval(x, S, t, dt, jac=True)   # Jacobian at the new iterate
+            if refactor and lam < 1.0:
+                self._eval(x, S, t, dt, jac=True)   # Jacobian at the damped iterate
         return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
                        self._worst_row(F))
 

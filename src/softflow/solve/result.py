@@ -32,7 +32,7 @@ class Result:
         self.message = message
         self.stats = dict(stats or {})
         # where each component lives; its variable index is built on first access
-        self._where = {c.label: (g, i) for g in asm.groups for i, c in enumerate(g.comps)}
+        self._where = asm.where
         self._entries = {}
         # column of X (S) holding each unknown (state); -1 where it was not recorded
         if recorded is None:
@@ -43,8 +43,7 @@ class Result:
             self._xcol[recorded[0]] = np.arange(len(recorded[0]))
             self._scol = np.full(len(asm.S0), -1)
             self._scol[recorded[1]] = np.arange(len(recorded[1]))
-            self._where = {k: v for k, v in self._where.items()
-                           if all(self._xcol[j] >= 0 for j in v[0].col[v[1]])}
+            self._where = {label: asm.where[label] for label in recorded[2]}
 
     def _component_entries(self, label):
         if label not in self._entries:

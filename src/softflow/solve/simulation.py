@@ -101,15 +101,15 @@ class Simulation:
     def _record_indices(self, labels):
         if isinstance(labels, str):
             labels = [labels]
-        where = {c.label: (g, i) for g in self.asm.groups for i, c in enumerate(g.comps)}
         xs, ss = [], []
         for label in labels:
-            if label not in where:
+            if label not in self.asm.where:
                 raise KeyError(f"Simulation: record names unknown component {label!r}")
-            g, i = where[label]
+            g, i = self.asm.where[label]
             xs.extend(g.col[i].tolist())
             ss.extend(range(g.s0 + i * g.ns, g.s0 + (i + 1) * g.ns))
-        return np.unique(np.array(xs, dtype=np.int64)), np.array(ss, dtype=np.int64)
+        return (np.unique(np.array(xs, dtype=np.int64)), np.array(ss, dtype=np.int64),
+                list(labels))
 
     def _atol_vector(self, quantities, factor=1.0):
         return np.array([self.atol.get(q, 1e-9) * factor for q in quantities], dtype=float)
