@@ -110,25 +110,22 @@ def test_missing_file(tmp_path):
         read_table(tmp_path / "nothere.csv")
 
 
-def test_unknown_unit_in_units_row(tmp_path):
-    path = write(tmp_path, "Balloon,2017-11-16,X\nTime,Volume,Pressure\ns,mll,mbar\n"
-                           "1,1,22\n2,2,25\n")
+TITLED = "Balloon,2017-11-16,X\nTime,Volume,Pressure\n"
+
+
+@pytest.mark.parametrize("content, fragments", [
+    pytest.param(TITLED + "s,mll,mbar\n1,1,22\n2,2,25\n",
+                 ["line 3", "'mll'", "data.csv"], id="unknown_unit_in_units_row"),
+    pytest.param(TITLED + "s,ml,mbar\n1,1,22\n2,2,25\n3,3,abc\n4,4,30\n",
+                 ["line 6", "'abc'", "'Pressure'"], id="non_numeric_cell_names_the_line"),
+])
+def test_error_message_names_line_and_cell(tmp_path, content, fragments):
+    path = write(tmp_path, content)
     with pytest.raises(DataFileError) as info:
         read_table(path)
     msg = str(info.value)
-    assert "line 3" in msg
-    assert "'mll'" in msg
-    assert "data.csv" in msg
-
-
-def test_non_numeric_cell_names_the_line(tmp_path):
-    path = write(tmp_path, "Balloon,2017-11-16,X\nTime,Volume,Pressure\ns,ml,mbar\n"
-                           "1,1,22\n2,2,25\n3,3,abc\n4,4,30\n")
-    with pytest.raises(DataFileError) as info:
-        read_table(path)
-    msg = str(info.value)
-    assert "line 6" in msg
-    assert "'abc'" in msg and "'Pressure'" in msg
+    for fragment in fragments:
+        assert fragment in msg
 
 
 def test_non_numeric_cell_in_first_data_row_is_reported_as_not_a_number(tmp_path):

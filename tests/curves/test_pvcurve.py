@@ -230,37 +230,6 @@ def test_csv_non_monotonic_volume_names_the_line(tmp_path):
     assert "increase" in msg
 
 
-def test_csv_repeated_volume_is_rejected(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,2,25\n3,2,30\n")
-    with pytest.raises(DataFileError, match="line 5"):
-        sf.PVCurve(path)
-
-
-def test_csv_non_monotonic_volume_after_blank_line_names_the_right_line(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n\n2,2,25\n3,1.5,30\n")
-    # the offending row '3,1.5,30' is line 6 of the file
-    with pytest.raises(DataFileError, match="line 6"):
-        sf.PVCurve(path)
-
-
-def test_csv_too_short(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n")
-    with pytest.raises(ValueError, match="at least 2 points, got 1"):
-        sf.PVCurve(path)
-
-
-def test_csv_nan(tmp_path):
-    path = write(tmp_path, "Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,2,nan\n3,3,30\n")
-    with pytest.raises(ValueError, match="NaN"):
-        sf.PVCurve(path)
-
-
-def test_csv_missing_column(tmp_path):
-    path = write(tmp_path, "Time,Vol,Pressure\ns,ml,mbar\n1,1,22\n2,2,25\n")
-    with pytest.raises(DataFileError, match="no column named 'Volume'"):
-        sf.PVCurve(path)
-
-
 @pytest.mark.parametrize("volume, pressure, error, text", [
     ([1e-6], [1e4], ValueError, "at least 2 points, got 1"),
     ([], [], ValueError, "at least 2 points, got 0"),
@@ -301,3 +270,22 @@ def test_fdf_volume_accepts_quantities():
     assert curve(sf.Q_([1, 3], "mL")) == pytest.approx([1.2e5, 1.3e5])
     with pytest.raises(sf.UnitError, match="volume"):
         curve(sf.Q_(2, "bar"))
+
+
+@pytest.mark.parametrize("content, error, match", [
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,2,25\n3,2,30\n",
+                 DataFileError, "line 5", id="repeated_volume_is_rejected"),
+    # the offending row '3,1.5,30' is line 6 of the file
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n\n2,2,25\n3,1.5,30\n",
+                 DataFileError, "line 6", id="non_monotonic_volume_after_blank_line_names_the_right_line"),
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n",
+                 ValueError, "at least 2 points, got 1", id="too_short"),
+    pytest.param("Time,Volume,Pressure\ns,ml,mbar\n1,1,22\n2,2,nan\n3,3,30\n",
+                 ValueError, "NaN", id="nan"),
+    pytest.param("Time,Vol,Pressure\ns,ml,mbar\n1,1,22\n2,2,25\n",
+                 DataFileError, "no column named 'Volume'", id="missing_column"),
+])
+def test_bad_csv_curve_is_rejected(tmp_path, content, error, match):
+    path = write(tmp_path, content)
+    with pytest.raises(error, match=match):
+        sf.PVCurve(path)
