@@ -185,3 +185,55 @@ def test_initial_values_are_consistent():
     R = 128 * sf.water.mu * 1.0 / (math.pi * (0.5e-3) ** 4)
     q = res.get("tube", "massflow", "a")[0] / sf.water.rho
     assert q == pytest.approx(1e4 / R, rel=1e-6)
+
+
+class _RelayLeak(sf.LibraryComponent):
+    """Test component: a leak to ambient that switches on when its pressure
+    exceeds 2 bar and off below 1.5 bar; its on/off memory is a discrete state."""
+
+    terminal_spec = (("a", (("pressure", "across", "p"), ("massflow", "through", "mf"))),)
+    state_spec = (("on", "dimensionless"),)
+    discrete_states = ("on",)
+    jac_pattern = ((0, 0), (0, 1))
+    G = 1e-9   # kg/(s Pa) when on; 1e-6 of it when off
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        g = cls.G * np.where(S[:, 0] > 0.5, 1.0, 1e-6)
+        F = (V[:, 1] - g * (V[:, 0] - P0))[:, None]
+        J = np.column_stack([-g, np.ones(P.n)]) if jac else None
+        return F, J
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        p = V[:, 0]
+        on = np.where(p > 2e5, 1.0, np.where(p < 1.5e5, 0.0, S[:, 0]))
+        return on[:, None]
+
+
+def relay_scene():
+    s = sf.System()
+    s += sf.MassFlowSource("src", massflow=1e-5)
+    s += sf.Container("tank", sf.air, volume=1e-4)
+    s += _RelayLeak("relay")
+    s.connect("src", "tank")
+    s.connect("relay", ("tank", "a"))
+    return s
+
+
+@pytest.mark.parametrize("adaptive", [False, True], ids=["fixed", "adaptive"])
+def test_discrete_state_switches_between_steps_and_is_left_out_of_error_control(adaptive):
+    sim = sf.Simulation(relay_scene(), duration=40.0, step=None if adaptive else 0.01,
+                        adaptive=adaptive)
+    res = sim.run()
+    on = res.get("relay", "on")
+    p = res.get("tank", "pressure")
+    assert set(np.unique(on)) == {0.0, 1.0}
+    flips = np.flatnonzero(np.diff(on) != 0) + 1
+    assert len(flips) >= 3           # on, off, on ...: a relaxation oscillation
+    for k in flips:                  # each switch follows its threshold at the previous step
+        assert (p[k] > 2e5) if on[k] == 1.0 else (p[k] < 1.5e5)
+    assert np.all(p < 2e5 + 0.05e5) and np.all(p[flips[0]:] > 1.5e5 - 0.05e5)
+    if adaptive:
+        # a mode jump of 1 would fail the error test on every switch if it were counted
+        assert sim.stats["error_test_failures"] <= 2 * len(flips)

@@ -46,6 +46,10 @@ class LibraryComponent(Component):
     ``jac_pattern``
         ``((equation, variable), ...)`` structural nonzeros of dF/dV; variables are
         numbered in interface order (terminal variables, then locals)
+    ``discrete_states``
+        labels of states that are modes (e.g. a valve's open/closed memory): the
+        kernel reads them at the start of the step, ``update`` switches them from
+        the converged solution, so a mode never changes inside a Newton solve
     """
 
     vectorized = True
@@ -53,6 +57,7 @@ class LibraryComponent(Component):
     state_spec: tuple = ()
     param_names: tuple = ()
     jac_pattern: tuple = ()
+    discrete_states: tuple = ()
 
     def __init__(self, label, fluid=None):
         super().__init__(label)

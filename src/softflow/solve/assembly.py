@@ -165,7 +165,7 @@ class Assembly:
         r = self.n_node_rows
         s = 0
         j = len(through_rows)
-        s_quantity, s_names, S0 = [], [], []
+        s_quantity, s_names, S0, s_discrete = [], [], [], []
         self.row_names = row_names
         for g in self.groups:
             g.r0, g.r1 = r, r + g.n * g.neq
@@ -182,13 +182,20 @@ class Assembly:
                             else [sv.initial_value if sv.initial_value is not None else 0.0
                                   for sv in c.states])
                     S0.extend(float(v) for v in vals)
+                    modes = set(getattr(c, "discrete_states", ()))
                     for sv in c.states:
                         s_names.append(f"{c.label} {sv.label}")
                         s_quantity.append(sv.quantity)
+                        s_discrete.append(sv.label in modes)
         self.n_rows = r
         self.S0 = np.array(S0, dtype=float)
         self.s_names = s_names
         self.s_quantity = s_quantity
+        # discrete states (modes of switching components) change between steps only;
+        # the step controller leaves them out of its error estimate
+        self.s_discrete = np.array(s_discrete, dtype=bool)
+        self.s_continuous = np.flatnonzero(~self.s_discrete)
+        self.has_discrete = bool(self.s_discrete.any())
         if self.n_rows != self.n:
             odd = [nd.name for nd in nodes
                    if len(nd.quantities("across")) != len(nd.quantities("through"))]

@@ -49,22 +49,109 @@ class Recorder:
         return np.array(self.t, dtype=float), self._X[:k], self._S[:k]
 
 
+class FixedStep:
+    """Constant step h0 on a grid t_k = k·h0, landing on breakpoints in between.
+    A failed Newton solve cuts the step by 4 (substeps are recorded too) until
+    ``step_min``; the next step aims at the grid again."""
+
+    def __init__(self, step, step_min, duration):
+        self.h0, self.step_min, self.T = step, step_min, duration
+        self.n_grid = max(1, int(math.ceil(duration / step - 1e-9)))
+        self.k = 0            # index of the last grid point reached
+        self.h_cut = None     # reduced step after a failure, until the next success
+
+    def target(self, t):
+        return self.T if self.k + 1 >= self.n_grid else min((self.k + 1) * self.h0, self.T)
+
+    def propose(self, t, limit):
+        """(step, exact end point it aims at)"""
+        self._grid_next = self.target(t)
+        end = min(self._grid_next, limit)
+        if self.h_cut is not None and self.h_cut < end - t:
+            return self.h_cut, t + self.h_cut
+        return end - t, end
+
+    def failed(self, t, h, out):
+        if h / 4 < self.step_min:
+            raise StepFailure(t + h, h, out)
+        self.h_cut = h / 4
+
+    def judge(self, S, S_new, S_pred, h, h_prev):
+        return True, 0.0
+
+    def accepted(self, t_new, h, at_break):
+        self.h_cut = None
+        if t_new == self._grid_next:
+            self.k += 1
+
+
+class AdaptiveStep:
+    """Step size from the local error estimate of the continuous states
+    (see the module docstring): reject when the scaled RMS error exceeds 1,
+    grow or shrink by 0.9/sqrt(err) within [0.2, 5]. After a breakpoint or a
+    mode switch the step restarts from its initial size."""
+
+    def __init__(self, h_start, step_min, step_max, rtol, atol, continuous, stats):
+        self.h = self.h_start = h_start
+        self.step_min, self.step_max = step_min, step_max
+        self.rtol, self.atol = rtol, atol
+        self.idx = continuous
+        self.stats = stats
+        self.forced_steps = 0
+        self._factor = 2.0
+
+    def propose(self, t, limit):
+        """(step, exact end point it aims at)"""
+        h = min(self.h, self.step_max)
+        if t + h >= limit or limit - (t + h) < self.step_min:
+            return limit - t, limit
+        return h, t + h
+
+    def failed(self, t, h, out):
+        if h <= self.step_min:
+            raise StepFailure(t + h, h, out)
+        self.h = max(h * 0.25, self.step_min)
+
+    def judge(self, S, S_new, S_pred, h, h_prev):
+        """(accept?, error); sets the next step size."""
+        if S_pred is None or not self.idx.size:
+            self._factor = 2.0
+            return True, 0.0
+        i = self.idx
+        a, b, c = S[i], S_new[i], S_pred[i]
+        scale = self.atol[i] + self.rtol * np.maximum(np.abs(b), np.abs(a))
+        err = float(np.sqrt(np.mean(((b - c) * (h / (2 * h + h_prev)) / scale) ** 2)))
+        if err > 1.0:
+            if h > self.step_min:
+                self.stats.rejected_steps += 1
+                self.stats.error_test_failures += 1
+                self.h = max(h * max(0.2, 0.9 / math.sqrt(err)), self.step_min)
+                return False, err
+            self.forced_steps += 1
+        self._factor = min(5.0, max(0.2, 0.9 / math.sqrt(max(err, 1e-10))))
+        return True, err
+
+    def accepted(self, t_new, h, at_break):
+        self.h = self.h_start if at_break else h * self._factor
+
+
 class ImplicitEuler:
-    """Backward Euler with a constant step (landing on breakpoints) or an
-    adaptive step (error control on the states, step rejection and retry)."""
+    """Backward Euler driven by a step controller (:class:`FixedStep` or
+    :class:`AdaptiveStep`). Newton starts from a linear extrapolation of the
+    last two points; after a breakpoint, a mode switch of a discrete state or a
+    failed solve it starts from the last point instead."""
 
     def __init__(self, asm, newton, stats, *, duration, step, adaptive, step_min, step_max,
                  rtol, atol_states, breakpoints=(), record=None):
         self.asm, self.newton, self.stats = asm, newton, stats
         self.T = duration
-        self.step = step
-        self.adaptive = adaptive
-        self.step_min = step_min
-        self.step_max = step_max
-        self.rtol = rtol
-        self.atol_s = atol_states
         breaks = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
-        if not adaptive:
+        if adaptive:
+            h_start = step if step is not None else min(step_max, duration * 1e-4)
+            atol = np.broadcast_to(np.asarray(atol_states, dtype=float), asm.S0.shape)
+            self.ctrl = AdaptiveStep(h_start, step_min, step_max, rtol, atol,
+                                     asm.s_continuous, stats)
+        else:
             # a breakpoint on a grid point must be that grid point's float exactly,
             # or the step lands twice (0.3 vs 3*0.1) with a ~1e-17 s step between
             snapped = []
@@ -72,13 +159,17 @@ class ImplicitEuler:
                 k = round(b / step)
                 snapped.append(k * step if abs(b - k * step) <= 1e-9 * step else b)
             breaks = sorted(set(snapped))
+            self.ctrl = FixedStep(step, step_min, duration)
         self.breaks = breaks
         self._break_set = set(breaks)
         n_expected = int(duration / step) + 2 + len(self.breaks) if step else 256
         # record: (unknown indices, state indices, labels) to keep, or None for all
         x_index, s_index = record[:2] if record is not None else (asm.n, len(asm.S0))
         self.rec = Recorder(x_index, s_index, capacity=min(max(n_expected, 16), 100_000))
-        self.forced_steps = 0
+
+    @property
+    def forced_steps(self):
+        return getattr(self.ctrl, "forced_steps", 0)
 
     def _next_break(self, t):
         i = bisect.bisect_right(self.breaks, t * (1 + 1e-14) + 1e-300)
@@ -104,101 +195,40 @@ class ImplicitEuler:
 
     def run(self):
         x, S = self.initial()
-        if self.adaptive:
-            self._run_adaptive(x, S)
-        else:
-            self._run_fixed(x, S)
-
-    # -- constant step ----------------------------------------------------------------------
-    def _run_fixed(self, x, S):
-        T, h0 = self.T, self.step
-        n_grid = max(1, int(math.ceil(T / h0 - 1e-9)))
+        asm, ctrl, T = self.asm, self.ctrl, self.T
+        disc = asm.s_discrete if asm.has_discrete else None
         t = 0.0
-        k = 0           # index of the last grid point reached
-        x_prev = None
-        h_prev = None
+        x_prev = S_prev = h_prev = None   # the previous point, for the predictors
+        extrapolate = True
         while t < T * (1 - 1e-14):
-            grid_next = min((k + 1) * h0, T)
-            if k + 1 >= n_grid:
-                grid_next = T
-            target = min(grid_next, self._next_break(t))
-            h = target - t
-            # try the whole step; on failure cut it (substeps are recorded too)
-            while True:
-                if x_prev is not None:
-                    x_pred = x + (x - x_prev) * (h / h_prev)
-                else:
-                    x_pred = x
-                out, S_new = self._attempt(x_pred, S, t + h, h)
-                if S_new is not None:
-                    break
-                self.stats.rejected_steps += 1
-                if h / 4 < self.step_min:
-                    raise StepFailure(t + h, h, out)
-                h /= 4
-                x_prev = None
-            t_new = t + h
-            if abs(t_new - target) <= 1e-12 * max(1.0, target):
-                t_new = target
-            self.stats.steps += 1
-            x_prev, h_prev = x, h
-            x, S, t = out.x, S_new, t_new
-            self.rec.add(t, x, S)
-            if t == grid_next:
-                k += 1
-            if t in self._break_set:
-                x_prev = None
-                self.newton.invalidate()
-
-    # -- adaptive step ----------------------------------------------------------------------
-    def _run_adaptive(self, x, S):
-        T = self.T
-        h = self.step if self.step is not None else min(self.step_max, T * 1e-4)
-        h_start = h
-        t = 0.0
-        x_prev = S_prev = None
-        h_prev = None
-        while t < T * (1 - 1e-14):
-            nb = min(self._next_break(t), T)
-            h = min(h, self.step_max)
-            if t + h >= nb or nb - (t + h) < self.step_min:
-                h = nb - t
+            limit = min(self._next_break(t), T)
+            h, end = ctrl.propose(t, limit)
             if x_prev is not None:
                 r = h / h_prev
-                x_pred = x + (x - x_prev) * r
+                x_pred = x + (x - x_prev) * r if extrapolate else x
                 S_pred = S + (S - S_prev) * r
             else:
                 x_pred, S_pred = x, None
             out, S_new = self._attempt(x_pred, S, t + h, h)
             if S_new is None:
                 self.stats.rejected_steps += 1
-                if h <= self.step_min:
-                    raise StepFailure(t + h, h, out)
-                h = max(h * 0.25, self.step_min)
+                ctrl.failed(t, h, out)
+                extrapolate = False
                 continue
-            if S_pred is not None and S.size:
-                scale = self.atol_s + self.rtol * np.maximum(np.abs(S_new), np.abs(S))
-                err = float(np.sqrt(np.mean(((S_new - S_pred) * (h / (2 * h + h_prev)) / scale) ** 2)))
-                if err > 1.0:
-                    if h > self.step_min:
-                        self.stats.rejected_steps += 1
-                        self.stats.error_test_failures += 1
-                        h = max(h * max(0.2, 0.9 / math.sqrt(err)), self.step_min)
-                        continue
-                    self.forced_steps += 1
-                factor = min(5.0, max(0.2, 0.9 / math.sqrt(max(err, 1e-10))))
-            else:
-                factor = 2.0
+            ok, _ = ctrl.judge(S, S_new, S_pred, h, h_prev)
+            if not ok:
+                continue
             t_new = t + h
-            if abs(t_new - nb) <= 1e-12 * max(1.0, nb):
-                t_new = nb
+            if abs(t_new - end) <= 1e-12 * max(1.0, end):
+                t_new = end
             self.stats.steps += 1
+            switched = disc is not None and bool((S_new[disc] != S[disc]).any())
+            at_break = t_new in self._break_set or switched
             x_prev, S_prev, h_prev = x, S, h
             x, S, t = out.x, S_new, t_new
             self.rec.add(t, x, S)
-            if t in self._break_set:
+            ctrl.accepted(t, h, at_break)
+            extrapolate = True
+            if at_break:
                 x_prev = S_prev = None
                 self.newton.invalidate()
-                h = h_start
-            else:
-                h = h * factor
