@@ -72,6 +72,9 @@ class Newton:
         self._q_order = np.argsort(qid, kind="stable")
         self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
         self._qid = qid
+        # absolute pressures must stay positive: a solution with p <= 0 is rejected
+        self._p_idx = np.array([i for i, q in enumerate(asm.x_quantity) if q == "pressure"],
+                               dtype=np.int64)
         self.tol = self.atol.copy()
         if max_reuse_iter is None:
             max_reuse_iter = 6 if lin.kind == "sparse" else 4
@@ -126,6 +129,16 @@ class Newton:
         last = None
         for stage in stages:
             out = self._chord(x0, S, t, dt, stage) if stage != "full" else self._full(x0, S, t, dt)
+            if out.converged and self._p_idx.size:
+                p = out.x[self._p_idx]
+                if not p.min() > 0.0:
+                    i = int(self._p_idx[np.argmin(p)])
+                    out = Outcome(False, out.x, out.iterations,
+                                  f"absolute pressure {p.min():.4g} Pa <= 0 at "
+                                  f"{self.asm.x_names[i]} (cavitation and vacuum are not "
+                                  "modelled; check sources and volumes)")
+                    last = out
+                    break
             if out.converged:
                 self.age += 1
                 if stage == "reuse" and out.iterations >= self.max_reuse_iter:
