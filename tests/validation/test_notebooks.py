@@ -1,0 +1,40 @@
+"""Executes every validation notebook in examples/validation/; each asserts
+its own tolerance against an independent reference, so a failing assert
+fails the test. Also checks that the notebooks match their sources."""
+from pathlib import Path
+
+import nbformat
+import pytest
+
+nbclient = pytest.importorskip("nbclient")
+
+FOLDER = Path(__file__).resolve().parents[2] / "examples" / "validation"
+NOTEBOOKS = sorted(FOLDER.glob("*.ipynb"))
+
+
+def test_there_are_notebooks_and_each_has_a_source():
+    assert NOTEBOOKS
+    sources = {p.stem for p in (FOLDER / "sources").glob("*.py")}
+    assert {p.stem for p in NOTEBOOKS} == sources
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_notebook_is_built_from_its_source(path):
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("build_notebooks", FOLDER / "build_notebooks.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    cells = mod.cells_of((FOLDER / "sources" / f"{path.stem}.py").read_text())
+    nb = nbformat.read(path, as_version=4)
+    assert [(("md" if c.cell_type == "markdown" else "code"), c.source) for c in nb.cells] == \
+        [(k, s.strip("\n")) for k, s in cells], "rerun examples/validation/build_notebooks.py"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_validation_notebook_runs_and_meets_its_tolerance(path, monkeypatch):
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    nb = nbformat.read(path, as_version=4)
+    client = nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
+                                     resources={"metadata": {"path": str(FOLDER)}})
+    client.execute()
