@@ -237,3 +237,19 @@ def test_discrete_state_switches_between_steps_and_is_left_out_of_error_control(
     if adaptive:
         # a mode jump of 1 would fail the error test on every switch if it were counted
         assert sim.stats["error_test_failures"] <= 2 * len(flips)
+
+
+def test_turbulent_start_converges_from_zero_flow():
+    """50 kPa across a short water tube at t = 0: Newton starts from zero flow,
+    where the laminar slope overshoots the turbulent flow ninefold; the full
+    Newton stage must refactor often enough to converge quadratically."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 5e4)
+    s += sf.CircularTube("tube", sf.water, length=0.01, diameter=1e-3)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=1e-11)
+    s.connect("tube", "src")
+    s.connect("tube", "acc")
+    res = sf.Simulation(s, duration=0.01).run()
+    Re = res.get("tube", "massflow", "a")[0] * 1e-3 / (sf.water.mu * math.pi * 0.25e-6)
+    assert Re > 1e4
+    assert res.get("acc", "pressure")[-1] == pytest.approx(P0 + 5e4, rel=1e-6)

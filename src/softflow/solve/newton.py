@@ -211,7 +211,7 @@ class Newton:
 
     def _full(self, x0, S, t, dt):
         """Damped Newton. The factors are kept for the next iteration only when the
-        last full step cut the scaled residual by 4x or more (Shamanskii's
+        last full step cut the scaled residual by 10x or more (Shamanskii's
         variant): far from the solution every iteration refactors, close to it
         the factorizations are saved."""
         x = x0.copy()
@@ -251,7 +251,7 @@ class Newton:
                 refactor = True   # retry this iterate with a Jacobian evaluated at x
                 self._eval(x, S, t, dt, jac=True)
                 continue
-            refactor = lam < 1.0 or f1 > 0.25 * f0
+            refactor = lam < 1.0 or f1 > 0.1 * f0
             x, F = xn, Fn
             if refactor and lam < 1.0:
                 self._eval(x, S, t, dt, jac=True)   # Jacobian at the damped iterate
