@@ -3,6 +3,8 @@ from .base import LibraryComponent
 from .chambers import Container, LinearAccumulator
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
 from .tubes import CircularTube
+from .valves import CheckValve, Orifice, SnappingValve, TeslaValve
 
 __all__ = ["LibraryComponent", "PressureSource", "MassFlowSource", "VolumeFlowSource",
-           "CircularTube", "Container", "LinearAccumulator"]
+           "CircularTube", "Container", "LinearAccumulator",
+           "Orifice", "CheckValve", "TeslaValve", "SnappingValve"]

@@ -1,0 +1,494 @@
+"""Valves and restrictors: orifice (loss coefficient, discharge coefficient or
+ISO 6358), check valve, Tesla valve (fluidic diode) and hysteretic snapping valve.
+
+All have terminals ``a`` and ``b`` with V = [p_a, mf_a, p_b, mf_b]; equation 0
+is the mass balance mf_a + mf_b = 0, equation 1 the flow law, where
+mdot = mf_a > 0 is flow from a to b and dp = p_a - p_b.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..constants import pressure_atmospheric
+from ..correlations.friction import fRe_blended, smoothstep
+from ..correlations.orifice import (dp_at_reynolds, loss_coefficient_from_discharge_coefficient,
+                                    massflow_ISO_6358, massflow_loss_coefficient)
+from .base import FLUID_PORT, LibraryComponent
+
+TWO_PORTS = (("a", FLUID_PORT), ("b", FLUID_PORT))
+# V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: flow law
+TWO_PORT_PATTERN = ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
+
+
+def _mean_density(fluid, pa, pb):
+    """Density at the mean pressure and d rho/d p_a (= d rho/d p_b)."""
+    if not fluid.compressible:
+        return fluid.rho, 0.0
+    pm = 0.5 * (pa + pb)
+    return fluid.density(pm), 0.5 * fluid.density_dp(pm)
+
+
+def _tube_params(P):
+    """Laminar/turbulent tube coefficients (as CircularTube) on a Params namespace."""
+    P.area = np.pi * P.diameter ** 2 / 4.0
+    P.eD = P.roughness / P.diameter
+    P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
+    P.Re_lo = float(P.Re_laminar[0])
+    P.Re_hi = float(P.Re_turbulent[0])
+    P.re_per_mf = P.diameter / (P.mu * P.area)              # Re = |mdot| re_per_mf
+    P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)  # dp = c_mu/rho (fRe) mdot
+
+
+def _tube_fRe(P, mf):
+    """f·Re of the tube law and its derivative in Re, skipping Haaland when all laminar."""
+    Re = np.abs(mf) * P.re_per_mf
+    if Re.max(initial=0.0) <= P.Re_lo:
+        return Re, np.full_like(Re, 64.0), np.zeros_like(Re)
+    phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi)
+    return Re, phi, dphi
+
+
+class _TubeLike(LibraryComponent):
+    """Shared checks of the tube-geometry parameters (length, diameter, roughness, blend)."""
+
+    def _init_tube(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent):
+        self.fluid = self._check_fluid(fluid)
+        self.length = self._si(length, "m", "length", positive=True)
+        self.diameter = self._si(diameter, "m", "diameter", positive=True)
+        self.roughness = self._si(roughness, "m", "roughness", nonnegative=True)
+        self.Re_laminar = self._si(Re_laminar, "", "Re_laminar", positive=True)
+        self.Re_turbulent = self._si(Re_turbulent, "", "Re_turbulent", positive=True)
+        if self.Re_turbulent <= self.Re_laminar:
+            raise ValueError(f"{self.describe()}: Re_turbulent ({self.Re_turbulent}) must exceed "
+                             f"Re_laminar ({self.Re_laminar})")
+
+    def group_key(self):
+        return (type(self), id(self.fluid), self.Re_laminar, self.Re_turbulent)
+
+
+# ---------------------------------------------------------------------------------------
+class Orifice(LibraryComponent):
+    """Flow restrictor between terminals ``a`` and ``b``, one of three models:
+
+    * loss coefficient ``K`` with ``diameter``: dp = K rho v^2/2, v = mdot/(rho A);
+    * discharge coefficient ``Cd`` with ``diameter``: mdot = Cd A sqrt(2 rho dp)
+      (the same law with K = 1/Cd^2);
+    * ISO 6358 for gases, sonic conductance ``C`` with critical pressure ratio
+      ``b`` (and subsonic index ``m``): choked flow mdot = C rho0 p_up sqrt(T0/T)
+      for p_down/p_up <= b, elliptic subsonic law above (see
+      :func:`softflow.correlations.orifice.massflow_ISO_6358`).
+
+    K/Cd models take rho at the upstream pressure (continuous at dp = 0 because
+    the flow vanishes there), and replace the square root by a linear-like odd
+    cubic below the dp at which the orifice Reynolds number rho v D/mu equals
+    ``Re_laminar`` (density at 1 atm). For gases they hold while |dp| is small
+    against the upstream pressure; beyond, use the ISO 6358 model. The ISO model
+    turns laminar-like above the pressure ratio ``pr_laminar``.
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    diameter : float [m]
+        Orifice (throat) diameter; K and Cd refer to its area. Not used by ISO 6358.
+    K : float [-], optional
+        Loss coefficient (> 0).
+    Cd : float [-], optional
+        Discharge coefficient (0 < Cd <= 1; about 0.6 for a sharp-edged orifice).
+    C : float [m^3/(s Pa)], optional
+        ISO 6358 sonic conductance at rho0 = 1.185 kg/m^3, T0 = 293.15 K
+        (catalogues give dm^3/(s bar): pass ``sf.Q_(0.5, 'dm**3/(s*bar)')``).
+    b : float [-], optional
+        ISO 6358 critical pressure ratio, 0 < b < pr_laminar (about 0.5 for valves).
+    m : float [-], default 0.5
+        ISO 6358 subsonic index, 0 < m <= 1.
+    Re_laminar : float [-], default 10
+        K/Cd models: orifice Reynolds number below which the law is laminar-like.
+    pr_laminar : float [-], default 0.999
+        ISO model: pressure ratio above which the law is laminar-like.
+    """
+
+    terminal_spec = TWO_PORTS
+    param_names = ("area", "K", "dp_small", "C", "b", "subsonic_index", "pr_laminar")
+    jac_pattern = TWO_PORT_PATTERN
+
+    def __init__(self, label, fluid, diameter=None, *, K=None, Cd=None, C=None, b=None,
+                 m=0.5, Re_laminar=10.0, pr_laminar=0.999):
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
+        given = [name for name, v in (("K", K), ("Cd", Cd), ("C", C)) if v is not None]
+        if len(given) != 1:
+            raise ValueError(f"{self.describe()}: give exactly one of K (loss coefficient), Cd "
+                             f"(discharge coefficient) or C (ISO 6358 sonic conductance); "
+                             f"got {given or 'none'}")
+        nan = float("nan")
+        self.area = self.K = self.dp_small = self.C = self.b = nan
+        self.subsonic_index = self.pr_laminar = nan
+        if C is not None:
+            self.model = "ISO 6358"
+            self._init_iso(C, b, m, pr_laminar, diameter)
+        else:
+            self.model = "K"
+            if b is not None:
+                raise ValueError(f"{self.describe()}: b (critical pressure ratio) belongs to the "
+                                 "ISO 6358 model; give C with it, or leave it out")
+            if diameter is None:
+                raise ValueError(f"{self.describe()}: diameter [m] is required with {given[0]}")
+            d = self._si(diameter, "m", "diameter", positive=True)
+            if K is not None:
+                self.K = self._si(K, "", "K", positive=True)
+            else:
+                cd = self._si(Cd, "", "Cd", positive=True)
+                if cd > 1:
+                    raise ValueError(f"{self.describe()}: Cd must be in (0, 1], got {cd}")
+                self.K = float(loss_coefficient_from_discharge_coefficient(cd))
+            re = self._si(Re_laminar, "", "Re_laminar", positive=True)
+            self.area = np.pi * d * d / 4.0
+            self.diameter = d
+            rho = self.fluid.rho
+            mu = float(self.fluid.viscosity(pressure_atmospheric))
+            self.dp_small = float(dp_at_reynolds(re, self.K, rho, mu, d))
+
+    def _init_iso(self, C, b, m, pr_laminar, diameter):
+        if diameter is not None:
+            raise ValueError(f"{self.describe()}: diameter is not used by the ISO 6358 model "
+                             "(C and b describe the restriction); leave it out")
+        if not self.fluid.compressible:
+            raise ValueError(f"{self.describe()}: the ISO 6358 model (C, b) is for gases; "
+                             f"fluid {self.fluid.name!r} is incompressible, use K or Cd")
+        self.C = self._si(C, "m**3/(s*Pa)", "C", positive=True)
+        if b is None:
+            raise ValueError(f"{self.describe()}: b (critical pressure ratio, 0 < b < 1) is "
+                             "required with C")
+        self.b = self._si(b, "", "b")
+        self.pr_laminar = self._si(pr_laminar, "", "pr_laminar")
+        if not 0.0 < self.pr_laminar < 1.0:
+            raise ValueError(f"{self.describe()}: pr_laminar must be in (0, 1), "
+                             f"got {self.pr_laminar}")
+        if not 0.0 < self.b < self.pr_laminar:
+            raise ValueError(f"{self.describe()}: b (critical pressure ratio) must be in (0, 1) "
+                             f"and below pr_laminar ({self.pr_laminar}), got {self.b}")
+        self.subsonic_index = self._si(m, "", "m")
+        if not 0.0 < self.subsonic_index <= 1.0:
+            raise ValueError(f"{self.describe()}: m (subsonic index) must be in (0, 1], "
+                             f"got {self.subsonic_index}")
+
+    def group_key(self):
+        return (type(self), id(self.fluid), self.model)
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.model = components[0].model
+        if P.model == "ISO 6358":
+            P.T = P.fluid.temperature
+        return P
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        fl = P.fluid
+        if P.model == "ISO 6358":
+            q, dq_pa, dq_pb = massflow_ISO_6358(pa, pb, P.T, P.C, P.b, P.subsonic_index,
+                                                P.pr_laminar)
+        else:
+            forward = pa >= pb
+            if fl.compressible:
+                p_up = np.where(forward, pa, pb)
+                rho, drho = fl.density(p_up), fl.density_dp(p_up)
+            else:
+                rho, drho = fl.rho, 0.0
+            q, dq_dp, dq_rho = massflow_loss_coefficient(pa - pb, rho, P.K, P.area, P.dp_small)
+            dq_up = dq_rho * drho
+            dq_pa = dq_dp + np.where(forward, dq_up, 0.0)
+            dq_pb = -dq_dp + np.where(forward, 0.0, dq_up)
+        F = np.empty((P.n, 2))
+        F[:, 0] = mfa + mfb
+        F[:, 1] = mfa - q
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1] = 1.0
+        J[:, 2] = -dq_pa
+        J[:, 3] = 1.0
+        J[:, 4] = -dq_pb
+        return F, J
+
+
+# ---------------------------------------------------------------------------------------
+class CheckValve(LibraryComponent):
+    """Spring-loaded check valve: flow from ``a`` to ``b`` once dp = p_a - p_b
+    exceeds the cracking pressure, none backwards (apart from leakage).
+
+        mdot = w(dp) · Cd A sqrt(2 rho(p_a) dp) + rho(p_mean) · leakage · dp
+
+    The opening fraction w rises as a C1 smoothstep (3s^2 - 2s^3) from 0 at
+    dp = cracking_pressure to 1 at cracking_pressure + opening_band: the open
+    law is an orifice whose area grows with the spring's travel. The residual is
+    one smooth function of dp; there is no open/closed switch to chatter between.
+    The square root is regularized below the dp at which the orifice Reynolds
+    number is Re_laminar, as in :class:`Orifice`.
+
+    Without leakage a node enclosed only by closed check valves has an
+    undetermined pressure (singular Jacobian); a tiny ``leakage`` fixes it.
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    diameter : float [m]
+        Diameter of the fully open flow passage.
+    cracking_pressure : float [Pa], default 0
+        Pressure difference at which the valve starts to open (>= 0).
+    opening_band : float [Pa], default 1000
+        Pressure rise above cracking over which it opens fully (> 0).
+    Cd : float [-], default 0.6
+        Discharge coefficient of the fully open passage, 0 < Cd <= 1.
+    leakage : float [m^3/(s Pa)], default 0
+        Volume-flow conductance when closed (both directions, >= 0).
+    Re_laminar : float [-], default 10
+    """
+
+    terminal_spec = TWO_PORTS
+    param_names = ("area", "K", "dp_small", "cracking_pressure", "opening_band", "leakage")
+    jac_pattern = TWO_PORT_PATTERN
+
+    def __init__(self, label, fluid, diameter, cracking_pressure=0.0, opening_band=1e3, Cd=0.6,
+                 leakage=0.0, Re_laminar=10.0):
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
+        self.diameter = self._si(diameter, "m", "diameter", positive=True)
+        self.cracking_pressure = self._si(cracking_pressure, "Pa", "cracking_pressure",
+                                          nonnegative=True)
+        self.opening_band = self._si(opening_band, "Pa", "opening_band", positive=True)
+        cd = self._si(Cd, "", "Cd", positive=True)
+        if cd > 1:
+            raise ValueError(f"{self.describe()}: Cd must be in (0, 1], got {cd}")
+        self.leakage = self._si(leakage, "m**3/(s*Pa)", "leakage", nonnegative=True)
+        re = self._si(Re_laminar, "", "Re_laminar", positive=True)
+        self.K = float(loss_coefficient_from_discharge_coefficient(cd))
+        self.area = np.pi * self.diameter ** 2 / 4.0
+        mu = float(self.fluid.viscosity(pressure_atmospheric))
+        self.dp_small = float(dp_at_reynolds(re, self.K, self.fluid.rho, mu, self.diameter))
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        fl = P.fluid
+        dp = pa - pb
+        if fl.compressible:
+            rho_a, drho_a = fl.density(pa), fl.density_dp(pa)
+        else:
+            rho_a, drho_a = fl.rho, 0.0
+        rho_m, drho_m = _mean_density(fl, pa, pb)
+        q_open, dq_dp, dq_rho = massflow_loss_coefficient(dp, rho_a, P.K, P.area, P.dp_small)
+        w, dw = smoothstep(dp, P.cracking_pressure, P.cracking_pressure + P.opening_band)
+        q_leak = rho_m * P.leakage * dp
+        F = np.empty((P.n, 2))
+        F[:, 0] = mfa + mfb
+        F[:, 1] = mfa - (w * q_open + q_leak)
+        if not jac:
+            return F, None
+        d_dp = dw * q_open + w * dq_dp + rho_m * P.leakage   # through dp
+        d_rho = drho_m * P.leakage * dp                        # through rho_m, per p_a or p_b
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1] = 1.0
+        J[:, 2] = -(d_dp + d_rho + w * dq_rho * drho_a)
+        J[:, 3] = 1.0
+        J[:, 4] = -(-d_dp + d_rho)
+        return F, J
+
+
+# ---------------------------------------------------------------------------------------
+class TeslaValve(_TubeLike):
+    """Fluidic diode: a tube forward (a -> b), ``diodicity`` times more resistive
+    backward, as the FONS paper's Tesla valve.
+
+    Forward the pressure drop is :class:`~softflow.components.tubes.CircularTube`'s
+    (Hagen–Poiseuille / Haaland, density at the mean pressure), dp_t(mdot).
+    Backward, at equal |mdot|, it is Di·dp_t. The direction is blended on the
+    backward side only:
+
+        dp = D(mdot)·dp_t(mdot),  D = 1 + (Di - 1)·(1 - w(mdot)),
+
+    with w the C1 smoothstep from 0 at mdot = -mdot_blend to 1 at mdot = 0
+    (mdot_blend: the flow at Reynolds number Re_blend). So dp is exactly the tube
+    for mdot >= 0 and Di times it for mdot <= -mdot_blend, passes through zero at
+    zero flow, is C1, and is strictly increasing (D >= 1 and mdot·dD/dmdot >= 0),
+    so the law has one solution for every dp.
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    length : float [m]
+        Length of the equivalent forward tube.
+    diameter : float [m]
+        Inner diameter of the equivalent forward tube.
+    diodicity : float [-], default 2
+        Backward over forward pressure drop at equal flow (Di >= 1; 1 is a tube).
+    roughness : float [m], default 1.5e-6
+    Re_laminar, Re_turbulent : float [-], default 2300, 4000
+        Laminar–turbulent blend of the tube law.
+    Re_blend : float [-], default 10
+        Reynolds number of backward flow over which the resistance rises from the
+        forward to the backward one.
+    """
+
+    terminal_spec = TWO_PORTS
+    param_names = ("length", "diameter", "roughness", "Re_laminar", "Re_turbulent",
+                   "diodicity", "Re_blend")
+    jac_pattern = TWO_PORT_PATTERN
+
+    def __init__(self, label, fluid, length, diameter, diodicity=2.0, roughness=1.5e-6,
+                 Re_laminar=2300.0, Re_turbulent=4000.0, Re_blend=10.0):
+        super().__init__(label)
+        self._init_tube(fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
+        self.diodicity = self._si(diodicity, "", "diodicity")
+        if not self.diodicity >= 1.0:
+            raise ValueError(f"{self.describe()}: diodicity must be >= 1 (backward over forward "
+                             f"resistance), got {self.diodicity}")
+        self.Re_blend = self._si(Re_blend, "", "Re_blend", positive=True)
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        _tube_params(P)
+        P.mf_blend = P.Re_blend / P.re_per_mf
+        return P
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        rho, drho = _mean_density(P.fluid, pa, pb)
+        c = P.c_mu / rho
+        Re, phi, dphi = _tube_fRe(P, mfa)
+        w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
+        extra = P.diodicity - 1.0
+        mult = 1.0 + extra * (1.0 - w)
+        law = phi * mfa * mult
+        dp_model = c * law
+        F = np.empty((P.n, 2))
+        F[:, 0] = mfa + mfb
+        F[:, 1] = (pa - pb) - dp_model
+        if not jac:
+            return F, None
+        dlaw = (phi + Re * dphi) * mult - phi * mfa * extra * dw
+        g = dp_model / rho * drho
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1] = 1.0
+        J[:, 2] = 1.0 + g
+        J[:, 3] = -c * dlaw
+        J[:, 4] = -1.0 + g
+        return F, J
+
+
+# ---------------------------------------------------------------------------------------
+class SnappingValve(_TubeLike):
+    """Hysteretic snapping valve (the FONS paper's Fig. 4, green): closed until
+    dp = p_a - p_b exceeds ``opening_pressure``, then open until dp falls below
+    ``closing_pressure``.
+
+    Closed, it is a tight linear restrictor in both directions,
+    mdot = rho(p_mean) · closed_conductance · dp: on inflation pressure builds
+    up behind it until it snaps open and releases a burst; on deflation (dp < 0,
+    below the closing threshold) it stays closed and acts as a tight restrictor,
+    as in the paper. Open, it is a low-resistance tube (``length``,
+    ``diameter``; the CircularTube law, both directions).
+
+    The mode is the discrete state ``open`` (0 or 1): each step uses the mode
+    from its start, and :meth:`update` switches it from the converged dp at the
+    end of the step, so results do not depend on Newton's iterates. Read it as
+    ``result.get(label, 'open')``: the value recorded at t is the mode decided
+    from dp at t, used by the step that follows.
+
+    For a closed valve equal to a laminar tube of length L and diameter D, take
+    closed_conductance = pi D^4 / (128 mu L).
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    opening_pressure : float [Pa]
+        Pressure difference p_a - p_b above which the closed valve opens (> 0).
+    closing_pressure : float [Pa]
+        Pressure difference below which the open valve closes (< opening_pressure;
+        may be negative).
+    closed_conductance : float [m^3/(s Pa)]
+        Volume-flow conductance of the closed valve (> 0).
+    length : float [m], default 0.01
+        Length of the open flow passage.
+    diameter : float [m], default 0.002
+        Diameter of the open flow passage.
+    initially_open : bool, default False
+    roughness : float [m], default 1.5e-6
+    Re_laminar, Re_turbulent : float [-], default 2300, 4000
+    """
+
+    terminal_spec = TWO_PORTS
+    state_spec = (("open", "dimensionless"),)
+    discrete_states = ("open",)
+    param_names = ("length", "diameter", "roughness", "Re_laminar", "Re_turbulent",
+                   "opening_pressure", "closing_pressure", "closed_conductance")
+    jac_pattern = TWO_PORT_PATTERN
+
+    def __init__(self, label, fluid, opening_pressure, closing_pressure, closed_conductance,
+                 length=0.01, diameter=0.002, initially_open=False, roughness=1.5e-6,
+                 Re_laminar=2300.0, Re_turbulent=4000.0):
+        super().__init__(label)
+        self._init_tube(fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
+        self.opening_pressure = self._si(opening_pressure, "Pa", "opening_pressure",
+                                         positive=True)
+        self.closing_pressure = self._si(closing_pressure, "Pa", "closing_pressure")
+        if not self.closing_pressure < self.opening_pressure:
+            raise ValueError(f"{self.describe()}: closing_pressure ({self.closing_pressure} Pa) "
+                             f"must be below opening_pressure ({self.opening_pressure} Pa) for "
+                             "the valve to have hysteresis")
+        self.closed_conductance = self._si(closed_conductance, "m**3/(s*Pa)",
+                                           "closed_conductance", positive=True)
+        self.initially_open = bool(initially_open)
+
+    def initial_states(self):
+        return [1.0 if self.initially_open else 0.0]
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        _tube_params(P)
+        return P
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        dp = V[:, 0] - V[:, 2]
+        mode = np.where(dp > P.opening_pressure, 1.0,
+                        np.where(dp < P.closing_pressure, 0.0, S[:, 0]))
+        return mode[:, None]
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        is_open = S[:, 0] > 0.5
+        rho, drho = _mean_density(P.fluid, pa, pb)
+        Re, phi, dphi = _tube_fRe(P, mfa)
+        # both laws as dp = X(mdot)/rho: open the tube, closed the linear restrictor
+        x_open = P.c_mu * phi
+        x_closed = 1.0 / P.closed_conductance
+        x = np.where(is_open, x_open, x_closed)
+        dp_model = x * mfa / rho
+        F = np.empty((P.n, 2))
+        F[:, 0] = mfa + mfb
+        F[:, 1] = (pa - pb) - dp_model
+        if not jac:
+            return F, None
+        dx = np.where(is_open, P.c_mu * (phi + Re * dphi), x_closed)
+        g = dp_model / rho * drho
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1] = 1.0
+        J[:, 2] = 1.0 + g
+        J[:, 3] = -dx / rho
+        J[:, 4] = -1.0 + g
+        return F, J

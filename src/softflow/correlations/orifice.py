@@ -1,0 +1,159 @@
+"""Orifice and valve flow laws, vectorized, each with its derivatives.
+
+Each law is written as mass flow from the pressures, with the square root
+(or ISO 6358's root near pressure ratio 1) replaced by an odd cubic inside a
+small band around zero flow. The cubic matches the exact law's value and slope
+at the band edge, so the result is C1 and its slope at zero flow is finite and
+non-zero: Newton neither divides by an infinite derivative nor stalls on a flat
+one. The same idea as Modelica.Fluid's regularized roots, with its own formula.
+
+Reference implementations for the tests: ``fluids.core.dP_from_K`` and
+``fluids.flow_meter.flow_meter_discharge`` (Caleb Bell).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+#: ISO 6358 standard reference atmosphere (ANR): density [kg/m^3] and temperature [K].
+ISO_6358_RHO0 = 1.185
+ISO_6358_T0 = 293.15
+
+
+def _odd_cubic(x, x_l, f_l, df_l):
+    """y = x (alpha + beta x^2), the odd cubic with y(x_l) = f_l and y'(x_l) = df_l;
+    returns (y, dy/dx). Monotone on [0, x_l] when 0 < df_l <= f_l/x_l."""
+    beta = (df_l - f_l / x_l) / (2.0 * x_l * x_l)
+    alpha = f_l / x_l - beta * x_l * x_l
+    x2 = x * x
+    return x * (alpha + beta * x2), alpha + 3.0 * beta * x2
+
+
+def regularized_sqrt(x, x_small):
+    """sign(x)·sqrt(|x|), made C1 with a finite slope at x = 0; returns (y, dy/dx).
+
+    For |x| >= x_small it is exact. Inside, y = x/sqrt(x_small) · (5/4 - (x/x_small)^2/4),
+    the odd cubic matching value and slope at ±x_small: slope 5/(4 sqrt(x_small)) at
+    zero, never below 1/(2 sqrt(x_small)), so the law stays strictly increasing.
+
+    x : float or array
+    x_small : float or array (> 0)
+    """
+    x = np.asarray(x, dtype=float)
+    ax = np.abs(x)
+    inside = ax < x_small
+    safe = np.where(inside, x_small, ax)    # keeps sqrt/division finite where unused
+    r = np.sqrt(safe)
+    y_out = np.sign(x) * r
+    dy_out = 0.5 / r
+    xs = np.broadcast_to(x_small, x.shape)
+    rs = np.sqrt(xs)
+    y_in, dy_in = _odd_cubic(x, xs, rs, 0.5 / rs)
+    return np.where(inside, y_in, y_out), np.where(inside, dy_in, dy_out)
+
+
+def massflow_loss_coefficient(dp, rho, K, area, dp_small):
+    """Mass flow through a restriction of loss coefficient K (turbulent, Re >~ 100).
+
+    Definition of the loss coefficient (Crane TP-410; Idelchik, Handbook of
+    Hydraulic Resistance), with v = mdot/(rho·A):
+
+        dp = K · rho · v^2 / 2   <=>   mdot = A · sqrt(2 rho dp / K)
+
+    signed with dp, the square root regularized below |dp| = dp_small (see
+    :func:`regularized_sqrt`). A discharge coefficient Cd is K = 1/Cd^2 (see
+    :func:`loss_coefficient_from_discharge_coefficient`). Valid for liquids, and
+    for gases while |dp| stays well below the upstream pressure (no expansion,
+    no choking; use :func:`massflow_ISO_6358` beyond that).
+
+    dp : pressure drop [Pa], rho : density [kg/m^3], K : loss coefficient [-],
+    area : flow area [m^2], dp_small : regularization band [Pa]
+
+    Returns (mdot [kg/s], d mdot/d dp, d mdot/d rho).
+    """
+    r, dr = regularized_sqrt(dp, dp_small)
+    g = area * np.sqrt(2.0 / K)
+    sq = np.sqrt(rho)
+    return g * sq * r, g * sq * dr, g * r * 0.5 / sq
+
+
+def loss_coefficient_from_discharge_coefficient(Cd):
+    """K = 1/Cd^2: the loss coefficient equivalent to a discharge coefficient.
+
+    Orifice equation mdot = Cd · A · sqrt(2 rho dp) (ISO 5167-1 with a small
+    diameter ratio, beta -> 0, and expansibility 1), set equal to the loss
+    coefficient form A·sqrt(2 rho dp / K). Cd is referred to the orifice area.
+    """
+    return 1.0 / (np.asarray(Cd, dtype=float) ** 2)
+
+
+def dp_at_reynolds(Re, K, rho, mu, diameter):
+    """Pressure drop [Pa] at which the loss-coefficient law reaches the Reynolds
+    number Re = rho v D / mu: dp = K rho v^2 / 2 with v = Re mu / (rho D).
+    Used to place the laminar-like regularization band of an orifice."""
+    v = Re * mu / (rho * diameter)
+    return 0.5 * K * rho * v * v
+
+
+def _iso_6358_phi(s, b, m, s_lam):
+    """Flow fraction phi(s) of the choked flow and dphi/ds, with
+    s = (1 - p_down/p_up)/(1 - b) >= 0: 1 when choked (s >= 1),
+    [s (2 - s)]^m subsonic, odd cubic below s_lam."""
+    s = np.asarray(s, dtype=float)
+    s_c = np.clip(s, s_lam, 1.0)
+    u = s_c * (2.0 - s_c)
+    phi = u ** m
+    dphi = m * u ** (m - 1.0) * (2.0 - 2.0 * s_c)
+    u_l = s_lam * (2.0 - s_lam)
+    phi_l = u_l ** m
+    dphi_l = m * u_l ** (m - 1.0) * (2.0 - 2.0 * s_lam)
+    y_in, dy_in = _odd_cubic(s, s_lam, phi_l, dphi_l)
+    laminar = s < s_lam
+    phi = np.where(laminar, y_in, np.where(s >= 1.0, 1.0, phi))
+    dphi = np.where(laminar, dy_in, np.where(s >= 1.0, 0.0, dphi))
+    return phi, dphi
+
+
+def massflow_ISO_6358(p_a, p_b, T, C, b, m=0.5, pr_laminar=0.999,
+                      rho0=ISO_6358_RHO0, T0=ISO_6358_T0):
+    """Pneumatic flow through a component rated by ISO 6358 (sonic conductance).
+
+    With p_up the higher and p_down the lower of p_a, p_b, pr = p_down/p_up:
+
+        mdot = C rho0 p_up sqrt(T0/T)                                pr <= b (choked)
+        mdot = C rho0 p_up sqrt(T0/T) [1 - ((pr - b)/(1 - b))^2]^m    b < pr < 1
+
+    positive from a to b. Near pr = 1 the slope in p is infinite; above
+    pr_laminar the law is replaced by an odd cubic in s = (1 - pr)/(1 - b),
+    matching value and slope (a laminar-like, nearly linear region), so the flow
+    reverses C1-smoothly through p_a = p_b.
+
+    ISO 6358-1:2013, Pneumatic fluid power -- Determination of flow-rate
+    characteristics of components using compressible fluids; the model is
+    Sanville's (1971). Valid for gases, steady flow, 0 < b < 1, 0 < m <= 1
+    (m = 0.5 is the standard's elliptic law).
+
+    p_a, p_b : absolute pressures [Pa]; T : upstream temperature [K];
+    C : sonic conductance [m^3/(s Pa)]; b : critical pressure ratio [-];
+    m : subsonic index [-]; pr_laminar : pressure ratio where the cubic takes
+    over [-] (b < pr_laminar < 1); rho0, T0 : reference density [kg/m^3] and
+    temperature [K] at which C is rated.
+
+    Returns (mdot [kg/s], d mdot/d p_a, d mdot/d p_b).
+    """
+    p_a = np.asarray(p_a, dtype=float)
+    p_b = np.asarray(p_b, dtype=float)
+    forward = p_a >= p_b
+    p_up = np.where(forward, p_a, p_b)
+    p_dn = np.where(forward, p_b, p_a)
+    k = C * rho0 * np.sqrt(T0 / T)
+    one_b = 1.0 - b
+    s = (1.0 - p_dn / p_up) / one_b
+    s_lam = (1.0 - pr_laminar) / one_b
+    phi, dphi = _iso_6358_phi(s, b, m, s_lam)
+    q = k * p_up * phi
+    d_up = k * (phi + dphi * p_dn / (p_up * one_b))
+    d_dn = -k * dphi / one_b
+    mdot = np.where(forward, q, -q)
+    dpa = np.where(forward, d_up, -d_dn)
+    dpb = np.where(forward, d_dn, -d_up)
+    return mdot, dpa, dpb

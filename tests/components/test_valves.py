@@ -1,0 +1,633 @@
+"""Valves and restrictors: analytic Jacobians against finite differences, the
+orifice correlations against closed forms and ``fluids``, small network runs,
+and bad input."""
+import math
+
+import fluids
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.components.valves import CheckValve, Orifice, SnappingValve, TeslaValve
+from softflow.correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, dp_at_reynolds,
+                                           loss_coefficient_from_discharge_coefficient,
+                                           massflow_ISO_6358, massflow_loss_coefficient,
+                                           regularized_sqrt)
+
+P0 = sf.pressure_atmospheric
+RTOL = 1e-5        # analytic vs finite-difference entries
+ATOL_ROW = 1e-8    # floor relative to the largest scaled entry of the row
+
+
+# ---------------------------------------------------------------------------------------
+# analytic Jacobians vs central differences
+# ---------------------------------------------------------------------------------------
+class Case:
+    """Instances of one class evaluated at V (n, 4) and S; ``steps`` are the
+    finite-difference steps per variable [p_a, mf_a, p_b, mf_b] and ``scale``
+    their typical sizes (for the tolerance)."""
+
+    def __init__(self, cls, instances, V, steps, scale, S=None):
+        self.cls, self.instances = cls, instances
+        self.V = np.asarray(V, dtype=float)
+        n = len(instances)
+        self.S = (np.zeros((n, len(cls.state_spec))) if S is None
+                  else np.asarray(S, dtype=float).reshape(n, -1))
+        self.steps = np.asarray(steps, dtype=float)
+        self.scale = np.asarray(scale, dtype=float)
+
+    def evaluate(self, V, jac):
+        P = self.cls.make_params(self.instances)
+        return self.cls.kernel(P, V, self.S.copy(), 0.1, 1e-3, jac)
+
+
+def _two_port_V(pa, pb, mf):
+    pa, pb, mf = (np.asarray(x, dtype=float) for x in np.broadcast_arrays(pa, pb, mf))
+    return np.column_stack([pa, mf, pb, -mf * 1.1])   # mass balance off on purpose
+
+
+def _orifice_cases():
+    cases = {}
+    for fluid in (sf.air, sf.water):
+        make = lambda: [Orifice("o0", fluid, diameter=1e-3, Cd=0.6),
+                        Orifice("o1", fluid, diameter=sf.Q_(0.5, "mm"), K=2.5),
+                        Orifice("o2", fluid, diameter=2e-3, K=1.2, Re_laminar=50)]
+        small = np.array([o.dp_small for o in make()])
+        for regime, dp in {"zero": 0.0 * small, "laminar-band": 0.4 * small,
+                           "laminar-band-reversed": -0.7 * small, "small": 30 * small,
+                           "large": np.array([2e4, 5e3, 3e4]),
+                           "reversed": np.array([-1e4, -200.0, -3e4])}.items():
+            pb = np.array([P0, 2e5, 1.5e5])
+            h = np.minimum(1e-3 * small, 1e-6 * np.maximum(np.abs(dp), 1.0)).min()
+            cases[f"Orifice-{fluid.name}-{regime}"] = Case(
+                Orifice, make(), _two_port_V(pb + dp, pb, 1e-4), steps=[h, 1e-9, h, 1e-9],
+                scale=[1e5, 1e-3, 1e5, 1e-3])
+    iso = lambda: [Orifice("i0", sf.air, C=1e-8, b=0.3),
+                   Orifice("i1", sf.air, C=sf.Q_(0.2, "dm**3/(s*bar)"), b=0.5, m=0.7),
+                   Orifice("i2", sf.air, C=4e-9, b=0.2, m=0.4, pr_laminar=0.99)]
+    pb = np.array([P0, 2e5, 1.2e5])
+    for regime, pr in {"zero": [1.0, 1.0, 1.0], "laminar-band": [0.9995, 0.9998, 0.995],
+                       "subsonic": [0.8, 0.7, 0.5], "choked": [0.25, 0.3, 0.1],
+                       "subsonic-reversed": [1 / 0.8, 1 / 0.7, 1 / 0.5],
+                       "choked-reversed": [1 / 0.25, 1 / 0.3, 1 / 0.1],
+                       "laminar-band-reversed": [1 / 0.9995, 1 / 0.9998, 1 / 0.995]}.items():
+        pa = pb / np.array(pr)
+        cases[f"Orifice-ISO6358-{regime}"] = Case(
+            Orifice, iso(), _two_port_V(pa, pb, 1e-4), steps=[1e-3, 1e-9, 1e-3, 1e-9],
+            scale=[1e5, 1e-3, 1e5, 1e-3])
+    return cases
+
+
+def _check_valve_cases():
+    cases = {}
+    for fluid in (sf.air, sf.water):
+        make = lambda: [CheckValve("c0", fluid, diameter=1e-3, cracking_pressure=5e3,
+                                   opening_band=2e3),
+                        CheckValve("c1", fluid, diameter=2e-3, cracking_pressure=0.0,
+                                   opening_band=sf.Q_(10, "mbar"), leakage=1e-12),
+                        CheckValve("c2", fluid, diameter=0.5e-3, cracking_pressure=sf.Q_(0.1, "bar"),
+                                   opening_band=5e3, Cd=0.8, leakage=sf.Q_(1e-3, "ml/(s*bar)"))]
+        for regime, dp in {"zero": [0.0, 0.0, 0.0], "closed": [2e3, -500.0, 5e3],
+                           "opening": [6e3, 500.0, 1.2e4], "open": [2e4, 3e3, 5e4],
+                           "reversed": [-1e4, -2e4, -5e4]}.items():
+            pb = np.array([P0, 1.5e5, 2e5])
+            cases[f"CheckValve-{fluid.name}-{regime}"] = Case(
+                CheckValve, make(), _two_port_V(pb + np.array(dp), pb, 1e-4),
+                steps=[1e-3, 1e-9, 1e-3, 1e-9], scale=[1e5, 1e-3, 1e5, 1e-3])
+    return cases
+
+
+def _re_per_mf(d, fluid):
+    return d / (fluid.viscosity(P0) * math.pi * d * d / 4)
+
+
+def _tesla_cases():
+    cases = {}
+    for fluid in (sf.air, sf.water):
+        make = lambda: [TeslaValve("t0", fluid, length=0.1, diameter=1e-3, diodicity=3.0),
+                        TeslaValve("t1", fluid, length=sf.Q_(5, "cm"), diameter=2e-3,
+                                   diodicity=1.0),
+                        TeslaValve("t2", fluid, length=0.3, diameter=0.8e-3, diodicity=12.0,
+                                   Re_blend=50)]
+        rpm = np.array([_re_per_mf(t.diameter, fluid) for t in make()])
+        for regime, re in {"zero": [0.0, 0.0, 0.0], "forward-laminar": [500, 50, 1000],
+                           "forward-turbulent": [8e3, 2e4, 3000],
+                           "blend": [-3.0, -0.5, -20.0], "backward-laminar": [-500, -50, -1000],
+                           "backward-turbulent": [-8e3, -2e4, -3000]}.items():
+            mf = np.array(re) / rpm
+            cases[f"TeslaValve-{fluid.name}-{regime}"] = Case(
+                TeslaValve, make(), _two_port_V([1.3e5, 2e5, P0], [1.1e5, 2.5e5, P0], mf),
+                steps=[1.0, 1e-6 * np.abs(mf).max() + 1e-13, 1.0, 1e-9],
+                scale=[1e5, np.abs(mf).max() + 1e-9, 1e5, 1e-3])
+    return cases
+
+
+def _snapping_cases():
+    cases = {}
+    for fluid in (sf.air, sf.water):
+        make = lambda: [SnappingValve("s0", fluid, opening_pressure=2e4, closing_pressure=5e3,
+                                      closed_conductance=1e-11),
+                        SnappingValve("s1", fluid, opening_pressure=sf.Q_(0.3, "bar"),
+                                      closing_pressure=-1e3, closed_conductance=3e-12,
+                                      length=0.02, diameter=3e-3)]
+        rpm = np.array([_re_per_mf(s.diameter, fluid) for s in make()])
+        for mode in (0.0, 1.0):
+            for regime, re in {"zero": [0.0, 0.0], "forward": [300.0, 6000.0],
+                               "backward": [-2000.0, -100.0]}.items():
+                mf = np.array(re) / rpm
+                cases[f"SnappingValve-{fluid.name}-{'open' if mode else 'closed'}-{regime}"] = Case(
+                    SnappingValve, make(), _two_port_V([1.6e5, 1.2e5], [1.2e5, 1.6e5], mf),
+                    S=[mode, mode], steps=[1.0, 1e-6 * np.abs(mf).max() + 1e-13, 1.0, 1e-9],
+                    scale=[1e5, np.abs(mf).max() + 1e-9, 1e5, 1e-3])
+    return cases
+
+
+CASES = {**_orifice_cases(), **_check_valve_cases(), **_tesla_cases(), **_snapping_cases()}
+
+
+def _fd_jacobian(case):
+    V0 = case.V
+    n, nv = V0.shape
+    F0, _ = case.evaluate(V0.copy(), False)
+    D = np.zeros((n, F0.shape[1], nv))
+    for k in range(nv):
+        h = case.steps[k]
+        Vp, Vm = V0.copy(), V0.copy()
+        Vp[:, k] += h
+        Vm[:, k] -= h
+        # divide by the step actually taken: p + h is rounded to the pressure's ulp
+        step = (Vp[:, k] - Vm[:, k])[:, None]
+        D[:, :, k] = (case.evaluate(Vp, False)[0] - case.evaluate(Vm, False)[0]) / step
+    return D
+
+
+def test_every_valve_class_is_covered():
+    assert {c.cls for c in CASES.values()} == {Orifice, CheckValve, TeslaValve, SnappingValve}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_valve_jacobian_matches_finite_differences(name):
+    case = CASES[name]
+    F, J = case.evaluate(case.V.copy(), True)
+    F2, J2 = case.evaluate(case.V.copy(), False)
+    n = len(case.instances)
+    assert F.shape == (n, 2) and J.shape == (n, len(case.cls.jac_pattern)) and J2 is None
+    np.testing.assert_array_equal(F, F2)
+    assert np.isfinite(F).all() and np.isfinite(J).all()
+    # equation 0 is the mass balance
+    np.testing.assert_allclose(F[:, 0], case.V[:, 1] + case.V[:, 3])
+    D = _fd_jacobian(case)
+    Ds = D * case.scale[None, None, :]
+    row_max = np.abs(Ds).max(axis=2)
+    listed = set()
+    for j, (e, k) in enumerate(case.cls.jac_pattern):
+        listed.add((e, k))
+        got, want = J[:, j] * case.scale[k], Ds[:, e, k]
+        tol = RTOL * np.abs(want) + ATOL_ROW * row_max[:, e] + 1e-300
+        assert (np.abs(got - want) <= tol).all(), (name, e, k, J[:, j], D[:, e, k])
+    for e in range(2):
+        for k in range(4):
+            if (e, k) not in listed:
+                assert (np.abs(Ds[:, e, k]) <= ATOL_ROW * row_max[:, e] + 1e-300).all()
+    # the flow law never loses its grip on the flow (Newton needs it at zero flow)
+    assert (np.abs(J[:, 3]) > 0).all()
+
+
+def test_jacobian_cases_hit_their_regimes():
+    """Guards the set-up: ISO cases really are choked/subsonic/laminar, Tesla blend
+    cases lie in the blend band, orifice band cases lie inside dp_small."""
+    for name in ("choked", "choked-reversed"):
+        V = CASES[f"Orifice-ISO6358-{name}"].V
+        pr = np.minimum(V[:, 0], V[:, 2]) / np.maximum(V[:, 0], V[:, 2])
+        assert (pr <= np.array([0.3, 0.5, 0.2])).all()
+    V = CASES["Orifice-ISO6358-subsonic"].V
+    pr = V[:, 2] / V[:, 0]
+    assert ((pr > np.array([0.3, 0.5, 0.2])) & (pr < np.array([0.999, 0.999, 0.99]))).all()
+    case = CASES["Orifice-water-laminar-band"]
+    assert (np.abs(case.V[:, 0] - case.V[:, 2]) < [o.dp_small for o in case.instances]).all()
+    case = CASES["TeslaValve-air-blend"]
+    re = -case.V[:, 1] * np.array([_re_per_mf(t.diameter, sf.air) for t in case.instances])
+    assert ((re > 0) & (re < [t.Re_blend for t in case.instances])).all()
+
+
+# ---------------------------------------------------------------------------------------
+# correlations
+# ---------------------------------------------------------------------------------------
+def test_regularized_sqrt_is_exact_outside_and_C1_at_the_band_edge():
+    xs = 2.0
+    x = np.concatenate([-np.logspace(4, np.log10(xs), 20), np.logspace(np.log10(xs), 4, 20)])
+    y, dy = regularized_sqrt(x, xs)
+    np.testing.assert_allclose(y, np.sign(x) * np.sqrt(np.abs(x)), rtol=1e-14)
+    np.testing.assert_allclose(dy, 0.5 / np.sqrt(np.abs(x)), rtol=1e-14)
+    for edge in (xs, -xs):
+        d = 1e-9
+        (ym, yp), (dm, dp) = regularized_sqrt(np.array([edge - d, edge + d]), xs)
+        assert abs(yp - ym) < 1e-8 and abs(dp - dm) < 1e-7
+    inner = np.linspace(-xs, xs, 201)
+    y, dy = regularized_sqrt(inner, xs)
+    assert (np.diff(y) > 0).all() and (dy >= 0.5 / np.sqrt(xs) - 1e-15).all()
+    assert dy[100] == pytest.approx(1.25 / np.sqrt(xs))
+    np.testing.assert_allclose(y, -y[::-1], atol=1e-15)
+    h = 1e-6
+    fd = (regularized_sqrt(inner + h, xs)[0] - regularized_sqrt(inner - h, xs)[0]) / (2 * h)
+    np.testing.assert_allclose(dy, fd, rtol=1e-6)
+
+
+@pytest.mark.parametrize("K", [0.5, 2.78, 40.0])
+def test_loss_coefficient_law_matches_fluids_dP_from_K(K):
+    area = math.pi * 1e-3 ** 2 / 4
+    dp = np.logspace(1, 5, 9)
+    for rho in (998.2, 1.2, 3.5):
+        mdot, d_dp, d_rho = massflow_loss_coefficient(dp, rho, K, area, 1e-3)
+        v = mdot / (rho * area)
+        want = np.array([fluids.dP_from_K(K=K, rho=rho, V=vi) for vi in v])
+        np.testing.assert_allclose(want, dp, rtol=1e-12)
+        np.testing.assert_allclose(d_dp, mdot / (2 * dp), rtol=1e-12)
+        np.testing.assert_allclose(d_rho, mdot / (2 * rho), rtol=1e-12)
+
+
+@pytest.mark.parametrize("Cd", [0.61, 0.8, 1.0])
+def test_discharge_coefficient_law_matches_fluids_flow_meter(Cd):
+    """fluids' ISO 5167 orifice equation with a tiny diameter ratio (beta -> 0)."""
+    d = 1.2e-3
+    K = loss_coefficient_from_discharge_coefficient(Cd)
+    assert K == pytest.approx(1 / Cd ** 2)
+    for rho, P1 in ((998.2, 3e5), (1.8, 1.5e5)):
+        for dp in (50.0, 3e3, 8e4):
+            got, _, _ = massflow_loss_coefficient(dp, rho, K, math.pi * d * d / 4, 1e-2)
+            want = fluids.flow_meter_discharge(D=1e3 * d, Do=d, P1=P1, P2=P1 - dp, rho=rho,
+                                               C=Cd, expansibility=1.0)
+            assert got == pytest.approx(want, rel=1e-10)
+
+
+def test_dp_at_reynolds_gives_that_reynolds_number():
+    K, rho, mu, d = 2.5, 998.2, 1e-3, 1e-3
+    dp = dp_at_reynolds(10.0, K, rho, mu, d)
+    mdot, _, _ = massflow_loss_coefficient(dp, rho, K, math.pi * d * d / 4, 1e-9)
+    assert 4 * mdot / (math.pi * d * mu) == pytest.approx(10.0, rel=1e-12)
+
+
+def _iso_closed_form(p_up, p_dn, T, C, b, m):
+    k = C * ISO_6358_RHO0 * math.sqrt(ISO_6358_T0 / T) * p_up
+    pr = p_dn / p_up
+    return k if pr <= b else k * (1 - ((pr - b) / (1 - b)) ** 2) ** m
+
+
+@pytest.mark.parametrize("b,m", [(0.5, 0.5), (0.3, 0.5), (0.2, 0.35), (0.45, 1.0)])
+def test_iso_6358_matches_closed_form(b, m):
+    C, T = 2e-9, 303.0
+    p_up = 6e5
+    for pr in (0.05, b * 0.99, b, b * 1.01 + 0.01, 0.6, 0.9, 0.99, 0.998):
+        got, _, _ = massflow_ISO_6358(p_up, pr * p_up, T, C, b, m)
+        assert got == pytest.approx(_iso_closed_form(p_up, pr * p_up, T, C, b, m), rel=1e-12)
+        back, _, _ = massflow_ISO_6358(pr * p_up, p_up, T, C, b, m)
+        assert back == pytest.approx(-got, rel=1e-14)
+    # choked: independent of the downstream pressure, proportional to the upstream one
+    q = [massflow_ISO_6358(p_up, x, T, C, b, m)[0] for x in (0.0, 0.1 * b * p_up, b * p_up)]
+    assert q[0] == q[1] == q[2] == pytest.approx(C * 1.185 * p_up * math.sqrt(293.15 / T))
+
+
+def test_iso_6358_is_C1_and_reverses_through_zero():
+    C, b, T, pb = 3e-9, 0.4, 293.15, 2e5
+    prl = 0.999
+    # pressures across zero flow, the laminar-band edge and the choking point
+    pa = np.concatenate([np.linspace(pb * 0.98, pb * 1.02, 401),
+                         pb / prl * np.array([1 - 1e-9, 1 + 1e-9]),
+                         pb / b * np.array([1 - 1e-9, 1 + 1e-9])])
+    q, dqa, dqb = massflow_ISO_6358(pa, pb, T, C, b, 0.5, prl)
+    assert q[200] == 0.0 and (np.diff(q[:401]) > 0).all()
+    for i in (401, 403):   # both sides of each edge: value and slope continuous
+        step = pa[i + 1] - pa[i]
+        assert abs(q[i + 1] - q[i]) <= 1.01 * max(abs(dqa[i]), abs(dqa[i + 1])) * step
+        assert abs(dqa[i + 1] - dqa[i]) <= 1e-5 * abs(dqa).max()
+    h = 1e-2
+    fd_a = (massflow_ISO_6358(pa + h, pb, T, C, b)[0] - massflow_ISO_6358(pa - h, pb, T, C, b)[0]) / (2 * h)
+    fd_b = (massflow_ISO_6358(pa, pb + h, T, C, b)[0] - massflow_ISO_6358(pa, pb - h, T, C, b)[0]) / (2 * h)
+    sl = np.abs(dqa).max()
+    # (rtol 1e-4: one point of the grid sits on the band edge, where f'' jumps)
+    np.testing.assert_allclose(dqa[:401], fd_a[:401], rtol=1e-4, atol=1e-7 * sl)
+    np.testing.assert_allclose(dqb[:401], fd_b[:401], rtol=1e-4, atol=1e-7 * sl)
+    # the slope at zero flow is finite and positive
+    assert 0 < dqa[200] < np.inf
+
+
+# ---------------------------------------------------------------------------------------
+# network runs
+# ---------------------------------------------------------------------------------------
+def _between_sources(comp, p_a, p_b):
+    s = sf.System()
+    s += sf.PressureSource("pa", pressure=p_a)
+    s += comp
+    s += sf.PressureSource("pb", pressure=p_b)
+    s.connect((comp.label, "a"), "pa")
+    s.connect((comp.label, "b"), "pb")
+    return s
+
+
+def _steady_flow(comp, p_a, p_b):
+    res = sf.Simulation(_between_sources(comp, p_a, p_b), duration=1e-2, step=5e-3).run()
+    mf_a, mf_b = res.get(comp.label, "massflow", "a"), res.get(comp.label, "massflow", "b")
+    np.testing.assert_allclose(mf_a + mf_b, 0.0, atol=1e-15)
+    return mf_a[-1]
+
+
+@pytest.mark.parametrize("fluid", [sf.water, sf.air], ids=lambda f: f.name)
+def test_orifice_steady_flow_matches_the_orifice_equation(fluid):
+    d, Cd, dp = 0.8e-3, 0.62, 2e3
+    got = _steady_flow(Orifice("o", fluid, diameter=d, Cd=Cd), P0 + dp, P0)
+    want = fluids.flow_meter_discharge(D=1e3 * d, Do=d, P1=P0 + dp, P2=P0,
+                                       rho=float(fluid.density(P0 + dp)), C=Cd)
+    assert got == pytest.approx(want, rel=1e-9)
+    # reversed: same magnitude (water), upstream density at b (air)
+    back = _steady_flow(Orifice("o", fluid, diameter=d, Cd=Cd), P0, P0 + dp)
+    assert back == pytest.approx(-want, rel=1e-9)
+    # K form with K = 1/Cd^2 is the same device
+    assert _steady_flow(Orifice("o", fluid, diameter=d, K=1 / Cd ** 2), P0 + dp, P0) == \
+        pytest.approx(want, rel=1e-9)
+
+
+def test_iso_orifice_choked_flow_is_independent_of_downstream_pressure():
+    C, b = sf.Q_(0.3, "dm**3/(s*bar)"), 0.45
+    p_up = 6e5
+    choked = [_steady_flow(Orifice("o", sf.air, C=C, b=b), p_up, p) for p in (1e5, 2e5, 2.6e5)]
+    want = 0.3e-3 / 1e5 * 1.185 * p_up * math.sqrt(293.15 / sf.air.temperature)
+    np.testing.assert_allclose(choked, want, rtol=1e-9)
+    sub = _steady_flow(Orifice("o", sf.air, C=C, b=b), p_up, 4.5e5)
+    assert sub == pytest.approx(want * math.sqrt(1 - ((0.75 - b) / (1 - b)) ** 2), rel=1e-9)
+    assert sub < 0.9 * want
+
+
+def test_iso_orifice_discharges_a_tank_to_equilibrium_conserving_mass():
+    s = sf.System()
+    s += sf.Container("c1", sf.air, volume=5e-6, initial_pressure=5e5)
+    s += Orifice("o", sf.air, C=1e-9, b=0.4)
+    s += sf.Container("c2", sf.air, volume=10e-6, initial_pressure=P0)
+    s.connect(("o", "a"), "c1")
+    s.connect(("o", "b"), "c2")
+    res = sf.Simulation(s, duration=1.0).run()
+    m = res.get("c1", "mass") + res.get("c2", "mass")
+    assert np.abs(m - m[0]).max() < 1e-9 * m[0]
+    p1, p2 = res.get("c1", "pressure"), res.get("c2", "pressure")
+    p_eq = (5e5 * 5e-6 + P0 * 10e-6) / 15e-6
+    assert p1[-1] == pytest.approx(p_eq, rel=1e-4) and p2[-1] == pytest.approx(p_eq, rel=1e-4)
+    # choked at first: the initial flow is C rho0 p_up sqrt(T0/T), whatever c2 holds
+    mf = res.get("o", "massflow", "a")
+    assert mf[0] == pytest.approx(1e-9 * 1.185 * 5e5, rel=1e-9)
+
+
+def _sine_source(amplitude, period):
+    return lambda t: P0 + amplitude * math.sin(2 * math.pi * t / period)
+
+
+@pytest.mark.parametrize("fluid", [sf.air, sf.water], ids=lambda f: f.name)
+def test_check_valve_blocks_reverse_flow(fluid):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=_sine_source(3e4, 0.2))
+    s += CheckValve("cv", fluid, diameter=0.3e-3, cracking_pressure=2e3, opening_band=1e3)
+    if fluid.compressible:
+        s += sf.Container("c", fluid, volume=2e-6)
+    else:
+        s += sf.LinearAccumulator("c", fluid, volume=1e-6, compliance=2e-13)
+    s.connect(("cv", "a"), "src")
+    s.connect(("cv", "b"), "c")
+    res = sf.Simulation(s, duration=0.6).run()
+    mf = res.get("cv", "massflow", "a")
+    assert mf.max() > 1e-6
+    # no backflow (no leakage) beyond the Newton tolerance (1e-6 of the largest flow)
+    assert mf.min() >= -1e-6 * mf.max()
+    m = res.get("c", "mass")
+    assert (np.diff(m) >= -1e-6 * (m.max() - m[0])).all()     # the chamber only fills
+    # it ends within the opening band below the source's peak minus the cracking pressure
+    p_end = res.get("c", "pressure")[-1]
+    assert P0 + 3e4 - 2e3 - 1e3 <= p_end <= P0 + 3e4 - 2e3
+
+
+def test_check_valve_leakage_lets_a_little_flow_back():
+    tight = _steady_flow(CheckValve("cv", sf.water, diameter=1e-3), P0, P0 + 1e4)
+    leaky = _steady_flow(CheckValve("cv", sf.water, diameter=1e-3, leakage=1e-12), P0,
+                         P0 + 1e4)
+    assert tight == 0.0
+    assert leaky == pytest.approx(-sf.water.rho * 1e-12 * 1e4, rel=1e-12)
+
+
+@pytest.mark.parametrize("fluid", [sf.water, sf.air], ids=lambda f: f.name)
+def test_tesla_valve_is_more_resistive_backward(fluid):
+    kw = dict(length=0.2, diameter=0.5e-3, diodicity=4.0)
+    dp = 2e4 if fluid is sf.water else 2e3      # laminar both ways, backward Re > Re_blend
+    fwd = _steady_flow(TeslaValve("tv", fluid, **kw), P0 + dp, P0)
+    bwd = _steady_flow(TeslaValve("tv", fluid, **kw), P0, P0 + dp)
+    tube = _steady_flow(sf.CircularTube("t", fluid, length=0.2, diameter=0.5e-3), P0 + dp, P0)
+    assert fwd == pytest.approx(tube, rel=1e-9)
+    assert bwd < 0 and abs(bwd) < fwd
+    # laminar and beyond the blend band: backward flow is exactly Di times smaller
+    assert abs(bwd) == pytest.approx(fwd / 4.0, rel=1e-6)
+    # turbulent: dp_back = Di dp_fwd at equal flow, so the flow falls less than Di-fold
+    dpt = 2e5
+    fwd_t = _steady_flow(TeslaValve("tv", sf.water, **kw), P0 + dpt, P0)
+    bwd_t = _steady_flow(TeslaValve("tv", sf.water, **kw), P0, P0 + dpt)
+    assert fwd_t / 4.0 < abs(bwd_t) < fwd_t
+    back_dp = _steady_flow(TeslaValve("tv", sf.water, **kw), P0, P0 + 4.0 * dpt)
+    assert back_dp == pytest.approx(-fwd_t, rel=1e-6)
+
+
+def _two_tanks(restrictor):
+    s = sf.System()
+    s += sf.Container("c1", sf.air, volume=5e-6, initial_pressure=3e5)
+    s += restrictor
+    s += sf.Container("c2", sf.air, volume=20e-6, initial_pressure=P0)
+    s.connect((restrictor.label, "a"), "c1")
+    s.connect((restrictor.label, "b"), "c2")
+    return s
+
+
+def test_tesla_valve_with_diodicity_one_is_a_circular_tube():
+    kw = dict(length=0.5, diameter=1e-3)
+    a = sf.Simulation(_two_tanks(TeslaValve("r", sf.air, diodicity=1.0, **kw)),
+                      duration=0.2, step=1e-3).run()
+    b = sf.Simulation(_two_tanks(sf.CircularTube("r", sf.air, **kw)), duration=0.2,
+                      step=1e-3).run()
+    for label in ("c1", "c2"):
+        np.testing.assert_allclose(a.get(label, "pressure"), b.get(label, "pressure"),
+                                   rtol=1e-12)
+    np.testing.assert_allclose(a.get("r", "massflow", "a"), b.get("r", "massflow", "a"),
+                               rtol=1e-9, atol=1e-15)
+
+
+def test_tesla_valve_empties_backward_more_slowly():
+    def final_gap(a_side_high):
+        tv = TeslaValve("r", sf.air, length=0.5, diameter=1e-3, diodicity=3.0)
+        s = sf.System()
+        s += sf.Container("c1", sf.air, volume=5e-6, initial_pressure=3e5 if a_side_high else P0)
+        s += tv
+        s += sf.Container("c2", sf.air, volume=5e-6, initial_pressure=P0 if a_side_high else 3e5)
+        s.connect(("r", "a"), "c1")
+        s.connect(("r", "b"), "c2")
+        res = sf.Simulation(s, duration=0.05).run()
+        return abs(res.get("c1", "pressure")[-1] - res.get("c2", "pressure")[-1])
+    assert final_gap(False) > 2 * final_gap(True)
+
+
+def _triangle(peak, t_up, t_end):
+    def p(t):
+        return P0 + peak * (t / t_up if t < t_up else max(0.0, (t_end - t) / (t_end - t_up)))
+    p.breakpoints = (t_up,)
+    return p
+
+
+def snapping_scene(fluid=sf.air, **kw):
+    """Source pressure ramps up and down; the valve feeds a chamber."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=_triangle(6e4, 1.0, 2.0))
+    params = dict(opening_pressure=1e4, closing_pressure=2e3, closed_conductance=2e-12,
+                  length=0.01, diameter=1e-3)
+    params.update(kw)
+    s += SnappingValve("sv", fluid, **params)
+    s += sf.Container("c", fluid, volume=10e-6)
+    s.connect(("sv", "a"), "src")
+    s.connect(("sv", "b"), "c")
+    return s
+
+
+def test_snapping_valve_bursts_on_inflation_with_hysteresis():
+    res = sf.Simulation(snapping_scene(), duration=2.0).run()
+    t = res.times
+    dp = res.get("src", "pressure") - res.get("c", "pressure")
+    mode = res.get("sv", "open")
+    assert set(np.unique(mode)) == {0.0, 1.0}
+    # the mode after each step follows the hysteresis rule from that step's dp
+    for i in range(1, len(t)):
+        want = 1.0 if dp[i] > 1e4 else 0.0 if dp[i] < 2e3 else mode[i - 1]
+        assert mode[i] == want, (t[i], dp[i], mode[i - 1], mode[i])
+    # a hysteresis loop: inside the band the valve is seen both open and closed
+    band = (dp > 2e3) & (dp < 1e4)
+    assert (mode[band] == 1).any() and (mode[band] == 0).any()
+    # bursts: several openings while the source rises, none while it falls
+    openings = t[1:][np.diff(mode) > 0]
+    assert len(openings) >= 4 and (openings < 1.0).all()
+    # the step ending at t[i] ran with the mode recorded at t[i - 1]
+    mf = res.get("sv", "massflow", "a")[1:]
+    ran_open, rising = mode[:-1] == 1, t[1:] < 1.0
+    assert mf[ran_open].max() > 100 * np.abs(mf[~ran_open & rising]).max()
+    # mass balance: what left the source is in the chamber
+    supplied = np.concatenate([[0.0], np.cumsum(np.diff(t) * -res.get("src", "massflow")[1:])])
+    m = res.get("c", "mass")
+    assert np.abs((m - m[0]) - supplied).max() < 1e-9 * m[0]
+    np.testing.assert_allclose(mf + res.get("sv", "massflow", "b")[1:], 0.0, atol=1e-15)
+
+
+def test_snapping_valve_is_a_tight_restrictor_on_deflation():
+    res = sf.Simulation(snapping_scene(), duration=2.0).run()
+    t = res.times
+    pa, pb = res.get("src", "pressure"), res.get("c", "pressure")
+    dp = pa - pb
+    mode = res.get("sv", "open")
+    late = t > 1.2
+    assert (dp[late] < 0).all() and (mode[late] == 0).all()
+    # backflow through the closed valve follows the tight linear law
+    mf = res.get("sv", "massflow", "a")
+    rho_m = sf.air.density(0.5 * (pa + pb))
+    # (to the Newton tolerance on pressure, 1e-6 of 1.6 bar against dp ~ 0.1 bar)
+    np.testing.assert_allclose(mf[late], rho_m[late] * 2e-12 * dp[late], rtol=1e-4)
+    # so the chamber lags far behind the source when it deflates
+    assert pb[-1] - pa[-1] > 3e4
+
+
+def test_snapping_valve_kernel_uses_the_mode_from_the_start_of_the_step():
+    sv = SnappingValve("sv", sf.water, opening_pressure=1e4, closing_pressure=2e3,
+                       closed_conductance=1e-12)
+    P = SnappingValve.make_params([sv, sv])
+    V = np.array([[P0 + 5e4, 1e-3, P0, -1e-3]] * 2)   # far above the opening threshold
+    S = np.array([[0.0], [1.0]])
+    F, _ = SnappingValve.kernel(P, V, S, 0.0, 1e-3, False)
+    # closed instance: the tight law, whatever dp says
+    assert F[0, 1] == pytest.approx(5e4 - 1e-3 / (sf.water.rho * 1e-12))
+    assert F[1, 1] != F[0, 1]
+    S_new = SnappingValve.update(P, V, S, 1e-3)
+    np.testing.assert_array_equal(S_new, [[1.0], [1.0]])
+    V[:, 0] = P0 + 5e3                                  # inside the band: keep the mode
+    np.testing.assert_array_equal(SnappingValve.update(P, V, S, 1e-3), S)
+    V[:, 0] = P0 - 1e3                                  # below closing
+    np.testing.assert_array_equal(SnappingValve.update(P, V, S, 1e-3), [[0.0], [0.0]])
+
+
+def test_snapping_valve_results_do_not_depend_on_newton_tolerance():
+    a = sf.Simulation(snapping_scene(), duration=1.0, step=2e-3).run()
+    b = sf.Simulation(snapping_scene(), duration=1.0, step=2e-3, newton_rtol=1e-10).run()
+    np.testing.assert_array_equal(a.get("sv", "open"), b.get("sv", "open"))
+    np.testing.assert_allclose(a.get("c", "pressure"), b.get("c", "pressure"), rtol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------------------
+W = sf.water
+BAD = [
+    (lambda: Orifice("o", W, diameter=0.0, Cd=0.6), "diameter"),
+    (lambda: Orifice("o", W, diameter=-1e-3, K=2.0), "diameter"),
+    (lambda: Orifice("o", W, diameter=1e-3, K=0.0), "K"),
+    (lambda: Orifice("o", W, diameter=1e-3, Cd=1.2), "Cd"),
+    (lambda: Orifice("o", W, diameter=1e-3, Cd=-0.6), "Cd"),
+    (lambda: Orifice("o", W, diameter=1e-3), "exactly one of K"),
+    (lambda: Orifice("o", W, diameter=1e-3, K=2.0, Cd=0.6), "exactly one of K"),
+    (lambda: Orifice("o", W, Cd=0.6), "diameter"),
+    (lambda: Orifice("o", W, diameter=sf.Q_(1, "bar"), Cd=0.6), "diameter"),
+    (lambda: Orifice("o", W, diameter=1e-3, Cd=0.6, b=0.5), "b"),
+    (lambda: Orifice("o", W, C=1e-9, b=0.5), "incompressible"),
+    (lambda: Orifice("o", sf.air, C=1e-9), "b"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=0.0), "b"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=1.0), "b"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=-0.2), "b"),
+    (lambda: Orifice("o", sf.air, C=-1e-9, b=0.5), "C"),
+    (lambda: Orifice("o", sf.air, C=sf.Q_(1, "m**3/s"), b=0.5), "C"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=0.5, m=0.0), "m"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=0.5, m=1.5), "m"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=0.5, pr_laminar=1.0), "pr_laminar"),
+    (lambda: Orifice("o", sf.air, C=1e-9, b=0.5, diameter=1e-3), "diameter"),
+    (lambda: Orifice("o", "water", diameter=1e-3, Cd=0.6), "fluid"),
+    (lambda: CheckValve("o", W, diameter=1e-3, cracking_pressure=-1.0), "cracking_pressure"),
+    (lambda: CheckValve("o", W, diameter=1e-3, cracking_pressure=sf.Q_(-0.1, "bar")),
+     "cracking_pressure"),
+    (lambda: CheckValve("o", W, diameter=0.0), "diameter"),
+    (lambda: CheckValve("o", W, diameter=1e-3, opening_band=0.0), "opening_band"),
+    (lambda: CheckValve("o", W, diameter=1e-3, leakage=-1e-12), "leakage"),
+    (lambda: CheckValve("o", W, diameter=1e-3, Cd=1.5), "Cd"),
+    (lambda: TeslaValve("o", W, length=0.1, diameter=1e-3, diodicity=0.5), "diodicity"),
+    (lambda: TeslaValve("o", W, length=0.0, diameter=1e-3), "length"),
+    (lambda: TeslaValve("o", W, length=0.1, diameter=-1e-3), "diameter"),
+    (lambda: TeslaValve("o", W, length=0.1, diameter=1e-3, Re_blend=0.0), "Re_blend"),
+    (lambda: TeslaValve("o", W, length=0.1, diameter=1e-3, Re_laminar=5e3), "Re_turbulent"),
+    (lambda: SnappingValve("o", W, opening_pressure=1e4, closing_pressure=2e4,
+                           closed_conductance=1e-12), "closing_pressure.*opening_pressure"),
+    (lambda: SnappingValve("o", W, opening_pressure=1e4, closing_pressure=1e4,
+                           closed_conductance=1e-12), "closing_pressure.*opening_pressure"),
+    (lambda: SnappingValve("o", W, opening_pressure=-1e4, closing_pressure=-2e4,
+                           closed_conductance=1e-12), "opening_pressure"),
+    (lambda: SnappingValve("o", W, opening_pressure=1e4, closing_pressure=0.0,
+                           closed_conductance=0.0), "closed_conductance"),
+    (lambda: SnappingValve("o", W, opening_pressure=1e4, closing_pressure=0.0,
+                           closed_conductance=1e-12, diameter=0.0), "diameter"),
+]
+
+
+@pytest.mark.parametrize("make,param", BAD, ids=[f"{i}-{p}" for i, (_, p) in enumerate(BAD)])
+def test_bad_input_names_component_and_parameter(make, param):
+    with pytest.raises((ValueError, TypeError)) as err:
+        make()
+    msg = str(err.value)
+    assert "'o'" in msg
+    assert __import__("re").search(param, msg), msg
+
+
+def test_parameters_accept_quantities():
+    sv = SnappingValve("s", W, opening_pressure=sf.Q_(0.2, "bar"),
+                       closing_pressure=sf.Q_(50, "mbar"),
+                       closed_conductance=sf.Q_(1, "ml/(s*bar)"), length=sf.Q_(1, "cm"),
+                       diameter=sf.Q_(2, "mm"))
+    assert sv.opening_pressure == pytest.approx(2e4)
+    assert sv.closing_pressure == pytest.approx(5e3)
+    assert sv.closed_conductance == pytest.approx(1e-11)
+    cv = CheckValve("c", W, diameter=sf.Q_(1, "mm"), cracking_pressure=sf.Q_(0.1, "bar"),
+                    leakage=sf.Q_(1e-3, "ml/(s*bar)"))
+    assert cv.cracking_pressure == pytest.approx(1e4) and cv.leakage == pytest.approx(1e-14)
+    o = Orifice("o", sf.air, C=sf.Q_(1, "dm**3/(s*bar)"), b=0.5)
+    assert o.C == pytest.approx(1e-8)
