@@ -115,6 +115,40 @@ def _tube_cases(rng):
     V = np.column_stack([_random_pressures(rng, 4), mf, _random_pressures(rng, 4), -mf])
     cases["CircularTube-water-custom-blend"] = Case(
         sf.CircularTube, tubes, V, np.zeros((4, 0)), scale=[1e5, 1e-3, 1e5, 1e-3])
+    cases.update(_tube_option_cases())
+    return cases
+
+
+TUBE_OPTIONS = {
+    # friction correlations: closed form, exact Colebrook, tabulated fluids method, laminar
+    "Colebrook": (dict(friction="Colebrook"), (sf.water,)),
+    "Churchill": (dict(friction="Churchill"), (sf.water,)),
+    "Swamee-Jain": (dict(friction="Swamee-Jain"), (sf.water,)),
+    "Serghides_2": (dict(friction="Serghides_2"), (sf.water,)),
+    "laminar-only": (dict(friction="laminar"), (sf.water,)),
+    # isothermal compressible flow (the acceleration term depends on p_a, p_b and mdot)
+    "isothermal": (dict(compressible="isothermal"), (sf.air,)),
+    "isothermal-Colebrook": (dict(compressible="isothermal", friction="Colebrook"), (sf.air,)),
+}
+
+
+def _tube_option_cases():
+    """CircularTube options in every flow regime (own generator: the draws of the
+    cases above stay as they were)."""
+    rng = np.random.default_rng(4096)
+    cases = {}
+    for option, (kw, fluids_) in TUBE_OPTIONS.items():
+        for fluid in fluids_:
+            for regime, draw in TUBE_REGIMES.items():
+                tubes = _tube_instances(fluid, **kw)
+                n = len(tubes)
+                mf = _massflow_for_re(tubes, draw(rng, n))
+                V = np.column_stack([_random_pressures(rng, n), mf, _random_pressures(rng, n),
+                                     -mf * rng.uniform(0.5, 1.5, n)])
+                mf_scale = max(np.abs(mf).max(), _massflow_for_re(tubes[:1], [1000.0])[0])
+                cases[f"CircularTube-{option}-{fluid.name}-{regime}"] = Case(
+                    sf.CircularTube, tubes, V, np.zeros((n, 0)),
+                    scale=[1e5, mf_scale, 1e5, mf_scale])
     return cases
 
 

@@ -2,9 +2,9 @@
 from .base import LibraryComponent
 from .chambers import Container, LinearAccumulator
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
-from .tubes import CircularTube
+from .tubes import CircularTube, InertialCircularTube
 from .valves import CheckValve, Orifice, SnappingValve, TeslaValve
 
 __all__ = ["LibraryComponent", "PressureSource", "MassFlowSource", "VolumeFlowSource",
-           "CircularTube", "Container", "LinearAccumulator",
+           "CircularTube", "InertialCircularTube", "Container", "LinearAccumulator",
            "Orifice", "CheckValve", "TeslaValve", "SnappingValve"]

@@ -1,53 +1,107 @@
 """Pressure and flow sources. Flow sources count positive when fluid leaves
 the source (as in the FONS paper); the through variable at the terminal,
-positive into the component, is then minus that flow."""
+positive into the component, is then minus that flow.
+
+Every source value may be a constant (number in SI or pint Quantity), a
+waveform from ``softflow.curves.waveforms`` (which carries its unit and its
+breakpoints), or any callable t [s] -> value (float in SI or Quantity).
+Pressures are absolute, as in the paper; ``PressureSource(..., gauge=True)``
+takes them relative to the atmosphere instead.
+"""
 from __future__ import annotations
 
 import numpy as np
 
-from .base import FLUID_PORT, LibraryComponent, Params
+from ..constants import pressure_atmospheric
+from ..curves.waveforms import Waveform
 from ..units import to_si
+from .base import FLUID_PORT, LibraryComponent, Params
 
 
 class _Signal:
-    """A constant or a function of time, returning SI floats."""
+    """A constant, a waveform or a function of time, returning SI floats.
+
+    Waveforms (``softflow.curves.waveforms``) carry their unit and are checked
+    and scaled once here; other callables are converted on every call (pint
+    Quantities allowed) and may declare ``breakpoints`` (a tuple of times [s])
+    or ``breakpoints_until(T)``.
+    """
 
     def __init__(self, value, unit, name, owner):
         self.name, self.unit, self.owner = name, unit, owner
-        if callable(value):
+        self.const = None
+        self.func = None
+        self.fast = False     # func returns SI floats: no per-call conversion
+        if isinstance(value, Waveform):
+            factor = value.factor_to(unit, name=name, owner=owner)
+            self.func = value if factor == 1.0 else (lambda t: factor * value(t))
+            self.fast = True
+            self._until = value.breakpoints_until
+            self.breaks = tuple(value.breakpoints)
+        elif callable(value):
             self.func = value
             self.breaks = tuple(to_si(b, "s", name=f"{name}.breakpoints", owner=owner)
                                 for b in getattr(value, "breakpoints", ()))
-            self(0.0)  # validate units and output once, at construction
+            self._until = getattr(value, "breakpoints_until", None)
         else:
-            c = to_si(value, unit, name=name, owner=owner)
-            self.func = None
-            self.const = c
+            self.const = to_si(value, unit, name=name, owner=owner)
+            if np.ndim(self.const) != 0:
+                raise ValueError(f"{owner}: {name} must be a scalar, a waveform or a "
+                                 f"function of time, got an array")
             self.breaks = ()
+            self._until = None
+        self.initial = self(0.0)  # validates units and output once, at construction
+
+    def breakpoints_until(self, until):
+        if self._until is not None:
+            return tuple(float(b) for b in self._until(until))
+        return tuple(b for b in self.breaks if b <= until)
 
     def __call__(self, t):
         if self.func is None:
             return self.const
         v = self.func(t)
+        if self.fast or isinstance(v, float):
+            return v
+        v = to_si(v, self.unit, name=f"{self.name}(t={t:g})", owner=self.owner)
         if not isinstance(v, float):
-            v = to_si(v, self.unit, name=f"{self.name}(t={t:g})", owner=self.owner)
-            if not isinstance(v, float):
-                raise ValueError(f"{self.owner}: {self.name}(t) must return a scalar, "
-                                 f"got an array of shape {np.shape(v)} at t = {t:g} s")
+            raise ValueError(f"{self.owner}: {self.name}(t) must return a scalar, "
+                             f"got an array of shape {np.shape(v)} at t = {t:g} s")
         return v
 
 
 class _SourceParams(Params):
+    """Signal values of a group of sources: constants once, each distinct
+    time-varying signal object once per distinct t."""
+
     def __init__(self, components):
         super().__init__(components)
-        self.signals = [c.signal for c in self.components]
+        signals = [c.signal for c in self.components]
+        offsets = np.array([getattr(c, "offset", 0.0) for c in self.components])
+        self._base = offsets + [0.0 if s.func is not None else s.const for s in signals]
+        # slot 0 holds 0 for constants; each distinct time-varying function gets a slot
+        slots = {}
+        self._varying = []
+        self._slot = np.zeros(self.n, dtype=np.int64)
+        for i, s in enumerate(signals):
+            if s.func is not None:
+                if id(s.func) not in slots:
+                    self._varying.append(s)
+                    slots[id(s.func)] = len(self._varying)
+                self._slot[i] = slots[id(s.func)]
+        # the common case (one source, or many driven by one waveform): no gather
+        self._one_signal = len(self._varying) == 1 and bool(np.all(self._slot == 1))
         self._t = None
-        self._values = None
+        self._values = self._base
 
     def values(self, t):
         """Signal values at t, computed once per distinct t."""
-        if t != self._t:
-            self._values = np.array([s(t) for s in self.signals], dtype=float)
+        if self._varying and t != self._t:
+            if self._one_signal:
+                self._values = self._base + self._varying[0](t)
+            else:
+                vals = np.array([0.0] + [s(t) for s in self._varying])
+                self._values = self._base + vals[self._slot]
             self._t = t
         return self._values
 
@@ -58,26 +112,43 @@ class _Source(LibraryComponent):
     def breakpoints(self):
         return self.signal.breaks
 
+    def breakpoints_until(self, until):
+        """Breakpoints in [0, until] [s], periodic waveforms' repetitions included."""
+        return self.signal.breakpoints_until(until)
+
     @classmethod
     def make_params(cls, components):
         return _SourceParams(components)
 
 
 class PressureSource(_Source):
-    """Imposes an absolute pressure at its terminal ``a``.
+    """Imposes a pressure at its terminal ``a``.
 
     Parameters
     ----------
     label : str
-    pressure : float [Pa] or callable t -> float [Pa]
-        Absolute pressure, constant or a function of time (a waveform).
+    pressure : float [Pa], Quantity, waveform or callable t -> float [Pa]
+        Absolute pressure (or gauge pressure with ``gauge=True``), constant or
+        a function of time, e.g. ``Step(0.5, sf.Q_(1, 'atm'), sf.Q_(1.3, 'bar'))``.
+    gauge : bool, default False
+        If True, ``pressure`` is relative to the atmosphere
+        (``sf.pressure_atmospheric`` = 101325 Pa is added to it).
     """
 
     jac_pattern = ((0, 0),)
 
-    def __init__(self, label, pressure):
+    def __init__(self, label, pressure, *, gauge=False):
         super().__init__(label)
+        if not isinstance(gauge, bool):
+            raise TypeError(f"{self.describe()}: gauge must be True or False, got {gauge!r}")
+        self.gauge = gauge
+        self.offset = pressure_atmospheric if gauge else 0.0
         self.signal = _Signal(pressure, "Pa", "pressure", self.describe())
+        p0 = self.signal.initial + self.offset
+        if not p0 > 0:
+            hint = "" if gauge else " (pressures are absolute; for gauge pressure pass gauge=True)"
+            raise ValueError(f"{self.describe()}: pressure must be > 0 Pa absolute, got "
+                             f"{p0:g} Pa at t = 0{hint}")
 
     @classmethod
     def kernel(cls, P, V, S, t, dt, jac):
@@ -92,7 +163,7 @@ class MassFlowSource(_Source):
     Parameters
     ----------
     label : str
-    massflow : float [kg/s] or callable t -> float [kg/s]
+    massflow : float [kg/s], Quantity, waveform or callable t -> float [kg/s]
         Positive when fluid leaves the source.
     """
 
@@ -113,10 +184,17 @@ class VolumeFlowSource(_Source):
     """Imposes a volume flow leaving the source through terminal ``a``;
     the mass flow is density(p) times it, at the terminal's pressure.
 
+    The FONS paper's Figs. 3-5 pump (1.8 mL/s in for 10 s, a 5 s pause, then
+    1.8 mL/s out) is one line::
+
+        from softflow.curves.waveforms import PiecewiseConstant
+        pump = sf.VolumeFlowSource("pump", fluid=sf.water, volumeflow=PiecewiseConstant(
+            sf.Q_([0, 10, 15], "s"), sf.Q_([1.8, 0, -1.8], "mL/s")))
+
     Parameters
     ----------
     label : str
-    volumeflow : float [m^3/s] or callable t -> float [m^3/s]
+    volumeflow : float [m^3/s], Quantity, waveform or callable t -> float [m^3/s]
         Positive when fluid leaves the source.
     fluid : Fluid
     """

@@ -1,24 +1,44 @@
-"""Tubes."""
+"""Tubes: Darcy–Weisbach with a selectable friction correlation, optional
+isothermal compressible flow and optional fluid inertance."""
 from __future__ import annotations
 
 import numpy as np
 
 from ..constants import pressure_atmospheric
-from ..correlations.friction import fRe_blended
+from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
+                                     resolve_friction)
 from .base import FLUID_PORT, LibraryComponent
+
+_COMPRESSIBLE_MODES = ("mean_density", "isothermal")
 
 
 class CircularTube(LibraryComponent):
     """Straight circular tube between terminals ``a`` and ``b``.
 
     Darcy–Weisbach pressure drop with the Darcy friction factor from
-    Hagen–Poiseuille (f = 64/Re) for laminar flow and Haaland for turbulent
-    flow, blended C1-smoothly between Re_laminar and Re_turbulent:
+    Hagen–Poiseuille (f = 64/Re) for laminar flow and a turbulent correlation
+    (Haaland by default, as in the FONS paper), blended C1-smoothly between
+    Re_laminar and Re_turbulent:
 
         p_a - p_b = (f Re) · mu L / (2 rho A D^2) · mdot,   Re = |mdot| D / (mu A)
 
-    where mdot is the mass flow entering at ``a``; for gases rho is taken at the
-    mean pressure (p_a + p_b)/2. Mass is conserved: mdot_a + mdot_b = 0.
+    where mdot is the mass flow entering at ``a``. Mass is conserved:
+    mdot_a + mdot_b = 0. Writing the law with f·Re keeps it linear in mdot at
+    zero flow, so its derivative never vanishes there.
+
+    For a gas (``fluid.compressible``) rho is the density at the mean pressure
+    (p_a + p_b)/2. With ``compressible='isothermal'`` the gas's acceleration
+    along the tube is added, which makes the law the complete isothermal pipe
+    flow equation (Crane TP-410; ``fluids.compressible.isothermal_gas``):
+
+        A^2 (p_a^2 - p_b^2) / (R T) = mdot^2 (f L/D + 2 ln(p_a/p_b))
+
+    exact for an ideal gas, for which (p_a^2 - p_b^2)/(R T) = 2 rho_mean (p_a - p_b).
+    It is valid below the isothermal choking limit (velocity < sqrt(R T) at
+    ``b``); choked tube flow is not modelled. For liquids the option has no effect.
+
+    With ``inertance=True`` the constructor returns an
+    :class:`InertialCircularTube`, which adds the fluid's inertia as a state.
 
     Parameters
     ----------
@@ -31,6 +51,17 @@ class CircularTube(LibraryComponent):
         Absolute wall roughness (drawn tubing).
     Re_laminar, Re_turbulent : float [-], default 2300, 4000
         Bounds of the laminar–turbulent blend.
+    friction : str, default 'Haaland'
+        Turbulent friction correlation: 'Haaland', 'Colebrook' (solved
+        exactly), 'Churchill' (1977), 'Swamee-Jain' (1976) are evaluated in
+        closed form; any other name of ``fluids.friction.friction_factor``'s
+        methods (e.g. 'Serghides_2') is tabulated once as a spline in Re.
+        'laminar' uses Hagen–Poiseuille at every Re.
+    compressible : {'mean_density', 'isothermal'}, default 'mean_density'
+        Gas model (see above).
+    inertance : bool, default False
+        Add the fluid inertance L/A · d(mdot)/dt (rho L / A per volume flow)
+        to the pressure drop, with the mass flow as a state.
     """
 
     terminal_spec = (("a", FLUID_PORT), ("b", FLUID_PORT))
@@ -38,8 +69,14 @@ class CircularTube(LibraryComponent):
     # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: pressure drop
     jac_pattern = ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
 
+    def __new__(cls, *args, inertance=False, **kwargs):
+        if inertance and cls is CircularTube:
+            cls = InertialCircularTube
+        return super().__new__(cls)
+
     def __init__(self, label, fluid, length, diameter, roughness=1.5e-6,
-                 Re_laminar=2300.0, Re_turbulent=4000.0):
+                 Re_laminar=2300.0, Re_turbulent=4000.0, *, friction="Haaland",
+                 compressible="mean_density", inertance=False):
         super().__init__(label, fluid=None)
         self.fluid = self._check_fluid(fluid)
         self.length = self._si(length, "m", "length", positive=True)
@@ -50,14 +87,31 @@ class CircularTube(LibraryComponent):
         if self.Re_turbulent <= self.Re_laminar:
             raise ValueError(f"{self.describe()}: Re_turbulent ({self.Re_turbulent}) must exceed "
                              f"Re_laminar ({self.Re_laminar})")
+        try:
+            self.friction = resolve_friction(friction)
+        except KeyError as err:
+            raise ValueError(f"{self.describe()}: friction: {err.args[0]}") from None
+        mode = compressible.strip().replace("-", "_").lower() if isinstance(compressible, str) \
+            else compressible
+        if mode not in _COMPRESSIBLE_MODES:
+            raise ValueError(f"{self.describe()}: compressible must be one of "
+                             f"{_COMPRESSIBLE_MODES}, got {compressible!r}")
+        self.compressible = mode
+        self.inertance = isinstance(self, InertialCircularTube)
+        if inertance and not self.inertance:
+            raise ValueError(f"{self.describe()}: inertance=True needs the CircularTube "
+                             "class itself (or InertialCircularTube)")
 
     def group_key(self):
-        # one blend range per group keeps the kernel's correlation call scalar-bounded
-        return (type(self), id(self.fluid), self.Re_laminar, self.Re_turbulent)
+        # one blend range, correlation and gas model per group: the kernel makes one call each
+        mode = self.compressible if self.fluid.compressible else "mean_density"
+        return (type(self), id(self.fluid), self.Re_laminar, self.Re_turbulent, self.friction,
+                mode)
 
     @classmethod
     def make_params(cls, components):
         P = super().make_params(components)
+        first = P.components[0]
         P.area = np.pi * P.diameter ** 2 / 4.0
         P.eD = P.roughness / P.diameter
         P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
@@ -67,38 +121,113 @@ class CircularTube(LibraryComponent):
         P.re_per_mf = P.diameter / (P.mu * P.area)
         P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)
         P.compressible = P.fluid.compressible
+        P.isothermal = P.compressible and first.compressible == "isothermal"
+        P.length_per_area = P.length / P.area
+        name = first.friction
+        if name == "laminar":
+            P.turbulent = None
+        elif name in ANALYTIC_FRICTION:
+            P.turbulent = ANALYTIC_FRICTION[name]
+        else:
+            try:
+                P.turbulent = FrictionTable(name, P.eD, Re_min=P.Re_lo)
+            except ValueError as err:
+                labels = ", ".join(repr(c.label) for c in P.components)
+                raise ValueError(f"CircularTube {labels}: friction: {err}") from None
         return P
+
+    @classmethod
+    def pressure_drop(cls, P, pa, mf, pb, jac):
+        """p_a - p_b required by the flow mf entering at ``a`` (friction, and gas
+        acceleration if isothermal), and its partial derivatives in p_a, mf, p_b
+        (None without ``jac``)."""
+        if P.compressible:
+            pm = 0.5 * (pa + pb)
+            rho = P.fluid.density(pm)
+        else:
+            rho = P.fluid.rho
+        Re = np.abs(mf) * P.re_per_mf
+        if P.turbulent is None or Re.max() <= P.Re_lo:   # all laminar: f Re = 64 exactly
+            phi, dphi = 64.0, 0.0
+        else:
+            phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent)
+        c = P.c_mu / rho
+        dp = c * phi * mf
+        if P.isothermal:
+            log_ratio = np.log(pa / pb)
+            k_acc = mf * mf / (P.area * P.area * rho)
+            dp_acc = log_ratio * k_acc
+            dp = dp + dp_acc
+        if not jac:
+            return dp, None, None, None
+        d_mf = c * (phi + Re * dphi)
+        if P.compressible:
+            # dp ∝ 1/rho(p_mean) in both terms
+            d_pm = -dp / rho * P.fluid.density_dp(pm) * 0.5
+        else:
+            d_pm = 0.0
+        d_pa = d_pm
+        d_pb = d_pm
+        if P.isothermal:
+            d_mf = d_mf + 2.0 * log_ratio * mf / (P.area * P.area * rho)
+            d_pa = d_pa + k_acc / pa
+            d_pb = d_pb - k_acc / pb
+        return dp, d_pa, d_mf, d_pb
 
     @classmethod
     def kernel(cls, P, V, S, t, dt, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        fl = P.fluid
-        if P.compressible:
-            pm = 0.5 * (pa + pb)
-            rho = fl.density(pm)
-        else:
-            rho = fl.rho
-        Re = np.abs(mfa) * P.re_per_mf
-        if Re.max() <= P.Re_lo:   # all laminar: f Re = 64 exactly, skip Haaland
-            phi, dphi = 64.0, 0.0
-        else:
-            phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi)
-        c = P.c_mu / rho
-        dp_fric = c * phi * mfa
+        dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
         F = np.empty((P.n, 2))
         F[:, 0] = mfa + mfb
-        F[:, 1] = (pa - pb) - dp_fric
+        F[:, 1] = (pa - pb) - dp
         if not jac:
             return F, None
         J = np.empty((P.n, 5))
         J[:, 0] = 1.0
         J[:, 1] = 1.0
-        # d(dp_fric)/dp via rho(pm): c ∝ 1/rho
-        if P.compressible:
-            g = dp_fric / rho * fl.density_dp(pm) * 0.5
-        else:
-            g = 0.0
-        J[:, 2] = 1.0 + g
-        J[:, 3] = -c * (phi + Re * dphi)
-        J[:, 4] = -1.0 + g
+        J[:, 2] = 1.0 - d_pa
+        J[:, 3] = -d_mf
+        J[:, 4] = -1.0 - d_pb
+        return F, J
+
+
+class InertialCircularTube(CircularTube):
+    """A :class:`CircularTube` with the inertia of its fluid column:
+
+        p_a - p_b = dp_friction(mdot) + (L/A) · d(mdot)/dt
+
+    (an inertance rho L / A in volume-flow terms). The mass flow is a state,
+    integrated by backward Euler: its value at the end of a step is the flow
+    entering at ``a`` then, and starts at 0. Written as
+
+        (mdot - mdot_old) - dt A/L · (p_a - p_b - dp_friction) = 0
+
+    the equation stays regular at dt = 0, where it fixes the initial flow.
+    With a compliance it forms the fluidic LC circuit, f = 1 / (2 pi sqrt(L C)).
+    ``CircularTube(..., inertance=True)`` returns this class; parameters as there.
+    """
+
+    state_spec = (("inertial_massflow", "massflow"),)
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        return V[:, 1:2].copy()
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
+        k = dt / P.length_per_area
+        F = np.empty((P.n, 2))
+        F[:, 0] = mfa + mfb
+        F[:, 1] = (mfa - S[:, 0]) - k * ((pa - pb) - dp)
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1] = 1.0
+        J[:, 2] = -k * (1.0 - d_pa)
+        J[:, 3] = 1.0 + k * d_mf
+        J[:, 4] = k * (1.0 + d_pb)
         return F, J

@@ -140,7 +140,9 @@ class Simulation:
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
         breaks = list(self.breakpoints)
         for c in self.system.components:
-            breaks.extend(float(b) for b in c.breakpoints())
+            # periodic inputs have endless breakpoints: ask for those within the run
+            until = getattr(c, "breakpoints_until", None)
+            breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
         integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                               adaptive=self.adaptive, step_min=self.step_min,
                               step_max=self.step_max, rtol=self.rtol,

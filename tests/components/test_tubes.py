@@ -1,0 +1,325 @@
+"""CircularTube options: friction correlations against ``fluids``, isothermal
+compressible flow against ``fluids.compressible``, inertance (LC circuit),
+analytic vs finite-difference Jacobians of the inertial tube, bad input."""
+import math
+
+import fluids.compressible
+import fluids.friction
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.components.tubes import CircularTube, InertialCircularTube
+from softflow.correlations.friction import (FrictionTable, friction_Churchill_1977,
+                                            friction_Colebrook, friction_Swamee_Jain_1976,
+                                            resolve_friction)
+
+P0 = sf.pressure_atmospheric
+RE_TURB = np.logspace(4, 7, 31)
+ROUGHNESS = (0.0, 1e-6, 1e-4, 1e-2, 0.05)
+
+
+# ---------------------------------------------------------------------------------------
+# correlations
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("func, reference", [
+    (friction_Colebrook, fluids.friction.Colebrook),
+    (friction_Colebrook, fluids.friction.Clamond),
+    (friction_Churchill_1977, fluids.friction.Churchill_1977),
+    (friction_Swamee_Jain_1976, fluids.friction.Swamee_Jain_1976),
+], ids=["Colebrook", "Clamond", "Churchill_1977", "Swamee_Jain_1976"])
+@pytest.mark.parametrize("eD", ROUGHNESS)
+def test_closed_form_correlations_match_fluids(func, reference, eD):
+    f, df = func(RE_TURB, eD)
+    want = np.array([reference(float(r), eD) for r in RE_TURB])
+    np.testing.assert_allclose(f, want, rtol=1e-12)
+    h = 1e-6 * RE_TURB
+    fd = (func(RE_TURB + h, eD)[0] - func(RE_TURB - h, eD)[0]) / (2 * h)
+    assert (df < 0).all()
+    np.testing.assert_allclose(RE_TURB * df / f, RE_TURB * fd / f, rtol=1e-5, atol=1e-8)
+
+
+@pytest.mark.parametrize("method", ["Serghides_2", "Zigrang_Sylvester_2", "Chen_1979"])
+def test_tabulated_correlation_matches_fluids(method):
+    eD = np.repeat(ROUGHNESS, len(RE_TURB))
+    Re = np.tile(RE_TURB, len(ROUGHNESS))
+    table = FrictionTable(method, eD, Re_min=2300.0)
+    f, df = table(Re)
+    func = getattr(fluids.friction, method)
+    want = np.array([func(r, e) for r, e in zip(Re, eD)])
+    np.testing.assert_allclose(f, want, rtol=1e-7)
+    h = 1e-5 * Re
+    fd = (table(Re + h)[0] - table(Re - h)[0]) / (2 * h)
+    np.testing.assert_allclose(Re * df / f, Re * fd / f, rtol=1e-4, atol=1e-7)
+
+
+def _tube_dp(tube, mf, pa=2e5, pb=1.9e5):
+    P = type(tube).make_params([tube])
+    dp, *_ = type(tube).pressure_drop(P, np.array([pa]), np.array([mf]), np.array([pb]), False)
+    return float(dp[0])
+
+
+@pytest.mark.parametrize("name, reference", [
+    ("Haaland", "Haaland"), ("Colebrook", "Colebrook"), ("Churchill", "Churchill_1977"),
+    ("Swamee-Jain", "Swamee_Jain_1976"), ("Clamond", "Clamond"), ("Serghides 2", "Serghides_2"),
+])
+@pytest.mark.parametrize("roughness", [0.0, 1e-6, 5e-5])
+def test_tube_pressure_drop_is_darcy_weisbach_with_fluids_friction(name, reference, roughness):
+    D, L = 4e-3, 1.5
+    tube = CircularTube("t", sf.water, length=L, diameter=D, roughness=roughness,
+                        friction=name)
+    area = math.pi * D ** 2 / 4
+    func = getattr(fluids.friction, reference)
+    for Re in (1e4, 1e5, 1e6, 1e7):
+        mf = Re * sf.water.mu * area / D
+        v = mf / (sf.water.rho * area)
+        want = func(Re, roughness / D) * L / D * sf.water.rho * v ** 2 / 2
+        assert _tube_dp(tube, mf) == pytest.approx(want, rel=1e-7), Re
+        assert _tube_dp(tube, -mf) == pytest.approx(-want, rel=1e-7)
+
+
+def test_laminar_friction_is_hagen_poiseuille_at_any_re():
+    tube = CircularTube("t", sf.water, length=1.0, diameter=1e-3, friction="laminar")
+    area = math.pi * 1e-6 / 4
+    for Re in (10.0, 1e4, 1e6):
+        mf = Re * sf.water.mu * area / 1e-3
+        q = mf / sf.water.rho
+        assert _tube_dp(tube, mf) == pytest.approx(128 * sf.water.mu * q / (math.pi * 1e-12),
+                                                   rel=1e-12)
+
+
+def test_friction_names_are_resolved_loosely():
+    assert resolve_friction("swamee-jain") == "Swamee_Jain_1976"
+    assert resolve_friction("Churchill") == "Churchill_1977"
+    assert resolve_friction("HAALAND") == "Haaland"
+    assert resolve_friction("Serghides 1") == "Serghides_1"
+
+
+# ---------------------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kw, exc, match", [
+    (dict(friction="Colbrook"), ValueError,
+     r"CircularTube 't': friction: unknown friction correlation 'Colbrook'; did you mean "
+     r"'Colebrook'"),
+    (dict(friction="nonsense"), ValueError, r"known names: .*Haaland"),
+    (dict(friction=3), ValueError, r"friction"),
+    (dict(compressible="adiabatic"), ValueError, r"compressible must be one of"),
+    (dict(length=0.0), ValueError, r"CircularTube 't': length must be > 0"),
+    (dict(diameter=-1e-3), ValueError, r"diameter must be > 0"),
+    (dict(roughness=-1e-6), ValueError, r"roughness must be >= 0"),
+    (dict(diameter=sf.Q_(1, "bar")), sf.UnitError, r"diameter expects a length"),
+    (dict(Re_laminar=5000.0), ValueError, r"Re_turbulent .* must exceed Re_laminar"),
+])
+def test_bad_tube_parameters(kw, exc, match):
+    args = dict(length=1.0, diameter=1e-3) | kw
+    with pytest.raises(exc, match=match):
+        CircularTube("t", sf.water, **args)
+
+
+def test_correlation_failing_in_its_range_is_reported_at_compile_time():
+    tube = CircularTube("bad", sf.water, length=1.0, diameter=1e-3, friction="Papaevangelo_2010")
+    with pytest.raises(ValueError, match=r"CircularTube 'bad': friction: .*Papaevangelo_2010"):
+        CircularTube.make_params([tube])
+
+
+# ---------------------------------------------------------------------------------------
+# steady flows
+# ---------------------------------------------------------------------------------------
+def _between_sources(tube, pa, pb):
+    s = sf.System()
+    s += sf.PressureSource("a", pressure=pa)
+    s += tube
+    s += sf.PressureSource("b", pressure=pb)
+    s.connect("a", tube.label)
+    s.connect(tube.label, "b")
+    return sf.Simulation(s, duration=1e-3, step=1e-3).run().get(tube.label, "mf", "a")[-1]
+
+
+def test_hagen_poiseuille_steady_flow():
+    L, D, dp = 0.6, 1e-3, 2000.0
+    mf = _between_sources(CircularTube("t", sf.water, length=L, diameter=D), P0 + dp, P0)
+    q = math.pi * D ** 4 * dp / (128 * sf.water.mu * L)
+    assert mf == pytest.approx(sf.water.rho * q, rel=1e-9)
+    assert mf * D / (sf.water.mu * math.pi * D ** 2 / 4) < 2300   # really laminar
+
+
+@pytest.mark.parametrize("pa", [1.5e5, 2.0e5, 2.5e5])
+def test_isothermal_compressible_flow_matches_fluids(pa):
+    """Fully turbulent air (Re 5e3-1e4), isothermal Mach at the outlet up to 0.53."""
+    L, D, rough = 0.5, 1e-3, 1.5e-6
+    tube = CircularTube("t", sf.air, length=L, diameter=D, roughness=rough,
+                        compressible="isothermal")
+    mf = _between_sources(tube, pa, P0)
+    Re = mf * D / (sf.air.mu * math.pi * D ** 2 / 4)
+    assert Re > 4000
+    fd = fluids.friction.Haaland(Re, rough / D)
+    want = fluids.compressible.isothermal_gas(rho=float(sf.air.density(pa)), fd=fd, P1=pa,
+                                              P2=P0, L=L, D=D)
+    assert mf == pytest.approx(want, rel=1e-9)
+    # the acceleration term matters here: the mean-density model overestimates the flow
+    plain = _between_sources(CircularTube("t", sf.air, length=L, diameter=D, roughness=rough),
+                             pa, P0)
+    assert plain > mf * 1.015
+
+
+def test_isothermal_compressible_laminar_and_reverse_flow():
+    L, D = 2.0, 0.5e-3
+    for pa, pb in ((1.2e5, P0), (P0, 1.2e5)):
+        tube = CircularTube("t", sf.air, length=L, diameter=D, compressible="isothermal")
+        mf = _between_sources(tube, pa, pb)
+        p1, p2 = max(pa, pb), min(pa, pb)
+        Re = abs(mf) * D / (sf.air.mu * math.pi * D ** 2 / 4)
+        assert Re < 2300
+        want = fluids.compressible.isothermal_gas(rho=float(sf.air.density(p1)), fd=64 / Re,
+                                                  P1=p1, P2=p2, L=L, D=D)
+        assert abs(mf) == pytest.approx(want, rel=1e-9)
+        assert np.sign(mf) == np.sign(pa - pb)
+
+
+def test_isothermal_option_has_no_effect_for_liquids():
+    a = CircularTube("ta", sf.water, length=1.0, diameter=2e-3, compressible="isothermal")
+    b = CircularTube("tb", sf.water, length=1.0, diameter=2e-3)
+    assert a.group_key()[1:] == b.group_key()[1:]
+    assert _between_sources(a, 1.5e5, P0) == _between_sources(b, 1.5e5, P0)
+
+
+# ---------------------------------------------------------------------------------------
+# inertance
+# ---------------------------------------------------------------------------------------
+def test_inertance_option_gives_the_inertial_subclass():
+    t = CircularTube("t", sf.water, length=1.0, diameter=1e-3, inertance=True)
+    assert isinstance(t, InertialCircularTube) and isinstance(t, CircularTube)
+    assert t.inertance and [s.label for s in t.states] == ["inertial_massflow"]
+    plain = CircularTube("p", sf.water, length=1.0, diameter=1e-3)
+    assert type(plain) is CircularTube and not plain.states
+    assert t.group_key() != plain.group_key()
+    assert t.initial_states() == [0.0]
+
+
+def lc_scene(step_pressure=1e3, friction="laminar"):
+    C, L, D = 1e-9, 1.0, 1e-2   # compliance [m^3/Pa], tube length and diameter [m]
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0)
+    s += CircularTube("tube", sf.water, length=L, diameter=D, friction=friction,
+                      inertance=True)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-4, compliance=C,
+                              initial_pressure=P0 + step_pressure)
+    s.connect("src", "tube")
+    s.connect("tube", "acc")
+    area = math.pi * D ** 2 / 4
+    inertance = sf.water.rho * L / area                     # [kg/m^4]
+    resistance = 128 * sf.water.mu * L / (math.pi * D ** 4)  # [Pa s/m^3]
+    return s, inertance, C, resistance
+
+
+def _zero_crossing_frequency(t, x):
+    z = np.flatnonzero((x[:-1] > 0) & (x[1:] <= 0))
+    tz = t[z] + (t[z + 1] - t[z]) * x[z] / (x[z] - x[z + 1])
+    return 1.0 / np.mean(np.diff(tz)), len(tz)
+
+
+def test_lc_oscillation_frequency():
+    s, inertance, C, R = lc_scene()
+    res = sf.Simulation(s, duration=3.0, step=1e-3).run()
+    f_sim, n = _zero_crossing_frequency(res.times, res.get("acc", "pressure") - P0)
+    f_lc = 1 / (2 * math.pi * math.sqrt(inertance * C))       # 1.412 Hz
+    assert n >= 4
+    assert f_sim == pytest.approx(f_lc, rel=0.02)
+    # sharper: the damped frequency of the series RLC, with backward Euler's
+    # O((w dt)^2) phase error
+    w0 = 2 * math.pi * f_lc
+    f_damped = math.sqrt(w0 ** 2 - (R / (2 * inertance)) ** 2) / (2 * math.pi)
+    assert f_sim == pytest.approx(f_damped, rel=1e-3)
+    # starts from rest: the flow is the state and begins at zero
+    assert res.get("tube", "mf", "a")[0] == 0.0
+    # without inertance the same network only relaxes (no crossing)
+    s2 = sf.System()
+    s2 += sf.PressureSource("src", pressure=P0)
+    s2 += CircularTube("tube", sf.water, length=1.0, diameter=1e-2, friction="laminar")
+    s2 += sf.LinearAccumulator("acc", sf.water, volume=1e-4, compliance=C,
+                               initial_pressure=P0 + 1e3)
+    s2.connect("src", "tube")
+    s2.connect("tube", "acc")
+    r2 = sf.Simulation(s2, duration=0.5, step=1e-3).run()
+    assert (r2.get("acc", "pressure") - P0 > 0).all()
+
+
+def test_inertial_tube_reaches_the_steady_flow_of_the_plain_tube():
+    kw = dict(length=0.3, diameter=1e-3)
+    mf_plain = _between_sources(CircularTube("t", sf.water, **kw), 1.2e5, P0)
+    s = sf.System()
+    s += sf.PressureSource("a", pressure=1.2e5)
+    s += CircularTube("t", sf.water, inertance=True, **kw)
+    s += sf.PressureSource("b", pressure=P0)
+    s.connect("a", "t")
+    s.connect("t", "b")
+    res = sf.Simulation(s, duration=0.5).run()    # adaptive; time constant L/(A R) ~ 30 ms
+    mf = res.get("t", "mf", "a")
+    assert mf[0] == 0.0
+    assert mf[-1] == pytest.approx(mf_plain, rel=1e-4)
+    assert np.all(np.diff(mf) >= -1e-12 * mf_plain)   # overdamped: monotone rise
+
+
+# ---------------------------------------------------------------------------------------
+# analytic vs finite-difference Jacobian of the inertial tube (pattern of test_jacobians)
+# ---------------------------------------------------------------------------------------
+def _inertial_case(fluid, re, dt, **kw):
+    rng = np.random.default_rng(7)
+    tubes = [CircularTube("t0", fluid, length=0.6, diameter=1e-3, inertance=True, **kw),
+             CircularTube("t1", fluid, length=0.05, diameter=2e-3, roughness=0.0,
+                          inertance=True, **kw),
+             CircularTube("t2", fluid, length=2.0, diameter=4e-3, roughness=5e-5,
+                          inertance=True, **kw)]
+    n = len(tubes)
+    area = np.array([math.pi * t.diameter ** 2 / 4 for t in tubes])
+    mf = np.asarray(re) * fluid.mu * area / np.array([t.diameter for t in tubes])
+    V = np.column_stack([rng.uniform(1.1e5, 3e5, n), mf, rng.uniform(1.1e5, 3e5, n), -mf])
+    S = (mf * rng.uniform(0.5, 1.5, n))[:, None]
+    scale = np.array([1e5, max(np.abs(mf).max(), 1e-7), 1e5, max(np.abs(mf).max(), 1e-7)])
+    return tubes, V, S, dt, scale
+
+
+INERTIAL_CASES = {
+    f"{fluid.name}-{regime}-{comp}-dt{dt}": (fluid, re, dt, comp)
+    for fluid in (sf.water, sf.air)
+    for regime, re in {"laminar": [300.0, 1500.0, -800.0],
+                       "transition": [2500.0, 3500.0, -3000.0],
+                       "turbulent": [1e4, 5e4, -2e4]}.items()
+    for comp in ("mean_density", "isothermal")
+    for dt in (1e-3, 0.0)
+}
+
+
+@pytest.mark.parametrize("name", sorted(INERTIAL_CASES))
+def test_inertial_tube_jacobian_matches_finite_differences(name):
+    fluid, re, dt, comp = INERTIAL_CASES[name]
+    tubes, V0, S, dt, scale = _inertial_case(fluid, re, dt, compressible=comp)
+    cls = InertialCircularTube
+    P = cls.make_params(tubes)
+    F0, J = cls.kernel(P, V0.copy(), S, 0.1, dt, True)
+    assert F0.shape == (3, 2) and J.shape == (3, len(cls.jac_pattern))
+    n, nv = V0.shape
+    for i in range(n):
+        D = np.zeros((2, nv))
+        for k in range(nv):
+            h = 1e-6 * max(abs(V0[i, k]), scale[k])
+            Vp, Vm = V0.copy(), V0.copy()
+            Vp[i, k] += h
+            Vm[i, k] -= h
+            D[:, k] = (cls.kernel(P, Vp, S, 0.1, dt, False)[0][i]
+                       - cls.kernel(P, Vm, S, 0.1, dt, False)[0][i]) / (2 * h)
+        Ds = D * scale
+        row_max = np.abs(Ds).max(axis=1)
+        listed = set()
+        for j, (e, k) in enumerate(cls.jac_pattern):
+            listed.add((e, k))
+            got, want = J[i, j] * scale[k], Ds[e, k]
+            assert abs(got - want) <= 1e-5 * abs(want) + 1e-8 * row_max[e] + 1e-300, (
+                name, i, e, k, J[i, j], D[e, k])
+        for e in range(2):
+            for k in range(nv):
+                if (e, k) not in listed:
+                    assert abs(Ds[e, k]) <= 1e-8 * row_max[e] + 1e-300
+    # backward Euler: the state at the end of the step is the flow at the end
+    np.testing.assert_array_equal(cls.update(P, V0, S, dt)[:, 0], V0[:, 1])
