@@ -289,3 +289,252 @@ def test_bad_csv_curve_is_rejected(tmp_path, content, error, match):
     path = write(tmp_path, content)
     with pytest.raises(error, match=match):
         sf.PVCurve(path)
+
+
+# ---------------------------------------------------------------------------------------
+# smoothing and filtering noisy measurements
+# ---------------------------------------------------------------------------------------
+NOISE = 1000.0       # Pa, about 1 % of the balloon's 104 kPa pressure range
+
+
+@pytest.fixture(scope="module")
+def noisy_balloon(balloon):
+    """The measured balloon curve as a logger would record it: 500 volumes
+    (0.11 mL apart) with Gaussian pressure noise of 1 kPa."""
+    v = np.linspace(balloon.volume[0], balloon.volume[-1], 500)
+    rng = np.random.default_rng(2024)
+    return v, balloon(v), balloon(v) + rng.normal(0.0, NOISE, v.size)
+
+
+def _sign_changes_of_slope(curve, n=5001):
+    x = np.linspace(curve.volume[0], curve.volume[-1], n)
+    d = curve.fdf_volume(x)[1]
+    d = d[np.abs(d) > 1e-9 * np.abs(d).max()]       # not the round-off at a flat node
+    return int(np.count_nonzero(np.diff(np.sign(d))))
+
+
+@pytest.mark.parametrize("kwargs, rms_max, err_max, extrema_max", [
+    # smoothing spline (GCV): noise / 4, within 1.5 % of the range (the largest error is
+    # at the steep first rise, which smoothing rounds off), only the real extrema
+    (dict(smoothing="auto"), 0.35 * NOISE, 1500.0, 4),
+    (dict(smoothing=1e-6), 0.35 * NOISE, 1500.0, 20),
+    # Savitzky-Golay over 21 samples: noise / 3 in value, but the slope stays rough
+    (dict(filter_window=21), 0.45 * NOISE, 1500.0, 150),
+    (dict(filter_window=21, smoothing="auto"), 0.35 * NOISE, 1500.0, 4),
+], ids=["smoothing-auto", "smoothing-1e-6", "savgol-21", "savgol+smoothing"])
+def test_smoothing_and_filter_reduce_noise(balloon, noisy_balloon, kwargs, rms_max, err_max,
+                                           extrema_max):
+    v, p_clean, p_noisy = noisy_balloon
+    raw = sf.PVCurve(volume=v, pressure=p_noisy)
+    curve = sf.PVCurve(volume=v, pressure=p_noisy, **kwargs)
+    rms = lambda c: float(np.sqrt(np.mean((c(v) - p_clean) ** 2)))  # noqa: E731
+    assert rms(raw) > 0.9 * NOISE
+    assert rms(curve) < rms_max
+    x = np.linspace(v[0], v[-1], 5001)
+    assert np.abs(curve(x) - balloon(x)).max() < err_max
+    # noise through PCHIP makes hundreds of spurious peaks (each a possible snap)
+    assert _sign_changes_of_slope(raw) > 200
+    assert _sign_changes_of_slope(curve) <= extrema_max
+    np.testing.assert_array_equal(curve.measured_pressure, p_noisy)
+
+
+def test_smoothing_spline_is_scipys_and_C2(balloon):
+    """The stored values and slopes at the samples reproduce scipy's smoothing
+    spline exactly (its knots are the samples), so the curve is C2."""
+    from scipy.interpolate import make_smoothing_spline
+    v, p = balloon.volume, balloon.pressure
+    curve = sf.PVCurve(volume=v, pressure=p, smoothing=1e-6)
+    span_v, span_p, mean_p = v[-1] - v[0], np.ptp(p), p.mean()
+    spl = make_smoothing_spline((v - v[0]) / span_v, (p - mean_p) / span_p, lam=1e-6)
+    x = interior_points(balloon, 4, seed=3)
+    s = (x - v[0]) / span_v
+    val, dval = curve.fdf_volume(x)
+    np.testing.assert_allclose(val, spl(s) * span_p + mean_p, rtol=1e-12)
+    np.testing.assert_allclose(dval, spl(s, 1) * span_p / span_v, rtol=0,
+                               atol=1e-10 * np.abs(curve.slope).max())
+    # second derivative continuous across the interior samples
+    h = 1e-4 * np.diff(v).min()
+    d2 = lambda y: (curve.fdf_volume(y + h)[1] - curve.fdf_volume(y - h)[1]) / (2 * h)  # noqa
+    inner = v[1:-1]
+    np.testing.assert_allclose(d2(inner - 10 * h), d2(inner + 10 * h), rtol=0,
+                               atol=1e-3 * np.abs(d2(inner)).max())
+
+
+def test_smoothing_zero_interpolates_and_gauge_is_kept(tmp_path):
+    curve = sf.PVCurve(EXAMPLE_CSV, smoothing=0.0)
+    np.testing.assert_allclose(curve(curve.volume), curve.measured_pressure, rtol=1e-12)
+    assert curve.measured_pressure[0] == pytest.approx(P0 + 2200.0)
+    assert sf.PVCurve(EXAMPLE_CSV, smoothing=True).pressure.shape == (56,)
+
+
+def test_savgol_keeps_a_quadratic():
+    """A Savitzky-Golay filter of order 2 leaves a quadratic untouched."""
+    v = np.linspace(1e-6, 2e-5, 40)
+    p = 1e5 + 1e13 * (v - 1e-6) ** 2 + 1e9 * v
+    curve = sf.PVCurve(volume=v, pressure=p, filter_window=9)
+    np.testing.assert_allclose(curve.pressure, p, rtol=1e-12)
+
+
+@pytest.mark.parametrize("kwargs, text", [
+    (dict(smoothing="auto", volume=[1, 2, 3, 4], pressure=[1, 2, 3, 4]),
+     "smoothing needs at least 5 points, got 4"),
+    (dict(smoothing=-1.0), "smoothing must be a number >= 0"),
+    (dict(smoothing="lots"), "smoothing must be a number >= 0"),
+    (dict(smoothing=np.nan), "smoothing must be a number >= 0"),
+    (dict(filter_window=4), "filter_window must be an odd integer >= 3"),
+    (dict(filter_window=1), "filter_window must be an odd integer >= 3"),
+    (dict(filter_window=7.0), "filter_window must be an odd integer >= 3"),
+    (dict(filter_window=9, volume=[1, 2, 3, 4, 5], pressure=[1, 2, 3, 4, 5]),
+     r"<= the number of points \(5\), got 9"),
+    (dict(filter_window=5, filter_order=4), "filter_order must be an integer from 0"),
+    (dict(filter_window=5, filter_order=-1), "filter_order must be an integer from 0"),
+])
+def test_bad_smoothing_and_filter(kwargs, text):
+    kwargs = dict(kwargs)
+    v = np.array(kwargs.pop("volume", np.arange(1, 11))) * 1e-6
+    p = np.array(kwargs.pop("pressure", np.arange(1, 11)), dtype=float) * 1e4 + P0
+    with pytest.raises(ValueError, match=text):
+        sf.PVCurve(volume=v, pressure=p, **kwargs)
+
+
+# ---------------------------------------------------------------------------------------
+# fdf_volume paths
+# ---------------------------------------------------------------------------------------
+def test_fdf_volume_array_kinds(balloon):
+    x = np.linspace(0.5e-6, 60e-6, 17)
+    ref = balloon.fdf_volume(x)
+    for kind in (x.astype(np.float32), x.tolist(), sf.Q_(x * 1e6, "mL")):
+        got = balloon.fdf_volume(kind)
+        np.testing.assert_allclose(got[0], ref[0], rtol=1e-6)
+        np.testing.assert_allclose(got[1], ref[1], rtol=1e-5, atol=1e-6 * np.abs(ref[1]).max())
+    ints = balloon.fdf_volume(np.array([0, 1]))
+    np.testing.assert_allclose(ints[0], balloon.fdf_volume(np.array([0.0, 1.0]))[0])
+    # a non-contiguous view works too
+    np.testing.assert_array_equal(balloon(x[::2]), ref[0][::2])
+
+
+# ---------------------------------------------------------------------------------------
+# synthetic curves
+# ---------------------------------------------------------------------------------------
+ML = 1e-6
+
+
+def test_peak_valley_keeps_peak_and_valley():
+    c = sf.PVCurve.peak_valley(start=(sf.Q_(1, "mL"), sf.Q_(0, "mbar")),
+                               peak=(sf.Q_(5, "mL"), sf.Q_(900, "mbar")),
+                               valley=(sf.Q_(15, "mL"), sf.Q_(500, "mbar")),
+                               end=(sf.Q_(30, "mL"), sf.Q_(1200, "mbar")), gauge=True)
+    x = np.union1d(np.linspace(1 * ML, 30 * ML, 30001), c.volume)
+    p = c(x) - P0
+    assert p[x < 10 * ML].max() == pytest.approx(9e4, rel=1e-12)
+    assert p[(x > 5 * ML) & (x < 25 * ML)].min() == pytest.approx(5e4, rel=1e-12)
+    np.testing.assert_allclose(c.fdf_volume(np.array([5 * ML, 15 * ML]))[1], 0.0,
+                               atol=1e-12 * np.abs(c.slope).max())
+    assert c(1 * ML) == pytest.approx(P0) and c(30 * ML) == pytest.approx(P0 + 1.2e5)
+    assert "peak-valley" in repr(c)
+    assert _sign_changes_of_slope(c) == 2         # exactly one peak and one valley
+
+
+def test_plateau_and_monotonic_rise():
+    plateau = sf.PVCurve.plateau((1 * ML, P0), (3 * ML, P0 + 3e4), (12 * ML, P0 + 3.3e4),
+                                 (16 * ML, P0 + 8e4))
+    x = np.linspace(1 * ML, 16 * ML, 3001)
+    p, dp = plateau.fdf_volume(x)
+    assert (dp >= 0).all()
+    on_plateau = (x > 4 * ML) & (x < 11 * ML)
+    assert np.ptp(p[on_plateau]) < 3.3e3 and dp[on_plateau].max() < 0.1 * dp.max()
+    flat = sf.PVCurve.plateau((1 * ML, P0), (3 * ML, P0 + 3e4), (12 * ML, P0 + 3e4),
+                              (16 * ML, P0 + 8e4))
+    assert flat(7 * ML) == pytest.approx(P0 + 3e4)
+    mono = sf.PVCurve.monotonic((1 * ML, 0.0), (4 * ML, 4e4), (20 * ML, 7e4), gauge=True)
+    p, dp = mono.fdf_volume(np.linspace(1 * ML, 20 * ML, 1001))
+    assert (dp > 0).all() and dp[0] > 3 * dp[-1]
+
+
+@pytest.mark.parametrize("maker, args, text", [
+    ("peak_valley", [(1, 0), (5, 9), (3, 5), (30, 12)], "volume of valley"),
+    ("peak_valley", [(1, 0), (5, 9), (15, 10), (30, 12)],
+     r"pressure at valley .* must be < the pressure at peak"),
+    ("peak_valley", [(1, 10), (5, 9), (15, 5), (30, 12)],
+     r"pressure at start .* must be < the pressure at peak"),
+    ("peak_valley", [(1, 0), (5, 9), (15, 5), (30, 4)], r"pressure at valley .* < .* end"),
+    ("plateau", [(1, 0), (3, 3), (12, 2), (16, 8)], r"plateau_end"),
+    ("monotonic", [(1, 0), (4, 4), (20, 3)], r"pressure at knee"),
+    ("monotonic", [(1, 0), (4, 4)], "missing"),
+    ("monotonic", [(1, 0), (4, 4), (20,)], "end must be a .volume, pressure. pair"),
+    ("monotonic", [(1, 0), (4, np.nan), (20, 5)], "knee must be a pair of finite numbers"),
+])
+def test_synthetic_curve_bad_input(maker, args, text):
+    scaled = [tuple(a * s for a, s in zip(pt, (ML, 1e4))) for pt in args]
+    with pytest.raises((ValueError, TypeError), match=text):
+        getattr(sf.PVCurve, maker)(*scaled)
+
+
+def test_synthetic_curve_units_are_checked():
+    with pytest.raises(sf.UnitError, match="PVCurve.peak_valley: peak pressure expects a "
+                                           "pressure"):
+        sf.PVCurve.peak_valley((1 * ML, 0), (sf.Q_(5, "mL"), sf.Q_(1, "mL")), (15 * ML, 5e4),
+                               (30 * ML, 1e5))
+
+
+# ---------------------------------------------------------------------------------------
+# hysteresis loops
+# ---------------------------------------------------------------------------------------
+from softflow.curves.hysteresis import HysteresisLoop  # noqa: E402
+
+
+def _loop(**kw):
+    return HysteresisLoop.snapping(start=(1 * ML, 0.0), peak=(6 * ML, 8e4),
+                                   valley=(4 * ML, 3e4), end=(20 * ML, 1.2e5),
+                                   snap_volume=0.5 * ML, gauge=True, **kw)
+
+
+def test_snapping_loop_branches_meet_exactly():
+    loop = _loop()
+    inf, dfl = loop
+    assert loop.volume_low == pytest.approx(3.5 * ML)
+    assert loop.volume_high == pytest.approx(6.5 * ML)
+    for v in (loop.volume_low, loop.volume_high):
+        assert inf(v) == pytest.approx(dfl(v), rel=1e-14)
+    # peak and valley kept; inflation above deflation inside the loop
+    x = np.linspace(loop.volume_low + 0.05 * ML, loop.volume_high - 0.05 * ML, 301)
+    assert (inf(x) > dfl(x)).all()
+    assert inf(np.union1d(np.linspace(1 * ML, 6.5 * ML, 5001), inf.volume)).max() == \
+        pytest.approx(P0 + 8e4, rel=1e-12)
+    assert dfl(np.union1d(np.linspace(3.5 * ML, 20 * ML, 5001), dfl.volume)).min() == \
+        pytest.approx(P0 + 3e4, rel=1e-12)
+
+
+def test_loop_switching_rule():
+    loop = _loop()
+    v = np.array([2.0, 5.0, 6.49, 0.0, 9.0, 5.0, 3.51, 0.0, 2.0]) * ML
+    v[3], v[7] = loop.volume_high, loop.volume_low          # exactly at the ends
+    inflating = np.array([1, 1, 1, 1, 1, 0, 0, 0, 0], dtype=bool)
+    nxt = loop.next_inflating(v, inflating)
+    np.testing.assert_array_equal(nxt, [1, 1, 1, 0, 0, 0, 0, 1, 1])
+    # each branch is continuous in volume: past its end it is the other curve
+    for flag in (True, False):
+        x = np.linspace(0.5 * ML, 25 * ML, 20001)
+        p = loop.fdf_volume(x, np.full(x.shape, flag))[0]
+        assert np.abs(np.diff(p)).max() < 2e3
+
+
+def test_hysteresis_loop_bad_input():
+    inf, dfl = _loop()
+    with pytest.raises(ValueError, match=r"HysteresisLoop: hysteresis branches do not meet at "
+                                         r"V = 6\.5e-06 m\^3"):
+        HysteresisLoop(inf, sf.PVCurve(volume=dfl.volume,
+                                       pressure=dfl.pressure + np.array([0, 5e3, 5e3, 5e3])))
+    with pytest.raises(TypeError, match="inflation_curve must be a PVCurve"):
+        HysteresisLoop(lambda v: P0, dfl)
+    with pytest.raises(ValueError, match="meet_tolerance must be a pressure >= 0"):
+        HysteresisLoop(inf, dfl, meet_tolerance=-1.0)
+    with pytest.raises(ValueError, match="snap_volume must be > 0"):
+        HysteresisLoop.snapping(
+            (1 * ML, 0), (6 * ML, 8e4), (4 * ML, 3e4), (20 * ML, 1.2e5), snap_volume=0.0)
+    with pytest.raises(ValueError, match="volumes must satisfy"):
+        HysteresisLoop.snapping((1 * ML, 0), (6 * ML, 8e4), (4 * ML, 3e4), (20 * ML, 1.2e5),
+                                snap_volume=3 * ML)
+    with pytest.raises(ValueError, match="pressures must satisfy"):
+        HysteresisLoop.snapping((1 * ML, 0), (6 * ML, 8e4), (4 * ML, 9e4), (20 * ML, 1.2e5),
+                                snap_volume=0.5 * ML)

@@ -1,4 +1,5 @@
 """The component library (vectorized, analytic Jacobians)."""
+from .actuators import Actuator, HystereticActuator
 from .base import LibraryComponent
 from .chambers import Container, LinearAccumulator
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
@@ -7,4 +8,5 @@ from .valves import CheckValve, Orifice, SnappingValve, TeslaValve
 
 __all__ = ["LibraryComponent", "PressureSource", "MassFlowSource", "VolumeFlowSource",
            "CircularTube", "InertialCircularTube", "Container", "LinearAccumulator",
-           "Orifice", "CheckValve", "TeslaValve", "SnappingValve"]
+           "Orifice", "CheckValve", "TeslaValve", "SnappingValve",
+           "Actuator", "HystereticActuator"]

@@ -5,20 +5,30 @@ import bisect
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
+from scipy.interpolate import PchipInterpolator, make_smoothing_spline
+from scipy.signal import savgol_filter
 
 from ..constants import pressure_atmospheric
 from ..units import to_si
 from .csvdata import DataFileError, read_table
 
+#: Fewest samples a smoothing spline accepts (scipy's make_smoothing_spline).
+MIN_POINTS_SMOOTHING = 5
+
 
 class PVCurve:
     """A measured or analytic pressure–volume characteristic p(V).
 
-    Interpolation is monotone piecewise-cubic Hermite (PCHIP): C1-continuous,
-    so Newton sees a continuous dp/dV, and free of overshoot between samples,
-    so a peak–valley curve keeps its measured peak and valley. Outside the
-    sampled volumes the curve continues linearly with its end slopes.
+    Default interpolation is monotone piecewise-cubic Hermite (PCHIP):
+    C1-continuous, so Newton sees a continuous dp/dV, and free of overshoot
+    between samples, so a peak–valley curve keeps its measured peak and valley.
+    For noisy measurements, ``smoothing`` replaces it by a cubic smoothing
+    spline (C2) and ``filter_window`` low-passes the pressures first. Outside
+    the sampled volumes the curve continues linearly with its end slopes.
+
+    Synthetic curves of the shapes in the paper's Figs. 3-5 come from
+    :meth:`monotonic`, :meth:`plateau` and :meth:`peak_valley`; a hysteretic
+    pair from :meth:`softflow.curves.HysteresisLoop.snapping`.
 
     Parameters
     ----------
@@ -37,11 +47,38 @@ class PVCurve:
         Column names in the CSV file (case-insensitive).
     volume_unit, pressure_unit : str, optional
         Units of the columns if the file has no units row.
+    smoothing : float [-] or 'auto', optional
+        Fit a cubic smoothing spline (scipy ``make_smoothing_spline``) instead of
+        interpolating: it minimises sum (p_i - s(V_i))^2 + lam * integral s''^2
+        on normalised data (volume mapped to [0, 1], pressure divided by its
+        range), so ``lam`` is dimensionless: 0 interpolates (natural spline),
+        1e-6 smooths lightly, 1e-3 strongly; ``'auto'`` (or True) chooses lam by
+        generalised cross-validation. Needs at least 5 samples. The spline is C2
+        but may overshoot between samples and flattens sharp peaks.
+    filter_window : int, optional
+        Low-pass the pressures with a Savitzky–Golay filter over this many
+        samples (odd, >= filter_order + 2) before interpolating: a local
+        polynomial fit that removes noise while keeping peaks better than a
+        moving average. It treats the samples as evenly spaced in volume (as a
+        syringe-pump measurement is); for unevenly spaced data use ``smoothing``.
+    filter_order : int, default 2
+        Polynomial order of the Savitzky–Golay filter.
+
+    Attributes
+    ----------
+    volume : ndarray [m^3]
+    pressure : ndarray [Pa]
+        Absolute pressure of the curve at ``volume`` (after filtering/smoothing).
+    measured_pressure : ndarray [Pa]
+        Absolute pressure as given.
+    slope : ndarray [Pa/m^3]
+        dp/dV at ``volume``.
     """
 
     def __init__(self, source=None, volume=None, pressure=None, *, gauge=None,
                  volume_column="Volume", pressure_column="Pressure",
-                 volume_unit=None, pressure_unit=None):
+                 volume_unit=None, pressure_unit=None, smoothing=None, filter_window=None,
+                 filter_order=2):
         self.gauge = (source is not None) if gauge is None else bool(gauge)
         if source is not None:
             if volume is not None or pressure is not None:
@@ -77,11 +114,36 @@ class PVCurve:
         if self.gauge:
             p = p + pressure_atmospheric
         self.volume = v
+        self.measured_pressure = p
+        if filter_window is not None:
+            p = _savgol(p, filter_window, filter_order, where)
+        if smoothing is not None and smoothing is not False:
+            p, slope = _smoothing_spline(v, p, smoothing, where)
+        else:
+            slope = PchipInterpolator(v, p)(v, 1)
         self.pressure = p
-        self.slope = PchipInterpolator(v, p)(v, 1)
+        self.slope = slope
+        self._build_tables()
+
+    # -- evaluation ------------------------------------------------------------------------
+    def _build_tables(self):
+        """Cubic pieces in monomial form around each piece's left end, plus the two
+        linear extrapolations: piece k = searchsorted(volume, V, 'right') holds
+        p = c0 + x (c1 + x (c2 + x c3)) with x = V - base[k]."""
+        v, p, d = self.volume, self.pressure, self.slope
+        h = np.diff(v)
+        delta = np.diff(p) / h
+        c2 = (3 * delta - 2 * d[:-1] - d[1:]) / h
+        c3 = (d[:-1] + d[1:] - 2 * delta) / h ** 2
+        self._base = np.concatenate([v[:1], v])
+        self._c0 = np.concatenate([p[:1], p])
+        self._c1 = np.concatenate([d[:1], d])
+        self._c2 = np.concatenate([[0.0], c2, [0.0]])
+        self._c3 = np.concatenate([[0.0], c3, [0.0]])
+        # the scalar path (one volume per call, as in a user component) runs on lists
         self._vl = v.tolist()
-        self._pl = p.tolist()
-        self._dl = self.slope.tolist()
+        self._tl = list(zip(self._base.tolist(), self._c0.tolist(), self._c1.tolist(),
+                            self._c2.tolist(), self._c3.tolist()))
 
     def __call__(self, volume):
         """Absolute pressure [Pa] at ``volume`` [m^3]."""
@@ -89,55 +151,155 @@ class PVCurve:
 
     def fdf_volume(self, volume):
         """Absolute pressure [Pa] and its derivative dp/dV [Pa/m^3] at ``volume`` [m^3]
-        (a float, an array or a pint Quantity)."""
-        if not isinstance(volume, float):   # ints, arrays, Quantities -> float or ndarray
-            volume = to_si(volume, "m**3", name="volume", owner="PVCurve.fdf_volume")
+        (a float, an array of any shape or a pint Quantity)."""
+        if isinstance(volume, float):
+            return self._scalar(volume)
+        if type(volume) is np.ndarray and volume.ndim and volume.dtype == np.float64:
+            return self._array(volume)
+        volume = to_si(volume, "m**3", name="volume", owner="PVCurve.fdf_volume")
         if isinstance(volume, float):
             return self._scalar(volume)
         return self._array(volume)
 
     def _scalar(self, x):
-        v, p, d = self._vl, self._pl, self._dl
-        n = len(v)
-        if x <= v[0]:
-            return p[0] + d[0] * (x - v[0]), d[0]
-        if x >= v[-1]:
-            return p[-1] + d[-1] * (x - v[-1]), d[-1]
-        i = bisect.bisect_right(v, x) - 1
-        if i >= n - 1:
-            i = n - 2
-        h = v[i + 1] - v[i]
-        s = (x - v[i]) / h
-        s2 = s * s
-        s3 = s2 * s
-        h00 = 2 * s3 - 3 * s2 + 1
-        h10 = s3 - 2 * s2 + s
-        h01 = -2 * s3 + 3 * s2
-        h11 = s3 - s2
-        val = h00 * p[i] + h10 * h * d[i] + h01 * p[i + 1] + h11 * h * d[i + 1]
-        dval = ((6 * s2 - 6 * s) * (p[i] - p[i + 1]) / h
-                + (3 * s2 - 4 * s + 1) * d[i] + (3 * s2 - 2 * s) * d[i + 1])
-        return val, dval
+        b, c0, c1, c2, c3 = self._tl[bisect.bisect_right(self._vl, x)]
+        x -= b
+        return c0 + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
 
     def _array(self, x):
-        v, p, d = self.volume, self.pressure, self.slope
-        i = np.clip(np.searchsorted(v, x, side="right") - 1, 0, len(v) - 2)
-        h = v[i + 1] - v[i]
-        s = (x - v[i]) / h
-        s2 = s * s
-        s3 = s2 * s
-        val = ((2 * s3 - 3 * s2 + 1) * p[i] + (s3 - 2 * s2 + s) * h * d[i]
-               + (-2 * s3 + 3 * s2) * p[i + 1] + (s3 - s2) * h * d[i + 1])
-        dval = ((6 * s2 - 6 * s) * (p[i] - p[i + 1]) / h
-                + (3 * s2 - 4 * s + 1) * d[i] + (3 * s2 - 2 * s) * d[i + 1])
-        lo = x <= v[0]
-        hi = x >= v[-1]
-        val = np.where(lo, p[0] + d[0] * (x - v[0]), val)
-        dval = np.where(lo, d[0], dval)
-        val = np.where(hi, p[-1] + d[-1] * (x - v[-1]), val)
-        dval = np.where(hi, d[-1], dval)
-        return val, dval
+        k = np.searchsorted(self.volume, x, side="right")
+        x = x - self._base[k]
+        c2, c3 = self._c2[k], self._c3[k]
+        c1 = self._c1[k]
+        return self._c0[k] + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
 
     def __repr__(self):
         return (f"<PVCurve {self.origin}: {len(self.volume)} points, "
                 f"V {self.volume[0]:.3g}..{self.volume[-1]:.3g} m^3>")
+
+    # -- synthetic curves (the shapes of the paper's Figs. 3-5) -----------------------------
+    @classmethod
+    def monotonic(cls, start, knee, end, *, gauge=False):
+        """Stiff rise up to ``knee``, softer rise to ``end``: a soft bending actuator.
+
+        Each point is a (volume [m^3], pressure [Pa]) pair (floats or Quantities);
+        volumes and pressures must increase. PCHIP through the points and the
+        midpoint of knee and end (which keeps the end slope, and so the
+        extension beyond ``end``, rising).
+        """
+        where = "PVCurve.monotonic"
+        pts = _key_points(where, ("start", start), ("knee", knee), ("end", end))
+        _require(pts, "start", "<", "knee", where)
+        _require(pts, "knee", "<", "end", where)
+        (vk, pk), (ve, pe) = pts["knee"], pts["end"]
+        pts = {"start": pts["start"], "knee": pts["knee"],
+               "mid": (0.5 * (vk + ve), 0.5 * (pk + pe)), "end": pts["end"]}
+        return _from_points(pts, gauge, "monotonic")
+
+    @classmethod
+    def plateau(cls, start, knee, plateau_end, end, *, gauge=False):
+        """Stiff rise to ``knee``, a (nearly) flat plateau to ``plateau_end``, then
+        stiffening to ``end`` (the paper's Fig. 4 actuators).
+
+        Points are (volume [m^3], pressure [Pa]) pairs; pressures must not fall
+        (equal knee and plateau_end pressures give a flat plateau).
+        """
+        where = "PVCurve.plateau"
+        pts = _key_points(where, ("start", start), ("knee", knee),
+                          ("plateau_end", plateau_end), ("end", end))
+        _require(pts, "start", "<", "knee", where)
+        _require(pts, "knee", "<=", "plateau_end", where)
+        _require(pts, "plateau_end", "<", "end", where)
+        return _from_points(pts, gauge, "plateau")
+
+    @classmethod
+    def peak_valley(cls, start, peak, valley, end, *, gauge=False):
+        """Rise to ``peak``, fall to ``valley``, rise again to ``end`` (a latex
+        balloon; the paper's Figs. 3 and 5).
+
+        Points are (volume [m^3], pressure [Pa]) pairs. PCHIP puts zero slope at
+        the peak and the valley, so they are exactly the curve's local maximum
+        and minimum.
+        """
+        where = "PVCurve.peak_valley"
+        pts = _key_points(where, ("start", start), ("peak", peak), ("valley", valley),
+                          ("end", end))
+        _require(pts, "start", "<", "peak", where)
+        _require(pts, "valley", "<", "peak", where)
+        _require(pts, "valley", "<", "end", where)
+        return _from_points(pts, gauge, "peak-valley")
+
+
+# -- helpers ------------------------------------------------------------------------------
+def _savgol(p, window, order, where):
+    if (isinstance(window, bool) or not isinstance(window, (int, np.integer))
+            or window < 3 or window % 2 == 0 or window > len(p)):
+        raise ValueError(f"{where}: filter_window must be an odd integer >= 3 and <= the "
+                         f"number of points ({len(p)}), got {window!r}")
+    if (isinstance(order, bool) or not isinstance(order, (int, np.integer))
+            or not 0 <= order <= window - 2):
+        raise ValueError(f"{where}: filter_order must be an integer from 0 to filter_window - 2 "
+                         f"({window - 2}), got {order!r}")
+    return savgol_filter(p, int(window), int(order), mode="interp")
+
+
+def _smoothing_spline(v, p, smoothing, where):
+    """(values, slopes) at the samples of a cubic smoothing spline through (v, p).
+
+    Its knots are the samples, so cubic Hermite interpolation of these values
+    and slopes is the spline itself."""
+    if len(v) < MIN_POINTS_SMOOTHING:
+        raise ValueError(f"{where}: smoothing needs at least {MIN_POINTS_SMOOTHING} points, "
+                         f"got {len(v)}")
+    if smoothing is True or (isinstance(smoothing, str) and smoothing == "auto"):
+        lam = None
+    else:
+        try:
+            lam = float(smoothing)
+        except (TypeError, ValueError):
+            lam = -1.0
+        if not (np.isfinite(lam) and lam >= 0) or isinstance(smoothing, str):
+            raise ValueError(f"{where}: smoothing must be a number >= 0 (dimensionless) or "
+                             f"'auto', got {smoothing!r}")
+    span_v = v[-1] - v[0]
+    mean_p = p.mean()
+    span_p = np.ptp(p) or 1.0
+    x = (v - v[0]) / span_v
+    spl = make_smoothing_spline(x, (p - mean_p) / span_p, lam=lam)
+    return spl(x) * span_p + mean_p, spl(x, 1) * (span_p / span_v)
+
+
+def _key_points(where, *named):
+    out = {}
+    for name, pt in named:
+        try:
+            vol, pres = pt
+        except (TypeError, ValueError):
+            raise ValueError(f"{where}: {name} must be a (volume, pressure) pair, "
+                             f"got {pt!r}") from None
+        vol = to_si(vol, "m**3", name=f"{name} volume", owner=where)
+        pres = to_si(pres, "Pa", name=f"{name} pressure", owner=where)
+        if not (np.ndim(vol) == 0 and np.ndim(pres) == 0 and np.isfinite(vol)
+                and np.isfinite(pres)):
+            raise ValueError(f"{where}: {name} must be a pair of finite numbers, got {pt!r}")
+        out[name] = (float(vol), float(pres))
+    names = list(out)
+    for a, b in zip(names, names[1:]):
+        if not out[a][0] < out[b][0]:
+            raise ValueError(f"{where}: the volume of {b} ({out[b][0]:.6g} m^3) must be larger "
+                             f"than that of {a} ({out[a][0]:.6g} m^3)")
+    return out
+
+
+def _require(pts, a, op, b, where):
+    pa, pb = pts[a][1], pts[b][1]
+    if not (pa < pb if op == "<" else pa <= pb):
+        raise ValueError(f"{where}: the pressure at {a} ({pa:.6g} Pa) must be {op} the "
+                         f"pressure at {b} ({pb:.6g} Pa)")
+
+
+def _from_points(pts, gauge, kind):
+    vols, pres = zip(*pts.values())
+    curve = PVCurve(volume=np.array(vols), pressure=np.array(pres), gauge=gauge)
+    curve.origin = f"{kind} through {len(vols)} points"
+    return curve

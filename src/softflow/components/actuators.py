@@ -1,0 +1,313 @@
+"""Inflatable actuators: a chamber whose volume follows a pressure–volume curve.
+
+Unknowns of an actuator: the terminal's pressure p and mass flow mf; state:
+the stored fluid mass m. The end-of-step mass m + dt * mf (backward Euler)
+and the density give the volume, and the curve gives the pressure from it:
+
+    V = (m + dt * mf) / rho(p),    residual  p - p_curve(V) = 0
+
+(with an incompressible fluid V depends on mf alone). The pressure is
+computed from the volume, never the volume from the pressure: p(V) is a
+function for every curve, V(p) is not for a peak–valley curve, so this form
+stays single-valued and differentiable through the curve's negative-stiffness
+part. It is the FONS paper's own user actuator (``p - pvcurve(mass / rho)``),
+with an analytic Jacobian. Keeping the volume as an extra unknown was tried
+first and dropped: that row is dominated by dp/dV ~ 1e10 Pa/m^3, so Newton's
+row-scaled line search hardly saw the pressure error, and it failed to start
+a tube-fed actuator 800 Pa away from its source, which this form solves.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..curves.hysteresis import HysteresisLoop
+from ..curves.pvcurve import PVCurve
+from .base import FLUID_PORT, LibraryComponent, Params
+
+#: Relative step of the central differences used for a callable curve without
+#: a derivative: h = FD_STEP * max(|V|, initial volume).
+FD_STEP = 1e-6
+
+ACTUATOR_PATTERN = ((0, 0), (0, 1))
+
+
+class _CurveFunction:
+    """p(V) [Pa] and dp/dV [Pa/m^3] of volume arrays, whatever form the curve came in."""
+
+    def __init__(self, curve, derivative, volume_scale, owner):
+        if hasattr(curve, "fdf_volume"):
+            if derivative is not None:
+                raise ValueError(f"{owner}: curve_derivative is only for a callable curve; "
+                                 f"{curve!r} gives its own derivative (fdf_volume)")
+            self.fdf = curve.fdf_volume
+            self.value = lambda v: curve.fdf_volume(v)[0]
+            return
+        if derivative is not None and not callable(derivative):
+            raise TypeError(f"{owner}: curve_derivative must be a callable V [m^3] -> dp/dV "
+                            f"[Pa/m^3], got {derivative!r}")
+        self.h_floor = FD_STEP * volume_scale
+        self.value = _vectorized(curve, volume_scale, owner, "curve")
+        if derivative is not None:
+            d = _vectorized(derivative, volume_scale, owner, "curve_derivative")
+            self.fdf = lambda v: (self.value(v), d(v))
+        else:
+            self.fdf = self._central_differences
+
+    def _central_differences(self, v):
+        h = np.maximum(FD_STEP * np.abs(v), self.h_floor)
+        return self.value(v), (self.value(v + h) - self.value(v - h)) / (2 * h)
+
+
+def _vectorized(func, v0, owner, name):
+    """``func`` as array -> array, checked once at the initial volume."""
+    try:
+        out = np.asarray(func(np.array([v0, v0])), dtype=float)
+        array_ok = out.shape == (2,)
+    except Exception:                      # a scalar-only function (math.*, if-branches)
+        array_ok = False
+    try:
+        p0 = float(func(float(v0)))
+    except Exception as err:
+        raise ValueError(f"{owner}: {name}({v0:.6g} m^3) failed: {err}") from err
+    if not np.isfinite(p0):
+        raise ValueError(f"{owner}: {name}({v0:.6g} m^3) returned {p0}; expected a finite "
+                         "number in SI units")
+    if array_ok:
+        return lambda v: np.asarray(func(v), dtype=float)
+    return lambda v: np.array([float(func(float(x))) for x in v])
+
+
+class Actuator(LibraryComponent):
+    """Inflatable actuator with a pressure–volume curve, terminal ``a``.
+
+    The fluid volume V = m / rho(p) of the stored mass m (state) sets the
+    absolute pressure p = curve(V). Results: ``pressure``, ``massflow``, the
+    state ``mass`` and the output ``volume`` [m^3].
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    curve : PVCurve or callable
+        The PV curve: a :class:`~softflow.curves.PVCurve` (from CSV or arrays),
+        any object with the same ``fdf_volume(V) -> (p, dp/dV)`` method, or a
+        callable V [m^3] -> absolute pressure [Pa]. A callable should accept
+        NumPy arrays (it is called once per Newton iteration with the volumes of
+        all actuators sharing it); one that does not is called per volume.
+        Without ``curve_derivative`` its slope comes from central differences
+        with step 1e-6 * max(|V|, initial volume).
+    initial_volume : float [m^3] or Quantity, optional
+        Volume at t = 0. Default: the first volume of a PVCurve; a callable
+        curve needs it.
+    initial_pressure : float [Pa] or Quantity, optional
+        Absolute pressure at t = 0 instead of ``initial_volume`` (PVCurve only):
+        the actuator starts at the smallest volume where the curve reaches it,
+        i.e. on the first rising branch of a peak–valley curve.
+    curve_derivative : callable, optional
+        dp/dV [Pa/m^3] of a callable curve, V [m^3] -> float or array.
+    """
+
+    terminal_spec = (("a", FLUID_PORT),)
+    state_spec = (("mass", "mass"),)
+    jac_pattern = ACTUATOR_PATTERN
+
+    def __init__(self, label, fluid, curve, initial_volume=None, initial_pressure=None, *,
+                 curve_derivative=None):
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
+        if not (hasattr(curve, "fdf_volume") or callable(curve)):
+            raise TypeError(f"{self.describe()}: curve must be a PVCurve or a callable V [m^3] "
+                            f"-> absolute pressure [Pa], got {curve!r}")
+        self.curve = curve
+        self.curve_derivative = curve_derivative
+        v0 = self._initial_volume(curve, initial_volume, initial_pressure)
+        self._curve_fn = _CurveFunction(curve, curve_derivative, abs(v0) or 1e-9,
+                                        self.describe())
+        _set_initial_state(self, v0, float(self._curve_fn.value(np.array([v0]))[0]))
+
+    # -- set-up ---------------------------------------------------------------------------
+    def _initial_volume(self, curve, initial_volume, initial_pressure):
+        if initial_volume is not None and initial_pressure is not None:
+            raise ValueError(f"{self.describe()}: give initial_volume or initial_pressure, "
+                             "not both")
+        if initial_volume is not None:
+            return self._si(initial_volume, "m**3", "initial_volume", positive=True)
+        if not isinstance(curve, PVCurve):
+            raise ValueError(f"{self.describe()}: the curve is not a PVCurve, so give "
+                             "initial_volume [m^3] (a PVCurve's first volume is the default, "
+                             "and only a PVCurve can be inverted for initial_pressure)")
+        if initial_pressure is None:
+            return float(curve.volume[0])
+        p0 = self._si(initial_pressure, "Pa", "initial_pressure", positive=True)
+        v0 = volume_at_pressure(curve, p0)
+        if v0 is None or not v0 > 0:
+            raise ValueError(f"{self.describe()}: initial_pressure {p0:.6g} Pa is not reached "
+                             f"by the PV curve at a positive volume ({curve!r})")
+        return v0
+
+    def group_key(self):
+        return (type(self), id(self.fluid), id(self.curve), id(self.curve_derivative))
+
+    def initial_states(self):
+        return [float(self.fluid.density(self.initial_pressure)) * self.initial_volume]
+
+    # -- kernels --------------------------------------------------------------------------
+    @classmethod
+    def make_params(cls, components):
+        P = Params(components)
+        P.curve = components[0]._curve_fn
+        return P
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        return S + dt * V[:, 1:2]
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, rho, vol, m_new = _volume(P, V, S, dt)
+        if not jac:
+            return (p - P.curve.value(vol))[:, None], None
+        pc, dpc = P.curve.fdf(vol)
+        return _residual(P, p, rho, vol, dt, pc, dpc)
+
+    def outputs(self):
+        return _volume_output(self.fluid)
+
+
+def _set_initial_state(comp, v0, p0):
+    if not (np.isfinite(p0) and p0 > 0):
+        raise ValueError(f"{comp.describe()}: the PV curve gives pressure {p0!r} Pa at the "
+                         f"initial volume {v0:.6g} m^3; expected an absolute pressure > 0")
+    comp.initial_volume = v0
+    comp.initial_pressure = p0
+    comp.terminals[0].variables[0].initial_value = p0
+
+
+def _volume(P, V, S, dt):
+    """Pressure, density, volume and mass at the end of the step."""
+    p = V[:, 0]
+    rho = P.fluid.density(p)
+    m_new = S[:, 0] + dt * V[:, 1]
+    return p, rho, m_new / rho, m_new
+
+
+def _residual(P, p, rho, vol, dt, pc, dpc):
+    """p - p_curve(V) with V = (m + dt mf) / rho(p), and its derivatives."""
+    J = np.empty((P.n, 2))
+    J[:, 0] = 1.0 + dpc * vol * (P.fluid.density_dp(p) / rho)
+    J[:, 1] = -dpc * (dt / rho)
+    return (p - pc)[:, None], J
+
+
+def _volume_output(fluid):
+    return {"volume": ("volume", lambda get: get("mass") / fluid.density(get("pressure")))}
+
+
+def volume_at_pressure(curve, pressure):
+    """Smallest volume [m^3] at which ``curve`` (a PVCurve) reaches ``pressure`` [Pa],
+    its linear extensions included; None where it never does. Between samples
+    PCHIP does not overshoot, so the first sample at or above the pressure
+    brackets the first crossing."""
+    v, p, s = curve.volume, curve.pressure, curve.slope
+    if pressure < p[0]:
+        return v[0] + (pressure - p[0]) / s[0] if s[0] > 0 else None
+    above = p >= pressure
+    i = int(np.argmax(above))
+    if not above[i]:
+        return v[-1] + (pressure - p[-1]) / s[-1] if s[-1] > 0 else None
+    if p[i] == pressure:
+        return float(v[i])
+    return brentq(lambda x: float(curve(x)) - pressure, v[i - 1], v[i],
+                  xtol=1e-13 * (v[i] - v[i - 1]), rtol=1e-14)
+
+
+class HystereticActuator(LibraryComponent):
+    """Actuator with separate inflation and deflation PV curves, terminal ``a``.
+
+    Follows the inflation curve until the volume reaches the curve's last
+    volume V_hi, then the deflation curve until the volume falls to the
+    deflation curve's first volume V_lo, and so on (see
+    :mod:`softflow.curves.hysteresis`); the two curves must meet at V_lo and
+    V_hi. Snapping is the steep falling part of a curve. The branch is the
+    discrete state ``branch`` (1 = inflation, 0 = deflation): each step uses
+    the branch it started on, and the branch changes between steps. Residuals
+    and results as for :class:`Actuator` (``pressure``, ``mass``, ``branch`` and
+    the output ``volume``).
+
+    Parameters
+    ----------
+    label : str
+    fluid : Fluid
+    inflation_curve : PVCurve
+    deflation_curve : PVCurve
+        (``HystereticActuator(label, fluid, *loop)`` takes a
+        :class:`~softflow.curves.HysteresisLoop`.)
+    initial_volume : float [m^3] or Quantity, optional
+        Default: the first volume of the inflation curve.
+    initial_branch : {'inflation', 'deflation'}, optional
+        Default: deflation if initial_volume >= V_hi, else inflation. Past the
+        end of the named branch the actuator starts on the other one.
+    meet_tolerance : float [Pa], optional
+        Allowed pressure mismatch of the curves where they meet; default 1 % of
+        their larger pressure range.
+    """
+
+    terminal_spec = (("a", FLUID_PORT),)
+    state_spec = (("mass", "mass"), ("branch", "dimensionless"))
+    discrete_states = ("branch",)
+    jac_pattern = ACTUATOR_PATTERN
+
+    def __init__(self, label, fluid, inflation_curve, deflation_curve, initial_volume=None, *,
+                 initial_branch=None, meet_tolerance=None):
+        super().__init__(label)
+        self.fluid = self._check_fluid(fluid)
+        self.loop = HysteresisLoop(inflation_curve, deflation_curve,
+                                   meet_tolerance=meet_tolerance, owner=self.describe())
+        if initial_volume is None:
+            v0 = float(inflation_curve.volume[0])
+        else:
+            v0 = self._si(initial_volume, "m**3", "initial_volume", positive=True)
+        if initial_branch is None:
+            inflating = v0 < self.loop.volume_high
+        elif initial_branch in ("inflation", "deflation"):
+            inflating = initial_branch == "inflation"
+        else:
+            raise ValueError(f"{self.describe()}: initial_branch must be 'inflation' or "
+                             f"'deflation', got {initial_branch!r}")
+        inflating = bool(self.loop.on_inflation_curve(np.array([v0]), inflating)[0])
+        self.initial_branch = 1.0 if inflating else 0.0
+        p0 = float(self.loop.fdf_volume(np.array([v0]), inflating)[0][0])
+        _set_initial_state(self, v0, p0)
+
+    def group_key(self):
+        return (type(self), id(self.fluid), id(self.loop.inflation), id(self.loop.deflation))
+
+    def initial_states(self):
+        return [float(self.fluid.density(self.initial_pressure)) * self.initial_volume,
+                self.initial_branch]
+
+    @classmethod
+    def make_params(cls, components):
+        P = Params(components)
+        P.loop = components[0].loop
+        return P
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        _, _, vol, m_new = _volume(P, V, S, dt)
+        out = np.empty_like(S)
+        out[:, 0] = m_new
+        out[:, 1] = P.loop.next_inflating(vol, S[:, 1] > 0.5)
+        return out
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, rho, vol, _ = _volume(P, V, S, dt)
+        pc, dpc = P.loop.fdf_volume(vol, S[:, 1] > 0.5)
+        if not jac:
+            return (p - pc)[:, None], None
+        return _residual(P, p, rho, vol, dt, pc, dpc)
+
+    def outputs(self):
+        return _volume_output(self.fluid)

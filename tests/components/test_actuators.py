@@ -1,0 +1,435 @@
+"""Actuator and HystereticActuator: analytic Jacobians against finite differences,
+and the behaviour of small scenes (PV curve tracking, snap-through, hysteresis,
+mass conservation), and bad input."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.components.actuators import (Actuator, HystereticActuator,
+                                           volume_at_pressure)
+from softflow.curves.hysteresis import HysteresisLoop
+
+P0 = sf.pressure_atmospheric
+ML = 1e-6
+BALLOON_CSV = Path(sf.__file__).parent / "data" / "latex_balloon_60mm_pv.csv"
+BALLOON = sf.PVCurve(BALLOON_CSV)           # peak 870 mbar at 6.02 mL, valley 580 mbar
+
+RTOL = 1e-5          # analytic vs finite-difference entries
+ATOL_ROW = 1e-8      # absolute floor, relative to the largest scaled entry of the row
+REL_STEP = 1e-6      # finite-difference step relative to the variable's scale
+
+
+def snapping_loop():
+    return HysteresisLoop.snapping(start=(1 * ML, 0.0), peak=(6 * ML, 8e4),
+                                   valley=(4 * ML, 3e4), end=(20 * ML, 1.2e5),
+                                   snap_volume=0.5 * ML, gauge=True)
+
+
+LOOP = snapping_loop()
+
+
+def with_breaks(func, *breaks):
+    func.breakpoints = breaks
+    return func
+
+
+# ---------------------------------------------------------------------------------------
+# Jacobians (the pattern of tests/components/test_jacobians.py)
+# ---------------------------------------------------------------------------------------
+def _evaluate(cls, instances, V, S, dt, jac):
+    P = cls.make_params(instances)
+    return cls.kernel(P, V, S.copy(), 0.3, dt, jac)
+
+
+def _fd_jacobian(cls, instances, V0, S, dt, scale):
+    n, nv = V0.shape
+    F0, _ = _evaluate(cls, instances, V0, S, dt, False)
+    D = np.zeros((n, F0.shape[1], nv))
+    for i in range(n):
+        for k in range(nv):
+            h = REL_STEP * max(abs(V0[i, k]), scale[k])
+            Vp, Vm = V0.copy(), V0.copy()
+            Vp[i, k] += h
+            Vm[i, k] -= h
+            Fp, _ = _evaluate(cls, instances, Vp, S, dt, False)
+            Fm, _ = _evaluate(cls, instances, Vm, S, dt, False)
+            others = np.arange(n) != i
+            np.testing.assert_array_equal(Fp[others], F0[others])
+            D[i, :, k] = (Fp[i] - Fm[i]) / (2 * h)
+    return D
+
+
+def _check_jacobian(cls, instances, V, S, dt=2e-3):
+    scale = np.array([1e5, 1e-4 * instances[0].fluid.rho / 1000])
+    F, J = _evaluate(cls, instances, V, S, dt, True)
+    F2, J2 = _evaluate(cls, instances, V, S, dt, False)
+    assert J2 is None and F.shape == (len(instances), 1) and J.shape == (len(instances), 2)
+    np.testing.assert_array_equal(F, F2)
+    assert cls.jac_pattern == ((0, 0), (0, 1))
+    D = _fd_jacobian(cls, instances, V, S, dt, scale) * scale[None, None, :]
+    row_max = np.abs(D).max(axis=2)
+    for j, (e, k) in enumerate(cls.jac_pattern):
+        got, want = J[:, j] * scale[k], D[:, e, k]
+        bad = np.abs(got - want) > RTOL * np.abs(want) + ATOL_ROW * row_max[:, e]
+        assert not bad.any(), f"dF{e}/dV{k}: analytic {J[bad, j]} vs FD {want[bad] / scale[k]}"
+
+
+def _state_point(fluid, instances, volumes, rng, dt=2e-3):
+    """Interface values and start-of-step mass that put each actuator at the given
+    end-of-step volume, with a pressure a little off its curve and any mass flow."""
+    n = len(instances)
+    p = np.array([float(c.initial_pressure) for c in instances])
+    p = p * rng.uniform(0.95, 1.05, n)
+    mf = rng.uniform(-1e-4, 1e-4, n) * fluid.rho / 1000
+    mass = fluid.density(p) * volumes - dt * mf
+    return np.column_stack([p, mf]), mass
+
+
+def _callable_curve(v):
+    """A smooth peak–valley p(V) written with NumPy (accepts arrays) [Pa]."""
+    x = v / (10 * ML)
+    return P0 + 8e4 * (3 * x - 4.2 * x ** 2 + 1.6 * x ** 3) + 1e3
+
+
+def _callable_slope(v):
+    x = v / (10 * ML)
+    return 8e4 * (3 - 8.4 * x + 4.8 * x ** 2) / (10 * ML)
+
+
+def _scalar_only_curve(v):
+    import math
+    return P0 + 5e4 * math.tanh(v / (5 * ML)) + 1e3
+
+
+ACTUATOR_CURVES = {
+    # rising (1-5 mL) and negative-stiffness (7-20 mL) parts of the measured balloon
+    "balloon-rising": (BALLOON, {}, [1.5, 2.7, 4.1, 5.5]),
+    "balloon-negative-stiffness": (BALLOON, {}, [7.2, 9.6, 14.3, 19.1]),
+    "balloon-outside-data": (BALLOON, {}, [0.4, 57.0, 80.0, 0.9]),
+    "peak_valley-synthetic": (sf.PVCurve.peak_valley((1 * ML, P0), (5 * ML, P0 + 9e4),
+                                                     (15 * ML, P0 + 5e4), (30 * ML, P0 + 1.2e5)),
+                              {}, [2.0, 6.5, 12.0, 22.0]),
+    "callable-fd": (_callable_curve, {"initial_volume": 2 * ML}, [2.0, 6.0, 9.0, 12.0]),
+    "callable-derivative": (_callable_curve, {"initial_volume": 2 * ML,
+                                              "curve_derivative": _callable_slope},
+                            [2.0, 6.0, 9.0, 12.0]),
+    "callable-scalar-only": (_scalar_only_curve, {"initial_volume": 2 * ML},
+                             [1.0, 3.0, 6.0, 11.0]),
+}
+
+
+@pytest.mark.parametrize("fluid_name", ["air", "water"])
+@pytest.mark.parametrize("name", sorted(ACTUATOR_CURVES))
+def test_actuator_jacobian(name, fluid_name):
+    fluid = getattr(sf, fluid_name)
+    curve, kw, volumes = ACTUATOR_CURVES[name]
+    acts = [Actuator(f"a{i}", fluid, curve, **kw) for i in range(len(volumes))]
+    V, mass = _state_point(fluid, acts, np.array(volumes) * ML, np.random.default_rng(7))
+    _check_jacobian(Actuator, acts, V, mass[:, None])
+
+
+@pytest.mark.parametrize("fluid_name", ["air", "water"])
+@pytest.mark.parametrize("branch", [1.0, 0.0])
+def test_hysteretic_actuator_jacobian(fluid_name, branch):
+    fluid = getattr(sf, fluid_name)
+    # inside the loop (3.5-6.5 mL), on both snaps, and past both ends
+    volumes = np.array([2.0, 3.7, 4.5, 6.2, 6.4, 9.0, 3.2, 15.0]) * ML
+    acts = [HystereticActuator(f"h{i}", fluid, *LOOP) for i in range(len(volumes))]
+    V, mass = _state_point(fluid, acts, volumes, np.random.default_rng(11))
+    S = np.column_stack([mass, np.full(len(volumes), branch)])
+    _check_jacobian(HystereticActuator, acts, V, S)
+
+
+def test_negative_stiffness_enters_the_jacobian():
+    """On the falling part of a peak–valley curve more inflow lowers the curve's
+    pressure: dF/dmf = -dp/dV dt / rho is positive."""
+    act = Actuator("a", sf.water, BALLOON)
+    rho = sf.water.density(P0 + 7e4)
+    V = np.array([[P0 + 7e4, 0.0]])
+    _, J = _evaluate(Actuator, [act], V, np.array([[rho * 10 * ML]]), 1e-3, True)
+    assert J[0, 0] == 1.0
+    assert J[0, 1] == pytest.approx(-BALLOON.fdf_volume(10 * ML)[1] * 1e-3 / rho, rel=1e-12)
+    assert J[0, 1] > 0
+
+
+# ---------------------------------------------------------------------------------------
+# scenes
+# ---------------------------------------------------------------------------------------
+def test_slow_volume_flow_inflation_traces_the_pv_curve():
+    """Water pumped in at 10 mL/s through a tube: the actuator goes along the whole
+    measured balloon curve, over the peak and through the valley."""
+    s = sf.System()
+    s += sf.VolumeFlowSource("pump", volumeflow=10 * ML, fluid=sf.water)
+    s += sf.CircularTube("tube", sf.water, length=0.1, diameter=4e-3)
+    s += Actuator("act", sf.water, BALLOON)
+    s.connect("pump", "tube")
+    s.connect("tube", "act")
+    res = sf.Simulation(s, duration=5.0).run()
+    assert res.success
+    t, vol, p = res.times, res.get("act", "volume"), res.get("act", "pressure")
+    np.testing.assert_allclose(vol, 1 * ML + 10 * ML * t, rtol=1e-9)      # incompressible
+    span = np.ptp(BALLOON.pressure)
+    gauge_err = np.abs(p - BALLOON(vol)) / span
+    assert gauge_err.max() < 5e-3
+    # the pump side sees the curve plus a small tube loss
+    assert np.abs(res.get("pump", "pressure") - p).max() < 0.005 * span
+    # it went over the peak and down into the valley
+    assert vol[-1] > 50 * ML
+    assert p.max() > P0 + 0.995 * 87000 and p[(vol > 20 * ML) & (vol < 35 * ML)].min() < P0 + 59000
+
+
+def _snap_system(fluid, p_hold):
+    ramp = with_breaks(lambda t: P0 + min(1e5 * t / 4.0, p_hold), p_hold * 4.0 / 1e5)
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=ramp)
+    s += sf.CircularTube("tube", fluid, length=0.1, diameter=4e-3)
+    s += Actuator("act", fluid, BALLOON, initial_pressure=P0)
+    s.connect("src", "tube")
+    s.connect("tube", "act")
+    return s
+
+
+def test_snap_through_at_the_peak_pressure():
+    """A pressure ramp held at 90 kPa (just above the 87 kPa peak): the volume
+    creeps up the first branch, then jumps past the valley when the source
+    passes the peak, and settles where the last branch reaches 90 kPa."""
+    p_peak = 87000.0
+    res = sf.Simulation(_snap_system(sf.water, 90000.0), duration=6.0).run()
+    assert res.success
+    t, vol = res.times, res.get("act", "volume")
+    p_src = res.get("src", "pressure") - P0
+    v_peak = 6.02 * ML
+    assert vol[p_src < 0.97 * p_peak].max() < v_peak
+    # the jump: 6 -> 40 mL while the source pressure is between the peak and 90 kPa
+    i6 = np.argmax(vol > v_peak)
+    i40 = np.argmax(vol > 40 * ML)
+    assert p_peak * 0.99 < p_src[i6] and p_src[i40] <= 90000.0
+    assert t[i40] - t[i6] < 0.5                    # vs 4 s to climb the first branch
+    v_end = volume_at_pressure(sf.PVCurve(volume=BALLOON.volume[30:],
+                                          pressure=BALLOON.pressure[30:]), P0 + 90000.0)
+    assert vol[-1] == pytest.approx(v_end, rel=1e-3)
+
+
+def test_hysteretic_actuator_follows_inflation_up_and_deflation_down():
+    """Water pumped in at 2 mL/s for 5 s and out again: pressure on the inflation
+    curve up to V_hi = 6.5 mL, on the deflation curve from there down to
+    V_lo = 3.5 mL, and the branch state switching at those volumes."""
+    pump = with_breaks(lambda t: 2 * ML if t < 5.0 else -2 * ML, 5.0)
+    s = sf.System()
+    s += sf.VolumeFlowSource("pump", volumeflow=pump, fluid=sf.water)
+    s += HystereticActuator("act", sf.water, *LOOP)
+    s.connect("pump", "act")
+    res = sf.Simulation(s, duration=9.5, step_max=0.02).run()
+    assert res.success
+    t, vol, p = res.times, res.get("act", "volume"), res.get("act", "pressure")
+    branch = res.get("act", "branch")
+    up, down = t <= 5.0, t > 5.0
+    v_lo, v_hi = LOOP.volume_low, LOOP.volume_high
+    inf, dfl = LOOP.inflation, LOOP.deflation
+    # inflating below V_hi: inflation curve, well away from the deflation curve
+    sel = up & (vol < v_hi) & (vol > v_lo + 0.3 * ML)
+    np.testing.assert_allclose(p[sel], inf(vol[sel]), rtol=1e-6)
+    mid = sel & (vol > 4.2 * ML) & (vol < 6 * ML)       # away from the snaps
+    assert mid.sum() > 20 and (np.abs(p[mid] - dfl(vol[mid])) > 5e3).all()
+    # deflating above V_lo: deflation curve
+    sel = down & (vol > v_lo) & (vol < v_hi - 0.3 * ML)
+    assert sel.sum() > 20
+    np.testing.assert_allclose(p[sel], dfl(vol[sel]), rtol=1e-6)
+    mid = sel & (vol > 4.2 * ML) & (vol < 6 * ML)
+    assert mid.sum() > 20 and (np.abs(p[mid] - inf(vol[mid])) > 5e3).all()
+    # the branch switches once up (at V_hi) and once down (at V_lo)
+    switches = np.flatnonzero(np.diff(branch) != 0) + 1
+    assert list(branch[switches]) == [0.0, 1.0]
+    assert vol[switches[0]] >= v_hi and vol[switches[0] - 1] < v_hi
+    assert vol[switches[1]] <= v_lo and vol[switches[1] - 1] > v_lo
+    # the pressure is continuous at both switches (the branches meet there)
+    for k in switches:
+        assert abs(p[k] - p[k - 1]) < 0.05 * np.ptp(inf.pressure)
+
+
+def test_hysteretic_actuator_snaps_at_different_pressures_up_and_down():
+    """Pressure-driven through a tube: inflating, the volume jumps at the inflation
+    peak (80 kPa); deflating, it jumps back at the deflation valley (30 kPa)."""
+    src = with_breaks(lambda t: P0 + (9e4 * t / 3 if t < 3 else 9e4 * (6 - t) / 3 + 1e3),
+                      3.0)
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=src)
+    s += sf.CircularTube("tube", sf.water, length=0.1, diameter=4e-3)
+    s += HystereticActuator("act", sf.water, *LOOP, initial_volume=1.05 * ML)
+    s.connect("src", "tube")
+    s.connect("tube", "act")
+    res = sf.Simulation(s, duration=6.0, step_max=0.01).run()
+    assert res.success
+    t, vol = res.times, res.get("act", "volume")
+    p_src = res.get("src", "pressure") - P0
+    rate = np.diff(vol) / np.diff(t)
+    k_up = np.argmax(rate)
+    k_down = np.argmin(rate)
+    assert t[k_up] < 3.0 < t[k_down]
+    assert 8e4 * 0.98 < p_src[k_up] < 8e4 * 1.1
+    assert 3e4 * 0.9 < p_src[k_down] < 3e4 * 1.02
+    assert rate[k_up] > 20 * 9 * ML / 3 and -rate[k_down] > 20 * 9 * ML / 3
+
+
+@pytest.mark.parametrize("cls", [Actuator, HystereticActuator])
+def test_mass_conservation_with_air(cls):
+    """Air through a tube from a mass-flow source (in, pause, out): the stored mass
+    is the integral of the inflow, step by step, and equals rho(p) V."""
+    q = 3e-6                                            # kg/s (~2.5 mL/s of air)
+    src = with_breaks(lambda t: q if t < 2.0 else (0.0 if t < 2.5 else -q), 2.0, 2.5)
+    s = sf.System()
+    s += sf.MassFlowSource("src", massflow=src)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += (Actuator("act", sf.air, BALLOON) if cls is Actuator
+          else HystereticActuator("act", sf.air, *LOOP))
+    s.connect("src", "tube")
+    s.connect("tube", "act")
+    res = sf.Simulation(s, duration=4.5).run()
+    assert res.success
+    t, m = res.times, res.get("act", "mass")
+    mf = res.get("act", "massflow")
+    np.testing.assert_allclose(np.diff(m), np.diff(t) * mf[1:], rtol=1e-12, atol=1e-20)
+    np.testing.assert_allclose(m[-1] - m[0], q * 2.0 - q * 2.0, atol=1e-9 * q)
+    # the pressure is the curve's at the volume of that mass
+    vol, p = res.get("act", "volume"), res.get("act", "pressure")
+    np.testing.assert_allclose(vol, m / sf.air.density(p), rtol=1e-14)
+    if cls is Actuator:
+        want = BALLOON(vol)
+    else:
+        want = LOOP.fdf_volume(vol, res.get("act", "branch") > 0.5)[0]
+    # to the Newton tolerance (its first chord update may be accepted at ~100x
+    # newton_rtol when earlier solves contracted fast)
+    np.testing.assert_allclose(p, want, rtol=1e-4)
+    assert vol.max() > 1.5 * vol[0]
+
+
+def test_actuators_with_different_curves_keep_their_own():
+    """Instances sharing a curve are one kernel group; different curves are separate
+    groups, and each actuator follows its own curve."""
+    soft = sf.PVCurve.plateau((1 * ML, P0), (3 * ML, P0 + 3e4), (10 * ML, P0 + 3.5e4),
+                              (15 * ML, P0 + 8e4))
+    s = sf.System()
+    s += sf.VolumeFlowSource("pump", volumeflow=2 * ML, fluid=sf.water)
+    acts = [Actuator("a1", sf.water, soft), Actuator("a2", sf.water, BALLOON),
+            Actuator("a3", sf.water, soft)]
+    for a in acts:
+        s += a
+    for i, a in enumerate(acts):
+        s += sf.CircularTube(f"t{i}", sf.water, length=0.05, diameter=2e-3)
+        s.connect(("pump", "a"), f"t{i}")
+        s.connect(f"t{i}", a.label)
+    sim = sf.Simulation(s, duration=3.0)
+    res = sim.run()
+    assert res.success
+    for a, curve in zip(acts, (soft, BALLOON, soft)):
+        np.testing.assert_allclose(res.get(a.label, "pressure"),
+                                   curve(res.get(a.label, "volume")), rtol=1e-6)
+    keys = {a.group_key() for a in acts}
+    assert len(keys) == 2
+    # the stiffer balloon takes less of the flow than the soft plateau actuators
+    v = [res.get(a.label, "volume")[-1] for a in acts]
+    assert v[1] < v[0] and v[0] == pytest.approx(v[2], rel=1e-9)
+    assert sum(v) - 3 * ML == pytest.approx(6 * ML, rel=1e-9)
+
+
+def test_callable_curve_matches_the_same_pvcurve():
+    """A callable p(V) (slope by finite differences) runs the same scene as the
+    PVCurve it evaluates."""
+    curve = sf.PVCurve.peak_valley((1 * ML, P0), (5 * ML, P0 + 9e4), (15 * ML, P0 + 5e4),
+                                   (30 * ML, P0 + 1.2e5))
+    out = []
+    for c in (curve, lambda v: curve(v)):
+        s = sf.System()
+        s += sf.VolumeFlowSource("pump", volumeflow=4 * ML, fluid=sf.water)
+        s += Actuator("act", sf.water, c, initial_volume=1 * ML)
+        s.connect("pump", "act")
+        res = sf.Simulation(s, duration=5.0, step=0.05).run()
+        out.append(res.get("act", "pressure"))
+    np.testing.assert_allclose(out[1], out[0], rtol=1e-9)
+
+
+# ---------------------------------------------------------------------------------------
+# initial state
+# ---------------------------------------------------------------------------------------
+def test_initial_state_defaults_and_conversions():
+    a = Actuator("a", sf.air, BALLOON)
+    assert a.initial_volume == BALLOON.volume[0] and a.initial_pressure == BALLOON.pressure[0]
+    assert a.initial_states()[0] == pytest.approx(sf.air.density(a.initial_pressure) * 1 * ML)
+    b = Actuator("b", sf.water, BALLOON, initial_volume=sf.Q_(10, "mL"))
+    assert b.initial_volume == pytest.approx(10 * ML) and b.initial_pressure == BALLOON(10 * ML)
+    # 70 kPa gauge: first reached on the rising branch (~3.6 mL), not after the peak
+    c = Actuator("c", sf.water, BALLOON, initial_pressure=sf.Q_(700, "mbar") + sf.Q_(1, "atm"))
+    assert 3 * ML < c.initial_volume < 4.1 * ML
+    assert BALLOON(c.initial_volume) == pytest.approx(P0 + 7e4, rel=1e-12)
+    # atmospheric: on the linear extension below the first sample
+    d = Actuator("d", sf.water, BALLOON, initial_pressure=P0)
+    assert d.initial_volume < 1 * ML
+    assert BALLOON(d.initial_volume) == pytest.approx(P0, rel=1e-12)
+    h = HystereticActuator("h", sf.water, *LOOP, initial_volume=10 * ML)
+    assert h.initial_states()[1] == 0.0                # past V_hi: deflation branch
+    h = HystereticActuator("h", sf.water, *LOOP, initial_volume=5 * ML,
+                           initial_branch="deflation")
+    assert h.initial_states()[1] == 0.0 and h.initial_pressure == LOOP.deflation(5 * ML)
+
+
+def test_volume_at_pressure():
+    assert volume_at_pressure(BALLOON, P0 + 87000.0) == pytest.approx(6.02 * ML, rel=1e-12)
+    # above the 870 mbar peak: only on the last branch
+    assert volume_at_pressure(BALLOON, P0 + 90000.0) > 40 * ML
+    # beyond the data, along the end slope
+    v = volume_at_pressure(BALLOON, P0 + 120000.0)
+    assert v > BALLOON.volume[-1] and BALLOON(v) == pytest.approx(P0 + 120000.0)
+    falling = sf.PVCurve(volume=[1 * ML, 2 * ML], pressure=[2e5, 1.5e5])
+    assert volume_at_pressure(falling, 2.5e5) is None
+
+
+# ---------------------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kwargs, error, text", [
+    (dict(curve="pv.csv"), TypeError, r"Actuator 'bad': curve must be a PVCurve or a callable"),
+    (dict(curve=BALLOON, initial_volume=2 * ML, initial_pressure=2e5), ValueError,
+     "initial_volume or initial_pressure, not both"),
+    (dict(curve=BALLOON, initial_volume=-1 * ML), ValueError, r"initial_volume must be > 0"),
+    (dict(curve=BALLOON, initial_volume=sf.Q_(1, "bar")), sf.UnitError, "initial_volume"),
+    (dict(curve=BALLOON, initial_pressure=-5.0), ValueError, "initial_pressure must be > 0"),
+    (dict(curve=sf.PVCurve(volume=[1 * ML, 2 * ML], pressure=[2e5, 1.5e5]),
+          initial_pressure=3e5), ValueError, "initial_pressure 300000 Pa is not reached"),
+    (dict(curve=_callable_curve), ValueError, "not a PVCurve, so give initial_volume"),
+    (dict(curve=_callable_curve, initial_pressure=2e5), ValueError,
+     "not a PVCurve, so give initial_volume"),
+    (dict(curve=lambda v: v * np.nan, initial_volume=1 * ML), ValueError,
+     r"curve\(1e-06 m\^3\) returned nan"),
+    (dict(curve=lambda v: P0 - 1e12 * v, initial_volume=1 * ML), ValueError,
+     "expected an absolute pressure > 0"),
+    (dict(curve=_callable_curve, initial_volume=1 * ML, curve_derivative=3.0), TypeError,
+     "curve_derivative must be a callable"),
+    (dict(curve=BALLOON, curve_derivative=_callable_slope), ValueError,
+     "curve_derivative is only for a callable curve"),
+    (dict(curve=BALLOON, fluid="water"), TypeError, "Actuator 'bad': fluid must be"),
+])
+def test_actuator_bad_input(kwargs, error, text):
+    kwargs = dict(kwargs)
+    fluid = kwargs.pop("fluid", sf.water)
+    with pytest.raises(error, match=text):
+        Actuator("bad", fluid, **kwargs)
+
+
+def test_hysteretic_branches_that_do_not_meet():
+    inf, dfl = LOOP
+    shifted = sf.PVCurve(volume=dfl.volume, pressure=dfl.pressure + 5e3)
+    with pytest.raises(ValueError, match=r"HystereticActuator 'h': hysteresis branches do not "
+                                         r"meet at V = 3\.5e-06 m\^3: inflation_curve gives"):
+        HystereticActuator("h", sf.water, inf, shifted)
+    # a larger tolerance accepts the same curves
+    HystereticActuator("h", sf.water, inf, shifted, meet_tolerance=sf.Q_(60, "mbar"))
+    late = sf.PVCurve(volume=dfl.volume + 5 * ML, pressure=dfl.pressure)
+    with pytest.raises(ValueError, match="hysteresis branches do not overlap"):
+        HystereticActuator("h", sf.water, inf, late)
+    with pytest.raises(TypeError, match="HystereticActuator 'h': deflation_curve must be a "
+                                        "PVCurve"):
+        HystereticActuator("h", sf.water, inf, lambda v: P0)
+    with pytest.raises(ValueError, match="initial_branch must be 'inflation' or 'deflation'"):
+        HystereticActuator("h", sf.water, inf, dfl, initial_branch="up")
