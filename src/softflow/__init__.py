@@ -3,11 +3,13 @@
 The object model follows the FONS paper (Variable, Terminal, Component,
 System, Simulation), so ``import softflow as fons`` runs FONS scripts.
 """
-from .components import (CircularTube, Container, LibraryComponent, LinearAccumulator,
-                         MassFlowSource, PressureSource, VolumeFlowSource)
+from .components import (Actuator, CheckValve, CircularTube, Container, HystereticActuator,
+                         LibraryComponent, LinearAccumulator, MassFlowSource, Orifice,
+                         PressureSource, SnappingValve, TeslaValve, VolumeFlowSource)
 from .constants import pressure_atmospheric
-from .curves import PVCurve, pvcurve, read_table
-from .fluids import ConstantLiquid, Fluid, IdealGas, air, nitrogen, water
+from .curves import HysteresisLoop, PVCurve, pvcurve, read_table, waveforms
+from .fluids import (ConstantLiquid, Fluid, FluidError, IdealGas, air, ethylene_glycol,
+                     nitrogen, water)
 from .network import Component, NetworkError, Node, System, Terminal, Variable
 from .solve import Result, Simulation, SimulationError
 from .units import Q_, UnitError, ureg
@@ -19,7 +21,9 @@ __all__ = [
     "Simulation", "SimulationError", "Result",
     "LibraryComponent", "PressureSource", "MassFlowSource", "VolumeFlowSource",
     "CircularTube", "Container", "LinearAccumulator",
-    "PVCurve", "pvcurve", "read_table",
-    "Fluid", "IdealGas", "ConstantLiquid", "air", "nitrogen", "water",
+    "Orifice", "CheckValve", "TeslaValve", "SnappingValve", "Actuator", "HystereticActuator",
+    "PVCurve", "HysteresisLoop", "pvcurve", "read_table", "waveforms",
+    "Fluid", "FluidError", "IdealGas", "ConstantLiquid", "air", "nitrogen", "water",
+    "ethylene_glycol",
     "pressure_atmospheric", "ureg", "Q_", "UnitError",
 ]

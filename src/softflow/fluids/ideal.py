@@ -1,16 +1,38 @@
-"""The 'ideal' fidelity level: ideal gas with constant properties, or a
-constant-property liquid (the FONS paper's model, the fastest)."""
+"""The 'ideal' fidelity level: ideal gas with constant cp, or a constant-property
+liquid (the FONS paper's model, the fastest).
+
+The built-ins ``air``, ``nitrogen``, ``water`` and ``ethylene_glycol`` are at this
+level, with constants that CoolProp 8.0 gives at 20 degC and 1 atm (written out
+below so that importing softflow does not import CoolProp; a test checks them).
+``fluid.at(temperature=...)`` re-evaluates the constants at another temperature;
+``fluid.with_level('table')`` or ``'eos'`` switches to real-fluid properties.
+"""
 from __future__ import annotations
 
 import numpy as np
 
-from ..constants import gas_constant, temperature_standard
+from ..constants import gas_constant, pressure_atmospheric, temperature_standard
 from ..units import to_si
-from .base import Fluid
+from .base import Fluid, FluidError, check_temperature
+from .catalog import BUILTIN
+
+
+def _const(value, p, T=None):
+    """value broadcast to the shape of (p, T): a float for scalar input."""
+    shape = np.shape(p) if T is None else np.broadcast_shapes(np.shape(p), np.shape(T))
+    return np.full(shape, value, dtype=float) if shape else float(value)
+
+
+def _T(fluid, p, T):
+    # T=None: the fluid's temperature, broadcast to p's shape
+    return _const(fluid.temperature, p) if T is None else np.asarray(T, dtype=float)
 
 
 class IdealGas(Fluid):
-    """Isothermal ideal gas: rho = p / (R T).
+    """Ideal gas with constant cp and viscosity: rho = p / (R T).
+
+    Enthalpy is linear in T through the reference point (the fluid's temperature,
+    ``enthalpy_reference``): h = h_ref + cp (T - T_fluid), u = h - R T.
 
     Parameters
     ----------
@@ -18,25 +40,46 @@ class IdealGas(Fluid):
     molar_mass : float [kg/mol]
     viscosity : float [Pa s]
     temperature : float [K]
-    gamma : float [-]
-        Ratio of specific heats (used by thermal scenes).
+    gamma : float [-], optional
+        Ratio of specific heats (default 1.4 unless ``cp`` is given).
+    cp : float [J/(kg K)], optional
+        Specific isobaric heat capacity; give cp or gamma, not both.
+    enthalpy_reference : float [J/kg], optional
+        Specific enthalpy at the fluid's temperature (default cp * temperature).
+    spec : FluidSpec, optional
+        Catalog entry the constants came from (enables ``at`` and ``with_level``).
     """
 
     compressible = True
+    level = "ideal"
 
     def __init__(self, name, molar_mass, viscosity, temperature=temperature_standard,
-                 gamma=1.4):
+                 gamma=None, *, cp=None, enthalpy_reference=None, spec=None):
         owner = f"IdealGas {name!r}"
-        self.name = name
+        self.name, self.spec = name, spec
         self.molar_mass = to_si(molar_mass, "kg/mol", name="molar_mass", owner=owner)
         self.mu = to_si(viscosity, "Pa*s", name="viscosity", owner=owner)
-        self.temperature = to_si(temperature, "K", name="temperature", owner=owner)
-        if self.temperature <= 0:
-            raise ValueError(f"{owner}: temperature must be > 0 K, got {self.temperature}")
-        self.gamma = to_si(gamma, "", name="gamma", owner=owner)
-        if not (self.molar_mass > 0 and self.mu > 0 and self.gamma > 1):
-            raise ValueError(f"{owner}: need molar_mass > 0, viscosity > 0 and gamma > 1")
+        self.temperature = check_temperature(temperature, owner)
+        if not (self.molar_mass > 0 and self.mu > 0):
+            raise FluidError(f"{owner}: need molar_mass > 0 and viscosity > 0, got "
+                             f"{self.molar_mass} kg/mol and {self.mu} Pa s")
         self.R = gas_constant / self.molar_mass
+        if cp is not None and gamma is not None:
+            raise FluidError(f"{owner}: give cp or gamma, not both")
+        if cp is not None:
+            self.cp0 = to_si(cp, "J/kg/K", name="cp", owner=owner)
+            if not self.cp0 > self.R:
+                raise FluidError(f"{owner}: cp must exceed R = {self.R:.6g} J/(kg K), "
+                                 f"got {self.cp0}")
+            self.gamma0 = self.cp0 / (self.cp0 - self.R)
+        else:
+            self.gamma0 = 1.4 if gamma is None else to_si(gamma, "", name="gamma", owner=owner)
+            if not self.gamma0 > 1:
+                raise FluidError(f"{owner}: gamma must be > 1, got {self.gamma0}")
+            self.cp0 = self.gamma0 * self.R / (self.gamma0 - 1.0)
+        self.cv0 = self.cp0 - self.R
+        self.h_ref = (self.cp0 * self.temperature if enthalpy_reference is None else
+                      to_si(enthalpy_reference, "J/kg", name="enthalpy_reference", owner=owner))
         self._RT = self.R * self.temperature
 
     def density(self, p, T=None):
@@ -44,15 +87,64 @@ class IdealGas(Fluid):
         return p / RT
 
     def density_dp(self, p, T=None):
-        RT = self._RT if T is None else self.R * np.asarray(T)
-        return np.ones_like(p) / RT if np.ndim(p) else 1.0 / RT
+        if T is None:
+            return _const(1.0 / self._RT, p)
+        return _const(1.0, p) / (self.R * np.asarray(T, dtype=float))
+
+    def density_dT(self, p, T=None):
+        T = _T(self, p, T)
+        return -p / (self.R * T * T)
 
     def viscosity(self, p, T=None):
-        return np.full_like(p, self.mu, dtype=float) if np.ndim(p) else self.mu
+        return _const(self.mu, p, T)
+
+    def cp(self, p, T=None):
+        return _const(self.cp0, p, T)
+
+    def cv(self, p, T=None):
+        return _const(self.cv0, p, T)
+
+    def gamma(self, p, T=None):
+        return _const(self.gamma0, p, T)
+
+    def enthalpy(self, p, T=None):
+        return self.h_ref + self.cp0 * (_T(self, p, T) - self.temperature) + _const(0.0, p, T)
+
+    def enthalpy_dp(self, p, T=None):
+        return _const(0.0, p, T)
+
+    def enthalpy_dT(self, p, T=None):
+        return self.cp(p, T)
+
+    def internal_energy(self, p, T=None):
+        T = _T(self, p, T)
+        return self.h_ref + self.cp0 * (T - self.temperature) - self.R * T + _const(0.0, p)
+
+    def internal_energy_dp(self, p, T=None):
+        return self.enthalpy_dp(p, T)
+
+    def internal_energy_dT(self, p, T=None):
+        return self.cv(p, T)
+
+    def speed_of_sound(self, p, T=None):
+        return np.sqrt(self.gamma0 * self.R * _T(self, p, T)) + _const(0.0, p)
+
+    def compressibility(self, p, T=None):
+        return _const(1.0, p, T)
+
+    def at(self, temperature=None, *, fraction=None):
+        if self.spec is not None:
+            return super().at(temperature, fraction=fraction)
+        T = self.temperature if temperature is None else temperature
+        return IdealGas(self.name, self.molar_mass, self.mu, T, cp=self.cp0,
+                        enthalpy_reference=self.h_ref)
 
 
 class ConstantLiquid(Fluid):
-    """Incompressible liquid with constant density and viscosity.
+    """Incompressible liquid with constant density, viscosity and heat capacity.
+
+    u = h_ref - p_atm/rho + c (T - T_fluid) and h = u + p/rho, so h equals
+    ``enthalpy_reference`` at 1 atm and the fluid's temperature; cv = cp = c.
 
     Parameters
     ----------
@@ -60,36 +152,125 @@ class ConstantLiquid(Fluid):
     density : float [kg/m^3]
     viscosity : float [Pa s]
     temperature : float [K]
+    cp : float [J/(kg K)], optional
+        Specific heat capacity (needed only by thermal properties).
+    enthalpy_reference : float [J/kg], optional
+        Specific enthalpy at 1 atm and the fluid's temperature (default cp * temperature).
+    spec : FluidSpec, optional
+        Catalog entry the constants came from (enables ``at`` and ``with_level``).
     """
 
     compressible = False
+    level = "ideal"
 
-    def __init__(self, name, density, viscosity, temperature=temperature_standard):
+    def __init__(self, name, density, viscosity, temperature=temperature_standard, *,
+                 cp=None, enthalpy_reference=None, spec=None):
         owner = f"ConstantLiquid {name!r}"
-        self.name = name
+        self.name, self.spec = name, spec
         self.rho0 = to_si(density, "kg/m**3", name="density", owner=owner)
         self.mu = to_si(viscosity, "Pa*s", name="viscosity", owner=owner)
-        self.temperature = to_si(temperature, "K", name="temperature", owner=owner)
+        self.temperature = check_temperature(temperature, owner)
         if self.rho0 <= 0 or self.mu <= 0:
-            raise ValueError(f"{owner}: density and viscosity must be > 0")
+            raise FluidError(f"{owner}: density and viscosity must be > 0, got "
+                             f"{self.rho0} kg/m^3 and {self.mu} Pa s")
+        self.c = None if cp is None else to_si(cp, "J/kg/K", name="cp", owner=owner)
+        if self.c is not None and not self.c > 0:
+            raise FluidError(f"{owner}: cp must be > 0, got {self.c}")
+        self.h_ref = None
+        if self.c is not None:
+            self.h_ref = (self.c * self.temperature if enthalpy_reference is None else
+                          to_si(enthalpy_reference, "J/kg", name="enthalpy_reference",
+                                owner=owner))
 
     def density(self, p, T=None):
-        return np.full_like(p, self.rho0, dtype=float) if np.ndim(p) else self.rho0
+        return _const(self.rho0, p, T)
 
     def density_dp(self, p, T=None):
-        return np.zeros_like(p, dtype=float) if np.ndim(p) else 0.0
+        return _const(0.0, p, T)
+
+    def density_dT(self, p, T=None):
+        return _const(0.0, p, T)
 
     def viscosity(self, p, T=None):
-        return np.full_like(p, self.mu, dtype=float) if np.ndim(p) else self.mu
+        return _const(self.mu, p, T)
 
     @property
     def rho(self):
         return self.rho0
 
+    def _heat_capacity(self):
+        if self.c is None:
+            raise NotImplementedError(f"{self!r} was made without cp; give cp=... for "
+                                      f"thermal properties")
+        return self.c
 
-# Property values at 20 degC and 101325 Pa, from CoolProp 8.0 (HEOS::Air,
-# HEOS::Water, HEOS::Nitrogen); the fluids issue replaces these constants by
-# CoolProp-backed 'table' and 'eos' levels.
-air = IdealGas("air", molar_mass=0.02896546, viscosity=1.8205e-5)
-nitrogen = IdealGas("nitrogen", molar_mass=0.0280134, viscosity=1.7586e-5)
-water = ConstantLiquid("water", density=998.2067, viscosity=1.0016e-3)
+    def cp(self, p, T=None):
+        return _const(self._heat_capacity(), p, T)
+
+    cv = cp
+
+    def gamma(self, p, T=None):
+        return _const(1.0, p, T)
+
+    def internal_energy(self, p, T=None):
+        c = self._heat_capacity()
+        u_ref = self.h_ref - pressure_atmospheric / self.rho0
+        return u_ref + c * (_T(self, p, T) - self.temperature) + _const(0.0, p)
+
+    def enthalpy(self, p, T=None):
+        return self.internal_energy(p, T) + p / self.rho0
+
+    def enthalpy_dp(self, p, T=None):
+        return _const(1.0 / self.rho0, p, T)
+
+    def enthalpy_dT(self, p, T=None):
+        return self.cp(p, T)
+
+    def internal_energy_dp(self, p, T=None):
+        return _const(0.0, p, T)
+
+    def internal_energy_dT(self, p, T=None):
+        return self.cp(p, T)
+
+    def speed_of_sound(self, p, T=None):
+        """Infinite: the liquid is incompressible at this level."""
+        return _const(np.inf, p, T)
+
+    def at(self, temperature=None, *, fraction=None):
+        if self.spec is not None:
+            return super().at(temperature, fraction=fraction)
+        T = self.temperature if temperature is None else temperature
+        return ConstantLiquid(self.name, self.rho0, self.mu, T, cp=self.c,
+                              enthalpy_reference=self.h_ref)
+
+
+def ideal_from_coolprop(spec, temperature: float) -> Fluid:
+    """The ideal-level fluid with constants from CoolProp at 1 atm and ``temperature`` [K]."""
+    from .eos import EosFluid
+    ref = EosFluid(spec, temperature)
+    p = pressure_atmospheric
+    if ref.liquid:
+        return ConstantLiquid(spec.name, ref.density(p), ref.viscosity(p), temperature,
+                              cp=ref.cp(p), enthalpy_reference=ref.enthalpy(p), spec=spec)
+    return IdealGas(spec.name, ref.molar_mass, ref.viscosity(p), temperature,
+                    cp=ref.cp(p), enthalpy_reference=ref.enthalpy(p), spec=spec)
+
+
+# -- built-ins: constants from CoolProp 8.0 at 20 degC and 101325 Pa (HEOS::Air,
+# HEOS::Nitrogen, HEOS::Water, INCOMP::MEG[0.6]); tests/fluids checks them against
+# CoolProp, and ideal_from_coolprop(spec, 293.15) reproduces them.
+air = IdealGas("air", molar_mass=0.02896546, viscosity=1.8205675178515367e-05,
+               cp=1006.1440320870352, enthalpy_reference=419404.921755863,
+               spec=BUILTIN["air"])
+nitrogen = IdealGas("nitrogen", molar_mass=0.02801348, viscosity=1.7572933092982923e-05,
+                    cp=1041.338570569452, enthalpy_reference=304060.2292320199,
+                    spec=BUILTIN["nitrogen"])
+water = ConstantLiquid("water", density=998.2071504679437, viscosity=0.001001596143120583,
+                       cp=4184.050924522974, enthalpy_reference=84007.300850631,
+                       spec=BUILTIN["water"])
+#: 60 % (by mass) ethylene glycol in water, CoolProp's INCOMP::MEG (its largest fraction);
+#: ``ethylene_glycol.at(fraction=0.3)`` or ``sf.Fluid('ethylene_glycol', fraction=...)``
+#: for other mixtures.
+ethylene_glycol = ConstantLiquid("ethylene_glycol", density=1077.1377806082166,
+                                 viscosity=0.004844812876665472, cp=3097.9741698247576,
+                                 enthalpy_reference=0.0, spec=BUILTIN["ethylene_glycol"])

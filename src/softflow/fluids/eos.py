@@ -1,0 +1,223 @@
+"""The 'eos' fidelity level: CoolProp's AbstractState, the reference.
+
+One AbstractState per (backend, fluid, fraction, phase) is cached and updated
+state by state. Measured on 10 000 random (p, T) states of air (CoolProp 8.0):
+this Python loop costs 3.2-3.4 us per state, PropsSI's array form 3.3 us
+(it builds a fresh state per call and cannot name a failing state), and
+``update_with_guesses`` with an ideal-gas density guess 3.7 us; the loop is
+kept. Water (HEOS, IAPWS-95) costs about 14 us per state, INCOMP::MEG 0.5 us.
+
+Liquids named in the catalog (water, and any HEOS fluid that is liquid at
+1 atm and the fluid's temperature) are evaluated with CoolProp's liquid phase
+imposed: water stays liquid everywhere, also in the corner of the 0.05-20 MPa x
+1-95 degC range below its vapour pressure (at most 85 kPa at 95 degC), where the
+values are those of the slightly metastable liquid. softflow does not model
+boiling or cavitation.
+"""
+from __future__ import annotations
+
+from functools import lru_cache, partial
+
+import numpy as np
+
+from ..constants import pressure_atmospheric
+from .base import Fluid, FluidError, broadcast_state
+from .catalog import FluidSpec
+
+GAS_CONSTANT = 8.314462618
+
+
+@lru_cache(maxsize=None)
+def abstract_state(spec: FluidSpec, liquid: bool):
+    """A cached CoolProp AbstractState for the fluid (liquid phase imposed if ``liquid``)."""
+    import CoolProp.CoolProp as CP
+    from CoolProp import AbstractState
+    state = AbstractState(spec.backend, spec.coolprop_name)
+    if spec.fraction is not None:
+        state.set_mass_fractions([spec.fraction])
+    if liquid and spec.backend == "HEOS":
+        state.specify_phase(CP.iphase_liquid)
+    return state
+
+
+@lru_cache(maxsize=None)
+def is_liquid(spec: FluidSpec, temperature: float) -> bool:
+    """Liquid per the catalog, or else per CoolProp's phase at 1 atm and ``temperature``."""
+    if spec.liquid is not None:
+        return spec.liquid
+    import CoolProp.CoolProp as CP
+    state = abstract_state(spec, False)
+    try:
+        state.update(CP.PT_INPUTS, pressure_atmospheric, temperature)
+    except ValueError as err:
+        raise FluidError(f"fluid {spec.name!r}: CoolProp cannot evaluate it at 1 atm and "
+                         f"{temperature:g} K: {err}") from None
+    return state.phase() in (CP.iphase_liquid, CP.iphase_supercritical_liquid)
+
+
+@lru_cache(maxsize=None)
+def valid_range(spec: FluidSpec, liquid: bool):
+    """((T_min, T_max) [K], p_max [Pa]) that CoolProp accepts for this fluid."""
+    import CoolProp.CoolProp as CP
+    state = abstract_state(spec, liquid)
+    T_lo, T_hi = state.Tmin(), state.Tmax()
+    if spec.backend == "INCOMP":
+        if spec.fraction is not None:   # a solution freezes above the data's own T_min
+            T_lo = max(T_lo, CP.PropsSI("T_freeze", spec.coolprop_id))
+        return (T_lo, T_hi), np.inf
+    return (T_lo, T_hi), state.pmax()
+
+
+def check_state_range(owner, p, T, T_range, p_range, what):
+    """Raise a FluidError naming the first bad quantity, its value and the valid range."""
+    p_lo, p_hi = p_range
+    T_lo, T_hi = T_range
+    if p.size == 0:
+        return
+    pmin, pmax = p.min(), p.max()
+    if not pmin > 0:
+        raise FluidError(f"{owner}: pressure {pmin:g} Pa is not a positive absolute pressure "
+                         f"(softflow pressures are absolute; valid {what} range "
+                         f"{p_lo:g} ... {p_hi:g} Pa)")
+    Tmin, Tmax = T.min(), T.max()
+    if not Tmin > 0:
+        raise FluidError(f"{owner}: temperature {Tmin:g} K is not a positive absolute "
+                         f"temperature (valid {what} range {T_lo:g} ... {T_hi:g} K)")
+    for name, unit, lo, hi, vmin, vmax in (("pressure", "Pa", p_lo, p_hi, pmin, pmax),
+                                           ("temperature", "K", T_lo, T_hi, Tmin, Tmax)):
+        if vmin < lo or vmax > hi:
+            bad = vmin if vmin < lo else vmax
+            raise FluidError(f"{owner}: {name} {bad:g} {unit} is outside the {what} range "
+                             f"{lo:g} ... {hi:g} {unit}")
+        if not (np.isfinite(vmin) and np.isfinite(vmax)):
+            raise FluidError(f"{owner}: {name} is not finite")
+
+
+class EosFluid(Fluid):
+    """A fluid evaluated by CoolProp at every call (level ``'eos'``).
+
+    Parameters
+    ----------
+    spec : FluidSpec
+        From :func:`softflow.fluids.catalog.resolve`.
+    temperature : float [K]
+        The fluid's own temperature.
+    """
+
+    level = "eos"
+
+    def __init__(self, spec: FluidSpec, temperature: float):
+        import CoolProp.CoolProp as CP
+        self.spec, self.name, self.temperature = spec, spec.name, float(temperature)
+        self.liquid = is_liquid(spec, self.temperature)
+        self.compressible = not self.liquid
+        self._state = abstract_state(spec, self.liquid)
+        self.T_range, p_max = valid_range(spec, self.liquid)
+        self.p_range = (0.0, p_max)
+        check_state_range(repr(self), np.array([pressure_atmospheric]),
+                          np.array([self.temperature]), self.T_range, (0.0, np.inf),
+                          "CoolProp")
+        self._PT = CP.PT_INPUTS
+        s = self._state
+        d = s.first_partial_deriv
+        self._getters = {
+            "density": s.rhomass, "viscosity": s.viscosity, "cp": s.cpmass, "cv": s.cvmass,
+            "enthalpy": s.hmass, "speed_of_sound": s.speed_sound,
+            "compressibility": s.compressibility_factor,
+            "density_dp": partial(d, CP.iDmass, CP.iP, CP.iT),
+            "density_dT": partial(d, CP.iDmass, CP.iT, CP.iP),
+            "enthalpy_dp": partial(d, CP.iHmass, CP.iP, CP.iT),
+            "enthalpy_dT": partial(d, CP.iHmass, CP.iT, CP.iP),
+        }
+        if spec.backend != "INCOMP":   # INCOMP has u but not its partial derivatives
+            self._getters.update(internal_energy=s.umass,
+                                 internal_energy_dp=partial(d, CP.iUmass, CP.iP, CP.iT),
+                                 internal_energy_dT=partial(d, CP.iUmass, CP.iT, CP.iP))
+
+    def _eval(self, prop, p, T):
+        getter = self._getters[prop]
+        p, T, scalar = broadcast_state(self, p, T)
+        check_state_range(repr(self), p, T, self.T_range, self.p_range, "CoolProp")
+        out = np.empty(p.shape)
+        flat = out.reshape(-1)
+        update, PT = self._state.update, self._PT
+        pl, Tl = p.ravel().tolist(), T.ravel().tolist()
+        try:
+            for k in range(len(pl)):
+                update(PT, pl[k], Tl[k])
+                flat[k] = getter()
+        except ValueError as err:
+            raise FluidError(f"{self!r}: CoolProp failed for {prop} at p = {pl[k]:g} Pa, "
+                             f"T = {Tl[k]:g} K: {err}") from None
+        return float(flat[0]) if scalar else out
+
+    def density(self, p, T=None):
+        return self._eval("density", p, T)
+
+    def density_dp(self, p, T=None):
+        return self._eval("density_dp", p, T)
+
+    def density_dT(self, p, T=None):
+        return self._eval("density_dT", p, T)
+
+    def viscosity(self, p, T=None):
+        return self._eval("viscosity", p, T)
+
+    def cp(self, p, T=None):
+        return self._eval("cp", p, T)
+
+    def cv(self, p, T=None):
+        return self._eval("cv", p, T)
+
+    def enthalpy(self, p, T=None):
+        return self._eval("enthalpy", p, T)
+
+    def enthalpy_dp(self, p, T=None):
+        return self._eval("enthalpy_dp", p, T)
+
+    def enthalpy_dT(self, p, T=None):
+        if self.spec.backend != "INCOMP":
+            return self._eval("enthalpy_dT", p, T)
+        # CoolProp's INCOMP partial derivative returns cp, but its h carries a pressure
+        # term whose T-dependence that leaves out (3e-3 off at 12 MPa for MEG-60 %):
+        # differentiate the h this level returns instead (h is a polynomial in T)
+        p, T, scalar = broadcast_state(self, p, T)
+        lo, hi = self.T_range
+        T_up, T_dn = np.minimum(T + 1e-3, hi), np.maximum(T - 1e-3, lo)
+        out = (self.enthalpy(p, T_up) - self.enthalpy(p, T_dn)) / (T_up - T_dn)
+        return float(out) if scalar else out
+
+    def internal_energy(self, p, T=None):
+        if "internal_energy" in self._getters:
+            return self._eval("internal_energy", p, T)
+        return self.enthalpy(p, T) - np.asarray(p) / self.density(p, T)
+
+    def internal_energy_dp(self, p, T=None):
+        if "internal_energy_dp" in self._getters:
+            return self._eval("internal_energy_dp", p, T)
+        # u = h - p/rho
+        rho = self.density(p, T)
+        return self.enthalpy_dp(p, T) - 1.0 / rho + p * self.density_dp(p, T) / rho ** 2
+
+    def internal_energy_dT(self, p, T=None):
+        if "internal_energy_dT" in self._getters:
+            return self._eval("internal_energy_dT", p, T)
+        rho = self.density(p, T)
+        return self.enthalpy_dT(p, T) + p * self.density_dT(p, T) / rho ** 2
+
+    def speed_of_sound(self, p, T=None):
+        if self.spec.backend == "INCOMP":
+            raise NotImplementedError(f"{self!r}: CoolProp's INCOMP backend has no speed "
+                                      f"of sound")
+        return self._eval("speed_of_sound", p, T)
+
+    def compressibility(self, p, T=None):
+        if self.spec.backend == "INCOMP":
+            raise NotImplementedError(f"{self!r}: CoolProp's INCOMP backend has no molar "
+                                      f"mass, so no compressibility factor")
+        return self._eval("compressibility", p, T)
+
+    @property
+    def molar_mass(self) -> float:
+        """Molar mass [kg/mol] (not defined for INCOMP fluids)."""
+        return self._state.molar_mass()

@@ -1,0 +1,186 @@
+"""The 'table' fidelity level: C1 interpolation of CoolProp tables in ``fluid_tables/``.
+
+Every property is the bicubic interpolant of its table (see ``hermite.py``), and
+every derivative is the exact derivative of that interpolant, so Newton sees a
+consistent, continuous Jacobian. Gases are tabulated as Z(p, T), density is
+p / (Z R T). With T=None (isothermal scenes) a property costs one 1-D cubic
+lookup: the interpolant restricted to the fluid's temperature, identical to the
+2-D one there.
+
+A state outside the table raises (``out_of_range='raise'``, the default), or is
+handed to CoolProp (``out_of_range='eos'``); it is never extrapolated.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .base import Fluid, FluidError, broadcast_state
+from .eos import EosFluid, check_state_range
+from .tables import load_table
+
+OUT_OF_RANGE = ("raise", "eos")
+
+
+class TableFluid(Fluid):
+    """A fluid interpolated from its property table (level ``'table'``).
+
+    Parameters
+    ----------
+    spec : FluidSpec
+    temperature : float [K]
+        The fluid's own temperature; must lie in the table's range.
+    out_of_range : {'raise', 'eos'}
+        What a state outside the table does.
+    tables_dir : str or Path, optional
+        Directory of the table files (default: see ``tables_directory``).
+    """
+
+    level = "table"
+
+    def __init__(self, spec, temperature: float, out_of_range: str = "raise", tables_dir=None):
+        self.spec, self.name, self.temperature = spec, spec.name, float(temperature)
+        if out_of_range not in OUT_OF_RANGE:
+            raise FluidError(f"fluid {spec.name!r}: out_of_range must be 'raise' or 'eos', "
+                             f"got {out_of_range!r}")
+        self.out_of_range, self.tables_dir = out_of_range, tables_dir
+        self.table = load_table(spec, tables_dir)
+        meta = self.table.meta
+        self.liquid = bool(meta["liquid"])
+        self.compressible = not self.liquid
+        self.p_range, self.T_range = self.table.p_range, self.table.T_range
+        self.molar_mass = meta["molar_mass"]
+        self.R = meta["specific_gas_constant"]     # CoolProp's, so that Z matches it
+        T_lo, T_hi = self.T_range
+        if not T_lo <= self.temperature <= T_hi:
+            raise FluidError(f"{self!r}: temperature {self.temperature:g} K is outside the "
+                             f"table range {T_lo:g} ... {T_hi:g} K (use out-of-table "
+                             f"temperatures at level 'eos')")
+        self._eos = None
+
+    def _level_options(self):
+        return {"out_of_range": self.out_of_range, "tables_dir": self.tables_dir}
+
+    @property
+    def eos(self) -> EosFluid:
+        """The CoolProp fluid behind the table (for out-of-range states)."""
+        if self._eos is None:
+            self._eos = EosFluid(self.spec, self.temperature)
+        return self._eos
+
+    # -- evaluation -------------------------------------------------------------------
+    def _evaluate(self, prop, compute, p, T):
+        """compute(p, T) on the table; out-of-range states raise or go to CoolProp."""
+        if T is None:
+            pa = np.asarray(p, dtype=float)
+            lo, hi = self.p_range
+            if pa.ndim == 0:
+                inside = lo <= pa <= hi
+            else:
+                inside = pa.size == 0 or (pa.min() >= lo and pa.max() <= hi)
+            if inside:
+                return compute(pa, None) if pa.ndim else float(compute(pa, None))
+        p, T, scalar = broadcast_state(self, p, T)
+        if self.out_of_range == "raise":
+            check_state_range(repr(self), p, T, self.T_range, self.p_range, "table")
+            out = compute(p, T)
+        else:
+            (p_lo, p_hi), (T_lo, T_hi) = self.p_range, self.T_range
+            inside = (p >= p_lo) & (p <= p_hi) & (T >= T_lo) & (T <= T_hi)
+            out = np.empty(p.shape)
+            out[inside] = compute(p[inside], T[inside])
+            if not inside.all():
+                out[~inside] = getattr(self.eos, prop)(p[~inside], T[~inside])
+        return float(out) if scalar else out
+
+    def _get(self, key, p, T, grad=False):
+        if key not in self.table.values:
+            raise NotImplementedError(self._missing(key))
+        if T is None:
+            return self.table.slice(key, self.temperature)(p, grad=grad)
+        return self.table.interpolant(key)(p, T, grad=grad)
+
+    def _grad2(self, key, p, T):
+        # value, d/dp, d/dT of a tabulated property (2-D even when T is the fluid's own)
+        if T is None:
+            T = np.full(np.shape(p), self.temperature)
+        if key not in self.table.values:
+            raise NotImplementedError(self._missing(key))
+        return self.table.interpolant(key)(p, T, grad=True)
+
+    def _Tv(self, T):
+        return self.temperature if T is None else T
+
+    # density: rho = p / (Z R T) for gases
+    def _density(self, p, T):
+        if self.liquid:
+            return self._get("density", p, T)
+        return p / (self._get("Z", p, T) * self.R * self._Tv(T))
+
+    def _density_dp(self, p, T):
+        if self.liquid:
+            return self._get("density", p, T, grad=True)[1]
+        Z, Zp = self._get("Z", p, T, grad=True)[:2]
+        return (1.0 - p * Zp / Z) / (Z * self.R * self._Tv(T))
+
+    def _density_dT(self, p, T):
+        if self.liquid:
+            return self._grad2("density", p, T)[2]
+        Z, _, ZT = self._grad2("Z", p, T)
+        Tv = self._Tv(T)
+        return -p / (Z * self.R * Tv) * (1.0 / Tv + ZT / Z)
+
+    def density(self, p, T=None):
+        return self._evaluate("density", self._density, p, T)
+
+    def density_dp(self, p, T=None):
+        return self._evaluate("density_dp", self._density_dp, p, T)
+
+    def density_dT(self, p, T=None):
+        return self._evaluate("density_dT", self._density_dT, p, T)
+
+    def viscosity(self, p, T=None):
+        return self._evaluate("viscosity", lambda p, T: self._get("viscosity", p, T), p, T)
+
+    def cp(self, p, T=None):
+        return self._evaluate("cp", lambda p, T: self._get("cp", p, T), p, T)
+
+    def cv(self, p, T=None):
+        return self._evaluate("cv", lambda p, T: self._get("cv", p, T), p, T)
+
+    def enthalpy(self, p, T=None):
+        return self._evaluate("enthalpy", lambda p, T: self._get("enthalpy", p, T), p, T)
+
+    def enthalpy_dp(self, p, T=None):
+        return self._evaluate("enthalpy_dp",
+                              lambda p, T: self._get("enthalpy", p, T, grad=True)[1], p, T)
+
+    def enthalpy_dT(self, p, T=None):
+        return self._evaluate("enthalpy_dT", lambda p, T: self._grad2("enthalpy", p, T)[2],
+                              p, T)
+
+    def internal_energy(self, p, T=None):
+        return self._evaluate("internal_energy",
+                              lambda p, T: self._get("internal_energy", p, T), p, T)
+
+    def internal_energy_dp(self, p, T=None):
+        return self._evaluate("internal_energy_dp",
+                              lambda p, T: self._get("internal_energy", p, T, grad=True)[1],
+                              p, T)
+
+    def internal_energy_dT(self, p, T=None):
+        return self._evaluate("internal_energy_dT",
+                              lambda p, T: self._grad2("internal_energy", p, T)[2], p, T)
+
+    def speed_of_sound(self, p, T=None):
+        return self._evaluate("speed_of_sound",
+                              lambda p, T: self._get("speed_of_sound", p, T), p, T)
+
+    def compressibility(self, p, T=None):
+        if self.liquid:
+            if self.R is None:
+                raise NotImplementedError(f"{self!r}: no molar mass (CoolProp INCOMP), so no "
+                                          f"compressibility factor")
+            return self._evaluate("compressibility", lambda p, T: p / (
+                self._density(p, T) * self.R * self._Tv(T)), p, T)
+        return self._evaluate("compressibility", lambda p, T: self._get("Z", p, T), p, T)
+

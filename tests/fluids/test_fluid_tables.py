@@ -1,0 +1,229 @@
+"""The table level: interpolation (exactness, C1 continuity across cell borders),
+the shipped tables' recorded error bounds (hypothesis), out-of-range handling, and
+the file checks (corrupt, other CoolProp version, other format, missing)."""
+import json
+import shutil
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import softflow as sf
+from softflow.fluids import FluidTableError
+from softflow.fluids.catalog import BUILTIN
+from softflow.fluids.hermite import Bicubic, UniformAxis
+from softflow.fluids.tables import ANY_COOLPROP_ENV, TABLES_ENV, load_table, tables_directory
+from softflow.fluids.tables.__main__ import main as tables_cli
+
+NAMES = list(BUILTIN)
+
+
+def _table(name):
+    return load_table(BUILTIN[name])
+
+
+# -- interpolation ----------------------------------------------------------------------
+def test_bicubic_reproduces_a_bicubic_polynomial_with_its_gradient():
+    x, y = UniformAxis(-1.0, 2.0, 7), UniformAxis(0.0, 5.0, 9)
+    f = lambda a, b: (1 + a - 2 * a**2 + 0.5 * a**3) * (3 - b + 0.2 * b**3)    # noqa: E731
+    fa = lambda a, b: (1 - 4 * a + 1.5 * a**2) * (3 - b + 0.2 * b**3)          # noqa: E731
+    fb = lambda a, b: (1 + a - 2 * a**2 + 0.5 * a**3) * (-1 + 0.6 * b**2)      # noqa: E731
+    interp = Bicubic(x, y, f(x.nodes[:, None], y.nodes[None, :]))
+    rng = np.random.default_rng(3)
+    a, b = rng.uniform(-1, 2, 500), rng.uniform(0, 5, 500)
+    v, va, vb = interp(a, b, grad=True)
+    assert np.allclose(v, f(a, b), rtol=0, atol=1e-11)
+    assert np.allclose(va, fa(a, b), rtol=0, atol=1e-10)
+    assert np.allclose(vb, fb(a, b), rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_value_and_first_derivatives_continuous_across_cell_borders(name):
+    table = _table(name)
+    px, Tx = table.p_axis, table.T_axis
+    rng = np.random.default_rng(7)
+    for key in table.values:
+        interp = table.interpolant(key)
+        # across p borders (interior nodes), at random T; then across T borders
+        for axis, nodes, other in ((0, px.nodes[1:-1], Tx), (1, Tx.nodes[1:-1], px)):
+            o = rng.uniform(other.lo, other.hi, nodes.size)
+            step = (px if axis == 0 else Tx).step
+            eps = 1e-9 * step
+            sides = []
+            for shift in (-eps, eps):
+                q = nodes + shift
+                sides.append(np.array(interp(q, o, grad=True) if axis == 0
+                                      else interp(o, q, grad=True)))
+            left, right = sides
+            # per row (f, f_p, f_T); floors for derivatives that vanish (MEG density in p)
+            fmax = np.abs(left[0]).max()
+            floor = np.array([0.0, 1e-6 * fmax / px.step, 1e-6 * fmax / Tx.step])
+            scale = np.maximum(np.abs(left).max(axis=1), floor)[:, None]
+            # jumps far below what a kink would give (a C0-only interpolant jumps by
+            # about |f''| * step in the derivative, ~1e-2 of the scale here)
+            assert np.all(np.abs(left - right) <= 1e-7 * scale), (key, axis)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_isothermal_slice_equals_the_2d_interpolant(name):
+    fluid = sf.Fluid(name, level="table", temperature=301.37)
+    p = np.linspace(*fluid.p_range, 997)
+    T = np.full_like(p, 301.37)
+    for prop in ("density", "density_dp", "viscosity"):
+        assert np.allclose(getattr(fluid, prop)(p), getattr(fluid, prop)(p, T), rtol=1e-13,
+                           atol=0)
+
+
+def test_density_derivative_is_continuous_through_the_fluid():
+    air = sf.air.with_level("table")
+    border = air.table.p_axis.nodes[40]
+    lo, hi = air.density_dp(border - 1e-3), air.density_dp(border + 1e-3)
+    assert hi == pytest.approx(lo, rel=1e-9)
+
+
+# -- recorded error bound, at random states ---------------------------------------------
+_EOS = {n: sf.Fluid(n, level="eos") for n in NAMES}
+_TABLE = {n: sf.Fluid(n, level="table") for n in NAMES}
+_PROPS = {"Z": "compressibility", "density": "density", "viscosity": "viscosity",
+          "cp": "cp", "cv": "cv", "enthalpy": "enthalpy", "internal_energy": "internal_energy",
+          "speed_of_sound": "speed_of_sound"}
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(max_examples=200, deadline=None, database=None)   # no .hypothesis/ in the repo
+@given(s=st.floats(0, 1), r=st.floats(0, 1))
+def test_table_stays_within_its_recorded_error_bound(name, s, r):
+    table, eos = _TABLE[name], _EOS[name]
+    p = table.p_range[0] + s * (table.p_range[1] - table.p_range[0])
+    T = table.T_range[0] + r * (table.T_range[1] - table.T_range[0])
+    meta = table.table.meta["properties"]
+    for key, entry in meta.items():
+        prop = _PROPS[key]
+        got, want = getattr(table, prop)(p, T), getattr(eos, prop)(p, T)
+        if entry["error_measure"] == "relative":
+            err = abs(got / want - 1)
+        else:
+            err = abs(got - want) / np.ptp(table.table.values[key])
+        assert err <= entry["error_bound"], (key, p, T, err, entry["error_bound"])
+
+
+def test_shipped_tables_meet_the_goals():
+    total = sum(f.stat().st_size for f in tables_directory().iterdir())
+    assert total < 20e6
+    for name in NAMES:
+        meta = _table(name).meta
+        assert meta["properties"]["density"]["max_error"] < 1e-3 * 0.01   # goal 0.1 %
+        assert meta["coolprop_version"] and len(meta["sha256"]) == 64
+        assert meta["error_check"]["points"] > 10000
+
+
+# -- out of range -----------------------------------------------------------------------
+def test_out_of_range_raises_by_default_and_names_the_quantity():
+    air = sf.air.with_level("table")
+    with pytest.raises(sf.FluidError, match=r"pressure 3e\+07 Pa is outside the table range "
+                                             r"50000 \.\.\. 2e\+07 Pa"):
+        air.density(np.array([1e5, 3e7]))
+    with pytest.raises(sf.FluidError, match=r"temperature 500 K is outside the table range "
+                                             r"233\.15 \.\.\. 423\.15 K"):
+        air.viscosity(1e5, 500.0)
+    with pytest.raises(sf.FluidError, match="pressure 1000 Pa is outside"):
+        air.density(1e3)      # the isothermal (T=None) path checks too
+
+
+def test_out_of_range_eos_falls_back_to_coolprop_and_never_extrapolates():
+    air = sf.air.with_level("table", out_of_range="eos")
+    eos = sf.air.with_level("eos")
+    p = np.array([1e3, 1e5, 25e6])
+    T = np.array([300.0, 300.0, 500.0])
+    assert np.allclose(air.density(p, T), eos.density(p, T), rtol=1e-7)
+    assert np.allclose(air.density(p), eos.density(p), rtol=1e-7)
+    assert air.at(temperature=320.0).out_of_range == "eos"
+
+
+def test_fluid_temperature_outside_the_table_is_refused():
+    with pytest.raises(sf.FluidError, match=r"temperature 223\.15 K is outside the table "
+                                             r"range 233\.15 \.\.\. 423\.15 K"):
+        sf.Fluid("air", level="table", temperature=sf.Q_(-50, "degC"))
+
+
+# -- files ------------------------------------------------------------------------------
+@pytest.fixture
+def table_copy(tmp_path):
+    src = tables_directory()
+    for suffix in ("npz", "json"):
+        shutil.copy(src / f"water.{suffix}", tmp_path / f"water.{suffix}")
+    return tmp_path
+
+
+def test_tables_directory_from_argument_or_environment(table_copy, monkeypatch):
+    assert sf.Fluid("water", level="table", tables_dir=table_copy).table.path.parent == table_copy
+    monkeypatch.setenv(TABLES_ENV, str(table_copy))
+    assert tables_directory() == table_copy
+    with pytest.raises(FluidTableError, match=r"no table 'air' in .*tables there: water.*"
+                                               r"python -m softflow.fluids.tables build air"):
+        sf.air.with_level("table")
+
+
+def test_corrupt_table_is_detected(table_copy):
+    data = bytearray((table_copy / "water.npz").read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    (table_copy / "water.npz").write_bytes(bytes(data))
+    with pytest.raises(FluidTableError, match="corrupt or modified table"):
+        sf.Fluid("water", level="table", tables_dir=table_copy)
+
+
+def test_unreadable_metadata_is_detected(table_copy):
+    (table_copy / "water.json").write_text('{"format": 1, "fluid": ')
+    with pytest.raises(FluidTableError, match="unreadable table metadata"):
+        sf.Fluid("water", level="table", tables_dir=table_copy)
+
+
+def _edit_meta(directory, **changes):
+    path = directory / "water.json"
+    meta = json.loads(path.read_text())
+    meta.update(changes)
+    path.write_text(json.dumps(meta))
+
+
+def test_table_from_another_coolprop_version_is_refused(table_copy, monkeypatch):
+    _edit_meta(table_copy, coolprop_version="6.4.1")
+    with pytest.raises(FluidTableError, match=r"built with CoolProp 6\.4\.1, but CoolProp "
+                                               r".* is installed; rebuild"):
+        sf.Fluid("water", level="table", tables_dir=table_copy)
+    monkeypatch.setenv(ANY_COOLPROP_ENV, "1")
+    with pytest.warns(UserWarning, match="built with CoolProp 6.4.1"):
+        sf.Fluid("water", level="table", tables_dir=table_copy)
+
+
+def test_table_of_another_format_or_fluid_is_refused(table_copy):
+    _edit_meta(table_copy, format=99)
+    with pytest.raises(FluidTableError, match="table format 99"):
+        sf.Fluid("water", level="table", tables_dir=table_copy)
+    _edit_meta(table_copy, format=1, coolprop_id="HEOS::Ethanol")
+    with pytest.raises(FluidTableError, match="table is for 'HEOS::Ethanol'"):
+        sf.Fluid("water", level="table", tables_dir=table_copy)
+
+
+def test_build_and_check_a_table_from_the_command_line(tmp_path, capsys):
+    args = ["build", "Argon", "--dir", str(tmp_path), "--pressure", "1 bar", "10 bar",
+            "--temperature", "0 degC", "60 degC", "--pressure-nodes", "6",
+            "--temperature-step", "20"]
+    assert tables_cli(args) == 0
+    assert tables_cli(["check", "--dir", str(tmp_path)]) == 0
+    assert "ok   argon: HEOS::Argon" in capsys.readouterr().out
+    argon = sf.Fluid("Argon", level="table", tables_dir=tmp_path, temperature=300.0)
+    meta = argon.table.meta
+    assert meta["pressure_range"] == [1e5, 1e6]
+    assert meta["temperature_range"] == pytest.approx([273.15, 333.15])
+    want = sf.Fluid("Argon", level="eos").density(5e5, 300.0)
+    err = abs(argon.density(5e5, 300.0) / want - 1)
+    assert err <= meta["properties"]["density"]["error_bound"]
+
+
+def test_build_refuses_a_range_across_a_phase_boundary(tmp_path, capsys):
+    args = ["build", "CO2", "--dir", str(tmp_path), "--pressure", "1 bar", "80 bar",
+            "--temperature", "0 degC", "30 degC", "--pressure-nodes", "5",
+            "--temperature-step", "10"]
+    assert tables_cli(args) == 2
+    assert "crosses into the liquid phase" in capsys.readouterr().err
