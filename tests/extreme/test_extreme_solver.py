@@ -196,3 +196,21 @@ def test_a_network_of_100_000_components():
     p_first = res.get("cont0", "pressure")
     assert np.isfinite(p_first).all() and p_first[-1] > P0 + 100
     assert res.get(f"cont{N - 1}", "pressure")[-1] == pytest.approx(P0, abs=1.0)
+
+
+def test_a_state_beyond_the_fluid_table_stops_with_the_range_in_the_message():
+    """Air at 'table' level is tabulated up to 20 MPa: filling past it fails
+    cleanly, naming the quantity and the table range, with the data so far."""
+    air = sf.air.with_level("table")
+    s = sf.System()
+    s += sf.PressureSource("supply", pressure=lambda t: 15e6 + 2e6 * t)
+    s += sf.CircularTube("hose", air, length=0.5, diameter=4e-3)
+    s += sf.Container("bottle", air, volume=1e-3, initial_pressure=15e6)
+    s.connect("supply", "hose")
+    s.connect("hose", "bottle")
+    res = sf.Simulation(s, duration=5.0).run(raise_on_failure=False)
+    assert res.status == "failed"
+    assert "outside the table range" in res.message and "pressure" in res.message
+    assert 2.0 < res.times[-1] < 3.0            # the supply passes 20 MPa at t = 2.5 s
+    assert_finite(res)
+    assert res.get("bottle", "pressure").max() <= 20e6

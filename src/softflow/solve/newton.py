@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fluids.base import FluidError
 from .linalg import SingularJacobian
 
 
@@ -95,7 +96,17 @@ class Newton:
         self.stats.residual_evaluations += 1
         if jac:
             self.stats.jacobian_evaluations += 1
-        return self.asm.residual(x, S, t, dt, jac)
+        try:
+            return self.asm.residual(x, S, t, dt, jac)
+        except FluidError as err:
+            # an iterate outside a fluid's valid range (e.g. a table's) is a failed
+            # trial point, like a non-finite residual: damp or cut the step
+            self.fluid_error = err
+            return np.full(self.asm.n, np.nan)
+
+    def _not_finite(self, reason):
+        err = getattr(self, "fluid_error", None)
+        return f"{reason} ({err})" if err is not None else reason
 
     def _factor(self, dt):
         self.lin.factor()
@@ -124,6 +135,7 @@ class Newton:
         return self.dt_ratio[0] <= r <= self.dt_ratio[1]
 
     def solve(self, x0, S, t, dt):
+        self.fluid_error = None
         self._set_scale(x0)
         stages = (["reuse"] if self._reusable(dt) else []) + ["fresh", "full"]
         last = None
@@ -156,7 +168,7 @@ class Newton:
         x = x0.copy()
         F = self._eval(x, S, t, dt, jac=fresh)
         if not np.isfinite(F).all():
-            return Outcome(False, x, 0, "residual not finite at the predictor",
+            return Outcome(False, x, 0, self._not_finite("residual not finite at the predictor"),
                            int(np.argmax(~np.isfinite(F))))
         if fresh:
             try:
@@ -199,7 +211,8 @@ class Newton:
                     break
                 lam *= 0.25
             else:
-                return Outcome(False, x, k + 1, "residual not finite along the Newton step",
+                return Outcome(False, x, k + 1,
+                              self._not_finite("residual not finite along the Newton step"),
                                int(np.argmax(~np.isfinite(Fn))))
             x = xn
             if done:
@@ -217,7 +230,8 @@ class Newton:
         x = x0.copy()
         F = self._eval(x, S, t, dt, jac=True)
         if not np.isfinite(F).all():
-            return Outcome(False, x, 0, "residual not finite", int(np.argmax(~np.isfinite(F))))
+            return Outcome(False, x, 0, self._not_finite("residual not finite"),
+                           int(np.argmax(~np.isfinite(F))))
         refactor = True
         for k in range(self.max_iter * 2):
             if refactor:
