@@ -44,6 +44,7 @@ def build(name, cells):
     for kind, src in cells:
         src = src.strip("\n")
         nb.cells.append(new_markdown_cell(src) if kind == "md" else new_code_cell(src))
+        nb.cells[-1].id = f"cell-{len(nb.cells)}"   # stable ids: rebuilding changes nothing
     path = HERE / f"{name}.ipynb"
     nbformat.write(nb, path)
     return path
