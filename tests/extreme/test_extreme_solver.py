@@ -214,3 +214,153 @@ def test_a_state_beyond_the_fluid_table_stops_with_the_range_in_the_message():
     assert 2.0 < res.times[-1] < 3.0            # the supply passes 20 MPa at t = 2.5 s
     assert_finite(res)
     assert res.get("bottle", "pressure").max() <= 20e6
+
+
+# -- every nonsmooth component through zero and reversing flow -----------------------------
+def _restrictors(fluid):
+    mu = fluid.viscosity(P0)
+    G = math.pi * (1e-3) ** 4 / (128 * mu * 0.2)
+    return {
+        "orifice-K": sf.Orifice("r", fluid, diameter=1e-3, K=2.0),
+        "orifice-Cd": sf.Orifice("r", fluid, diameter=1e-3, Cd=0.6),
+        "check-valve": sf.CheckValve("r", fluid, diameter=1e-3, cracking_pressure=2e3,
+                                     leakage=1e-12),
+        "tesla-valve": sf.TeslaValve("r", fluid, length=0.2, diameter=1e-3, diodicity=5.0),
+        "snapping-valve": sf.SnappingValve("r", fluid, opening_pressure=8e3, closing_pressure=2e3,
+                                           closed_conductance=G / 10),
+        "iso-6358": sf.Orifice("r", fluid, C=1e-9, b=0.4) if fluid.compressible else None,
+        "tube-inertance": sf.CircularTube("r", fluid, length=0.2, diameter=1e-3, inertance=True),
+    }
+
+
+# ISO 6358 is a gas model (refused for liquids; that refusal is tested in test_valves)
+NONSMOOTH = [(kind, fluid) for fluid in (sf.air, sf.water) for kind, r in
+             _restrictors(fluid).items() if r is not None]
+
+
+@pytest.mark.parametrize("kind, fluid", NONSMOOTH, ids=[f"{k}-{f.name}" for k, f in NONSMOOTH])
+def test_zero_and_reversing_flow_through_every_nonsmooth_component(kind, fluid):
+    r = _restrictors(fluid)[kind]
+    amp = 2e4
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=lambda t: P0 + amp * math.sin(2 * math.pi * 5 * t))
+    s += r
+    if fluid.compressible:
+        s += sf.Container("tank", fluid, volume=2e-5)
+    else:
+        s += sf.LinearAccumulator("tank", fluid, volume=2e-5, compliance=1e-10)
+    s.connect("src", "r")
+    s.connect("r", "tank")
+    res = sf.Simulation(s, duration=1.0, step_max=2e-3).run(raise_on_failure=False)
+    assert res.success, res.message
+    assert_finite(res)
+    mf = res.get("r", "massflow", "a")
+    m = res.get("tank", "mass")
+    supplied = np.concatenate([[0.0], np.cumsum(np.diff(res.times) * mf[1:])])
+    assert np.max(np.abs(m - m[0] - supplied)) < 1e-9 * m[0]
+    if kind != "check-valve":                    # flow goes both ways, through zero
+        assert mf.max() > 0 > mf.min()
+    else:                                        # backflow only through the leak
+        leak = 1e-12 * 2 * amp * fluid.density(P0 + amp)     # at most 2 amp across it
+        assert mf.min() > -1.05 * leak and mf.max() > 50 * leak
+
+
+# -- strongly negative stiffness and a noisy measured curve --------------------------------
+def test_pv_curve_with_strong_negative_stiffness_snaps_and_settles():
+    ml, kpa = 1e-6, 1e3
+    curve = sf.PVCurve.peak_valley((1 * ml, 0), (2 * ml, 60 * kpa), (2.2 * ml, 2 * kpa),
+                                   (10 * ml, 80 * kpa), gauge=True)
+    slope = curve.fdf_volume(np.array([2.1 * ml]))[1][0]
+    assert slope < -1e11                         # below -100 kPa per mL
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.waveforms.Ramp(0.0, 2.0, P0, P0 + 70 * kpa))
+    s += sf.CircularTube("tube", sf.water, length=0.3, diameter=2e-3)
+    s += sf.Actuator("act", sf.water, curve, initial_volume=1 * ml)
+    s.connect("src", "tube")
+    s.connect("tube", "act")
+    res = sf.Simulation(s, duration=6.0).run(raise_on_failure=False)
+    assert res.success, res.message
+    assert_finite(res)
+    v = res.get("act", "volume")
+    assert v[-1] > 5 * ml                        # snapped through to the far branch
+    assert res.get("act", "pressure")[-1] == pytest.approx(P0 + 70 * kpa, rel=1e-4)
+
+
+@pytest.mark.parametrize("smoothing", [None, "auto"])
+def test_measured_balloon_curve_with_added_noise(smoothing):
+    from importlib import resources
+    raw = sf.PVCurve(str(resources.files("softflow") / "data" / "latex_balloon_60mm_pv.csv"))
+    rng = np.random.default_rng(7)
+    v = np.linspace(raw.volume[0], raw.volume[-1], 400)
+    p = raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size)      # 1 kPa noise
+    curve = sf.PVCurve(volume=v, pressure=p, smoothing=smoothing)
+    s = sf.System()
+    s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
+                             fluid=sf.air)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    s += sf.Actuator("act", sf.air, curve, initial_volume=v[0])
+    s.connect("pump", "tube")
+    s.connect("tube", "act")
+    res = sf.Simulation(s, duration=38.0, breakpoints=[20.0]).run(raise_on_failure=False)
+    assert res.success, res.message
+    assert_finite(res)
+    m = res.get("act", "mass") + 0.0
+    pumped = np.concatenate([[0.0], np.cumsum(np.diff(res.times) * -res.get("pump", "massflow")[1:])])
+    tube_mass_change = 0.0                       # the tube stores nothing
+    assert np.max(np.abs(m - m[0] - pumped - tube_mass_change)) < 1e-9 * m.max()
+
+
+@pytest.mark.parametrize("celsius", [-40.0, 20.0, 150.0])
+@pytest.mark.parametrize("level", ["ideal", "table", "eos"])
+def test_air_at_temperatures_from_minus_40_to_150_C(celsius, level):
+    air = sf.air.with_level(level).at(temperature=sf.Q_(celsius, "degC"))
+    res = sf.Simulation(_two_air_tanks(air), duration=5.0).run()
+    assert res.success
+    assert_finite(res)
+    m = res.get("hi", "mass") + res.get("lo", "mass")
+    assert np.max(np.abs(m - m[0])) < 1e-9 * m[0]
+    assert res.get("hi", "pressure")[-1] == pytest.approx(res.get("lo", "pressure")[-1], rel=1e-5)
+
+
+def _two_air_tanks(air):
+    s = sf.System()
+    s += sf.Container("hi", air, volume=1e-4, initial_pressure=10e5)
+    s += sf.CircularTube("tube", air, length=0.3, diameter=1e-3)
+    s += sf.Container("lo", air, volume=4e-4, initial_pressure=P0)
+    s.connect("tube", "hi")
+    s.connect("tube", "lo")
+    return s
+
+
+@pytest.mark.parametrize("celsius", [1.0, 95.0])
+def test_water_at_1_and_95_C(celsius):
+    water = sf.water.with_level("table").at(temperature=sf.Q_(celsius, "degC"))
+    res = sf.Simulation(rc_with(water), duration=2.0).run()
+    assert res.success
+    assert_finite(res)
+    assert res.get("acc", "pressure")[-1] == pytest.approx(P0 + 1e4, rel=1e-4)
+
+
+def rc_with(fluid):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 1e4)
+    s += sf.CircularTube("tube", fluid, length=1.0, diameter=0.5e-3)
+    s += sf.LinearAccumulator("acc", fluid, volume=1e-6, compliance=1e-13)
+    s.connect("tube", "src")
+    s.connect("tube", "acc")
+    return s
+
+
+def test_air_bottle_at_30_MPa_with_the_eos():
+    air = sf.air.with_level("eos")
+    s = sf.System()
+    s += sf.PressureSource("supply", pressure=30e6)
+    s += sf.CircularTube("hose", air, length=1.0, diameter=3e-3)
+    s += sf.Container("bottle", air, volume=1e-3, initial_pressure=1e3)     # 1 kPa: evacuated
+    s.connect("supply", "hose")
+    s.connect("hose", "bottle")
+    res = sf.Simulation(s, duration=5.0).run()
+    assert res.success
+    assert_finite(res)
+    assert res.get("bottle", "pressure")[-1] == pytest.approx(30e6, rel=1e-5)
+    assert res.get("bottle", "mass")[-1] == pytest.approx(float(air.density(30e6)) * 1e-3, rel=1e-5)

@@ -85,7 +85,8 @@ def check_state_range(owner, p, T, T_range, p_range, what):
                          f"temperature (valid {what} range {T_lo:g} ... {T_hi:g} K)")
     for name, unit, lo, hi, vmin, vmax in (("pressure", "Pa", p_lo, p_hi, pmin, pmax),
                                            ("temperature", "K", T_lo, T_hi, Tmin, Tmax)):
-        if vmin < lo or vmax > hi:
+        # a hair of slack: unit conversions round (-40 degC is 233.14999999999998 K)
+        if vmin < lo - 1e-9 * abs(lo) or vmax > hi + 1e-9 * abs(hi):
             bad = vmin if vmin < lo else vmax
             raise FluidError(f"{owner}: {name} {bad:g} {unit} is outside the {what} range "
                              f"{lo:g} ... {hi:g} {unit}")

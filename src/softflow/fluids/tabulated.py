@@ -51,7 +51,7 @@ class TableFluid(Fluid):
         self.molar_mass = meta["molar_mass"]
         self.R = meta["specific_gas_constant"]     # CoolProp's, so that Z matches it
         T_lo, T_hi = self.T_range
-        if not T_lo <= self.temperature <= T_hi:
+        if not T_lo * (1 - 1e-9) <= self.temperature <= T_hi * (1 + 1e-9):   # round-off slack
             raise FluidError(f"{self!r}: temperature {self.temperature:g} K is outside the "
                              f"table range {T_lo:g} ... {T_hi:g} K (use out-of-table "
                              f"temperatures at level 'eos')")
