@@ -7,13 +7,6 @@ Saves fig4_C.png and fig4_D.png.
 
     python examples/paper_fig4.py
 """
-from softflow import paper_scenes as ps
+from softflow import paper_scenes
 
-results = []
-for case in ps.FIG4_CASES:
-    res, wall = ps.run(ps.fig4(case), 4)
-    v1, v2 = ps.volumes(res)
-    print(f"{case:9s}: {wall * 1e3:6.1f} ms, {res.stats['steps']} steps, "
-          f"enclosed area {ps.enclosed_area(v1, v2) / ps.ML ** 2:+7.2f} mL^2")
-    results.append(res)
-print("saved", *ps.plot_panels(results, ps.FIG4_CASES, "Fig. 4", "fig4"))
+paper_scenes.run_figure(4)

@@ -6,14 +6,6 @@ Saves fig5_C.png and fig5_D.png.
 
     python examples/paper_fig5.py
 """
-import softflow as sf
-from softflow import paper_scenes as ps
+from softflow import paper_scenes
 
-results = []
-for fluid in (sf.air, sf.water, sf.ethylene_glycol):
-    res, wall = ps.run(ps.fig5(fluid), 5)
-    v1, v2 = ps.volumes(res)
-    print(f"{fluid.name:16s}: {wall * 1e3:6.1f} ms, {res.stats['steps']} steps, "
-          f"enclosed area {ps.enclosed_area(v1, v2) / ps.ML ** 2:+7.2f} mL^2")
-    results.append(res)
-print("saved", *ps.plot_panels(results, ps.FIG5_FLUIDS, "Fig. 5", "fig5"))
+paper_scenes.run_figure(5)

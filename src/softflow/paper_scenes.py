@@ -200,6 +200,35 @@ def run(system, fig, **options):
     return res, time.perf_counter() - t0
 
 
+def figure(fig):
+    """[(case label, System)] of the three simulations of Fig. ``fig`` (3, 4 or 5)."""
+    from .fluids import air, ethylene_glycol
+    if fig == 3:
+        return [(c, fig3(c)) for c in FIG3_CASES]
+    if fig == 4:
+        return [(c, fig4(c)) for c in FIG4_CASES]
+    if fig == 5:
+        return [(name, fig5(f)) for name, f in zip(FIG5_FLUIDS, (air, water, ethylene_glycol))]
+    raise ValueError(f"figure: the paper's scenes are Figs. 3, 4 and 5, got {fig!r}")
+
+
+def run_figure(fig, prefix=None):
+    """Run the three simulations of Fig. ``fig``, print their wall times, steps and
+    enclosed areas, and save panels C and D as ``<prefix>_C.png`` and
+    ``<prefix>_D.png`` (default prefix ``fig<N>``). Returns the Results."""
+    results, labels = [], []
+    for label, system in figure(fig):
+        res, wall = run(system, fig)
+        v1, v2 = volumes(res)
+        print(f"Fig. {fig} {label:16s}: {wall * 1e3:6.1f} ms, {res.stats['steps']:4d} steps, "
+              f"enclosed area {enclosed_area(v1, v2) / ML ** 2:+8.2f} mL^2")
+        results.append(res)
+        labels.append(label)
+    paths = plot_panels(results, labels, f"Fig. {fig}", prefix or f"fig{fig}")
+    print("saved", *paths)
+    return results
+
+
 def volumes(res):
     """(V_act1, V_act2) [m^3] arrays of a scene's result."""
     return res.get("act1", "volume"), res.get("act2", "volume")
