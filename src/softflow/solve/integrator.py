@@ -99,6 +99,7 @@ class AdaptiveStep:
         self.stats = stats
         self.forced_steps = 0
         self._factor = 2.0
+        self.hold = 0
 
     def propose(self, t, limit):
         """(step, exact end point it aims at)"""
@@ -111,6 +112,7 @@ class AdaptiveStep:
         if h <= self.step_min:
             raise StepFailure(t + h, h, out)
         self.h = max(h * 0.25, self.step_min)
+        self.hold = 5     # after a failed solve, do not grow the step for a few steps
 
     def judge(self, S, S_new, S_pred, h, h_prev):
         """(accept?, error); sets the next step size."""
@@ -132,6 +134,9 @@ class AdaptiveStep:
         return True, err
 
     def accepted(self, t_new, h, at_break):
+        if self.hold:
+            self.hold -= 1
+            self._factor = min(self._factor, 1.0)
         self.h = self.h_start if at_break else h * self._factor
 
 
