@@ -49,6 +49,10 @@ class Stats:
         return dict(self.__dict__)
 
 
+#: full Newton steps the watchdog may take without residual decrease
+WATCHDOG = 6
+
+
 @dataclass
 class Outcome:
     converged: bool
@@ -75,6 +79,12 @@ class Newton:
         self._qid = qid
         # absolute pressures must stay positive: a solution with p <= 0 is rejected
         self._p_idx = np.array([i for i, q in enumerate(asm.x_quantity) if q == "pressure"],
+                               dtype=np.int64)
+        # thermal scenes: a node through which (almost) nothing flows has a weakly
+        # determined temperature, and a Newton update from a zero-flow start can move
+        # it by orders of magnitude; each temperature update is clipped to
+        # [-50 %, +100 %] of its value, the other unknowns are left as they are
+        self._T_idx = np.array([i for i, q in enumerate(asm.x_quantity) if q == "temperature"],
                                dtype=np.int64)
         self.tol = self.atol.copy()
         if max_reuse_iter is None:
@@ -180,6 +190,8 @@ class Newton:
         prev = None
         for k in range(limit):
             dx = -self.lin.solve(F)
+            if self._T_idx.size:
+                self._clip_temperature(x, dx)
             self.stats.newton_iterations += 1
             nrm = self._norm(dx)
             if not np.isfinite(nrm):
@@ -226,13 +238,20 @@ class Newton:
         """Damped Newton. The factors are kept for the next iteration only when the
         last full step cut the scaled residual by 10x or more (Shamanskii's
         variant): far from the solution every iteration refactors, close to it
-        the factorizations are saved."""
+        the factorizations are saved.
+
+        Where the line search finds no decrease (at a fold: an air-filled
+        actuator whose PV curve falls more steeply than its gas can expand jumps
+        to a far branch at constant mass, and the residual has a hump between),
+        a watchdog takes up to ``WATCHDOG`` undamped Newton steps and keeps them
+        if the residual ends below where it started; otherwise the solve fails."""
         x = x0.copy()
         F = self._eval(x, S, t, dt, jac=True)
         if not np.isfinite(F).all():
             return Outcome(False, x, 0, self._not_finite("residual not finite"),
                            int(np.argmax(~np.isfinite(F))))
         refactor = True
+        watch, f_ref, x_ref, F_ref, used = 0, np.inf, x, F, False
         for k in range(self.max_iter * 2):
             if refactor:
                 try:
@@ -242,25 +261,42 @@ class Newton:
                                    err.args[1] if len(err.args) > 1 else None)
                 rs = self.lin.row_scale
             f0 = float(np.linalg.norm(F * rs))
+            if watch and f0 < (1 - 1e-4) * f_ref:
+                watch = 0                       # below the starting residual: monotone again
             dx = -self.lin.solve(F)
+            if self._T_idx.size:
+                self._clip_temperature(x, dx)
             self.stats.newton_iterations += 1
             nrm = self._norm(dx)
             if nrm <= 1.0:
                 return Outcome(True, x + dx, k + 1)
             lam = 1.0
-            while True:
+            while not watch:
                 xn = x + lam * dx
                 # the full step is usually taken: evaluate its Jacobian with it
                 Fn = self._eval(xn, S, t, dt, jac=lam == 1.0)
                 f1 = np.linalg.norm(Fn * rs) if np.isfinite(Fn).all() else np.inf
-                if f1 <= (1 - 1e-4 * lam) * f0:
-                    break
-                if not refactor:   # stale factors gave no descent: refactor here first
-                    break
+                if f1 <= (1 - 1e-4 * lam) * f0 or not refactor:
+                    break          # descent, or stale factors: refactor at x first (below)
                 lam *= 0.5
                 if lam < 1e-4:
-                    return Outcome(False, x, k + 1, "line search failed: no decrease of the "
-                                   "residual along the Newton direction", self._worst_row(F))
+                    break
+            if watch or lam < 1e-4:
+                if watch == 1 or (not watch and used):
+                    return Outcome(False, x_ref if watch else x, k + 1, "line search failed: no "
+                                   "decrease of the residual along the Newton direction",
+                                   self._worst_row(F_ref if watch else F))
+                if not watch:
+                    used = True
+                    watch, f_ref, x_ref, F_ref = WATCHDOG + 1, f0, x, F
+                watch -= 1
+                x = x + dx
+                F = self._eval(x, S, t, dt, jac=True)
+                if not np.isfinite(F).all():
+                    return Outcome(False, x_ref, k + 1, self._not_finite(
+                        "residual not finite along the Newton step"), self._worst_row(F_ref))
+                refactor = True
+                continue
             if not refactor and not f1 <= (1 - 1e-4) * f0:
                 refactor = True   # retry this iterate with a Jacobian evaluated at x
                 self._eval(x, S, t, dt, jac=True)
@@ -271,6 +307,11 @@ class Newton:
                 self._eval(x, S, t, dt, jac=True)   # Jacobian at the damped iterate
         return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
                        self._worst_row(F))
+
+    def _clip_temperature(self, x, dx):
+        i = self._T_idx
+        T = x[i]
+        dx[i] = np.clip(dx[i], -0.5 * T, T)
 
     def _worst_row(self, F):
         rs = getattr(self.lin, "row_scale", None)
