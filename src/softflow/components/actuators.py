@@ -23,6 +23,7 @@ from scipy.optimize import brentq
 
 from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
+from ..solve.thermal import thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent, Params
 
 #: Relative step of the central differences used for a callable curve without
@@ -106,6 +107,19 @@ class Actuator(LibraryComponent):
         i.e. on the first rising branch of a peak–valley curve.
     curve_derivative : callable, optional
         dp/dV [Pa/m^3] of a callable curve, V [m^3] -> float or array.
+    thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
+        This volume's thermal model in a thermal scene (default: the scene's,
+        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
+    initial_temperature : float [K], optional
+        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
+    wall_temperature : float [K], optional
+        Wall temperature for heat transfer (default: the fluid's temperature).
+    heat_transfer_coefficient : float [W/(m^2 K)], optional
+        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
+    area : float [m^2], optional
+        Wall area A exchanging heat.
+    hA : float [W/K], optional
+        The product h·A directly (instead of the two above).
     """
 
     terminal_spec = (("a", FLUID_PORT),)
@@ -113,7 +127,8 @@ class Actuator(LibraryComponent):
     jac_pattern = ACTUATOR_PATTERN
 
     def __init__(self, label, fluid, curve, initial_volume=None, initial_pressure=None, *,
-                 curve_derivative=None):
+                 curve_derivative=None, thermal=None, initial_temperature=None,
+                 wall_temperature=None, heat_transfer_coefficient=None, area=None, hA=None):
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         if not (hasattr(curve, "fdf_volume") or callable(curve)):
@@ -125,6 +140,8 @@ class Actuator(LibraryComponent):
         self._curve_fn = _CurveFunction(curve, curve_derivative, abs(v0) or 1e-9,
                                         self.describe())
         _set_initial_state(self, v0, float(self._curve_fn.value(np.array([v0]))[0]))
+        thermal_volume_fields(self, initial_temperature, wall_temperature,
+                              heat_transfer_coefficient, area, hA, thermal)
 
     # -- set-up ---------------------------------------------------------------------------
     def _initial_volume(self, curve, initial_volume, initial_pressure):

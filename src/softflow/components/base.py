@@ -53,6 +53,9 @@ class LibraryComponent(Component):
     """
 
     vectorized = True
+    #: thermal model resolved by the Simulation (None: isothermal, the paper's model);
+    #: see :mod:`softflow.solve.thermal`
+    _thermal = None
     terminal_spec: tuple = ()
     state_spec: tuple = ()
     param_names: tuple = ()
@@ -99,6 +102,20 @@ class LibraryComponent(Component):
     def initial_states(self):
         """State values at t = 0, in ``state_spec`` order."""
         return [0.0] * len(self.state_spec)
+
+    def kernel_class(self):
+        """The class whose kernels evaluate this instance: its own in isothermal
+        scenes, its thermal variant (:mod:`softflow.components.thermal`) in thermal ones."""
+        if self._thermal is None:
+            return type(self)
+        from .thermal import thermal_class
+        return thermal_class(type(self))
+
+    def initial_state_values(self):
+        """Initial states of the compiled model (thermal variants add internal energy)."""
+        if self._thermal is None:
+            return self.initial_states()
+        return self.kernel_class().thermal_initial_states(self)
 
     @classmethod
     def make_params(cls, components) -> Params:

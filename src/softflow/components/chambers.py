@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..constants import pressure_atmospheric
+from ..solve.thermal import thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent
 
 
@@ -20,7 +21,21 @@ class Container(LibraryComponent):
     fluid : Fluid
     volume : float [m^3]
     initial_pressure : float [Pa], default 1 atm
-        Absolute pressure at t = 0 (sets the initial mass).
+        Absolute pressure at t = 0 (sets the initial mass; an evacuated tank is
+        a volume at, say, 1 kPa).
+    thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
+        This volume's thermal model in a thermal scene (default: the scene's,
+        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
+    initial_temperature : float [K], optional
+        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
+    wall_temperature : float [K], optional
+        Wall temperature for heat transfer (default: the fluid's temperature).
+    heat_transfer_coefficient : float [W/(m^2 K)], optional
+        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
+    area : float [m^2], optional
+        Wall area A exchanging heat.
+    hA : float [W/K], optional
+        The product h·A directly (instead of the two above).
     """
 
     terminal_spec = (("a", FLUID_PORT),)
@@ -28,13 +43,17 @@ class Container(LibraryComponent):
     param_names = ("volume",)
     jac_pattern = ((0, 0), (0, 1))
 
-    def __init__(self, label, fluid, volume, initial_pressure=pressure_atmospheric):
+    def __init__(self, label, fluid, volume, initial_pressure=pressure_atmospheric, *,
+                 thermal=None, initial_temperature=None, wall_temperature=None,
+                 heat_transfer_coefficient=None, area=None, hA=None):
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.volume = self._si(volume, "m**3", "volume", positive=True)
         self.initial_pressure = self._si(initial_pressure, "Pa", "initial_pressure",
                                          positive=True)
         self.terminals[0].variables[0].initial_value = self.initial_pressure
+        thermal_volume_fields(self, initial_temperature, wall_temperature,
+                              heat_transfer_coefficient, area, hA, thermal)
 
     def initial_states(self):
         return [float(self.fluid.density(self.initial_pressure)) * self.volume]
@@ -79,6 +98,19 @@ class LinearAccumulator(LibraryComponent):
         dV/dp.
     reference_pressure : float [Pa], default 1 atm
     initial_pressure : float [Pa], default reference_pressure
+    thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
+        This volume's thermal model in a thermal scene (default: the scene's,
+        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
+    initial_temperature : float [K], optional
+        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
+    wall_temperature : float [K], optional
+        Wall temperature for heat transfer (default: the fluid's temperature).
+    heat_transfer_coefficient : float [W/(m^2 K)], optional
+        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
+    area : float [m^2], optional
+        Wall area A exchanging heat.
+    hA : float [W/K], optional
+        The product h·A directly (instead of the two above).
     """
 
     terminal_spec = (("a", FLUID_PORT),)
@@ -87,7 +119,9 @@ class LinearAccumulator(LibraryComponent):
     jac_pattern = ((0, 0), (0, 1))
 
     def __init__(self, label, fluid, volume, compliance,
-                 reference_pressure=pressure_atmospheric, initial_pressure=None):
+                 reference_pressure=pressure_atmospheric, initial_pressure=None, *,
+                 thermal=None, initial_temperature=None, wall_temperature=None,
+                 heat_transfer_coefficient=None, area=None, hA=None):
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.volume = self._si(volume, "m**3", "volume", positive=True)
@@ -99,6 +133,8 @@ class LinearAccumulator(LibraryComponent):
         if self._fluid_volume(self.initial_pressure) <= 0:
             raise ValueError(f"{self.describe()}: the fluid volume at initial_pressure is <= 0")
         self.terminals[0].variables[0].initial_value = self.initial_pressure
+        thermal_volume_fields(self, initial_temperature, wall_temperature,
+                              heat_transfer_coefficient, area, hA, thermal)
 
     def _fluid_volume(self, p):
         return self.volume + self.compliance * (p - self.reference_pressure)

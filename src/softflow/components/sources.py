@@ -108,6 +108,16 @@ class _SourceParams(Params):
 
 class _Source(LibraryComponent):
     terminal_spec = (("a", FLUID_PORT),)
+    temperature = None
+
+    def _set_temperature(self, temperature):
+        """Gas temperature [K] of the source in thermal scenes (None: the fluid's)."""
+        if temperature is not None:
+            self.temperature = self._si(temperature, "K", "temperature", positive=True)
+
+    def group_key(self):
+        # in a thermal scene the gas found at the terminal enters the kernel
+        return (type(self), id(self.fluid), id(getattr(self, "_thermal_fluid", None)))
 
     def breakpoints(self):
         return self.signal.breaks
@@ -133,12 +143,16 @@ class PressureSource(_Source):
     gauge : bool, default False
         If True, ``pressure`` is relative to the atmosphere
         (``sf.pressure_atmospheric`` = 101325 Pa is added to it).
+    temperature : float [K], optional
+        Temperature of the gas the source delivers in a thermal scene (default:
+        the temperature of the gas at its terminal); ignored when isothermal.
     """
 
     jac_pattern = ((0, 0),)
 
-    def __init__(self, label, pressure, *, gauge=False):
+    def __init__(self, label, pressure, *, gauge=False, temperature=None):
         super().__init__(label)
+        self._set_temperature(temperature)
         if not isinstance(gauge, bool):
             raise TypeError(f"{self.describe()}: gauge must be True or False, got {gauge!r}")
         self.gauge = gauge
@@ -165,12 +179,16 @@ class MassFlowSource(_Source):
     label : str
     massflow : float [kg/s], Quantity, waveform or callable t -> float [kg/s]
         Positive when fluid leaves the source.
+    temperature : float [K], optional
+        Temperature of the gas the source delivers in a thermal scene (default:
+        the temperature of the gas at its terminal); ignored when isothermal.
     """
 
     jac_pattern = ((0, 1),)
 
-    def __init__(self, label, massflow):
+    def __init__(self, label, massflow, *, temperature=None):
         super().__init__(label)
+        self._set_temperature(temperature)
         self.signal = _Signal(massflow, "kg/s", "massflow", self.describe())
 
     @classmethod
@@ -197,12 +215,16 @@ class VolumeFlowSource(_Source):
     volumeflow : float [m^3/s], Quantity, waveform or callable t -> float [m^3/s]
         Positive when fluid leaves the source.
     fluid : Fluid
+    temperature : float [K], optional
+        Temperature of the gas the source delivers in a thermal scene (default:
+        the temperature of the gas at its terminal); ignored when isothermal.
     """
 
     jac_pattern = ((0, 0), (0, 1))
 
-    def __init__(self, label, volumeflow, fluid):
+    def __init__(self, label, volumeflow, fluid, *, temperature=None):
         super().__init__(label)
+        self._set_temperature(temperature)
         self.fluid = self._check_fluid(fluid)
         self.signal = _Signal(volumeflow, "m**3/s", "volumeflow", self.describe())
 

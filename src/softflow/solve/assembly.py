@@ -111,6 +111,8 @@ class Assembly:
         for c in comps:
             if c.vectorized:
                 key = c.group_key()
+                if c._thermal is not None:   # thermal variants group apart
+                    key = (c.kernel_class(), key)
                 if key not in keyed:
                     keyed[key] = []
                     groups.append(("lib", key))
@@ -121,7 +123,7 @@ class Assembly:
         for kind, item in groups:
             if kind == "lib":
                 members = keyed[item]
-                self.groups.append(_library_group(type(members[0]), members))
+                self.groups.append(_library_group(members[0].kernel_class(), members))
             else:
                 self.groups.append(_user_group(item))
         #: component label -> (its Group, its index in the group)
@@ -132,8 +134,13 @@ class Assembly:
         initial = {}
         for g in self.groups:
             col = np.empty((g.n, len(g.comps[0].interface_variables())), dtype=np.int64)
+            # the interface as compiled (a later thermal or isothermal compile of the
+            # same components changes their variables, not this Assembly's results)
+            g.iface = []
             for i, c in enumerate(g.comps):
-                for k, (term, v) in enumerate(c.interface_variables()):
+                iface = c.interface_variables()
+                g.iface.append((iface, list(c.states)))
+                for k, (term, v) in enumerate(iface):
                     if v.role == "across":
                         nd = node_of[id(c.get_terminal(term))]
                         idx = across[(nd.index, v.quantity)]
@@ -178,7 +185,7 @@ class Assembly:
                 for e in range(g.neq):
                     row_names.append(f"equation {e} of {c.describe()}")
                 if g.ns:
-                    vals = (c.initial_states() if c.vectorized
+                    vals = (c.initial_state_values() if c.vectorized
                             else [sv.initial_value if sv.initial_value is not None else 0.0
                                   for sv in c.states])
                     S0.extend(float(v) for v in vals)

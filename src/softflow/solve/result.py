@@ -51,11 +51,11 @@ class Result:
                 raise KeyError(f"no component {label!r} in this result (not in the system, "
                                "or not among Simulation(record=...))")
             g, i = self._where[label]
-            c = g.comps[i]
+            iface, states = g.iface[i]
             entries = [(v.label, v.quantity, term, "x", int(self._xcol[g.col[i, k]]))
-                       for k, (term, v) in enumerate(c.interface_variables())]
+                       for k, (term, v) in enumerate(iface)]
             entries += [(sv.label, sv.quantity, None, "s", int(self._scol[g.s0 + i * g.ns + j]))
-                        for j, sv in enumerate(c.states)]
+                        for j, sv in enumerate(states)]
             self._entries[label] = entries
         return self._entries[label]
 

@@ -9,10 +9,11 @@ from .integrator import ImplicitEuler, StepFailure
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 from .result import Result
+from .thermal import configure_thermal
 
 #: Default absolute tolerances of the adaptive error test, per quantity [SI].
 DEFAULT_ATOL = {"pressure": 1.0, "massflow": 1e-9, "mass": 1e-12, "volume": 1e-12,
-                "volumeflow": 1e-12, "temperature": 1e-3}
+                "volumeflow": 1e-12, "temperature": 1e-3, "energy": 1e-7, "energyflow": 1e-4}
 
 
 class SimulationError(RuntimeError):
@@ -54,6 +55,13 @@ class Simulation:
         components' waveforms declare theirs themselves.
     allow_unconnected : bool, default False
         Treat unconnected terminals as closed ends instead of raising.
+    thermal : {'isothermal', 'adiabatic', 'heat_transfer'}, default 'isothermal'
+        Thermal model of the scene (volumes may override it with their own
+        ``thermal=``): 'isothermal' is the FONS paper's model, with no
+        temperature unknowns; the others add a temperature and an energy flow at
+        every fluid terminal and the energy equation in every volume (gases
+        only). See :mod:`softflow.solve.thermal` and
+        :mod:`softflow.components.thermal`.
     record : sequence of str, optional
         Labels of the components whose variables are kept at every step;
         default all. For networks of 1e5 components, keeping everything costs
@@ -62,7 +70,7 @@ class Simulation:
 
     def __init__(self, system, duration=1.0, step=None, *, adaptive=None, step_min=None,
                  step_max=None, rtol=1e-3, atol=None, newton_rtol=1e-6, linear_solver="auto",
-                 breakpoints=(), allow_unconnected=False, record=None):
+                 breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal"):
         owner = "Simulation"
         self.system = system
         self.duration = to_si(duration, "s", name="duration", owner=owner)
@@ -91,6 +99,7 @@ class Simulation:
             self.atol[q] = to_si(v, unit, name=f"atol[{q!r}]", owner=owner) if unit else float(v)
         self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
                                  for b in breakpoints)
+        self.thermal = configure_thermal(system, thermal)
         self.asm = Assembly(system, allow_unconnected=allow_unconnected)
         self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
         self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0

@@ -1,0 +1,494 @@
+"""Thermal variants of the library components (adiabatic and heat-transfer gas scenes).
+
+In a thermal scene (``Simulation(..., thermal='adiabatic' | 'heat_transfer')``)
+every fluid terminal carries two more variables: the temperature ``T`` [K]
+(across: one unknown per node) and the energy flow ``E`` [W] (through,
+positive into the component: one energy-conservation row per node). The
+isothermal kernels stay untouched; each class gets a variant here, made by
+:func:`thermal_class`, that the assembly selects at compile time.
+
+Energy model
+------------
+* **Flow elements** (tubes, orifices, valves) are adiabatic and store nothing:
+  E_a + E_b = 0, and the energy entering at ``a`` is the enthalpy the mass flow
+  carries from upstream,
+
+      E_a = mdot_a · h_up + G · (T_a - T_b),
+      h_up = w h(p_a, T_a) + (1 - w) h(p_b, T_b),  w = smoothstep(mdot_a, -B, B)
+
+  with the C1 upwind blend over the band B = :data:`UPWIND_BAND` (exactly
+  upwind beyond it). Kinetic energy is neglected (stagnation enthalpy = static
+  enthalpy: velocities well below the speed of sound in the volumes). The
+  conductance G = :data:`ZERO_FLOW_CONDUCTANCE` (a thermal leak of 1e-6 W/K,
+  the enthalpy flow of 1 µg/s of air per kelvin) gives a node through which
+  nothing flows a temperature (the average of its neighbours'); it moves energy
+  between volumes but never creates or destroys any, so energy balances close
+  exactly. The temperature enters the gas flow laws through the ideal-gas
+  density at the upstream temperature: orifices' mass flow scales with
+  sqrt(T_ref/T_up), tubes' and Tesla/snapping valves' pressure drop with
+  T_up/T_ref (T_ref: the fluid's own temperature; viscosity stays at its
+  nominal value). Inertial tubes and check valves keep their nominal-temperature
+  flow law (their energy transport is still upwind).
+* **Energy reference**: energies are counted from one reference enthalpy per
+  scene, h0 = h(1 atm, T) of the first gas found (its own temperature): a
+  volume's state ``internal_energy`` is U = m·(u - h0) and energy flows are
+  mdot·(h - h0). Since mass is conserved at every node and through every
+  element, this is the same energy balance as with absolute enthalpies; it
+  keeps the energy rows of the Jacobian of the size of the temperature
+  differences instead of the (arbitrary) absolute enthalpy, which the linear
+  solver's singularity test needs.
+* **Nodes** have no volume: the energy row of a node mixes the enthalpy flows
+  of its inflows, so the outflows leave with the mass-weighted mixed enthalpy.
+* **Volumes** (Container, LinearAccumulator, Actuator) store mass m and
+  internal energy U (states, backward Euler); their terminal temperature is
+  the gas temperature (a well-mixed volume: what leaves has its state):
+
+      rho(p, T) · Vol = m + dt·mdot
+      (m + dt·mdot) · u(p, T) = U + dt·(E + hA·(T_wall - T)) - p·(Vol - Vol_old)
+
+  with u(p, T), h(p, T) from the fluid (constant cv/cp for ideal gases, real
+  properties at the ``table`` and ``eos`` levels). hA = 0 is adiabatic; a volume
+  with ``thermal='isothermal'`` in a thermal scene holds T = T_wall instead.
+* **Sources** are reservoirs at their ``temperature``: a PressureSource fixes its
+  node's temperature; flow sources deliver h(p, T_source) and take in the
+  node's enthalpy when the flow reverses.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..correlations.friction import smoothstep
+from .actuators import Actuator
+from .chambers import Container, LinearAccumulator
+from .sources import MassFlowSource, PressureSource, VolumeFlowSource
+from .tubes import CircularTube, InertialCircularTube
+from .valves import CheckValve, Orifice, SnappingValve, TeslaValve
+
+#: Mass-flow band of the smooth upwind blend [kg/s].
+UPWIND_BAND = 1e-9
+#: Thermal conductance across every flow element and flow source [W/K] (see module doc).
+ZERO_FLOW_CONDUCTANCE = 1e-6
+
+#: Variables a thermal terminal adds: (quantity, role, label).
+THERMAL_PORT_EXTRA = (("temperature", "across", "T"), ("energyflow", "through", "E"))
+
+
+def upwind_energy(fl, mf, pa, Ta, pb, Tb, jac, h0=0.0):
+    """Energy flow into ``a`` carried by the mass flow mf (into ``a``), upwind
+    enthalpy with the smooth blend, plus the zero-flow conductance; returns
+    (E, w, dw, dE) with dE = (d/dmf, d/dpa, d/dTa, d/dpb, d/dTb) or None."""
+    w, dw = smoothstep(mf, -UPWIND_BAND, UPWIND_BAND)
+    ha = fl.enthalpy(pa, Ta) - h0
+    hb = fl.enthalpy(pb, Tb) - h0
+    h = hb + w * (ha - hb)
+    E = mf * h + ZERO_FLOW_CONDUCTANCE * (Ta - Tb)
+    if not jac:
+        return E, w, dw, None
+    d_mf = h + mf * dw * (ha - hb)
+    d_pa = mf * w * fl.enthalpy_dp(pa, Ta)
+    d_Ta = mf * w * fl.enthalpy_dT(pa, Ta) + ZERO_FLOW_CONDUCTANCE
+    d_pb = mf * (1.0 - w) * fl.enthalpy_dp(pb, Tb)
+    d_Tb = mf * (1.0 - w) * fl.enthalpy_dT(pb, Tb) - ZERO_FLOW_CONDUCTANCE
+    return E, w, dw, (d_mf, d_pa, d_Ta, d_pb, d_Tb)
+
+
+def _stack(P, components, name):
+    return np.array([getattr(c, name) for c in components], dtype=float)
+
+
+# ---------------------------------------------------------------------------------------
+# flow elements: V = [p_a, mf_a, T_a, E_a, p_b, mf_b, T_b, E_b]
+# ---------------------------------------------------------------------------------------
+_ISO_COLS = np.array([0, 1, 4, 5])      # the isothermal kernel's V inside the thermal V
+_ENERGY_PATTERN = ((2, 3), (2, 7), (3, 0), (3, 1), (3, 2), (3, 3), (3, 4), (3, 6))
+
+
+class ThermalTwoPort:
+    """Mixin: a two-port flow element with upwind energy transport (equations 2, 3)
+    around its isothermal flow law (equations 0, 1), see the module docstring.
+
+    ``flow_temperature``: how the upstream temperature enters the flow law,
+    'sqrt_density' (mass flow ∝ sqrt(rho)), 'inverse_density' (pressure drop
+    ∝ 1/rho) or None (nominal temperature)."""
+
+    flow_temperature = None
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.T_ref = float(P.fluid.temperature)
+        P.h0 = components[0]._h0
+        return P
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        return super().update(P, V[:, _ISO_COLS], S, dt)
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        Fi, Ji = super().kernel(P, V[:, _ISO_COLS], S, t, dt, jac)
+        pa, mf, Ta, Ea, pb, Tb, Eb = V[:, 0], V[:, 1], V[:, 2], V[:, 3], V[:, 4], V[:, 6], V[:, 7]
+        E, w, dw, dE = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
+        F = np.empty((P.n, 4))
+        F[:, :2] = Fi
+        F[:, 2] = Ea + Eb
+        F[:, 3] = Ea - E
+        mode = cls.flow_temperature
+        if mode is not None:
+            T_up = Tb + w * (Ta - Tb)
+            if mode == "sqrt_density":            # F1 = mf - theta q_iso
+                q = mf - Fi[:, 1]
+                theta = np.sqrt(P.T_ref / T_up)
+                F[:, 1] = mf - theta * q
+                d_theta = -0.5 * theta / T_up      # d theta / d T_up
+                coef = -q * d_theta                # dF1 / dT_up
+            else:                                  # F1 = (pa - pb) - theta dp_iso
+                dp = (pa - pb) - Fi[:, 1]
+                theta = T_up / P.T_ref
+                F[:, 1] = (pa - pb) - theta * dp
+                coef = -dp / P.T_ref
+        if not jac:
+            return F, None
+        nb = Ji.shape[1]
+        J = np.empty((P.n, len(cls.jac_pattern)))
+        J[:, :nb] = Ji
+        k = nb
+        if mode is not None:
+            # base pattern (two-port): (0,mf_a) (0,mf_b) (1,pa) (1,mf) (1,pb)
+            if mode == "sqrt_density":
+                J[:, 2] = theta * Ji[:, 2]
+                J[:, 4] = theta * Ji[:, 4]
+                J[:, 3] = Ji[:, 3] + (theta - 1.0) * (Ji[:, 3] - 1.0)  # = 1 - theta dq/dmf
+            else:
+                J[:, 2] = 1.0 - theta * (1.0 - Ji[:, 2])
+                J[:, 4] = -1.0 + theta * (1.0 + Ji[:, 4])
+                J[:, 3] = theta * Ji[:, 3]
+            J[:, 3] += coef * dw * (Ta - Tb)
+            J[:, k] = coef * w
+            J[:, k + 1] = coef * (1.0 - w)
+            k += 2
+        d_mf, d_pa, d_Ta, d_pb, d_Tb = dE
+        J[:, k] = 1.0
+        J[:, k + 1] = 1.0
+        J[:, k + 2] = -d_pa
+        J[:, k + 3] = -d_mf
+        J[:, k + 4] = -d_Ta
+        J[:, k + 5] = 1.0
+        J[:, k + 6] = -d_pb
+        J[:, k + 7] = -d_Tb
+        return F, J
+
+
+def _two_port_variant(base, flow_temperature):
+    iso_map = {0: 0, 1: 1, 2: 4, 3: 5}
+    pattern = tuple((e, iso_map[v]) for e, v in base.jac_pattern)
+    if flow_temperature is not None:
+        assert base.jac_pattern == ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
+        pattern += ((1, 2), (1, 6))
+    pattern += _ENERGY_PATTERN
+    return type(f"Thermal{base.__name__}", (ThermalTwoPort, base),
+                {"flow_temperature": flow_temperature, "jac_pattern": pattern,
+                 "__doc__": f"{base.__name__} in a thermal scene (see softflow.components.thermal)."})
+
+
+# ---------------------------------------------------------------------------------------
+# sources: V = [p, mf, T, E]
+# ---------------------------------------------------------------------------------------
+def _source_energy(P, V, jac):
+    """Residual E - (energy the flow carries) of a flow source, and its derivatives
+    (p, mf, T, E). Outflow (mf < 0) carries h(p, T_source), inflow the node's h."""
+    p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+    Es, _, _, dE = upwind_energy(P.fluid_thermal, mf, p, T, p, P.T_source, jac, P.h0)
+    F = E - Es
+    if not jac:
+        return F, None
+    d_mf, d_pa, d_Ta, d_pb, _ = dE
+    return F, (-(d_pa + d_pb), -d_mf, -d_Ta, np.ones(P.n))
+
+
+class _ThermalSource:
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.T_source = np.array([c._T_source for c in components], dtype=float)
+        P.fluid_thermal = components[0]._thermal_fluid
+        P.h0 = components[0]._h0
+        return P
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        return []
+
+
+class ThermalPressureSource(_ThermalSource, PressureSource):
+    """PressureSource in a thermal scene: a reservoir that also fixes its node's temperature."""
+
+    jac_pattern = ((0, 0), (1, 2))
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        F = np.empty((P.n, 2))
+        F[:, 0] = V[:, 0] - P.values(t)
+        F[:, 1] = V[:, 2] - P.T_source
+        return F, (np.ones((P.n, 2)) if jac else None)
+
+
+class ThermalMassFlowSource(_ThermalSource, MassFlowSource):
+    """MassFlowSource in a thermal scene (delivers gas at its ``temperature``)."""
+
+    jac_pattern = ((0, 1), (1, 0), (1, 1), (1, 2), (1, 3))
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        F = np.empty((P.n, 2))
+        F[:, 0] = V[:, 1] + P.values(t)
+        F[:, 1], dE = _source_energy(P, V, jac)
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1:] = np.column_stack(dE)
+        return F, J
+
+
+class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
+    """VolumeFlowSource in a thermal scene: the volume flow is measured at the
+    temperature of the gas it moves (the source's when delivering, the node's
+    when drawing)."""
+
+    jac_pattern = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (1, 3))
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        q = P.values(t)
+        p, T = V[:, 0], V[:, 2]
+        out = q >= 0
+        T_q = np.where(out, P.T_source, T)
+        fl = P.fluid_thermal
+        F = np.empty((P.n, 2))
+        F[:, 0] = V[:, 1] + fl.density(p, T_q) * q
+        F[:, 1], dE = _source_energy(P, V, jac)
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 7))
+        J[:, 0] = fl.density_dp(p, T_q) * q
+        J[:, 1] = 1.0
+        J[:, 2] = np.where(out, 0.0, fl.density_dT(p, T_q) * q)
+        J[:, 3:] = np.column_stack(dE)
+        return F, J
+
+
+# ---------------------------------------------------------------------------------------
+# volumes: V = [p, mf, T, E]; states (mass, internal_energy[, volume])
+# ---------------------------------------------------------------------------------------
+_VOLUME_PATTERN = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (1, 3))
+
+
+class _ThermalVolume:
+    """Shared parameters and the energy equation of thermal volumes."""
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.hA = np.array([c._hA for c in components], dtype=float)
+        P.T_wall = np.array([c._T_wall for c in components], dtype=float)
+        P.fixed = np.array([c._thermal == "isothermal" for c in components])
+        P.any_fixed = bool(P.fixed.any())
+        P.h0 = components[0]._h0
+        return P
+
+    @classmethod
+    def energy(cls, P, V, S, dt, vol, dvol, jac):
+        """Energy residual m_new u(p,T) - [U + dt (E + Q) - p (vol - vol_old)] and its
+        derivatives (p, mf, T, E); vol_old is S[:, 2] when the volume deforms
+        (dvol = (dvol/dp, dvol/dmf, dvol/dT)), else None."""
+        p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        fl = P.fluid
+        m_new = S[:, 0] + dt * mf
+        u = fl.internal_energy(p, T) - P.h0
+        Q = P.hA * (P.T_wall - T)
+        F = m_new * u - (S[:, 1] + dt * (E + Q))
+        if vol is not None:
+            F = F + p * (vol - S[:, 2])
+        if P.any_fixed:
+            F = np.where(P.fixed, T - P.T_wall, F)
+        if not jac:
+            return F, None
+        d_p = m_new * fl.internal_energy_dp(p, T)
+        d_mf = dt * u
+        d_T = m_new * fl.internal_energy_dT(p, T) + dt * P.hA
+        d_E = np.full(P.n, -dt)
+        if vol is not None:
+            d_p = d_p + (vol - S[:, 2]) + p * dvol[0]
+            d_mf = d_mf + p * dvol[1]
+            d_T = d_T + p * dvol[2]
+        if P.any_fixed:
+            z = np.zeros(P.n)
+            d_p, d_mf, d_E = (np.where(P.fixed, z, d) for d in (d_p, d_mf, d_E))
+            d_T = np.where(P.fixed, 1.0, d_T)
+        return F, (d_p, d_mf, d_T, d_E)
+
+    @classmethod
+    def energy_update(cls, P, V, S, dt, vol):
+        """(m_new, U_new) at the end of the step."""
+        p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        m_new = S[:, 0] + dt * mf
+        U_new = S[:, 1] + dt * (E + P.hA * (P.T_wall - T))
+        if vol is not None:
+            U_new = U_new - p * (vol - S[:, 2])
+        if P.any_fixed:
+            U_new = np.where(P.fixed, m_new * (P.fluid.internal_energy(p, T) - P.h0), U_new)
+        return m_new, U_new
+
+    @classmethod
+    def _initial_mass_energy(cls, comp, volume):
+        fl, p0, T0 = comp.fluid, comp.initial_pressure, comp._T_initial
+        m0 = float(fl.density(p0, T0)) * volume
+        return m0, m0 * (float(fl.internal_energy(p0, T0)) - comp._h0)
+
+
+class ThermalContainer(_ThermalVolume, Container):
+    """Container in a thermal scene (rigid: no work)."""
+
+    state_spec = (("mass", "mass"), ("internal_energy", "energy"))
+    jac_pattern = _VOLUME_PATTERN
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        return list(cls._initial_mass_energy(comp, comp.volume))
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        return np.column_stack(cls.energy_update(P, V, S, dt, None))
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, mf, T = V[:, 0], V[:, 1], V[:, 2]
+        fl = P.fluid
+        F = np.empty((P.n, 2))
+        F[:, 0] = fl.density(p, T) * P.volume - (S[:, 0] + dt * mf)
+        F[:, 1], dE = cls.energy(P, V, S, dt, None, None, jac)
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 7))
+        J[:, 0] = fl.density_dp(p, T) * P.volume
+        J[:, 1] = -dt
+        J[:, 2] = fl.density_dT(p, T) * P.volume
+        J[:, 3:] = np.column_stack(dE)
+        return F, J
+
+
+class ThermalLinearAccumulator(_ThermalVolume, LinearAccumulator):
+    """LinearAccumulator in a thermal scene: the gas does work p·dV on the wall."""
+
+    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))
+    jac_pattern = _VOLUME_PATTERN
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        vol = comp._fluid_volume(comp.initial_pressure)
+        return [*cls._initial_mass_energy(comp, vol), vol]
+
+    @classmethod
+    def _vol(cls, P, p):
+        return P.volume + P.compliance * (p - P.reference_pressure)
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        vol = cls._vol(P, V[:, 0])
+        return np.column_stack([*cls.energy_update(P, V, S, dt, vol), vol])
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, mf, T = V[:, 0], V[:, 1], V[:, 2]
+        fl = P.fluid
+        vol = cls._vol(P, p)
+        rho = fl.density(p, T)
+        z = np.zeros(P.n)
+        F = np.empty((P.n, 2))
+        F[:, 0] = rho * vol - (S[:, 0] + dt * mf)
+        F[:, 1], dE = cls.energy(P, V, S, dt, vol, (P.compliance, z, z), jac)
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 7))
+        J[:, 0] = fl.density_dp(p, T) * vol + rho * P.compliance
+        J[:, 1] = -dt
+        J[:, 2] = fl.density_dT(p, T) * vol
+        J[:, 3:] = np.column_stack(dE)
+        return F, J
+
+
+class ThermalActuator(_ThermalVolume, Actuator):
+    """Actuator in a thermal scene: V = m_new / rho(p, T), p = curve(V), work p·dV."""
+
+    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))
+    jac_pattern = _VOLUME_PATTERN
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        vol = comp.initial_volume
+        return [*cls._initial_mass_energy(comp, vol), vol]
+
+    @classmethod
+    def _vol(cls, P, V, S, dt):
+        p, mf, T = V[:, 0], V[:, 1], V[:, 2]
+        rho = P.fluid.density(p, T)
+        return (S[:, 0] + dt * mf) / rho, rho
+
+    @classmethod
+    def update(cls, P, V, S, dt):
+        vol, _ = cls._vol(P, V, S, dt)
+        return np.column_stack([*cls.energy_update(P, V, S, dt, vol), vol])
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        p, T = V[:, 0], V[:, 2]
+        fl = P.fluid
+        vol, rho = cls._vol(P, V, S, dt)
+        F = np.empty((P.n, 2))
+        if not jac:
+            F[:, 0] = p - P.curve.value(vol)
+            F[:, 1], _ = cls.energy(P, V, S, dt, vol, None, False)
+            return F, None
+        pc, dpc = P.curve.fdf(vol)
+        dvol = (-vol * fl.density_dp(p, T) / rho, dt / rho, -vol * fl.density_dT(p, T) / rho)
+        F[:, 0] = p - pc
+        F[:, 1], dE = cls.energy(P, V, S, dt, vol, dvol, True)
+        J = np.empty((P.n, 7))
+        J[:, 0] = 1.0 - dpc * dvol[0]
+        J[:, 1] = -dpc * dvol[1]
+        J[:, 2] = -dpc * dvol[2]
+        J[:, 3:] = np.column_stack(dE)
+        return F, J
+
+
+# ---------------------------------------------------------------------------------------
+_FLOW_ELEMENTS = {
+    Orifice: "sqrt_density",
+    CircularTube: "inverse_density",
+    TeslaValve: "inverse_density",
+    SnappingValve: "inverse_density",
+    InertialCircularTube: None,
+    CheckValve: None,
+}
+THERMAL_CLASSES = {cls: _two_port_variant(cls, ft) for cls, ft in _FLOW_ELEMENTS.items()}
+for _cls in THERMAL_CLASSES.values():
+    _cls.thermal_initial_states = classmethod(
+        lambda cls, comp: list(comp.initial_states()))
+THERMAL_CLASSES.update({
+    PressureSource: ThermalPressureSource, MassFlowSource: ThermalMassFlowSource,
+    VolumeFlowSource: ThermalVolumeFlowSource, Container: ThermalContainer,
+    LinearAccumulator: ThermalLinearAccumulator, Actuator: ThermalActuator,
+})
+#: Classes that store gas (take initial_temperature, wall heat transfer).
+VOLUME_CLASSES = (Container, LinearAccumulator, Actuator)
+SOURCE_CLASSES = (PressureSource, MassFlowSource, VolumeFlowSource)
+
+
+def thermal_class(cls):
+    """The thermal variant of a library class (KeyError naming it if there is none)."""
+    try:
+        return THERMAL_CLASSES[cls]
+    except KeyError:
+        raise KeyError(f"{cls.__name__} has no thermal model yet; thermal scenes support "
+                       f"{', '.join(sorted(c.__name__ for c in THERMAL_CLASSES))}") from None

@@ -1,0 +1,256 @@
+"""The thermal model of a scene: isothermal, adiabatic or with heat transfer.
+
+``Simulation(system, ..., thermal=...)`` calls :func:`configure_thermal` before
+compiling. In an isothermal scene (the default, the FONS paper's model) every
+library component keeps its plain pressure/mass-flow terminals and kernels: no
+temperature unknowns at all. In a thermal scene each fluid terminal gets a
+temperature (across) and an energy flow (through) variable and each component
+is evaluated by its thermal variant (:mod:`softflow.components.thermal`, where
+the equations are documented).
+
+Models
+------
+``'isothermal'``
+    Temperatures are the fluids' own; no energy equation.
+``'adiabatic'``
+    Volumes exchange no heat with their walls (hA = 0).
+``'heat_transfer'``
+    Volumes exchange Q = hA·(T_wall - T) with their walls; every volume needs
+    ``heat_transfer_coefficient`` and ``area`` (or ``hA``).
+
+A volume's own ``thermal=`` overrides the scene's model in a thermal scene:
+``'adiabatic'``, ``'heat_transfer'``, or ``'isothermal'`` (held at its wall
+temperature, the heat flow being whatever keeps it there).
+
+What is modelled: gases (ideal, table or eos level), enthalpy transport
+upwind, mixing at nodes, compression work in deformable volumes, wall heat
+transfer with a constant hA. Not modelled: liquids' energy equation (a thermal
+scene rejects liquids), kinetic energy of the flow, friction heating beyond
+what isenthalpic throttling implies, heat conduction along tubes, temperature
+dependence of viscosity.
+"""
+from __future__ import annotations
+
+import difflib
+
+import numpy as np
+
+from ..network.system import NetworkError
+from ..network.variable import Variable
+
+MODELS = ("isothermal", "adiabatic", "heat_transfer")
+#: Per-component overrides accepted in a thermal scene.
+COMPONENT_MODELS = MODELS
+
+
+def check_model(name, owner="Simulation", allowed=MODELS):
+    """The normalized model name; a ValueError suggesting close matches otherwise."""
+    if not isinstance(name, str):
+        raise ValueError(f"{owner}: thermal must be one of {allowed}, got {name!r}")
+    key = name.strip().lower().replace("-", "_").replace(" ", "_")
+    if key in allowed:
+        return key
+    close = difflib.get_close_matches(key, allowed, n=2, cutoff=0.5)
+    hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    raise ValueError(f"{owner}: unknown thermal model {name!r}{hint} "
+                     f"(known: {', '.join(allowed)})")
+
+
+def configure_thermal(system, model):
+    """Put every component of ``system`` into the scene's thermal model (see module doc).
+
+    Returns the normalized model name."""
+    from ..components.thermal import SOURCE_CLASSES, THERMAL_CLASSES, VOLUME_CLASSES
+    model = check_model(model)
+    comps = list(system.components)
+    if model == "isothermal":
+        for c in comps:
+            if not c.vectorized:
+                continue
+            override = getattr(c, "thermal", None)
+            if override not in (None, "isothermal"):
+                raise ValueError(
+                    f"{c.describe()}: thermal={override!r}, but the Simulation is isothermal "
+                    "(no temperature unknowns). Choose the model for the scene, e.g. "
+                    f"Simulation(..., thermal={override!r}); components may then override it")
+            if c._thermal is not None:
+                _leave(c)
+        return model
+
+    fluid_at = _node_fluids(system)
+    gases = [getattr(c, "fluid", None) for c in comps]
+    gases = [f for f in gases if f is not None and f.compressible]
+    # one energy reference per scene (see softflow.components.thermal)
+    from ..constants import pressure_atmospheric
+    h0 = float(gases[0].enthalpy(pressure_atmospheric, gases[0].temperature)) if gases else 0.0
+    for c in comps:
+        if not c.vectorized:
+            names = {v.quantity for t in c.terminals for v in t.variables}
+            if not {"temperature", "energyflow"} <= names:
+                raise NetworkError(
+                    f"{c.describe()}: a user component in a thermal scene must carry "
+                    "'temperature' (across) and 'energyflow' (through) at its terminals, or "
+                    "the energy its flow carries would be lost; run the scene isothermal")
+            continue
+        cls = type(c)
+        if cls not in THERMAL_CLASSES:
+            raise NetworkError(f"{c.describe()}: {cls.__name__} has no thermal model yet; "
+                               f"thermal scenes support "
+                               f"{', '.join(sorted(k.__name__ for k in THERMAL_CLASSES))}")
+        fluid = getattr(c, "fluid", None)
+        if fluid is None:
+            fluid = fluid_at.get(id(c))
+        if fluid is None:
+            raise NetworkError(f"{c.describe()}: no gas found at its terminal to give it "
+                               "thermal properties; connect it to a tube, orifice or volume")
+        _check_gas(c, fluid, model)
+        if isinstance(c, VOLUME_CLASSES):
+            _setup_volume(c, model)
+            T0 = c._T_initial
+        elif isinstance(c, SOURCE_CLASSES):
+            c._thermal_fluid = fluid
+            T_src = getattr(c, "temperature", None)
+            c._T_source = float(fluid.temperature) if T_src is None else T_src
+            _check_range(c, fluid, c._T_source, "temperature")
+            T0 = c._T_source
+            c._thermal = "source"
+        else:
+            T0 = float(fluid.temperature)
+            c._thermal = "flow"
+        c._h0 = h0
+        _enter(c, T0)
+    return model
+
+
+def _node_fluids(system):
+    """id(component) -> a fluid found among the components sharing a node with it."""
+    out = {}
+    for nd in system.nodes():
+        fluids = [getattr(t.component, "fluid", None) for t in nd.terminals]
+        fluids = [f for f in fluids if f is not None]
+        if fluids:
+            for t in nd.terminals:
+                out.setdefault(id(t.component), fluids[0])
+    return out
+
+
+def _check_gas(c, fluid, model):
+    if not fluid.compressible:
+        raise ValueError(
+            f"{c.describe()}: fluid {fluid.name!r} is a liquid, but the scene asks for "
+            f"thermal={model!r}, which models gases: enthalpy transport, mixing, compression "
+            "work and wall heat transfer of a compressible gas. The energy equation of "
+            "liquids is not modelled; run liquid scenes with thermal='isothermal'")
+
+
+def _check_range(c, fluid, T, name):
+    lo, hi = getattr(fluid, "T_range", (0.0, np.inf))
+    if not (T > 0 and lo <= T <= hi):
+        raise ValueError(f"{c.describe()}: {name} {T:g} K is outside the valid temperature "
+                         f"range of {fluid!r} ({lo:g} ... {hi:g} K)")
+
+
+def _setup_volume(c, model):
+    mode = c.thermal if getattr(c, "thermal", None) is not None else model
+    fluid = c.fluid
+    c._T_initial = float(fluid.temperature) if c.initial_temperature is None \
+        else c.initial_temperature
+    c._T_wall = float(fluid.temperature) if c.wall_temperature is None else c.wall_temperature
+    _check_range(c, fluid, c._T_initial, "initial_temperature")
+    _check_range(c, fluid, c._T_wall, "wall_temperature")
+    if mode == "heat_transfer":
+        if c.hA is None:
+            raise ValueError(
+                f"{c.describe()}: heat transfer needs a wall heat transfer coefficient and "
+                "area: give heat_transfer_coefficient [W/(m^2 K)] and area [m^2], or hA "
+                "[W/K]; or thermal='adiabatic' for this volume")
+        c._hA = c.hA
+    else:
+        c._hA = 0.0
+    c._thermal = mode
+
+
+def _enter(c, T0):
+    for t in c.terminals:
+        del t.variables[2:]   # idempotent: a second thermal compile replaces the extras
+        t.variables.append(Variable("temperature", "across", label="T", initial_value=T0))
+        t.variables.append(Variable("energyflow", "through", label="E", initial_value=0.0))
+    cls = c.kernel_class() if c._thermal is not None else None
+    c.states = [Variable(q, "local", label=lab) for lab, q in cls.state_spec]
+
+
+def _leave(c):
+    for t in c.terminals:
+        del t.variables[2:]
+    c._thermal = None
+    c.states = [Variable(q, "local", label=lab) for lab, q in type(c).state_spec]
+
+
+def thermal_volume_fields(comp, initial_temperature, wall_temperature,
+                          heat_transfer_coefficient, area, hA, thermal):
+    """Check and store a volume's thermal parameters (constructor helper)."""
+    comp.thermal = None if thermal is None else check_model(thermal, comp.describe(),
+                                                            COMPONENT_MODELS)
+    comp.initial_temperature = (None if initial_temperature is None else
+                                comp._si(initial_temperature, "K", "initial_temperature",
+                                         positive=True))
+    comp.wall_temperature = (None if wall_temperature is None else
+                             comp._si(wall_temperature, "K", "wall_temperature", positive=True))
+    if hA is not None and (heat_transfer_coefficient is not None or area is not None):
+        raise ValueError(f"{comp.describe()}: give hA [W/K], or heat_transfer_coefficient "
+                         "[W/(m^2 K)] with area [m^2], not both")
+    if hA is not None:
+        comp.hA = comp._si(hA, "W/K", "hA", nonnegative=True)
+    elif heat_transfer_coefficient is not None or area is not None:
+        if heat_transfer_coefficient is None or area is None:
+            missing = "area [m^2]" if area is None else "heat_transfer_coefficient [W/(m^2 K)]"
+            raise ValueError(f"{comp.describe()}: heat transfer needs both "
+                             f"heat_transfer_coefficient and area; {missing} is missing")
+        comp.hA = (comp._si(heat_transfer_coefficient, "W/(m**2*K)",
+                            "heat_transfer_coefficient", nonnegative=True)
+                   * comp._si(area, "m**2", "area", positive=True))
+    else:
+        comp.hA = None
+    if comp.thermal == "heat_transfer" and comp.hA is None:
+        raise ValueError(f"{comp.describe()}: thermal='heat_transfer' needs "
+                         "heat_transfer_coefficient [W/(m^2 K)] and area [m^2], or hA [W/K]")
+    T = comp.initial_temperature
+    if T is not None:
+        _check_range(comp, comp.fluid, T, "initial_temperature")
+
+
+def energy_balance(result, system):
+    """Energy audit of a thermal run [J], from the recorded results.
+
+    Returns a dict: ``stored`` (change of the volumes' internal energy),
+    ``inflow`` (energy delivered by all sources, backward-Euler sum of their
+    energy flows), ``wall_heat`` (heat from the walls), ``work`` (p·dV work
+    done by deformable volumes), ``error`` = stored - inflow - wall_heat + work
+    and ``relative_error`` (error over the largest of the terms and |U_0|)."""
+    from ..components.thermal import SOURCE_CLASSES, VOLUME_CLASSES
+    t = result.times
+    dt = np.diff(t)
+    stored = inflow = heat = work = 0.0
+    scale = 0.0
+    for c in system.components:
+        if isinstance(c, SOURCE_CLASSES):
+            inflow += -float(np.sum(dt * result.get(c.label, "energyflow")[1:]))
+        elif isinstance(c, VOLUME_CLASSES):
+            U = result.get(c.label, "internal_energy")
+            stored += U[-1] - U[0]
+            scale = max(scale, abs(U[0]), abs(U[-1]))
+            T = result.get(c.label, "temperature")
+            w = 0.0
+            if not isinstance(c, VOLUME_CLASSES[0]):     # deformable: p dV work
+                vol = result.get(c.label, "volume")
+                w = float(np.sum(result.get(c.label, "pressure")[1:] * np.diff(vol)))
+            work += w
+            if c._thermal == "isothermal":   # held at T_wall: the heat is what keeps it there
+                E = result.get(c.label, "energyflow")
+                heat += (U[-1] - U[0]) - float(np.sum(dt * E[1:])) + w
+            else:
+                heat += float(np.sum(dt * c._hA * (c._T_wall - T[1:])))
+    error = stored - inflow - heat + work
+    scale = max(scale, abs(inflow), abs(heat), abs(work), abs(stored), 1e-300)
+    return {"stored": stored, "inflow": inflow, "wall_heat": heat, "work": work,
+            "error": error, "relative_error": abs(error) / scale}

@@ -1,0 +1,169 @@
+"""Analytic Jacobians of every thermal kernel against central finite differences."""
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.components.thermal import THERMAL_CLASSES, UPWIND_BAND
+from softflow.components.tubes import InertialCircularTube
+from softflow.solve.thermal import configure_thermal
+
+P0 = sf.pressure_atmospheric
+RTOL = 1e-5
+ATOL_ROW = 1e-8
+REL_STEP = 1e-6
+AIR_EOS = sf.Fluid("air", level="eos")
+
+
+def _configure(comps, model="adiabatic"):
+    """Put the components into a thermal scene; a tube gives each source its gas."""
+    s = sf.System()
+    s.add(*comps)
+    for c in comps:
+        if isinstance(c, (sf.PressureSource, sf.MassFlowSource)):
+            tube = sf.CircularTube(f"tube_{c.label}", sf.air, length=0.1, diameter=1e-3)
+            s.add(tube)
+            s.connect(c, (tube.label, "a"))
+    configure_thermal(s, model)
+    return comps
+
+
+class Case:
+    def __init__(self, comps, V, S, scale, dt=1e-3, t=0.2):
+        self.comps = comps
+        self.cls = comps[0].kernel_class()
+        self.P = self.cls.make_params(comps)
+        self.V = np.asarray(V, dtype=float)
+        self.S = np.asarray(S, dtype=float).reshape(len(comps), len(self.cls.state_spec))
+        self.scale = np.asarray(scale, dtype=float)
+        self.dt, self.t = dt, t
+
+    def eval(self, V, jac):
+        return self.cls.kernel(self.P, V, self.S, self.t, self.dt, jac)
+
+
+def _flow_V(rng, n, mf, T_lo=250.0, T_hi=400.0):
+    pa, pb = rng.uniform(1.2e5, 3e5, n), rng.uniform(1.2e5, 3e5, n)
+    Ta, Tb = rng.uniform(T_lo, T_hi, n), rng.uniform(T_lo, T_hi, n)
+    Ea, Eb = rng.uniform(-50, 50, n), rng.uniform(-50, 50, n)
+    return np.column_stack([pa, mf, Ta, Ea, pb, -mf * 0.9, Tb, Eb])
+
+
+FLOW_MF = {
+    "forward": np.array([1e-4, 3e-5, 2e-4, 5e-6]),
+    "backward": -np.array([1e-4, 3e-5, 2e-4, 5e-6]),
+    "in_band": UPWIND_BAND * np.array([-0.7, -0.2, 0.3, 0.8]),
+}
+
+
+def _flow_elements(fluid):
+    return {
+        "Orifice-ISO": [sf.Orifice(f"o{i}", fluid, C=1e-8 * (1 + i), b=0.3) for i in range(4)],
+        "Orifice-K": [sf.Orifice(f"k{i}", fluid, diameter=1e-3 * (1 + i), Cd=0.6)
+                      for i in range(4)],
+        "CircularTube": [sf.CircularTube(f"t{i}", fluid, length=0.3, diameter=1e-3 * (1 + i))
+                         for i in range(4)],
+        "InertialCircularTube": [InertialCircularTube(f"it{i}", fluid, length=0.3,
+                                                      diameter=2e-3) for i in range(4)],
+        "CheckValve": [sf.CheckValve(f"c{i}", fluid, diameter=1e-3, cracking_pressure=1e3,
+                                     leakage=1e-10) for i in range(4)],
+        "TeslaValve": [sf.TeslaValve(f"tv{i}", fluid, length=0.05, diameter=1e-3)
+                       for i in range(4)],
+        "SnappingValve": [sf.SnappingValve(f"s{i}", fluid, opening_pressure=2e4,
+                                           closing_pressure=5e3, closed_conductance=1e-10)
+                          for i in range(4)],
+    }
+
+
+def _cases():
+    rng = np.random.default_rng(7)
+    cases = {}
+    for fluid in (sf.air, AIR_EOS):
+        for name, comps in _flow_elements(fluid).items():
+            if fluid is AIR_EOS and name not in ("Orifice-ISO", "CircularTube"):
+                continue
+            for regime, mf in FLOW_MF.items():
+                comps_r = _flow_elements(fluid)[name]
+                _configure(comps_r)
+                ns = len(comps_r[0].kernel_class().state_spec)
+                S = np.column_stack([[0.0, 1.0, 0.0, 1.0]] * ns) if name == "SnappingValve" \
+                    else rng.uniform(-1e-4, 1e-4, (4, ns))
+                cases[f"{name}-{fluid.level}-{regime}"] = Case(
+                    comps_r, _flow_V(rng, 4, mf), S,
+                    scale=[1e5, max(abs(mf).max(), 1e-9), 300, 10, 1e5, 1e-4, 300, 10])
+    # sources
+    n = 3
+    V = np.column_stack([rng.uniform(1e5, 3e5, n), [-1e-4, 2e-5, 3e-10], rng.uniform(250, 400, n),
+                         rng.uniform(-30, 30, n)])
+    scale = [1e5, 1e-9, 300, 10]   # small mf scale: steps inside the upwind band
+    cases["PressureSource"] = Case(_configure([sf.PressureSource(f"ps{i}", pressure=2e5,
+                                                                 temperature=300.0 + i)
+                                               for i in range(n)]), V, np.zeros((n, 0)), scale)
+    cases["MassFlowSource"] = Case(_configure([sf.MassFlowSource(f"ms{i}", massflow=1e-4,
+                                                                 temperature=280.0 + 20 * i)
+                                               for i in range(n)]), V, np.zeros((n, 0)), scale)
+    for sign in (1, -1):
+        srcs = [sf.VolumeFlowSource(f"vs{i}", volumeflow=sign * 1e-5 * (i + 1), fluid=sf.air,
+                                    temperature=320.0) for i in range(n)]
+        cases[f"VolumeFlowSource{'+' if sign > 0 else '-'}"] = Case(
+            _configure(srcs), V, np.zeros((n, 0)), scale)
+    # volumes
+    Vv = np.column_stack([rng.uniform(1e5, 4e5, n), rng.uniform(-1e-4, 1e-4, n),
+                          rng.uniform(250, 400, n), rng.uniform(-30, 30, n)])
+    for fluid in (sf.air, AIR_EOS):
+        for model, kw in (("adiabatic", {}), ("heat_transfer", {"hA": 0.3}),
+                          ("isothermal", {"wall_temperature": 310.0})):
+            tanks = [sf.Container(f"c{i}", fluid, volume=1e-3 * (i + 1), hA=kw.get("hA"),
+                                  wall_temperature=kw.get("wall_temperature"),
+                                  thermal=model, initial_pressure=2e5) for i in range(n)]
+            _configure(tanks)
+            S = np.column_stack([[2e-3, 5e-3, 7e-3], [500.0, 1500.0, 2000.0]])
+            cases[f"Container-{fluid.level}-{model}"] = Case(tanks, Vv, S,
+                                                              [1e5, 1e-4, 300, 10])
+    accs = [sf.LinearAccumulator(f"a{i}", sf.air, volume=1e-4, compliance=1e-10 * (i + 1),
+                                 hA=0.2) for i in range(n)]
+    _configure(accs, "heat_transfer")
+    S = np.column_stack([[1e-4, 2e-4, 3e-4], [30.0, 60.0, 90.0], [1e-4, 1.1e-4, 1.2e-4]])
+    cases["LinearAccumulator"] = Case(accs, Vv, S, [1e5, 1e-4, 300, 10])
+    curve = sf.PVCurve.monotonic((1e-5, P0), (3e-5, 1.5e5), (6e-5, 1.8e5))
+    acts = [sf.Actuator(f"act{i}", sf.air, curve) for i in range(n)]
+    _configure(acts)
+    Va = Vv.copy()
+    Va[:, 0] = [1.2e5, 1.6e5, 1.9e5]
+    S = np.column_stack([[3e-5, 5e-5, 8e-5], [10.0, 20.0, 30.0], [2e-5, 4e-5, 7e-5]])
+    cases["Actuator"] = Case(acts, Va, S, [1e5, 1e-5, 300, 10])
+    return cases
+
+
+CASES = _cases()
+
+
+def test_every_thermal_class_is_covered():
+    assert {c.cls for c in CASES.values()} == set(THERMAL_CLASSES.values())
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_thermal_jacobian_matches_finite_differences(name):
+    case = CASES[name]
+    F, Jv = case.eval(case.V.copy(), True)
+    n, nv = case.V.shape
+    neq = F.shape[1]
+    pattern = case.cls.jac_pattern
+    assert len(set(pattern)) == len(pattern)
+    J = np.zeros((n, neq, nv))
+    for col, (e, k) in enumerate(pattern):
+        J[:, e, k] = Jv[:, col]
+    D = np.zeros_like(J)
+    for i in range(n):
+        for k in range(nv):
+            h = REL_STEP * max(abs(case.V[i, k]), case.scale[k])
+            Vp, Vm = case.V.copy(), case.V.copy()
+            Vp[i, k] += h
+            Vm[i, k] -= h
+            D[i, :, k] = (case.eval(Vp, False)[0][i] - case.eval(Vm, False)[0][i]) / (2 * h)
+    scaled_J = J * case.scale[None, None, :]
+    scaled_D = D * case.scale[None, None, :]
+    row_max = np.maximum(np.abs(scaled_D).max(axis=2, keepdims=True), 1e-300)
+    err = np.abs(scaled_J - scaled_D) / (RTOL * np.abs(scaled_D) + ATOL_ROW * row_max + 1e-300)
+    worst = np.unravel_index(np.argmax(err), err.shape)
+    assert err.max() <= 1.0, (f"{name}: instance {worst[0]}, eq {worst[1]}, var {worst[2]}: "
+                              f"analytic {J[worst]:.6g}, FD {D[worst]:.6g}")

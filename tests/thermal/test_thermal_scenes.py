@@ -1,0 +1,214 @@
+"""Thermal scenes: closed-form cases, energy balance, results, bad input."""
+import math
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.curves.waveforms import Step
+from softflow.solve.thermal import energy_balance
+
+AIR = sf.air
+T0 = AIR.temperature
+GAMMA = AIR.gamma0
+R = AIR.R
+P_ATM = sf.pressure_atmospheric
+
+
+def _fill_scene(fluid=AIR, p_res=5e5, p0=1e3, C=1e-8, b=0.3, **tank):
+    s = sf.System()
+    s += sf.PressureSource("res", pressure=p_res)
+    s += sf.Orifice("valve", fluid, C=C, b=b)
+    s += sf.Container("tank", fluid, volume=1e-3, initial_pressure=p0, **tank)
+    s.connect("res", "valve")
+    s.connect("valve", "tank")
+    return s
+
+
+def test_evacuated_tank_fills_to_gamma_T0():
+    s = _fill_scene()
+    res = sf.Simulation(s, duration=5.0, thermal="adiabatic", rtol=1e-4).run()
+    T = res.get("tank", "temperature")
+    p = res.get("tank", "pressure")
+    assert abs(p[-1] - 5e5) < 1.0
+    assert abs(T[-1] / (GAMMA * T0) - 1) < 5e-3
+    # exact energy balance with the initial gas: m_f cv T_f = m0 cv T0 + (m_f - m0) cp T0
+    m0, mf = res.get("tank", "mass")[[0, -1]]
+    T_exact = (m0 * T0 + (mf - m0) * GAMMA * T0) / mf
+    assert abs(T[-1] / T_exact - 1) < 1e-5
+    assert energy_balance(res, s)["relative_error"] < 1e-8
+
+
+def test_isothermal_scene_has_no_temperature_unknowns_and_switches_back():
+    s = _fill_scene()
+    sim_a = sf.Simulation(s, duration=0.1, thermal="adiabatic")
+    sim_i = sf.Simulation(s, duration=0.1)
+    assert "temperature" not in sim_i.asm.x_quantity
+    assert "temperature" in sim_a.asm.x_quantity
+    res_i = sim_i.run()
+    res_a = sim_a.run()          # compiled before the isothermal one: still thermal
+    assert res_a.get("tank", "temperature").max() > T0 + 10
+    with pytest.raises(KeyError):
+        res_i.get("tank", "temperature")
+
+
+def test_temperature_results_as_quantities_and_nodes():
+    s = _fill_scene()
+    res = sf.Simulation(s, duration=1.0, thermal="adiabatic").run()
+    q = res.get("tank", "temperature", as_quantity=True)
+    assert str(q.units) == "kelvin"
+    # the node between valve and tank has the tank's temperature
+    np.testing.assert_allclose(res.get("valve", "temperature", "b"), res.get("tank", "temperature"))
+    assert res.get("tank", "internal_energy", as_quantity=True).units == sf.ureg.J
+
+
+def test_relaxation_to_wall_temperature():
+    hA = 0.05
+    s = sf.System()
+    s += sf.MassFlowSource("pump", massflow=Step(0.2, 5e-3, 0.0))
+    s += sf.Container("tank", AIR, volume=1e-3, hA=hA)
+    s.connect("pump", "tank")
+    res = sf.Simulation(s, duration=20.0, thermal="heat_transfer", rtol=1e-5,
+                        step_max=0.05).run()
+    t, T, m = res.times, res.get("tank", "temperature"), res.get("tank", "mass")
+    sel = t > 1.0
+    slope = np.polyfit(t[sel], np.log(T[sel] - T0), 1)[0]
+    tau = m[-1] * AIR.cv0 / hA
+    assert abs(-1 / slope / tau - 1) < 1e-2
+    assert T.max() > T0 + 40
+    assert energy_balance(res, s)["relative_error"] < 1e-8
+
+
+def test_choked_fill_time_adiabatic_is_isothermal_over_gamma():
+    def fill_time(model):
+        s = _fill_scene(p_res=6e5, p0=1e5, b=0.5)
+        res = sf.Simulation(s, duration=3.0, thermal=model).run()
+        return np.interp(3e5, res.get("tank", "pressure"), res.times)
+    mdot = 1e-8 * 1.185 * 6e5 * math.sqrt(293.15 / T0)
+    t_iso = 2e5 * 1e-3 / (R * T0 * mdot)
+    assert fill_time("isothermal") == pytest.approx(t_iso, rel=1e-3)
+    assert fill_time("adiabatic") == pytest.approx(t_iso / GAMMA, rel=1e-3)
+
+
+def test_junction_mixes_mass_weighted_enthalpy():
+    s = sf.System()
+    s += sf.PressureSource("hot", pressure=3e5, temperature=400.0)
+    s += sf.PressureSource("cold", pressure=2.5e5, temperature=280.0)
+    s += sf.PressureSource("sink", pressure=1e5)
+    s += sf.Orifice("o1", AIR, C=1e-8, b=0.3)
+    s += sf.Orifice("o2", AIR, C=2e-8, b=0.3)
+    s += sf.Orifice("o3", AIR, C=3e-8, b=0.3)
+    s.connect("hot", ("o1", "a"))
+    s.connect("cold", ("o2", "a"))
+    s.connect(("o1", "b"), ("o2", "b"), ("o3", "a"))
+    s.connect(("o3", "b"), "sink")
+    res = sf.Simulation(s, duration=0.01, thermal="adiabatic").run()
+    m1, m2 = res.get("o1", "massflow", "a")[-1], res.get("o2", "massflow", "a")[-1]
+    Tj = res.get("o3", "temperature", "a")[-1]
+    assert Tj == pytest.approx((m1 * 400 + m2 * 280) / (m1 + m2), rel=1e-7)
+    # energy leaving through o3 is what the two streams bring
+    E3 = res.get("o3", "energyflow", "a")[-1]
+    # (up to the zero-flow conductance: 1e-6 W/K x 30 K against 220 W)
+    # energies count from the scene's reference enthalpy h0 = h(1 atm, T_fluid)
+    h0 = AIR.enthalpy(P_ATM, T0)
+    assert E3 == pytest.approx(m1 * (AIR.enthalpy(3e5, 400.0) - h0)
+                               + m2 * (AIR.enthalpy(2.5e5, 280.0) - h0), rel=1e-6)
+
+
+def test_energy_balance_with_work_and_heat():
+    curve = sf.PVCurve.monotonic((1e-5, P_ATM), (3e-5, 1.5e5), (6e-5, 1.8e5))
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=Step(0.1, 2e5, 1.2e5), temperature=330.0)
+    s += sf.Orifice("valve", AIR, C=3e-9, b=0.4)
+    s += sf.Container("tank", AIR, volume=2e-4, hA=0.02)
+    s += sf.CircularTube("tube", AIR, length=0.3, diameter=1.5e-3)
+    s += sf.Actuator("act", AIR, curve, thermal="adiabatic")
+    s += sf.CircularTube("tube2", AIR, length=0.1, diameter=1e-3)
+    s += sf.LinearAccumulator("acc", AIR, volume=2e-5, compliance=1e-10, hA=0.01)
+    s.connect("src", ("valve", "a"))
+    s.connect(("valve", "b"), "tank", ("tube", "a"), ("tube2", "a"))
+    s.connect(("tube", "b"), "act")
+    s.connect(("tube2", "b"), "acc")
+    res = sf.Simulation(s, duration=1.0, thermal="heat_transfer").run()
+    bal = energy_balance(res, s)
+    assert bal["relative_error"] < 1e-8
+    assert abs(bal["work"]) > 1e-3 and abs(bal["wall_heat"]) > 1e-3
+
+
+def test_adiabatic_blowdown_matches_closed_form():
+    V, p0, C, b = 1e-3, 10e5, 1e-8, 0.3
+    s = sf.System()
+    s += sf.Container("tank", AIR, volume=V, initial_pressure=p0)
+    s += sf.Orifice("valve", AIR, C=C, b=b)
+    s += sf.PressureSource("atm", pressure=P_ATM)
+    s.connect("tank", "valve")
+    s.connect("valve", "atm")
+    res = sf.Simulation(s, duration=8.0, rtol=1e-5, thermal="adiabatic").run()
+    t, p = res.times, res.get("tank", "pressure")
+    tau = V / (R * T0 * C * 1.185 * math.sqrt(293.15 / T0))
+    exact = p0 * (1 + (GAMMA - 1) / 2 * t / tau) ** (-2 * GAMMA / (GAMMA - 1))
+    choked = p > P_ATM / b * 1.01
+    assert np.max(np.abs(p[choked] / exact[choked] - 1)) < 5e-3
+
+
+# ---------------------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------------------
+def test_unknown_model_suggests_close_match():
+    with pytest.raises(ValueError, match="did you mean 'adiabatic'"):
+        sf.Simulation(_fill_scene(), duration=1.0, thermal="adiabatc")
+    with pytest.raises(ValueError, match="did you mean 'heat_transfer'"):
+        sf.Container("c", AIR, volume=1e-3, thermal="heat transfr", hA=1.0)
+
+
+def test_heat_transfer_without_coefficient_or_area():
+    with pytest.raises(ValueError, match="Container 'tank'.*heat transfer needs"):
+        sf.Simulation(_fill_scene(), duration=1.0, thermal="heat_transfer")
+    with pytest.raises(ValueError, match="area"):
+        sf.Container("c", AIR, volume=1e-3, heat_transfer_coefficient=10.0)
+    with pytest.raises(ValueError, match="thermal='heat_transfer' needs"):
+        sf.Container("c", AIR, volume=1e-3, thermal="heat_transfer")
+
+
+def test_initial_temperature_outside_fluid_range():
+    eos = sf.Fluid("air", level="eos")
+    with pytest.raises(ValueError, match="initial_temperature 20 K is outside"):
+        sf.Container("c", eos, volume=1e-3, initial_temperature=20.0)
+    with pytest.raises(ValueError, match="initial_temperature"):
+        sf.Container("c", AIR, volume=1e-3, initial_temperature=-5.0)
+
+
+def test_liquid_in_adiabatic_scene_is_rejected():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=2e5)
+    s += sf.CircularTube("tube", sf.water, length=0.1, diameter=1e-3)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-5, compliance=1e-11)
+    s.connect("src", "tube")
+    s.connect("tube", "acc")
+    with pytest.raises(ValueError, match="liquid.*models gases.*not modelled"):
+        sf.Simulation(s, duration=1.0, thermal="adiabatic")
+
+
+def test_component_override_in_isothermal_scene_is_rejected():
+    s = _fill_scene(thermal="adiabatic")
+    with pytest.raises(ValueError, match="the Simulation is isothermal"):
+        sf.Simulation(s, duration=1.0)
+
+
+def test_unsupported_component_in_thermal_scene():
+    from softflow.curves.hysteresis import HysteresisLoop  # noqa: F401
+    s = sf.System()
+
+    class Dummy(sf.Component):
+        def __init__(self, label):
+            super().__init__(label)
+            self.set_terminals(sf.Terminal("a", [sf.Variable("pressure", "across"),
+                                                 sf.Variable("massflow", "through")]))
+            self.evaluate = self.auto(lambda massflow: massflow)
+    s += Dummy("user")
+    s += sf.Orifice("valve", AIR, C=1e-8, b=0.3)
+    s += sf.PressureSource("src", pressure=2e5)
+    s.connect("user", "valve")
+    s.connect("valve", "src")
+    with pytest.raises(sf.NetworkError, match="user component in a thermal scene"):
+        sf.Simulation(s, duration=1.0, thermal="adiabatic")
