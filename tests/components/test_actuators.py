@@ -433,3 +433,23 @@ def test_hysteretic_branches_that_do_not_meet():
         HystereticActuator("h", sf.water, inf, lambda v: P0)
     with pytest.raises(ValueError, match="initial_branch must be 'inflation' or 'deflation'"):
         HystereticActuator("h", sf.water, inf, dfl, initial_branch="up")
+
+
+def test_every_volume_reports_its_volume():
+    """Container, LinearAccumulator and Actuator all expose 'volume' [m^3] as a result."""
+    P0 = sf.pressure_atmospheric
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 2e4)
+    s += sf.CircularTube("t1", sf.air, length=0.1, diameter=1e-3)
+    s += sf.Container("tank", sf.air, volume=sf.Q_(10, "mL"))
+    s += sf.CircularTube("t2", sf.air, length=0.1, diameter=1e-3)
+    s += sf.LinearAccumulator("acc", sf.air, volume=1e-5, compliance=1e-10)
+    s.connect("t1", "src")
+    s.connect("t1", "tank")
+    s.connect(("tank", "a"), ("t2", "a"))
+    s.connect("t2", "acc")
+    res = sf.Simulation(s, duration=0.05).run()
+    np.testing.assert_allclose(res.get("tank", "volume"), 1e-5)
+    v_acc = res.get("acc", "volume")
+    np.testing.assert_allclose(v_acc, 1e-5 + 1e-10 * (res.get("acc", "pressure") - P0), rtol=1e-6)
+    assert res.get("tank", "volume", as_quantity=True)[0].to("mL").magnitude == pytest.approx(10)

@@ -58,6 +58,10 @@ class Container(LibraryComponent):
     def initial_states(self):
         return [float(self.fluid.density(self.initial_pressure)) * self.volume]
 
+    def outputs(self):
+        vol = self.volume
+        return {"volume": ("volume", lambda get: np.full(np.shape(get("mass")), vol))}
+
     @classmethod
     def update(cls, P, V, S, dt):
         if not P.fluid.compressible:
