@@ -12,6 +12,19 @@ from .base import FLUID_PORT, LibraryComponent
 _COMPRESSIBLE_MODES = ("mean_density", "isothermal")
 
 
+def set_tube_geometry(comp, fluid, length, diameter, roughness, Re_laminar, Re_turbulent):
+    """Checked SI tube parameters on ``comp`` (shared by tubes and tube-like valves)."""
+    comp.fluid = comp._check_fluid(fluid)
+    comp.length = comp._si(length, "m", "length", positive=True)
+    comp.diameter = comp._si(diameter, "m", "diameter", positive=True)
+    comp.roughness = comp._si(roughness, "m", "roughness", nonnegative=True)
+    comp.Re_laminar = comp._si(Re_laminar, "", "Re_laminar", positive=True)
+    comp.Re_turbulent = comp._si(Re_turbulent, "", "Re_turbulent", positive=True)
+    if comp.Re_turbulent <= comp.Re_laminar:
+        raise ValueError(f"{comp.describe()}: Re_turbulent ({comp.Re_turbulent}) must exceed "
+                         f"Re_laminar ({comp.Re_laminar})")
+
+
 class CircularTube(LibraryComponent):
     """Straight circular tube between terminals ``a`` and ``b``.
 
@@ -78,15 +91,7 @@ class CircularTube(LibraryComponent):
                  Re_laminar=2300.0, Re_turbulent=4000.0, *, friction="Haaland",
                  compressible="mean_density", inertance=False):
         super().__init__(label, fluid=None)
-        self.fluid = self._check_fluid(fluid)
-        self.length = self._si(length, "m", "length", positive=True)
-        self.diameter = self._si(diameter, "m", "diameter", positive=True)
-        self.roughness = self._si(roughness, "m", "roughness", nonnegative=True)
-        self.Re_laminar = self._si(Re_laminar, "", "Re_laminar", positive=True)
-        self.Re_turbulent = self._si(Re_turbulent, "", "Re_turbulent", positive=True)
-        if self.Re_turbulent <= self.Re_laminar:
-            raise ValueError(f"{self.describe()}: Re_turbulent ({self.Re_turbulent}) must exceed "
-                             f"Re_laminar ({self.Re_laminar})")
+        set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         try:
             self.friction = resolve_friction(friction)
         except KeyError as err:

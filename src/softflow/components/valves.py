@@ -14,6 +14,7 @@ from ..correlations.friction import fRe_blended, smoothstep
 from ..correlations.orifice import (dp_at_reynolds, loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient)
 from .base import FLUID_PORT, LibraryComponent
+from .tubes import set_tube_geometry
 
 TWO_PORTS = (("a", FLUID_PORT), ("b", FLUID_PORT))
 # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: flow law
@@ -52,15 +53,7 @@ class _TubeLike(LibraryComponent):
     """Shared checks of the tube-geometry parameters (length, diameter, roughness, blend)."""
 
     def _init_tube(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent):
-        self.fluid = self._check_fluid(fluid)
-        self.length = self._si(length, "m", "length", positive=True)
-        self.diameter = self._si(diameter, "m", "diameter", positive=True)
-        self.roughness = self._si(roughness, "m", "roughness", nonnegative=True)
-        self.Re_laminar = self._si(Re_laminar, "", "Re_laminar", positive=True)
-        self.Re_turbulent = self._si(Re_turbulent, "", "Re_turbulent", positive=True)
-        if self.Re_turbulent <= self.Re_laminar:
-            raise ValueError(f"{self.describe()}: Re_turbulent ({self.Re_turbulent}) must exceed "
-                             f"Re_laminar ({self.Re_laminar})")
+        set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
 
     def group_key(self):
         return (type(self), id(self.fluid), self.Re_laminar, self.Re_turbulent)

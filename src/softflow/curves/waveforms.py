@@ -235,7 +235,20 @@ def _checked_table(times, values, owner):
     return t, v, unit
 
 
-class PiecewiseLinear(Waveform):
+class _Tabulated(Waveform):
+    """A waveform given by a table of strictly increasing times and values."""
+
+    def __init__(self, times, values):
+        self.times, self.values, self.unit = _checked_table(times, values, type(self).__name__)
+        self._t = self.times.tolist()
+        self._v = self.values.tolist()
+        self._breaks = self._table_breaks()
+
+    def _table_breaks(self):
+        return tuple(self._t)
+
+
+class PiecewiseLinear(_Tabulated):
     """Linear interpolation through (times[i], values[i]); held constant
     before the first and after the last point.
 
@@ -244,12 +257,6 @@ class PiecewiseLinear(Waveform):
     times : array [s], strictly increasing
     values : array [SI of the source] or Quantity array
     """
-
-    def __init__(self, times, values):
-        self.times, self.values, self.unit = _checked_table(times, values, type(self).__name__)
-        self._t = self.times.tolist()
-        self._v = self.values.tolist()
-        self._breaks = tuple(self._t)
 
     def _scalar(self, t):
         ts, vs = self._t, self._v
@@ -265,7 +272,7 @@ class PiecewiseLinear(Waveform):
         return np.interp(t, self.times, self.values)
 
 
-class PiecewiseConstant(Waveform):
+class PiecewiseConstant(_Tabulated):
     """values[i] from times[i] until times[i+1]; values[0] before times[0],
     values[-1] after the last time (right-continuous steps).
 
@@ -279,11 +286,8 @@ class PiecewiseConstant(Waveform):
     values : array [SI of the source] or Quantity array
     """
 
-    def __init__(self, times, values):
-        self.times, self.values, self.unit = _checked_table(times, values, type(self).__name__)
-        self._t = self.times.tolist()
-        self._v = self.values.tolist()
-        self._breaks = tuple(self._t[1:])   # values[0] holds before times[0]: no jump there
+    def _table_breaks(self):
+        return tuple(self._t[1:])   # values[0] holds before times[0]: no jump there
 
     def _scalar(self, t):
         return self._v[max(bisect.bisect_right(self._t, t) - 1, 0)]
