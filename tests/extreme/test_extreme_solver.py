@@ -211,6 +211,7 @@ def test_a_state_beyond_the_fluid_table_stops_with_the_range_in_the_message():
     res = sf.Simulation(s, duration=5.0).run(raise_on_failure=False)
     assert res.status == "failed"
     assert "outside the table range" in res.message and "pressure" in res.message
+    assert "CircularTube 'hose'" in res.message or "Container 'bottle'" in res.message
     assert 2.0 < res.times[-1] < 3.0            # the supply passes 20 MPa at t = 2.5 s
     assert_finite(res)
     assert res.get("bottle", "pressure").max() <= 20e6
@@ -364,3 +365,12 @@ def test_air_bottle_at_30_MPa_with_the_eos():
     assert_finite(res)
     assert res.get("bottle", "pressure")[-1] == pytest.approx(30e6, rel=1e-5)
     assert res.get("bottle", "mass")[-1] == pytest.approx(float(air.density(30e6)) * 1e-3, rel=1e-5)
+
+
+def test_an_initial_state_outside_the_fluid_table_names_the_component():
+    air = sf.air.with_level("table")
+    with pytest.raises(sf.FluidError, match=r"Container 'tank': initial_pressure = 1000 Pa"):
+        sf.Container("tank", air, volume=1e-4, initial_pressure=1e3)
+    curve = sf.PVCurve(volume=[1e-6, 2e-6], pressure=[30e6, 31e6])
+    with pytest.raises(sf.FluidError, match=r"Actuator 'act'"):
+        sf.Actuator("act", air, curve)

@@ -227,3 +227,12 @@ def test_build_refuses_a_range_across_a_phase_boundary(tmp_path, capsys):
             "--temperature-step", "10"]
     assert tables_cli(args) == 2
     assert "crosses into the liquid phase" in capsys.readouterr().err
+
+
+def test_table_from_another_coolprop_patch_release_is_used_with_a_warning(table_copy):
+    import CoolProp
+    major, minor = CoolProp.__version__.split(".")[:2]
+    _edit_meta(table_copy, coolprop_version=f"{major}.{minor}.999")
+    with pytest.warns(UserWarning, match=rf"built with CoolProp {major}\.{minor}\.999"):
+        water = sf.Fluid("water", level="table", tables_dir=table_copy)
+    assert water.density(2e5) > 990

@@ -212,3 +212,32 @@ def test_unsupported_component_in_thermal_scene():
     s.connect("valve", "src")
     with pytest.raises(sf.NetworkError, match="user component in a thermal scene"):
         sf.Simulation(s, duration=1.0, thermal="adiabatic")
+
+
+def _hot_fill(**tank_kw):
+    s = sf.System()
+    s += sf.PressureSource("supply", pressure=5e5)
+    s += sf.Orifice("valve", sf.air, C=1e-9, b=0.3)
+    s += sf.Container("tank", sf.air, volume=1e-3, initial_pressure=1e5, **tank_kw)
+    s.connect("supply", "valve")
+    s.connect("valve", "tank")
+    return s
+
+
+def test_a_volume_given_its_wall_heat_transfer_uses_it_in_an_adiabatic_scene():
+    adiabatic = sf.Simulation(_hot_fill(), duration=20.0, thermal="adiabatic").run()
+    cooled = sf.Simulation(_hot_fill(hA=5.0), duration=20.0, thermal="adiabatic").run()
+    T_wall = sf.air.temperature
+    assert adiabatic.get("tank", "temperature")[-1] > T_wall + 30
+    assert cooled.get("tank", "temperature")[-1] == pytest.approx(T_wall, abs=0.5)
+    with pytest.raises(ValueError, match="contradicts"):
+        sf.Simulation(_hot_fill(hA=5.0, thermal="adiabatic"), duration=1.0, thermal="adiabatic")
+
+
+def test_moving_an_ideal_gas_to_another_temperature_keeps_its_enthalpy_function():
+    g = sf.IdealGas("mygas", molar_mass=0.029, viscosity=1.8e-5)
+    h = g.at(sf.Q_(126.85, "degC"))
+    assert h.temperature == pytest.approx(400.0)
+    for T in (250.0, 400.0):
+        assert h.enthalpy(2e5, T) == pytest.approx(g.enthalpy(2e5, T), rel=1e-12)
+        assert h.internal_energy(2e5, T) == pytest.approx(g.internal_energy(2e5, T), rel=1e-12)

@@ -199,6 +199,7 @@ def _set_initial_state(comp, v0, p0):
     comp.initial_volume = v0
     comp.initial_pressure = p0
     comp.terminals[0].variables[0].initial_value = p0
+    comp._check_fluid_state(p0, "the initial pressure (from the PV curve)")
 
 
 def _volume(P, V, S, dt):

@@ -87,6 +87,14 @@ class LibraryComponent(Component):
             raise ValueError(f"{self.describe()}: {name} must be >= 0 [{unit}], got {v}")
         return v
 
+    def _check_fluid_state(self, pressure, name):
+        """A fluid-range error for an initial state, naming this component and parameter."""
+        from ..fluids.base import FluidError
+        try:
+            self.fluid.density(pressure)
+        except FluidError as err:
+            raise FluidError(f"{self.describe()}: {name} = {pressure:.6g} Pa: {err}") from None
+
     def _check_fluid(self, fluid):
         from ..fluids.base import Fluid
         if not isinstance(fluid, Fluid):

@@ -68,6 +68,12 @@ def valid_range(spec: FluidSpec, liquid: bool):
     return (T_lo, T_hi), state.pmax()
 
 
+def _distinct(value, *bounds):
+    """value formatted short, or with more digits where short would equal a bound."""
+    short = f"{value:g}"
+    return f"{value:.12g}" if short in (f"{b:g}" for b in bounds) else short
+
+
 def check_state_range(owner, p, T, T_range, p_range, what):
     """Raise a FluidError naming the first bad quantity, its value and the valid range."""
     p_lo, p_hi = p_range
@@ -88,7 +94,7 @@ def check_state_range(owner, p, T, T_range, p_range, what):
         # a hair of slack: unit conversions round (-40 degC is 233.14999999999998 K)
         if vmin < lo - 1e-9 * abs(lo) or vmax > hi + 1e-9 * abs(hi):
             bad = vmin if vmin < lo else vmax
-            raise FluidError(f"{owner}: {name} {bad:g} {unit} is outside the {what} range "
+            raise FluidError(f"{owner}: {name} {_distinct(bad, lo, hi)} {unit} is outside the {what} range "
                              f"{lo:g} ... {hi:g} {unit}")
         if not (np.isfinite(vmin) and np.isfinite(vmax)):
             raise FluidError(f"{owner}: {name} is not finite")

@@ -135,9 +135,10 @@ class IdealGas(Fluid):
     def at(self, temperature=None, *, fraction=None):
         if self.spec is not None:
             return super().at(temperature, fraction=fraction)
-        T = self.temperature if temperature is None else temperature
+        T = self.temperature if temperature is None else _kelvin(temperature, self)
+        # same h(T) function: the reference moves with the temperature it belongs to
         return IdealGas(self.name, self.molar_mass, self.mu, T, cp=self.cp0,
-                        enthalpy_reference=self.h_ref)
+                        enthalpy_reference=float(self.enthalpy(pressure_atmospheric, T)))
 
 
 class ConstantLiquid(Fluid):
@@ -239,9 +240,13 @@ class ConstantLiquid(Fluid):
     def at(self, temperature=None, *, fraction=None):
         if self.spec is not None:
             return super().at(temperature, fraction=fraction)
-        T = self.temperature if temperature is None else temperature
-        return ConstantLiquid(self.name, self.rho0, self.mu, T, cp=self.c,
-                              enthalpy_reference=self.h_ref)
+        T = self.temperature if temperature is None else _kelvin(temperature, self)
+        h_ref = self.h_ref if self.c is None else float(self.enthalpy(pressure_atmospheric, T))
+        return ConstantLiquid(self.name, self.rho0, self.mu, T, cp=self.c, enthalpy_reference=h_ref)
+
+
+def _kelvin(temperature, fluid):
+    return to_si(temperature, "K", name="temperature", owner=repr(fluid))
 
 
 def ideal_from_coolprop(spec, temperature: float) -> Fluid:

@@ -15,6 +15,7 @@ from scipy.sparse import csc_matrix
 from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 from scipy.sparse.linalg import splu
 
+from ..fluids.base import FluidError
 from ..network.system import NetworkError
 from .userkernel import UserKernel
 
@@ -55,6 +56,12 @@ class Group:
         self.has_states = has_states
         self.col = None  # (n, nv) global unknown index of each interface variable
         self.r0 = self.r1 = self.s0 = self.s1 = self.j0 = self.j1 = 0
+
+
+def _group_name(g):
+    labels = [c.label for c in g.comps]
+    shown = ", ".join(repr(lab) for lab in labels[:4]) + (", ..." if len(labels) > 4 else "")
+    return f"{type(g.comps[0]).__name__} {shown}"
 
 
 def _library_group(cls, comps):
@@ -98,6 +105,8 @@ class Assembly:
                 across[(nd.index, q)] = len(names)
                 names.append(f"{nd.name} {q}")
                 quantities.append(q)
+        #: node across unknowns (pressures, temperatures) are x[:n_across]
+        self.n_across = len(names)
         node_rows = {}
         row_names = []
         for nd in nodes:
@@ -316,7 +325,10 @@ class Assembly:
         for g in self.groups:
             V = x[g.col]
             Sg = S[g.s0:g.s1].reshape(g.n, g.ns)
-            Fg, Jg = g.kernel(V, Sg, t, dt, jac)
+            try:
+                Fg, Jg = g.kernel(V, Sg, t, dt, jac)
+            except FluidError as err:     # say which components asked for the bad state
+                raise FluidError(f"in {_group_name(g)}: {err}") from None
             F[g.r0:g.r1] = Fg.reshape(-1)
             if jac and g.j1 > g.j0:
                 raw[g.j0:g.j1] = Jg.reshape(-1)

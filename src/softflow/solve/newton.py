@@ -77,15 +77,16 @@ class Newton:
         self._q_order = np.argsort(qid, kind="stable")
         self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
         self._qid = qid
-        # absolute pressures must stay positive: a solution with p <= 0 is rejected
-        self._p_idx = np.array([i for i, q in enumerate(asm.x_quantity) if q == "pressure"],
-                               dtype=np.int64)
+        # absolute node pressures must stay positive: a solution with p <= 0 is
+        # rejected (user locals of quantity 'pressure', e.g. a difference, are not)
+        nodal = list(enumerate(asm.x_quantity))[:asm.n_across]
+        self._p_idx = np.array([i for i, q in nodal if q == "pressure"], dtype=np.int64)
         # thermal scenes: a node through which (almost) nothing flows has a weakly
         # determined temperature, and a Newton update from a zero-flow start can move
-        # it by orders of magnitude; each temperature update is clipped to
-        # [-50 %, +100 %] of its value, the other unknowns are left as they are
-        self._T_idx = np.array([i for i, q in enumerate(asm.x_quantity) if q == "temperature"],
-                               dtype=np.int64)
+        # it by orders of magnitude; each node temperature update is clipped to
+        # [-50 %, +100 %] of its value, the other unknowns are left as they are.
+        # Convergence is judged on the unclipped update.
+        self._T_idx = np.array([i for i, q in nodal if q == "temperature"], dtype=np.int64)
         self.tol = self.atol.copy()
         if max_reuse_iter is None:
             max_reuse_iter = 6 if lin.kind == "sparse" else 4
@@ -113,6 +114,11 @@ class Newton:
             # trial point, like a non-finite residual: damp or cut the step
             self.fluid_error = err
             return np.full(self.asm.n, np.nan)
+
+    def _nonfinite_row(self, F):
+        """The first non-finite equation; none after a fluid-range error, which
+        makes the whole residual NaN and is named in the message instead."""
+        return None if self.fluid_error is not None else int(np.argmax(~np.isfinite(F)))
 
     def _not_finite(self, reason):
         err = getattr(self, "fluid_error", None)
@@ -150,6 +156,7 @@ class Newton:
         stages = (["reuse"] if self._reusable(dt) else []) + ["fresh", "full"]
         last = None
         for stage in stages:
+            self.fluid_error = None       # each stage reports its own fluid-range error
             out = self._chord(x0, S, t, dt, stage) if stage != "full" else self._full(x0, S, t, dt)
             if out.converged and self._p_idx.size:
                 p = out.x[self._p_idx]
@@ -179,7 +186,7 @@ class Newton:
         F = self._eval(x, S, t, dt, jac=fresh)
         if not np.isfinite(F).all():
             return Outcome(False, x, 0, self._not_finite("residual not finite at the predictor"),
-                           int(np.argmax(~np.isfinite(F))))
+                           self._nonfinite_row(F))
         if fresh:
             try:
                 self._factor(dt)
@@ -190,10 +197,10 @@ class Newton:
         prev = None
         for k in range(limit):
             dx = -self.lin.solve(F)
-            if self._T_idx.size:
-                self._clip_temperature(x, dx)
             self.stats.newton_iterations += 1
             nrm = self._norm(dx)
+            if self._T_idx.size:
+                dx = self._clip_temperature(x, dx)
             if not np.isfinite(nrm):
                 return Outcome(False, x, k + 1, "Newton update not finite")
             if prev is not None:
@@ -225,7 +232,7 @@ class Newton:
             else:
                 return Outcome(False, x, k + 1,
                               self._not_finite("residual not finite along the Newton step"),
-                               int(np.argmax(~np.isfinite(Fn))))
+                               self._nonfinite_row(Fn))
             x = xn
             if done:
                 return Outcome(True, x, k + 1)
@@ -249,7 +256,7 @@ class Newton:
         F = self._eval(x, S, t, dt, jac=True)
         if not np.isfinite(F).all():
             return Outcome(False, x, 0, self._not_finite("residual not finite"),
-                           int(np.argmax(~np.isfinite(F))))
+                           self._nonfinite_row(F))
         refactor = True
         watch, f_ref, x_ref, F_ref, used = 0, np.inf, x, F, False
         for k in range(self.max_iter * 2):
@@ -264,12 +271,12 @@ class Newton:
             if watch and f0 < (1 - 1e-4) * f_ref:
                 watch = 0                       # below the starting residual: monotone again
             dx = -self.lin.solve(F)
-            if self._T_idx.size:
-                self._clip_temperature(x, dx)
             self.stats.newton_iterations += 1
             nrm = self._norm(dx)
             if nrm <= 1.0:
                 return Outcome(True, x + dx, k + 1)
+            if self._T_idx.size:
+                dx = self._clip_temperature(x, dx)
             lam = 1.0
             while not watch:
                 xn = x + lam * dx
@@ -288,6 +295,8 @@ class Newton:
                                    self._worst_row(F_ref if watch else F))
                 if not watch:
                     used = True
+                    # judged below with each iterate's own row scaling: measured more
+                    # robust at folds than keeping the starting one
                     watch, f_ref, x_ref, F_ref = WATCHDOG + 1, f0, x, F
                 watch -= 1
                 x = x + dx
@@ -311,7 +320,9 @@ class Newton:
     def _clip_temperature(self, x, dx):
         i = self._T_idx
         T = x[i]
+        dx = dx.copy()
         dx[i] = np.clip(dx[i], -0.5 * T, T)
+        return dx
 
     def _worst_row(self, F):
         rs = getattr(self.lin, "row_scale", None)

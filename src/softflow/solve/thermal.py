@@ -152,6 +152,12 @@ def _check_range(c, fluid, T, name):
 
 def _setup_volume(c, model):
     mode = c.thermal if getattr(c, "thermal", None) is not None else model
+    if c.hA is not None and mode == "adiabatic":
+        if getattr(c, "thermal", None) == "adiabatic":
+            raise ValueError(f"{c.describe()}: thermal='adiabatic' contradicts the wall heat "
+                             "transfer given (hA, or heat_transfer_coefficient and area); "
+                             "drop one of them")
+        mode = "heat_transfer"   # a volume given its wall heat transfer uses it
     fluid = c.fluid
     c._T_initial = float(fluid.temperature) if c.initial_temperature is None \
         else c.initial_temperature

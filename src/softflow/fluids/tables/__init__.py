@@ -164,7 +164,10 @@ def read_table(npz_path: Path, json_path: Path) -> PropertyTable:
     if built != installed:
         msg = (f"{json_path}: table was built with CoolProp {built}, but CoolProp "
                f"{installed} is installed; {rebuild}")
-        if os.environ.get(ANY_COOLPROP_ENV) != "1":
+        # a patch release (8.0.0 -> 8.0.1) keeps the table usable, with a warning;
+        # another minor or major version is refused unless the user says otherwise
+        same_minor = str(built).split(".")[:2] == str(installed).split(".")[:2]
+        if not same_minor and os.environ.get(ANY_COOLPROP_ENV) != "1":
             raise FluidTableError(msg + f" (or set {ANY_COOLPROP_ENV}=1 to use it anyway)")
         warnings.warn(msg, stacklevel=3)
     try:
