@@ -88,8 +88,10 @@ class FixedStep:
 class AdaptiveStep:
     """Step size from the local error estimate of the continuous states
     (see the module docstring): reject when the scaled RMS error exceeds 1,
-    grow or shrink by 0.9/sqrt(err) within [0.2, 5]. After a breakpoint or a
-    mode switch the step restarts from its initial size."""
+    grow or shrink by 0.9/sqrt(err) within [0.2, 5]. A failed Newton solve
+    cuts the step by 4 and holds it from growing for the next 5 steps (a
+    snap-through otherwise provokes a failure at every regrowth). After a
+    breakpoint or a mode switch the step restarts from its initial size."""
 
     def __init__(self, h_start, step_min, step_max, rtol, atol, continuous, stats):
         self.h = self.h_start = h_start
