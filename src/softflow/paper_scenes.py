@@ -6,7 +6,8 @@ flow restrictor in front of each:
 
     pump --R1--> actuator 1 --R2--> actuator 2
 
-(Fig. 5 adds a rigid 100 mL accumulator at the pump). The paper gives the
+(Fig. 5 adds a rigid 100 mL accumulator on actuator 1's node, through a short
+wide connector). The paper gives the
 shapes of the characteristics, not their numbers; the curves below are
 synthetic ones of those shapes, sized for the 1.8 mL/s pump:
 
@@ -19,9 +20,10 @@ synthetic ones of those shapes, sized for the 1.8 mL/s pump:
   and its valley much lower; tight tubes; filled with air, water or ethylene
   glycol (one argument differs).
 
-``run(scene)`` integrates a scene and returns its Result; ``enclosed_area``
-measures the asymmetry of the (V_act1, V_act2) path; ``plot_panels`` draws the
-paper's panels C and D.
+``run(system, fig)`` integrates a scene and returns its Result and wall time;
+``figure(fig)`` builds the three scenes of a figure and ``run_figure(fig)`` runs
+them and saves the paper's panels C and D (``plot_panels``);
+``enclosed_area`` measures the asymmetry of the (V_act1, V_act2) path.
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ import numpy as np
 
 from .components import (Actuator, CircularTube, Container, HystereticActuator,
                          SnappingValve, TeslaValve, VolumeFlowSource)
+from .constants import pressure_atmospheric
 from .curves import HysteresisLoop, PVCurve
 from .curves.waveforms import PiecewiseConstant
 from .fluids import water
@@ -42,7 +45,7 @@ KPA = 1e3          # Pa per kPa
 
 #: pump in at 1.8 mL/s for t_in, pause for T_PAUSE, pump out for t_in; Figs. 3-4
 #: pump 14.4 mL (8 s), Fig. 5 45 mL (25 s): with air, the 100 mL accumulator
-#: must be compressed by about a third before the actuators reach their peaks
+#: must be compressed by about a fifth before the actuators reach their peaks
 FLOW = 1.8 * ML
 T_PAUSE = 2.0
 T_IN = {3: 8.0, 4: 8.0, 5: 25.0}
@@ -105,12 +108,7 @@ def tight_tube(label, fluid, length=1.0):
 
 def laminar_conductance(fluid, length, diameter):
     """Hagen-Poiseuille volume-flow conductance pi D^4 / (128 mu L) [m^3/(s Pa)]."""
-    return math.pi * diameter ** 4 / (128 * fluid.viscosity(fluid_pressure()) * length)
-
-
-def fluid_pressure():
-    from .constants import pressure_atmospheric
-    return pressure_atmospheric
+    return math.pi * diameter ** 4 / (128 * fluid.viscosity(pressure_atmospheric) * length)
 
 
 # -- scenes ------------------------------------------------------------------------------
