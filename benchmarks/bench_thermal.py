@@ -5,11 +5,13 @@ isothermal path before vs after it.
     python benchmarks/bench_thermal.py --baseline DIR   # also the isothermal scenes
                                                         # on another checkout's src/
 
-``--baseline`` runs the same isothermal scenes with the softflow found in
-``DIR/src`` in a subprocess, side by side with this checkout, e.g. the commit
-before the thermal model: ``mkdir /tmp/base && git archive <commit> | tar -x -C
-/tmp/base``. Scenes: (c) of bench_core (source + 4 x (tube, container), air,
-1 ms, 1 s) and the chain of (b) with N = 1000 (0.2 s). Medians of --repeat runs.
+``--baseline`` runs the same scenes with the softflow found in ``DIR/src`` in a
+subprocess, interleaved with this checkout: the isothermal ones (e.g. against
+the commit before the thermal model: ``mkdir /tmp/base && git archive <commit>
+| tar -x -C /tmp/base``) and, where the baseline has a thermal model, the
+adiabatic ones too (before/after a thermal speed-up). Scenes: (c) of bench_core
+(source + 4 x (tube, container), air, 1 ms, 1 s) and the chain of (b) with
+N = 1000 (0.2 s). Medians of --repeat runs.
 """
 from __future__ import annotations
 
@@ -68,19 +70,26 @@ def main():
         print(f"  {name:<22} {ti * 1e3:>9.1f}ms {ta * 1e3:>9.1f}ms {ta / ti:>6.2f} "
               f"{ni:>6} -> {na:<6}")
     if args.baseline is not None:
-        # interleave baseline and current runs to share the machine's state
-        base, cur = [], []
-        for _ in range(3):
-            base.append(timings(args.baseline / "src", args.repeat))
-            cur.append(timings(here_src, args.repeat))
-        print(f"\nisothermal path, {args.baseline} vs this checkout (median of 3 x "
-              f"{args.repeat} runs):")
-        print(f"  {'scene':<22} {'before':>9} {'after':>9} {'ratio':>6}")
-        for name in SCENES:
-            tb = statistics.median(b[name][0] for b in base)
-            tc = statistics.median(c[name][0] for c in cur)
-            print(f"  {name:<22} {tb * 1e3:>7.1f}ms {tc * 1e3:>7.1f}ms {tc / tb:>6.3f}")
-
+        base_src = args.baseline / "src"
+        modes = [None]
+        try:                                # a baseline from before the thermal model
+            timings(base_src, 1, "adiabatic")
+            modes.append("adiabatic")
+        except subprocess.CalledProcessError:
+            pass
+        for mode in modes:
+            # interleave baseline and current runs to share the machine's state
+            base, cur = [], []
+            for _ in range(3):
+                base.append(timings(base_src, args.repeat, mode))
+                cur.append(timings(here_src, args.repeat, mode))
+            print(f"\n{mode or 'isothermal'} path, {args.baseline} vs this checkout "
+                  f"(median of 3 x {args.repeat} runs):")
+            print(f"  {'scene':<22} {'before':>9} {'after':>9} {'ratio':>6}")
+            for name in SCENES:
+                tb = statistics.median(b[name][0] for b in base)
+                tc = statistics.median(c[name][0] for c in cur)
+                print(f"  {name:<22} {tb * 1e3:>7.1f}ms {tc * 1e3:>7.1f}ms {tc / tb:>6.3f}")
 
 if __name__ == "__main__":
     t0 = time.perf_counter()

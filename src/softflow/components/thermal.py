@@ -57,7 +57,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..correlations.friction import smoothstep
 from .actuators import Actuator
 from .chambers import Container, LinearAccumulator
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
@@ -73,23 +72,76 @@ ZERO_FLOW_CONDUCTANCE = 1e-6
 THERMAL_PORT_EXTRA = (("temperature", "across", "T"), ("energyflow", "through", "E"))
 
 
+def _parts(fl, name, p, T, jac):
+    """(value, d/dp, d/dT) of the fluid property ``name`` ('enthalpy',
+    'internal_energy', 'density'); derivatives None without jac. Fluids with a
+    private ``_<name>_parts`` (the ideal level) answer in one call, with
+    constant derivatives as floats: the per-call overhead of the public
+    array-in/array-out methods dominates small thermal scenes."""
+    fast = getattr(fl, f"_{name}_parts", None)
+    if fast is not None:
+        return fast(p, T, jac)
+    value = getattr(fl, name)(p, T)
+    if not jac:
+        return value, None, None
+    return value, getattr(fl, f"{name}_dp")(p, T), getattr(fl, f"{name}_dT")(p, T)
+
+
+def _upwind_weight(mf, jac):
+    """smoothstep(mf, -UPWIND_BAND, UPWIND_BAND) of correlations.friction, written
+    with fewer array operations (their overhead dominates small scenes);
+    returns (w, dw/dmf or None)."""
+    s = np.minimum(np.maximum(mf * (0.5 / UPWIND_BAND) + 0.5, 0.0), 1.0)
+    s2 = s * s
+    w = s2 * (3.0 - 2.0 * s)
+    return w, ((3.0 / UPWIND_BAND) * (s - s2) if jac else None)
+
+
 def upwind_energy(fl, mf, pa, Ta, pb, Tb, jac, h0=0.0):
     """Energy flow into ``a`` carried by the mass flow mf (into ``a``), upwind
     enthalpy with the smooth blend, plus the zero-flow conductance; returns
-    (E, w, dw, dE) with dE = (d/dmf, d/dpa, d/dTa, d/dpb, d/dTb) or None."""
-    w, dw = smoothstep(mf, -UPWIND_BAND, UPWIND_BAND)
-    ha = fl.enthalpy(pa, Ta) - h0
-    hb = fl.enthalpy(pb, Tb) - h0
-    h = hb + w * (ha - hb)
-    E = mf * h + ZERO_FLOW_CONDUCTANCE * (Ta - Tb)
+    (E, w, dw, dE, T_up) with dE = (d/dmf, d/dpa, d/dTa, d/dpb, d/dTb) or None
+    (entries may be floats where they do not depend on the instance), dw None
+    without jac, and T_up = w Ta + (1 - w) Tb the blended upstream temperature."""
+    w, dw = _upwind_weight(mf, jac)
+    dT = Ta - Tb
+    T_up = Tb + w * dT
+    linear = getattr(fl, "_enthalpy_linear", None)
+    if linear is not None:
+        # h = cp T + c (ideal gas): the blended enthalpy is that of the blended
+        # temperature, a handful of array operations instead of two property calls
+        cp, c = linear()
+        h = cp * T_up + (c - h0)
+        E = mf * h + ZERO_FLOW_CONDUCTANCE * dT
+        if not jac:
+            return E, w, dw, None, T_up
+        mcp = mf * cp
+        mwcp = w * mcp
+        return E, w, dw, (h + (dw * dT) * mcp, 0.0, mwcp + ZERO_FLOW_CONDUCTANCE, 0.0,
+                          (mcp - mwcp) - ZERO_FLOW_CONDUCTANCE), T_up
+    ha, ha_p, ha_T = _parts(fl, "enthalpy", pa, Ta, jac)
+    hb, hb_p, hb_T = _parts(fl, "enthalpy", pb, Tb, jac)
+    ha = ha - h0
+    hb = hb - h0
+    dh = ha - hb
+    h = hb + w * dh
+    E = mf * h + ZERO_FLOW_CONDUCTANCE * dT
     if not jac:
-        return E, w, dw, None
-    d_mf = h + mf * dw * (ha - hb)
-    d_pa = mf * w * fl.enthalpy_dp(pa, Ta)
-    d_Ta = mf * w * fl.enthalpy_dT(pa, Ta) + ZERO_FLOW_CONDUCTANCE
-    d_pb = mf * (1.0 - w) * fl.enthalpy_dp(pb, Tb)
-    d_Tb = mf * (1.0 - w) * fl.enthalpy_dT(pb, Tb) - ZERO_FLOW_CONDUCTANCE
-    return E, w, dw, (d_mf, d_pa, d_Ta, d_pb, d_Tb)
+        return E, w, dw, None, T_up
+    mw = mf * w
+    mw1 = mf * (1.0 - w)
+    d_mf = h + mf * dw * dh
+    d_pa = mw * ha_p
+    d_Ta = mw * ha_T + ZERO_FLOW_CONDUCTANCE
+    d_pb = mw1 * hb_p
+    d_Tb = mw1 * hb_T - ZERO_FLOW_CONDUCTANCE
+    return E, w, dw, (d_mf, d_pa, d_Ta, d_pb, d_Tb), T_up
+
+
+def _put(J, k, columns):
+    """J[:, k:k+len(columns)] = columns (arrays or floats; column_stack needs arrays)."""
+    for i, col in enumerate(columns):
+        J[:, k + i] = col
 
 
 def _stack(P, components, name):
@@ -128,54 +180,60 @@ class ThermalTwoPort:
     def kernel(cls, P, V, S, t, dt, jac):
         Fi, Ji = super().kernel(P, V[:, _ISO_COLS], S, t, dt, jac)
         pa, mf, Ta, Ea, pb, Tb, Eb = V[:, 0], V[:, 1], V[:, 2], V[:, 3], V[:, 4], V[:, 6], V[:, 7]
-        E, w, dw, dE = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
+        E, w, dw, dE, T_up = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
         F = np.empty((P.n, 4))
         F[:, :2] = Fi
-        F[:, 2] = Ea + Eb
-        F[:, 3] = Ea - E
+        np.add(Ea, Eb, out=F[:, 2])
+        np.subtract(Ea, E, out=F[:, 3])
         mode = cls.flow_temperature
-        if mode is not None:
-            T_up = Tb + w * (Ta - Tb)
-            if mode == "sqrt_density":            # F1 = mf - theta q_iso
-                q = mf - Fi[:, 1]
-                theta = np.sqrt(P.T_ref / T_up)
-                F[:, 1] = mf - theta * q
-                d_theta = -0.5 * theta / T_up      # d theta / d T_up
-                coef = -q * d_theta                # dF1 / dT_up
-            else:                                  # F1 = (pa - pb) - theta dp_iso
-                dp = (pa - pb) - Fi[:, 1]
-                theta = T_up / P.T_ref
-                F[:, 1] = (pa - pb) - theta * dp
-                coef = -dp / P.T_ref
+        if mode == "sqrt_density":                # F1 = mf - theta q_iso
+            q = mf - Fi[:, 1]
+            theta = np.sqrt(P.T_ref / T_up)
+            np.subtract(mf, theta * q, out=F[:, 1])
+            if jac:
+                coef = (0.5 * q) * theta / T_up    # dF1/dT_up = -q dtheta/dT_up
+        elif mode is not None:                     # F1 = (pa - pb) - theta dp_iso
+            dp = (pa - pb) - Fi[:, 1]
+            theta = T_up * (1.0 / P.T_ref)
+            F[:, 1] -= (theta - 1.0) * dp          # Fi1 = (pa - pb) - dp
+            if jac:
+                coef = dp * (-1.0 / P.T_ref)
         if not jac:
             return F, None
         nb = Ji.shape[1]
         J = np.empty((P.n, len(cls.jac_pattern)))
-        J[:, :nb] = Ji
         k = nb
-        if mode is not None:
-            # base pattern (two-port): (0,mf_a) (0,mf_b) (1,pa) (1,mf) (1,pb)
-            if mode == "sqrt_density":
-                J[:, 2] = theta * Ji[:, 2]
-                J[:, 4] = theta * Ji[:, 4]
-                J[:, 3] = Ji[:, 3] + (theta - 1.0) * (Ji[:, 3] - 1.0)  # = 1 - theta dq/dmf
+        if mode is None:
+            J[:, :nb] = Ji
+        else:
+            # base pattern (two-port): (0,mf_a) (0,mf_b) (1,pa) (1,mf) (1,pb); the
+            # flow-law columns scale with theta, up to the constant +-1 of the
+            # pressure difference in the pressure-drop form (column by column:
+            # a broadcast in-place product over strided columns is ~10x slower)
+            J[:, :2] = Ji[:, :2]
+            one_theta = 1.0 - theta
+            np.multiply(theta, Ji[:, 2], out=J[:, 2])
+            np.multiply(theta, Ji[:, 4], out=J[:, 4])
+            dT_up = coef * dw * (Ta - Tb)          # dF1/dmf through T_up
+            if mode == "sqrt_density":             # = 1 - theta dq/dmf
+                J[:, 3] = theta * Ji[:, 3] + (one_theta + dT_up)
             else:
-                J[:, 2] = 1.0 - theta * (1.0 - Ji[:, 2])
-                J[:, 4] = -1.0 + theta * (1.0 + Ji[:, 4])
-                J[:, 3] = theta * Ji[:, 3]
-            J[:, 3] += coef * dw * (Ta - Tb)
-            J[:, k] = coef * w
-            J[:, k + 1] = coef * (1.0 - w)
+                J[:, 2] += one_theta
+                J[:, 4] -= one_theta
+                J[:, 3] = theta * Ji[:, 3] + dT_up
+            cw = coef * w
+            J[:, k] = cw
+            np.subtract(coef, cw, out=J[:, k + 1])
             k += 2
         d_mf, d_pa, d_Ta, d_pb, d_Tb = dE
         J[:, k] = 1.0
         J[:, k + 1] = 1.0
         J[:, k + 2] = -d_pa
-        J[:, k + 3] = -d_mf
-        J[:, k + 4] = -d_Ta
+        np.negative(d_mf, out=J[:, k + 3])
+        np.negative(d_Ta, out=J[:, k + 4])
         J[:, k + 5] = 1.0
         J[:, k + 6] = -d_pb
-        J[:, k + 7] = -d_Tb
+        np.negative(d_Tb, out=J[:, k + 7])
         return F, J
 
 
@@ -198,12 +256,12 @@ def _source_energy(P, V, jac):
     """Residual E - (energy the flow carries) of a flow source, and its derivatives
     (p, mf, T, E). Outflow (mf < 0) carries h(p, T_source), inflow the node's h."""
     p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-    Es, _, _, dE = upwind_energy(P.fluid_thermal, mf, p, T, p, P.T_source, jac, P.h0)
+    Es, _, _, dE, _ = upwind_energy(P.fluid_thermal, mf, p, T, p, P.T_source, jac, P.h0)
     F = E - Es
     if not jac:
         return F, None
     d_mf, d_pa, d_Ta, d_pb, _ = dE
-    return F, (-(d_pa + d_pb), -d_mf, -d_Ta, np.ones(P.n))
+    return F, (-(d_pa + d_pb), -d_mf, -d_Ta, 1.0)
 
 
 class _ThermalSource:
@@ -247,7 +305,7 @@ class ThermalMassFlowSource(_ThermalSource, MassFlowSource):
             return F, None
         J = np.empty((P.n, 5))
         J[:, 0] = 1.0
-        J[:, 1:] = np.column_stack(dE)
+        _put(J, 1, dE)
         return F, J
 
 
@@ -274,7 +332,7 @@ class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
         J[:, 0] = fl.density_dp(p, T_q) * q
         J[:, 1] = 1.0
         J[:, 2] = np.where(out, 0.0, fl.density_dT(p, T_q) * q)
-        J[:, 3:] = np.column_stack(dE)
+        _put(J, 3, dE)
         return F, J
 
 
@@ -294,37 +352,41 @@ class _ThermalVolume:
         P.T_wall = np.array([c._T_wall for c in components], dtype=float)
         P.fixed = np.array([c._thermal == "isothermal" for c in components])
         P.any_fixed = bool(P.fixed.any())
+        P.any_heat = bool(P.hA.any())   # adiabatic volumes skip the wall terms
         P.h0 = components[0]._h0
         return P
 
     @classmethod
-    def energy(cls, P, V, S, dt, vol, dvol, jac):
+    def energy(cls, P, V, S, dt, vol, dvol, jac, m_new=None):
         """Energy residual m_new u(p,T) - [U + dt (E + Q) - p (vol - vol_old)] and its
         derivatives (p, mf, T, E); vol_old is S[:, 2] when the volume deforms
-        (dvol = (dvol/dp, dvol/dmf, dvol/dT)), else None."""
+        (dvol = (dvol/dp, dvol/dmf, dvol/dT)), else None. ``m_new`` = S[:, 0] + dt mf
+        when the caller has it already."""
         p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        fl = P.fluid
-        m_new = S[:, 0] + dt * mf
-        u = fl.internal_energy(p, T) - P.h0
-        Q = P.hA * (P.T_wall - T)
-        F = m_new * u - (S[:, 1] + dt * (E + Q))
+        if m_new is None:
+            m_new = S[:, 0] + dt * mf
+        u, u_p, u_T = _parts(P.fluid, "internal_energy", p, T, jac)
+        u = u - P.h0
+        if P.any_heat:
+            F = m_new * u - (S[:, 1] + dt * (E + P.hA * (P.T_wall - T)))
+        else:
+            F = m_new * u - (S[:, 1] + dt * E)
         if vol is not None:
             F = F + p * (vol - S[:, 2])
         if P.any_fixed:
             F = np.where(P.fixed, T - P.T_wall, F)
         if not jac:
             return F, None
-        d_p = m_new * fl.internal_energy_dp(p, T)
+        d_p = 0.0 if type(u_p) is float and u_p == 0.0 else m_new * u_p   # ideal gas: 0
         d_mf = dt * u
-        d_T = m_new * fl.internal_energy_dT(p, T) + dt * P.hA
-        d_E = np.full(P.n, -dt)
+        d_T = m_new * u_T + dt * P.hA if P.any_heat else m_new * u_T
+        d_E = -dt
         if vol is not None:
             d_p = d_p + (vol - S[:, 2]) + p * dvol[0]
             d_mf = d_mf + p * dvol[1]
             d_T = d_T + p * dvol[2]
         if P.any_fixed:
-            z = np.zeros(P.n)
-            d_p, d_mf, d_E = (np.where(P.fixed, z, d) for d in (d_p, d_mf, d_E))
+            d_p, d_mf, d_E = (np.where(P.fixed, 0.0, d) for d in (d_p, d_mf, d_E))
             d_T = np.where(P.fixed, 1.0, d_T)
         return F, (d_p, d_mf, d_T, d_E)
 
@@ -344,7 +406,9 @@ class _ThermalVolume:
     def _initial_mass_energy(cls, comp, volume):
         fl, p0, T0 = comp.fluid, comp.initial_pressure, comp._T_initial
         m0 = float(fl.density(p0, T0)) * volume
-        return m0, m0 * (float(fl.internal_energy(p0, T0)) - comp._h0)
+        # u as the kernels evaluate it (an equilibrium volume starts at rest exactly)
+        u0 = _parts(fl, "internal_energy", np.array([p0]), np.array([T0]), False)[0]
+        return m0, m0 * (float(u0[0]) - comp._h0)
 
 
 class ThermalContainer(_ThermalVolume, Container):
@@ -364,17 +428,18 @@ class ThermalContainer(_ThermalVolume, Container):
     @classmethod
     def kernel(cls, P, V, S, t, dt, jac):
         p, mf, T = V[:, 0], V[:, 1], V[:, 2]
-        fl = P.fluid
+        rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
+        m_new = S[:, 0] + dt * mf
         F = np.empty((P.n, 2))
-        F[:, 0] = fl.density(p, T) * P.volume - (S[:, 0] + dt * mf)
-        F[:, 1], dE = cls.energy(P, V, S, dt, None, None, jac)
+        np.subtract(rho * P.volume, m_new, out=F[:, 0])
+        F[:, 1], dE = cls.energy(P, V, S, dt, None, None, jac, m_new)
         if not jac:
             return F, None
         J = np.empty((P.n, 7))
-        J[:, 0] = fl.density_dp(p, T) * P.volume
+        J[:, 0] = rho_p * P.volume
         J[:, 1] = -dt
-        J[:, 2] = fl.density_dT(p, T) * P.volume
-        J[:, 3:] = np.column_stack(dE)
+        J[:, 2] = rho_T * P.volume
+        _put(J, 3, dE)
         return F, J
 
 
@@ -414,7 +479,7 @@ class ThermalLinearAccumulator(_ThermalVolume, LinearAccumulator):
         J[:, 0] = fl.density_dp(p, T) * vol + rho * P.compliance
         J[:, 1] = -dt
         J[:, 2] = fl.density_dT(p, T) * vol
-        J[:, 3:] = np.column_stack(dE)
+        _put(J, 3, dE)
         return F, J
 
 
@@ -458,7 +523,7 @@ class ThermalActuator(_ThermalVolume, Actuator):
         J[:, 0] = 1.0 - dpc * dvol[0]
         J[:, 1] = -dpc * dvol[1]
         J[:, 2] = -dpc * dvol[2]
-        J[:, 3:] = np.column_stack(dE)
+        _put(J, 3, dE)
         return F, J
 
 
