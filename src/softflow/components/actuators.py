@@ -23,7 +23,7 @@ from scipy.optimize import brentq
 
 from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
-from ..solve.thermal import thermal_volume_fields
+from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent, Params
 
 #: Relative step of the central differences used for a callable curve without
@@ -107,19 +107,6 @@ class Actuator(LibraryComponent):
         i.e. on the first rising branch of a peak–valley curve.
     curve_derivative : callable, optional
         dp/dV [Pa/m^3] of a callable curve, V [m^3] -> float or array.
-    thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
-        This volume's thermal model in a thermal scene (default: the scene's,
-        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
-    initial_temperature : float [K], optional
-        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
-    wall_temperature : float [K], optional
-        Wall temperature for heat transfer (default: the fluid's temperature).
-    heat_transfer_coefficient : float [W/(m^2 K)], optional
-        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
-    area : float [m^2], optional
-        Wall area A exchanging heat.
-    hA : float [W/K], optional
-        The product h·A directly (instead of the two above).
     """
 
     terminal_spec = (("a", FLUID_PORT),)
@@ -329,3 +316,6 @@ class HystereticActuator(LibraryComponent):
 
     def outputs(self):
         return _volume_output(self.fluid)
+
+
+Actuator.__doc__ += THERMAL_VOLUME_DOC

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..constants import pressure_atmospheric
-from ..solve.thermal import thermal_volume_fields
+from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent
 
 
@@ -23,19 +23,6 @@ class Container(LibraryComponent):
     initial_pressure : float [Pa], default 1 atm
         Absolute pressure at t = 0 (sets the initial mass; an evacuated tank is
         a volume at, say, 1 kPa).
-    thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
-        This volume's thermal model in a thermal scene (default: the scene's,
-        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
-    initial_temperature : float [K], optional
-        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
-    wall_temperature : float [K], optional
-        Wall temperature for heat transfer (default: the fluid's temperature).
-    heat_transfer_coefficient : float [W/(m^2 K)], optional
-        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
-    area : float [m^2], optional
-        Wall area A exchanging heat.
-    hA : float [W/K], optional
-        The product h·A directly (instead of the two above).
     """
 
     terminal_spec = (("a", FLUID_PORT),)
@@ -103,19 +90,6 @@ class LinearAccumulator(LibraryComponent):
         dV/dp.
     reference_pressure : float [Pa], default 1 atm
     initial_pressure : float [Pa], default reference_pressure
-    thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
-        This volume's thermal model in a thermal scene (default: the scene's,
-        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
-    initial_temperature : float [K], optional
-        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
-    wall_temperature : float [K], optional
-        Wall temperature for heat transfer (default: the fluid's temperature).
-    heat_transfer_coefficient : float [W/(m^2 K)], optional
-        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
-    area : float [m^2], optional
-        Wall area A exchanging heat.
-    hA : float [W/K], optional
-        The product h·A directly (instead of the two above).
     """
 
     terminal_spec = (("a", FLUID_PORT),)
@@ -170,3 +144,7 @@ class LinearAccumulator(LibraryComponent):
     def outputs(self):
         fl = self.fluid
         return {"volume": ("volume", lambda get: get("mass") / fl.density(get("pressure")))}
+
+
+Container.__doc__ += THERMAL_VOLUME_DOC
+LinearAccumulator.__doc__ += THERMAL_VOLUME_DOC

@@ -192,6 +192,24 @@ def _leave(c):
     c.states = [Variable(q, "local", label=lab) for lab, q in type(c).state_spec]
 
 
+#: Docstring entries of the thermal parameters every volume takes (appended to
+#: the volumes' class docstrings, which end with an indented empty line).
+THERMAL_VOLUME_DOC = """thermal : {None, 'adiabatic', 'heat_transfer', 'isothermal'}, optional
+        This volume's thermal model in a thermal scene (default: the scene's,
+        ``Simulation(thermal=...)``); see :mod:`softflow.solve.thermal`.
+    initial_temperature : float [K], optional
+        Gas temperature at t = 0 in a thermal scene (default: the fluid's).
+    wall_temperature : float [K], optional
+        Wall temperature for heat transfer (default: the fluid's temperature).
+    heat_transfer_coefficient : float [W/(m^2 K)], optional
+        Convective coefficient h of Q = h·A·(T_wall - T); with ``area``.
+    area : float [m^2], optional
+        Wall area A exchanging heat.
+    hA : float [W/K], optional
+        The product h·A directly (instead of the two above).
+"""
+
+
 def thermal_volume_fields(comp, initial_temperature, wall_temperature,
                           heat_transfer_coefficient, area, hA, thermal):
     """Check and store a volume's thermal parameters (constructor helper)."""
