@@ -318,4 +318,5 @@ class HystereticActuator(LibraryComponent):
         return _volume_output(self.fluid)
 
 
-Actuator.__doc__ += THERMAL_VOLUME_DOC
+if Actuator.__doc__:   # None under python -OO
+    Actuator.__doc__ += THERMAL_VOLUME_DOC

@@ -146,5 +146,7 @@ class LinearAccumulator(LibraryComponent):
         return {"volume": ("volume", lambda get: get("mass") / fl.density(get("pressure")))}
 
 
-Container.__doc__ += THERMAL_VOLUME_DOC
-LinearAccumulator.__doc__ += THERMAL_VOLUME_DOC
+if Container.__doc__:   # None under python -OO
+    Container.__doc__ += THERMAL_VOLUME_DOC
+if LinearAccumulator.__doc__:   # None under python -OO
+    LinearAccumulator.__doc__ += THERMAL_VOLUME_DOC
