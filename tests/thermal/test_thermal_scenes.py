@@ -241,3 +241,24 @@ def test_moving_an_ideal_gas_to_another_temperature_keeps_its_enthalpy_function(
     for T in (250.0, 400.0):
         assert h.enthalpy(2e5, T) == pytest.approx(g.enthalpy(2e5, T), rel=1e-12)
         assert h.internal_energy(2e5, T) == pytest.approx(g.internal_energy(2e5, T), rel=1e-12)
+
+
+def test_energy_flow_tolerance_follows_the_mass_flow_it_carries():
+    """Newton resolves energy flows (counted from a reference enthalpy, so
+    small) no more finely than mass flow times cp T."""
+    from softflow.solve.linalg import make_linear_solver
+    from softflow.solve.newton import Newton, Stats
+    sim = sf.Simulation(_hot_fill(), duration=0.1, thermal="adiabatic")
+    asm = sim.asm
+    newton = Newton(asm, make_linear_solver(asm), Stats(), atol=np.full(asm.n, 1e-12))
+    x = asm.x0.copy()
+    q = np.array(asm.x_quantity)
+    x[q == "massflow"] = 1e-3
+    x[q == "energyflow"] = 1e-2
+    newton._set_scale(x)
+    tol_E = newton.tol[q == "energyflow"].max()
+    cpT = sf.air.cp(1e5, sf.air.temperature) * sf.air.temperature
+    newton.set_magnitude_link("energyflow", "massflow", cpT)
+    newton._set_scale(x)
+    assert newton.tol[q == "energyflow"].max() == pytest.approx(1e-6 * 1e-3 * cpT, rel=1e-6)
+    assert newton.tol[q == "energyflow"].max() > 1000 * tol_E

@@ -73,6 +73,7 @@ class Newton:
         self.rtol = rtol
         self.atol = np.asarray(atol, dtype=float)
         names = sorted(set(asm.x_quantity))
+        self._q_names, self._links = names, []
         qid = np.array([names.index(q) for q in asm.x_quantity], dtype=np.int64)
         self._q_order = np.argsort(qid, kind="stable")
         self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
@@ -131,11 +132,23 @@ class Newton:
         self.age = 0
         self.stale = False
 
+    def set_magnitude_link(self, quantity, base, factor):
+        """Let the magnitude of ``quantity`` be at least ``factor`` times that of
+        ``base`` when tolerances are set. Thermal scenes count energy flows from a
+        reference enthalpy, so they are small numbers; their natural size is the
+        mass flow times cp·T, and without the link Newton would resolve them far
+        more finely than the mass flows that carry them."""
+        names = self._q_names
+        if quantity in names and base in names:
+            self._links.append((names.index(quantity), names.index(base), float(factor)))
+
     def _set_scale(self, x):
         """Per-unknown tolerances for this solve (see module docstring)."""
         mag = np.abs(x)
         if mag.size:
             qmax = np.maximum.reduceat(mag[self._q_order], self._q_starts)
+            for q, base, factor in self._links:
+                qmax[q] = max(qmax[q], factor * qmax[base])
             mag = np.maximum(mag, qmax[self._qid])
         self.tol = self.atol + self.rtol * mag
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..constants import pressure_atmospheric
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .integrator import ImplicitEuler, StepFailure
@@ -147,6 +148,12 @@ class Simulation:
         lin = make_linear_solver(asm, self.linear_solver_kind)
         newton = Newton(asm, lin, stats, rtol=self.newton_rtol,
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
+        gas = next((c.fluid for c in self.system.components
+                    if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
+        if self.thermal != "isothermal" and gas is not None:
+            T = gas.temperature
+            newton.set_magnitude_link("energyflow", "massflow",
+                                      float(gas.cp(pressure_atmospheric, T)) * T)
         breaks = list(self.breakpoints)
         for c in self.system.components:
             # periodic inputs have endless breakpoints: ask for those within the run
