@@ -40,7 +40,8 @@ class CircularTube(LibraryComponent):
     zero flow, so its derivative never vanishes there.
 
     For a gas (``fluid.compressible``) rho is the density at the mean pressure
-    (p_a + p_b)/2. With ``compressible='isothermal'`` the gas's acceleration
+    (p_a + p_b)/2. With a real fluid (level ``table`` or ``eos``) mu is taken at
+    the mean pressure too; at level ``ideal`` it is the fluid's constant. With ``compressible='isothermal'`` the gas's acceleration
     along the tube is added, which makes the law the complete isothermal pipe
     flow equation (Crane TP-410; ``fluids.compressible.isothermal_gas``):
 
@@ -126,6 +127,9 @@ class CircularTube(LibraryComponent):
         P.re_per_mf = P.diameter / (P.mu * P.area)
         P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)
         P.compressible = P.fluid.compressible
+        # real-fluid levels: viscosity at the tube's mean pressure (air at 15 MPa
+        # is 20 % more viscous than at 1 atm); the ideal level keeps it constant
+        P.variable_mu = getattr(P.fluid, "level", "ideal") != "ideal"
         P.isothermal = P.compressible and first.compressible == "isothermal"
         P.length_per_area = P.length / P.area
         name = first.friction
@@ -146,17 +150,21 @@ class CircularTube(LibraryComponent):
         """p_a - p_b required by the flow mf entering at ``a`` (friction, and gas
         acceleration if isothermal), and its partial derivatives in p_a, mf, p_b
         (None without ``jac``)."""
+        pm = 0.5 * (pa + pb)
         if P.compressible:
-            pm = 0.5 * (pa + pb)
             rho = P.fluid.density(pm)
         else:
             rho = P.fluid.rho
-        Re = np.abs(mf) * P.re_per_mf
+        re_per_mf, c_mu = P.re_per_mf, P.c_mu
+        if P.variable_mu:
+            mu_ratio = P.fluid.viscosity(pm) / P.mu       # relative to mu at 1 atm
+            re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
+        Re = np.abs(mf) * re_per_mf
         if P.turbulent is None or Re.max() <= P.Re_lo:   # all laminar: f Re = 64 exactly
             phi, dphi = 64.0, 0.0
         else:
             phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent)
-        c = P.c_mu / rho
+        c = c_mu / rho
         dp = c * phi * mf
         if P.isothermal:
             log_ratio = np.log(pa / pb)
@@ -171,6 +179,13 @@ class CircularTube(LibraryComponent):
             d_pm = -dp / rho * P.fluid.density_dp(pm) * 0.5
         else:
             d_pm = 0.0
+        if P.variable_mu:
+            # friction dp = c(mu) phi(Re(mu)) mf with c ∝ mu, Re ∝ 1/mu; dmu/dp by a
+            # central difference of the fluid's viscosity (the protocol has no mu_dp)
+            h = 1e-6 * pm
+            dmu_dp = (P.fluid.viscosity(pm + h) - P.fluid.viscosity(pm - h)) / (2 * h)
+            mu = mu_ratio * P.mu
+            d_pm = d_pm + 0.5 * c * mf * (phi - Re * dphi) / mu * dmu_dp
         d_pa = d_pm
         d_pb = d_pm
         if P.isothermal:
