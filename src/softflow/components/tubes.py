@@ -182,8 +182,11 @@ class CircularTube(LibraryComponent):
         if P.variable_mu:
             # friction dp = c(mu) phi(Re(mu)) mf with c ∝ mu, Re ∝ 1/mu; dmu/dp by a
             # central difference of the fluid's viscosity (the protocol has no mu_dp)
-            h = 1e-6 * pm
-            dmu_dp = (P.fluid.viscosity(pm + h) - P.fluid.viscosity(pm - h)) / (2 * h)
+            # (kept inside the fluid's valid range: a table ends at its last point)
+            lo, hi = getattr(P.fluid, "p_range", (0.0, np.inf))
+            p1 = np.maximum(pm * (1 - 1e-6), lo)
+            p2 = np.minimum(pm * (1 + 1e-6), hi)
+            dmu_dp = (P.fluid.viscosity(p2) - P.fluid.viscosity(p1)) / (p2 - p1)
             mu = mu_ratio * P.mu
             d_pm = d_pm + 0.5 * c * mf * (phi - Re * dphi) / mu * dmu_dp
         d_pa = d_pm
