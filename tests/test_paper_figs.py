@@ -173,3 +173,12 @@ def test_example_script_saves_panels_c_and_d(fig, tmp_path):
     assert out.returncode == 0, out.stderr
     for panel in "CD":
         assert (tmp_path / f"fig{fig}_{panel}.png").stat().st_size > 10_000
+
+
+def test_cli_figures_writes_the_panels(tmp_path, monkeypatch, capsys):
+    from softflow.cli import main
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    assert main(["figures", "--fig", "3", "--output-dir", str(tmp_path / "out")]) == 0
+    for panel in "CD":
+        assert (tmp_path / "out" / f"fig3_{panel}.png").stat().st_size > 10_000
+    assert "Fig. 3 hysteretic" in capsys.readouterr().out

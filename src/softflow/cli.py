@@ -1,4 +1,5 @@
-"""Command line: ``softflow demo`` runs the FONS paper example and writes a plot."""
+"""Command line: ``softflow demo`` runs the FONS paper example and writes a plot;
+``softflow figures`` runs the paper's Figs. 3-5 and writes their panels C and D."""
 from __future__ import annotations
 
 import argparse
@@ -27,15 +28,33 @@ def _demo(args):
     return 0
 
 
+def _figures(args):
+    from pathlib import Path
+
+    from softflow import paper_scenes
+
+    out = Path(args.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    for fig in args.fig:
+        paper_scenes.run_figure(fig, prefix=str(out / f"fig{fig}"))
+    return 0
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="softflow", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run the FONS paper example and plot it")
     demo.add_argument("--output", default="softflow_demo.png", help="PNG file to write")
     demo.add_argument("--no-plot", action="store_true", help="skip the plot")
+    figs = sub.add_parser("figures", help="run the FONS paper's Figs. 3-5 and plot panels C, D")
+    figs.add_argument("--fig", type=int, nargs="+", choices=(3, 4, 5), default=[3, 4, 5],
+                      help="which figures (default: all three)")
+    figs.add_argument("--output-dir", default=".", help="folder for fig<N>_C.png, fig<N>_D.png")
     args = parser.parse_args(argv)
     if args.command == "demo":
         return _demo(args)
+    if args.command == "figures":
+        return _figures(args)
     return 1
 
 
