@@ -5,6 +5,7 @@ import pytest
 import softflow as sf
 from softflow.components.thermal import THERMAL_CLASSES, UPWIND_BAND
 from softflow.components.tubes import InertialCircularTube
+from softflow.paper_scenes import loop_hysteretic
 from softflow.solve.thermal import configure_thermal
 
 P0 = sf.pressure_atmospheric
@@ -131,6 +132,24 @@ def _cases():
     Va[:, 0] = [1.2e5, 1.6e5, 1.9e5]
     S = np.column_stack([[3e-5, 5e-5, 8e-5], [10.0, 20.0, 30.0], [2e-5, 4e-5, 7e-5]])
     cases["Actuator"] = Case(acts, Va, S, [1e5, 1e-5, 300, 10])
+    # hysteretic actuator (the paper's snapping loop, V_lo 3.7 mL, V_hi 6.3 mL) on each
+    # branch; end-of-step volumes away from the loop ends, one inside each snap
+    loop = loop_hysteretic()
+    for branch, vols, model, kw in ((1.0, [2e-6, 5e-6, 6.15e-6], "adiabatic", {}),
+                                    (0.0, [3.8e-6, 5e-6, 9e-6], "heat_transfer", {"hA": 0.1})):
+        hyst = [sf.HystereticActuator(f"h{i}", sf.air, *loop, **kw) for i in range(n)]
+        _configure(hyst, model)
+        Vh = Vv.copy()
+        Vh[:, 0] = [1.1e5, 1.25e5, 1.3e5]
+        dt = 1e-3
+        mass = sf.air.density(Vh[:, 0], Vh[:, 2]) * np.array(vols) - dt * Vh[:, 1]
+        S = np.column_stack([mass, [10.0, 20.0, 30.0], np.array(vols) * 0.98, [branch] * n])
+        case = Case(hyst, Vh, S, [1e5, 1e-5, 300, 10], dt=dt)
+        # the kernel sees the intended branch and end-of-step volumes
+        vol, _ = case.cls._vol(case.P, case.V, case.S, dt)
+        np.testing.assert_allclose(vol, vols, rtol=1e-12)
+        assert (loop.on_inflation_curve(vol, branch > 0.5) == (branch > 0.5)).all()
+        cases[f"HystereticActuator-{'inflation' if branch else 'deflation'}"] = case
     return cases
 
 

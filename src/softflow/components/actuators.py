@@ -264,7 +264,9 @@ class HystereticActuator(LibraryComponent):
     jac_pattern = ACTUATOR_PATTERN
 
     def __init__(self, label, fluid, inflation_curve, deflation_curve, initial_volume=None, *,
-                 initial_branch=None, meet_tolerance=None):
+                 initial_branch=None, meet_tolerance=None, thermal=None,
+                 initial_temperature=None, wall_temperature=None,
+                 heat_transfer_coefficient=None, area=None, hA=None):
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.loop = HysteresisLoop(inflation_curve, deflation_curve,
@@ -284,6 +286,8 @@ class HystereticActuator(LibraryComponent):
         self.initial_branch = 1.0 if inflating else 0.0
         p0 = float(self.loop.fdf_volume(np.array([v0]), inflating)[0][0])
         _set_initial_state(self, v0, p0)
+        thermal_volume_fields(self, initial_temperature, wall_temperature,
+                              heat_transfer_coefficient, area, hA, thermal)
 
     def group_key(self):
         return (type(self), id(self.fluid), id(self.loop.inflation), id(self.loop.deflation))
@@ -320,3 +324,4 @@ class HystereticActuator(LibraryComponent):
 
 if Actuator.__doc__:   # None under python -OO
     Actuator.__doc__ += THERMAL_VOLUME_DOC
+    HystereticActuator.__doc__ += THERMAL_VOLUME_DOC

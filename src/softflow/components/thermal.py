@@ -39,9 +39,10 @@ Energy model
   solver's singularity test needs.
 * **Nodes** have no volume: the energy row of a node mixes the enthalpy flows
   of its inflows, so the outflows leave with the mass-weighted mixed enthalpy.
-* **Volumes** (Container, LinearAccumulator, Actuator) store mass m and
-  internal energy U (states, backward Euler); their terminal temperature is
-  the gas temperature (a well-mixed volume: what leaves has its state):
+* **Volumes** (Container, LinearAccumulator, Actuator, HystereticActuator)
+  store mass m and internal energy U (states, backward Euler); their terminal
+  temperature is the gas temperature (a well-mixed volume: what leaves has its
+  state):
 
       rho(p, T) · Vol = m + dt·mdot
       (m + dt·mdot) · u(p, T) = U + dt·(E + hA·(T_wall - T)) - p·(Vol - Vol_old)
@@ -49,6 +50,8 @@ Energy model
   with u(p, T), h(p, T) from the fluid (constant cv/cp for ideal gases, real
   properties at the ``table`` and ``eos`` levels). hA = 0 is adiabatic; a volume
   with ``thermal='isothermal'`` in a thermal scene holds T = T_wall instead.
+  A HystereticActuator keeps its discrete state ``branch``: the step uses the
+  branch it started on, which switches between steps from the converged volume.
 * **Sources** are reservoirs at their ``temperature``: a PressureSource fixes its
   node's temperature; flow sources deliver h(p, T_source) and take in the
   node's enthalpy when the flow reverses.
@@ -57,7 +60,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .actuators import Actuator
+from .actuators import Actuator, HystereticActuator
 from .chambers import Container, LinearAccumulator
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
 from .tubes import CircularTube, InertialCircularTube
@@ -483,16 +486,21 @@ class ThermalLinearAccumulator(_ThermalVolume, LinearAccumulator):
         return F, J
 
 
-class ThermalActuator(_ThermalVolume, Actuator):
-    """Actuator in a thermal scene: V = m_new / rho(p, T), p = curve(V), work p·dV."""
+class _ThermalCurveVolume(_ThermalVolume):
+    """Shared kernel of the thermal actuators: V = m_new / rho(p, T), p = curve(V),
+    work p·dV. Subclasses give the curve (:meth:`_curve`) and any extra states
+    after (mass, internal_energy, volume) (:meth:`_extra_states`)."""
 
-    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))
     jac_pattern = _VOLUME_PATTERN
 
     @classmethod
-    def thermal_initial_states(cls, comp):
-        vol = comp.initial_volume
-        return [*cls._initial_mass_energy(comp, vol), vol]
+    def _curve(cls, P, vol, S, jac):
+        """(p_curve, dp/dV or None) at the end-of-step volumes."""
+        raise NotImplementedError
+
+    @classmethod
+    def _extra_states(cls, P, vol, S):
+        return []
 
     @classmethod
     def _vol(cls, P, V, S, dt):
@@ -503,7 +511,8 @@ class ThermalActuator(_ThermalVolume, Actuator):
     @classmethod
     def update(cls, P, V, S, dt):
         vol, _ = cls._vol(P, V, S, dt)
-        return np.column_stack([*cls.energy_update(P, V, S, dt, vol), vol])
+        return np.column_stack([*cls.energy_update(P, V, S, dt, vol), vol,
+                                *cls._extra_states(P, vol, S)])
 
     @classmethod
     def kernel(cls, P, V, S, t, dt, jac):
@@ -511,13 +520,12 @@ class ThermalActuator(_ThermalVolume, Actuator):
         fl = P.fluid
         vol, rho = cls._vol(P, V, S, dt)
         F = np.empty((P.n, 2))
+        pc, dpc = cls._curve(P, vol, S, jac)
+        F[:, 0] = p - pc
         if not jac:
-            F[:, 0] = p - P.curve.value(vol)
             F[:, 1], _ = cls.energy(P, V, S, dt, vol, None, False)
             return F, None
-        pc, dpc = P.curve.fdf(vol)
         dvol = (-vol * fl.density_dp(p, T) / rho, dt / rho, -vol * fl.density_dT(p, T) / rho)
-        F[:, 0] = p - pc
         F[:, 1], dE = cls.energy(P, V, S, dt, vol, dvol, True)
         J = np.empty((P.n, 7))
         J[:, 0] = 1.0 - dpc * dvol[0]
@@ -525,6 +533,45 @@ class ThermalActuator(_ThermalVolume, Actuator):
         J[:, 2] = -dpc * dvol[2]
         _put(J, 3, dE)
         return F, J
+
+
+class ThermalActuator(_ThermalCurveVolume, Actuator):
+    """Actuator in a thermal scene: V = m_new / rho(p, T), p = curve(V), work p·dV."""
+
+    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        vol = comp.initial_volume
+        return [*cls._initial_mass_energy(comp, vol), vol]
+
+    @classmethod
+    def _curve(cls, P, vol, S, jac):
+        return P.curve.fdf(vol) if jac else (P.curve.value(vol), None)
+
+
+class ThermalHystereticActuator(_ThermalCurveVolume, HystereticActuator):
+    """HystereticActuator in a thermal scene: as :class:`ThermalActuator` on the
+    branch the step started on (discrete state ``branch``, 1 = inflation); the
+    branch switches between steps from the converged volume, as in the
+    isothermal kernel."""
+
+    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"),
+                  ("branch", "dimensionless"))
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        vol = comp.initial_volume
+        return [*cls._initial_mass_energy(comp, vol), vol, comp.initial_branch]
+
+    @classmethod
+    def _curve(cls, P, vol, S, jac):
+        pc, dpc = P.loop.fdf_volume(vol, S[:, 3] > 0.5)
+        return pc, (dpc if jac else None)
+
+    @classmethod
+    def _extra_states(cls, P, vol, S):
+        return [P.loop.next_inflating(vol, S[:, 3] > 0.5).astype(float)]
 
 
 # ---------------------------------------------------------------------------------------
@@ -544,9 +591,10 @@ THERMAL_CLASSES.update({
     PressureSource: ThermalPressureSource, MassFlowSource: ThermalMassFlowSource,
     VolumeFlowSource: ThermalVolumeFlowSource, Container: ThermalContainer,
     LinearAccumulator: ThermalLinearAccumulator, Actuator: ThermalActuator,
+    HystereticActuator: ThermalHystereticActuator,
 })
 #: Classes that store gas (take initial_temperature, wall heat transfer).
-VOLUME_CLASSES = (Container, LinearAccumulator, Actuator)
+VOLUME_CLASSES = (Container, LinearAccumulator, Actuator, HystereticActuator)
 SOURCE_CLASSES = (PressureSource, MassFlowSource, VolumeFlowSource)
 
 
