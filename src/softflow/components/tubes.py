@@ -25,6 +25,19 @@ def set_tube_geometry(comp, fluid, length, diameter, roughness, Re_laminar, Re_t
                          f"Re_laminar ({comp.Re_laminar})")
 
 
+def set_tube_coefficients(P):
+    """Laminar/turbulent law coefficients of a group of tubes (or tube-like valves)
+    on its Params namespace: Re = |mdot| re_per_mf, dp = c_mu/rho (f Re) mdot,
+    with mu at 1 atm."""
+    P.area = np.pi * P.diameter ** 2 / 4.0
+    P.eD = P.roughness / P.diameter
+    P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
+    P.Re_lo = float(P.Re_laminar[0])
+    P.Re_hi = float(P.Re_turbulent[0])
+    P.re_per_mf = P.diameter / (P.mu * P.area)
+    P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)
+
+
 class CircularTube(LibraryComponent):
     """Straight circular tube between terminals ``a`` and ``b``.
 
@@ -118,14 +131,7 @@ class CircularTube(LibraryComponent):
     def make_params(cls, components):
         P = super().make_params(components)
         first = P.components[0]
-        P.area = np.pi * P.diameter ** 2 / 4.0
-        P.eD = P.roughness / P.diameter
-        P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
-        P.Re_lo = float(P.Re_laminar[0])
-        P.Re_hi = float(P.Re_turbulent[0])
-        # Re = |mdot| * re_per_mf ; dp = c_mu/rho * (fRe) * mdot
-        P.re_per_mf = P.diameter / (P.mu * P.area)
-        P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)
+        set_tube_coefficients(P)
         P.compressible = P.fluid.compressible
         # real-fluid levels: viscosity at the tube's mean pressure (air at 15 MPa
         # is 20 % more viscous than at 1 atm); the ideal level keeps it constant

@@ -14,7 +14,7 @@ from ..correlations.friction import fRe_blended, smoothstep
 from ..correlations.orifice import (dp_at_reynolds, loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient)
 from .base import FLUID_PORT, LibraryComponent
-from .tubes import set_tube_geometry
+from .tubes import set_tube_coefficients, set_tube_geometry
 
 TWO_PORTS = (("a", FLUID_PORT), ("b", FLUID_PORT))
 # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: flow law
@@ -27,17 +27,6 @@ def _mean_density(fluid, pa, pb):
         return fluid.rho, 0.0
     pm = 0.5 * (pa + pb)
     return fluid.density(pm), 0.5 * fluid.density_dp(pm)
-
-
-def _tube_params(P):
-    """Laminar/turbulent tube coefficients (as CircularTube) on a Params namespace."""
-    P.area = np.pi * P.diameter ** 2 / 4.0
-    P.eD = P.roughness / P.diameter
-    P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
-    P.Re_lo = float(P.Re_laminar[0])
-    P.Re_hi = float(P.Re_turbulent[0])
-    P.re_per_mf = P.diameter / (P.mu * P.area)              # Re = |mdot| re_per_mf
-    P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)  # dp = c_mu/rho (fRe) mdot
 
 
 def _tube_fRe(P, mf):
@@ -348,7 +337,7 @@ class TeslaValve(_TubeLike):
     @classmethod
     def make_params(cls, components):
         P = super().make_params(components)
-        _tube_params(P)
+        set_tube_coefficients(P)
         P.mf_blend = P.Re_blend / P.re_per_mf
         return P
 
@@ -450,7 +439,7 @@ class SnappingValve(_TubeLike):
     @classmethod
     def make_params(cls, components):
         P = super().make_params(components)
-        _tube_params(P)
+        set_tube_coefficients(P)
         return P
 
     @classmethod

@@ -80,7 +80,7 @@ class Newton:
         self._qid = qid
         # absolute node pressures must stay positive: a solution with p <= 0 is
         # rejected (user locals of quantity 'pressure', e.g. a difference, are not)
-        nodal = list(enumerate(asm.x_quantity))[:asm.n_across]
+        nodal = list(enumerate(asm.x_quantity[:asm.n_across]))
         self._p_idx = np.array([i for i, q in nodal if q == "pressure"], dtype=np.int64)
         # thermal scenes: a node through which (almost) nothing flows has a weakly
         # determined temperature, and a Newton update from a zero-flow start can move
