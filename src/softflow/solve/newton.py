@@ -89,6 +89,7 @@ class Newton:
         # Convergence is judged on the unclipped update.
         self._T_idx = np.array([i for i, q in nodal if q == "temperature"], dtype=np.int64)
         self.tol = self.atol.copy()
+        self.fluid_error = None   # the last fluid-range error of the current stage
         if max_reuse_iter is None:
             max_reuse_iter = 6 if lin.kind == "sparse" else 4
         self.max_reuse_iter = max_reuse_iter
@@ -122,7 +123,7 @@ class Newton:
         return None if self.fluid_error is not None else int(np.argmax(~np.isfinite(F)))
 
     def _not_finite(self, reason):
-        err = getattr(self, "fluid_error", None)
+        err = self.fluid_error
         return f"{reason} ({err})" if err is not None else reason
 
     def _factor(self, dt):
@@ -164,7 +165,6 @@ class Newton:
         return self.dt_ratio[0] <= r <= self.dt_ratio[1]
 
     def solve(self, x0, S, t, dt):
-        self.fluid_error = None
         self._set_scale(x0)
         stages = (["reuse"] if self._reusable(dt) else []) + ["fresh", "full"]
         last = None

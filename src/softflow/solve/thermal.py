@@ -251,6 +251,7 @@ def energy_balance(result, system):
     energy flows), ``wall_heat`` (heat from the walls), ``work`` (p·dV work
     done by deformable volumes), ``error`` = stored - inflow - wall_heat + work
     and ``relative_error`` (error over the largest of the terms and |U_0|)."""
+    from ..components.chambers import Container
     from ..components.thermal import SOURCE_CLASSES, VOLUME_CLASSES
     t = result.times
     dt = np.diff(t)
@@ -265,7 +266,7 @@ def energy_balance(result, system):
             scale = max(scale, abs(U[0]), abs(U[-1]))
             T = result.get(c.label, "temperature")
             w = 0.0
-            if not isinstance(c, VOLUME_CLASSES[0]):     # deformable: p dV work
+            if not isinstance(c, Container):     # deformable: p dV work
                 vol = result.get(c.label, "volume")
                 w = float(np.sum(result.get(c.label, "pressure")[1:] * np.diff(vol)))
             work += w
