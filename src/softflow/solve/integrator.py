@@ -210,6 +210,8 @@ class ImplicitEuler:
 
     def run(self):
         x, S = self.initial()
+        if isinstance(self.ctrl, FixedStep):
+            return self._run_fixed(x, S)
         asm, ctrl, T = self.asm, self.ctrl, self.T
         begin = asm.has_begin_step
         if begin:
@@ -253,3 +255,72 @@ class ImplicitEuler:
             if at_break:
                 x_prev = S_prev = None
                 self.newton.invalidate()
+
+    def _run_fixed(self, x, S):
+        """The loop of :meth:`run` for a :class:`FixedStep` controller, with the
+        controller's logic and the breakpoint search (a pointer into the sorted
+        breakpoints instead of a bisection) written in, on local variables: on
+        the paper's three-component scene the generic loop's calls cost ~4 us
+        of a ~20 us step. Same steps, same arithmetic as the generic loop."""
+        asm, ctrl, stats, rec = self.asm, self.ctrl, self.stats, self.rec
+        solve, update, T = self.newton.solve, asm.update_states, self.T
+        begin = asm.begin_step if asm.has_begin_step else None
+        if begin is not None:
+            begin(x, S)
+        disc = asm.s_discrete if asm.has_discrete else None
+        h0, n_grid, step_min = ctrl.h0, ctrl.n_grid, ctrl.step_min
+        breaks, break_set = self.breaks, self._break_set
+        nb, ib = len(breaks), 0
+        next_break = breaks[0] if nb else math.inf
+        rec_t, rec_add = rec.t, rec.add
+        t, k, h_cut = 0.0, 0, None
+        t_stop = T * (1 - 1e-14)
+        x_prev = h_prev = None
+        extrapolate = True
+        while t < t_stop:
+            if next_break <= t * (1 + 1e-14) + 1e-300:
+                while ib < nb and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
+                    ib += 1
+                next_break = breaks[ib] if ib < nb else math.inf
+            grid_next = T if k + 1 >= n_grid else min((k + 1) * h0, T)
+            end = next_break if next_break < grid_next else grid_next
+            h = end - t
+            if h_cut is not None and h_cut < h:
+                h = h_cut
+                end = t + h
+            if x_prev is None or not extrapolate:
+                x_pred = x
+            else:
+                r = h / h_prev
+                x_pred = x + (x - x_prev) if r == 1.0 else x + (x - x_prev) * r
+            t_new = t + h
+            # at a breakpoint the step sees the inputs' left limit
+            at_break = t_new in break_set
+            out = solve(x_pred, S, math.nextafter(t_new, -math.inf) if at_break else t_new, h)
+            if not out.converged:
+                stats.rejected_steps += 1
+                if h / 4 < step_min:
+                    raise StepFailure(t + h, h, out)
+                h_cut = h / 4
+                extrapolate = False
+                continue
+            S_new = update(out.x, S, h)
+            if t_new != end and abs(t_new - end) <= 1e-12 * max(1.0, end):
+                t_new = end
+                at_break = t_new in break_set
+            stats.steps += 1
+            if disc is not None and not at_break:
+                at_break = bool((S_new[disc] != S[disc]).any())
+            x_prev, h_prev = x, h
+            x, S, t = out.x, S_new, t_new
+            rec_add(t, x, S)
+            if begin is not None:
+                begin(x, S)
+            h_cut = None
+            if t == grid_next:
+                k += 1
+            extrapolate = True
+            if at_break:
+                x_prev = None
+                self.newton.invalidate()
+        ctrl.k = k
