@@ -63,6 +63,10 @@ def _is_regular(A):
     return bool(d.size == 0 or d.min() > 1e-12)
 
 
+#: Up to this many unknowns the node rows are one dense matrix-vector product.
+NODE_DOT_MAX = 64
+
+
 class Group:
     """Components evaluated by one kernel call, and where they live in x, F, S and J."""
 
@@ -355,12 +359,27 @@ class Assembly:
                                g.r0, g.r1, g.j0, g.j1))
         self._update_plan = [(g.update, g.col, g.s0, g.s1, (g.n, g.ns))
                              for g in self.groups if g.has_states]
+        # one group holding every state (a single volume, or one class of them):
+        # its update is the new state vector, no copy of S to write it into
+        n_s = len(self.S0)
+        self._one_update = (self._update_plan[0] if len(self._update_plan) == 1
+                            and self._update_plan[0][2:4] == (0, n_s) else None)
+        # node rows of small systems by a dense incidence matrix: one dot product
+        # (0.3 us) against a weighted bincount (0.5 us) for the paper's scene
+        nr = self.n_node_rows
+        self._incidence = None
+        if 0 < nr and self.n <= NODE_DOT_MAX:
+            inc = np.zeros((nr, self.n))
+            np.add.at(inc, (self.through_rows, self.through_cols), 1.0)
+            self._incidence = inc
 
     def residual(self, x, S, t, dt, jac=False):
         """F(x) for states S at the start of the step; with jac, also fills self.raw."""
         F = np.empty(self.n)
         nr = self.n_node_rows
-        if nr:
+        if self._incidence is not None:
+            np.dot(self._incidence, x, out=F[:nr])
+        elif nr:
             F[:nr] = np.bincount(self.through_rows, weights=x[self.through_cols], minlength=nr)
         raw = self.raw
         for g, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1 in self._plan:
@@ -387,6 +406,14 @@ class Assembly:
 
     def update_states(self, x, S, dt):
         """States at the end of a step, given the converged unknowns."""
+        if self._one_update is not None:
+            update, col, s0, s1, s_shape = self._one_update
+            Sg = S.reshape(s_shape)
+            new = update(x[col], Sg, dt)
+            # a state-free update hands S itself back: never alias the old states
+            if new is Sg or new.base is S or new.base is Sg:
+                return S.copy()
+            return new.ravel()
         out = S.copy()
         for update, col, s0, s1, s_shape in self._update_plan:
             out[s0:s1] = update(x[col], S[s0:s1].reshape(s_shape), dt).ravel()
