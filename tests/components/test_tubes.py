@@ -242,7 +242,10 @@ def test_lc_oscillation_frequency():
     s2.connect("src", "tube")
     s2.connect("tube", "acc")
     r2 = sf.Simulation(s2, duration=0.5, step=1e-3).run()
-    assert (r2.get("acc", "pressure") - P0 > 0).all()
+    gauge = r2.get("acc", "pressure") - P0
+    # it decays monotonically to P0 (to round-off of the absolute pressure: it
+    # reaches P0 itself after ~150 steps), never below
+    assert (np.diff(gauge) <= 1e-6).all() and gauge.min() >= -1e-6
 
 
 def test_inertial_tube_reaches_the_steady_flow_of_the_plain_tube():
