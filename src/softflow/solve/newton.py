@@ -251,17 +251,25 @@ class Newton:
         return self.dt_ratio[0] <= r <= self.dt_ratio[1]
 
     def solve(self, x0, S, t, dt):
-        self._set_scale(x0)
         self._F_at_x0 = None      # set by a fresh stage that factored at x0
         last = None
         if self._reusable(dt):
             self.fluid_error = None
-            out = self._chord(x0, S, t, dt, "reuse")
+            F0 = None
+            if self._small and not self._T_idx.size and not self._links:
+                out = self._quick(x0, S, t, dt)
+                if type(out) is Outcome:
+                    return out
+                F0 = out
+            self._set_scale(x0)
+            out = self._chord(x0, S, t, dt, "reuse", F0)
             if out.converged and out.iterations >= self.max_reuse_iter:
                 self.stale = True  # convergence slowing: refresh at the next step
             last = self._accept(out)
             if last is None:
                 return out
+        else:
+            self._set_scale(x0)
         if last is None or not last.reason.startswith(("singular", "absolute pressure")):
             for stage in ("fresh", "full"):
                 self.fluid_error = None       # each stage reports its own fluid-range error
@@ -283,6 +291,43 @@ class Newton:
         self.stale = True
         return last
 
+    def _quick(self, x0, S, t, dt):
+        """The usual step of a small isothermal system, in one frame: one chord
+        iteration on the current factors that passes the convergence test, with
+        the tolerance scale, the update norm and the pressure test on Python
+        lists (the steps of :meth:`_set_scale`, :meth:`_chord`, :meth:`_norm`
+        and :meth:`_accept`, same arithmetic). Returns the converged Outcome, or
+        the residual at x0 for :meth:`_chord` to go on from. The residual is not
+        tested for finiteness first: a NaN or inf in it makes the update's sum
+        NaN, and :meth:`_chord` then reports it."""
+        F = self._eval(x0, S, t, dt, False)
+        step = self.lin.solve(F)
+        if self._q_sorted:
+            v, w = x0.tolist(), step.tolist()
+        else:
+            v, w = x0[self._q_order].tolist(), step[self._q_order].tolist()
+        total = sum(w)
+        if total - total != 0.0:      # NaN or inf
+            return F
+        rtol, nrm, qtol = self.rtol, 0.0, []
+        for (a, b), at in zip(self._q_bounds, self._q_atol):
+            tq = at + rtol * max(map(abs, v[a:b]))
+            qtol.append(tq)
+            m = max(map(abs, w[a:b])) / tq
+            if m > nrm:
+                nrm = m
+        self._qtol = qtol
+        if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
+            return F
+        x = x0 - step
+        if self._p_idx.size and not self._positive(x):
+            return F
+        self.stats.newton_iterations += 1
+        self.age += 1
+        if self.max_reuse_iter <= 1:
+            self.stale = True
+        return Outcome(True, x, 1)
+
     def _accept(self, out):
         """None for a converged solve with positive absolute pressures (counted
         as one more step on the current factors), else the failed outcome."""
@@ -298,10 +343,12 @@ class Newton:
         self.age += 1
         return None
 
-    def _chord(self, x0, S, t, dt, stage):
+    def _chord(self, x0, S, t, dt, stage, F=None):
+        """Chord iterations from x0 (``F``: the residual there, if evaluated)."""
         fresh = stage == "fresh"
         x = x0          # never written in place: each update makes a new array
-        F = self._eval(x, S, t, dt, jac=fresh)
+        if F is None:
+            F = self._eval(x, S, t, dt, jac=fresh)
         if not all_finite(F):
             return Outcome(False, x, 0, self._not_finite("residual not finite at the predictor"),
                            self._nonfinite_row(F))
