@@ -10,6 +10,7 @@ import numpy as np
 
 from ..network.component import AutoFunction
 from ..network.system import NetworkError
+from .compiled import expression
 
 #: Typical magnitude per quantity, used to size finite-difference steps at zero.
 _TYPICAL = {"pressure": 1e5, "massflow": 1e-4, "mass": 1e-4, "volume": 1e-5,
@@ -24,7 +25,7 @@ def _compiled_states(names):
     never written into the source."""
     keys = {f"k{i}": n for i, n in enumerate(names)}
     picks = ", ".join(f"f(o[k{i}])" for i in range(len(names)))
-    return eval(f"lambda o: a([{picks}])", {"a": np.array, "f": float, **keys})
+    return expression(f"lambda o: a([{picks}])", {"a": np.array, "f": float, **keys})
 
 
 def _compiled_call(func, plan):
@@ -34,7 +35,7 @@ def _compiled_call(func, plan):
     the plan at every call (three arguments, measured). The source holds only
     the names t, v, s, f and integer indices from our own binding."""
     picks = ["t" if kind == "t" else f"{kind}[{int(k)}]" for kind, k in plan]
-    return eval(f"lambda t, v, s: f({', '.join(picks)})", {"f": func})
+    return expression(f"lambda t, v, s: f({', '.join(picks)})", {"f": func})
 
 
 class UserKernel:
@@ -132,18 +133,30 @@ class UserKernel:
         return arr
 
     # -- kernel interface ---------------------------------------------------------------
+    # Groups of library components take (n, nv) variables and (n, ns) states; a user
+    # component is one instance, and the assembly calls its *_row methods with the
+    # 1-D rows directly (no reshaping of S, no row picking: ~0.4 us a step).
     def update(self, V, S, dt):
+        return self.update_row(V[0], S[0], dt)[None, :]
+
+    def update_row(self, v, s, dt):
+        """End-of-step states (1-D) from the variables v and start-of-step states s;
+        s itself when the component has none."""
         if self.up is None:
-            return S
-        return self._call_up(dt, V[0], S[0])[None, :]
+            return s
+        return self._call_up(dt, v, s)
 
     def kernel(self, V, S, t, dt, jac):
-        v = V[0]
-        s_old = S[0]
+        F, J = self.kernel_row(V[0], S[0], t, dt, jac)
+        return F[None, :], (None if J is None else J[None, :])
+
+    def kernel_row(self, v, s_old, t, dt, jac):
+        """Residual (1-D) and, with jac, the dense local Jacobian (flattened row-major,
+        the order of ``pattern``) at the variables v and start-of-step states s_old."""
         s = self._call_up(dt, v, s_old) if self.up is not None else s_old
         F = self._call_ev(t, v, s)
         if not jac:
-            return F[None, :], None
+            return F, None
         v = v.copy()     # perturbed in place below
         J = np.zeros((self.neq, self.nv))
         for k in self.ev_v:
@@ -167,4 +180,4 @@ class UserKernel:
                 dSdv[:, k] = (self._call_up(dt, v, s_old) - s) / h
                 v[k] = vk
             J += dFds @ dSdv
-        return F[None, :], J.reshape(1, -1)
+        return F, J.ravel()
