@@ -27,6 +27,13 @@ class SingularJacobian(RuntimeError):
     pass
 
 
+#: Up to this many unknowns DenseLU solves by a product with the inverse
+#: (0.3 us against 0.5 us for LAPACK getrs on the paper's 6 unknowns,
+#: measured). Newton only needs the update to a relative accuracy far coarser
+#: than the inverse's round-off, and checks convergence on it.
+INVERSE_MAX = 16
+
+
 class DenseLU:
     """LAPACK LU of the assembled Jacobian (small systems)."""
 
@@ -51,6 +58,10 @@ class DenseLU:
             raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))
         self.lu = (lu, piv)
         self._J = J
+        if self.n <= INVERSE_MAX:
+            # the inverse from the factors: a solve is then one product
+            self._inv = dgetrs(lu, piv, np.eye(self.n))[0]
+            self.solve = self._inv.dot
 
     @property
     def row_scale(self):

@@ -138,6 +138,9 @@ class Newton:
             self._small = False
         self._itol = 1.0 / self.atol
         self._qtol = list(getattr(self, "_q_atol", ()))
+        self._has_p = bool(self._p_idx.size)
+        # the written-out step (_quick): small isothermal systems without magnitude links
+        self._quick_ok = self._small and not self._T_idx.size
         self.fluid_error = None   # the last fluid-range error of the current stage
         if max_reuse_iter is None:
             max_reuse_iter = 4 if lin.kind == "dense" else 6
@@ -191,6 +194,7 @@ class Newton:
         names = self._q_names
         if quantity in names and base in names:
             self._links.append((names.index(quantity), names.index(base), float(factor)))
+            self._quick_ok = False
 
     @property
     def tol(self):
@@ -256,7 +260,7 @@ class Newton:
         if self._reusable(dt):
             self.fluid_error = None
             F0 = None
-            if self._small and not self._T_idx.size and not self._links:
+            if self._quick_ok:
                 out = self._quick(x0, S, t, dt)
                 if type(out) is Outcome:
                     return out
@@ -300,7 +304,12 @@ class Newton:
         the residual at x0 for :meth:`_chord` to go on from. The residual is not
         tested for finiteness first: a NaN or inf in it makes the update's sum
         NaN, and :meth:`_chord` then reports it."""
-        F = self._eval(x0, S, t, dt, False)
+        self.stats.residual_evaluations += 1
+        try:
+            F = self.asm.residual(x0, S, t, dt, False)
+        except FluidError as err:     # as in _eval
+            self.fluid_error = err
+            return np.full(self.asm.n, np.nan)
         step = self.lin.solve(F)
         if self._q_sorted:
             v, w = x0.tolist(), step.tolist()
@@ -320,7 +329,7 @@ class Newton:
         if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
             return F
         x = x0 - step
-        if self._p_idx.size and not self._positive(x):
+        if self._has_p and not self._positive(x):
             return F
         self.stats.newton_iterations += 1
         self.age += 1
