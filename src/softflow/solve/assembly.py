@@ -419,38 +419,41 @@ class Assembly:
         source whose only literals are this network's slice bounds and shapes
         (arrays, kernels and names are passed as values): on the paper's three
         groups the loop's unpacking and tests cost ~0.5 us of ~5 us."""
-        env = {"empty": np.empty, "dot": np.dot, "bincount": np.bincount,
+        env = {"empty": np.empty, "array": np.array, "bincount": np.bincount,
                "FluidError": FluidError, "raw": self.raw, "inc": self._incidence,
                "trows": self.through_rows, "tcols": self.through_cols,
                "names": [_group_name(g) for g in self.groups]}
         nr = self.n_node_rows
-        lines = ["def residual(x, S, t, dt, jac=False):",
-                 f"    F = empty({self.n})"]
-        if self._incidence is not None:
-            lines.append(f"    dot(inc, x, out=F[:{nr}])")
-        elif nr:
-            lines.append(f"    F[:{nr}] = bincount(trows, weights=x[tcols], minlength={nr})")
+        # small systems gather F as one list (a list per part and one array at the
+        # end: 0.9 us against 1.2 us for slice assignments on the paper's scene)
+        gather = self._incidence is not None
+        lines = ["def residual(x, S, t, dt, jac=False):"]
+        if gather:
+            lines.append("    F = inc.dot(x).tolist()")
+        else:
+            lines.append(f"    F = empty({self.n})")
+            if nr:
+                lines.append(f"    F[:{nr}] = bincount(trows, weights=x[tcols], minlength={nr})")
         lines += ["    i = 0", "    try:"]
         for i, (g, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1) in \
                 enumerate(self._plan):
-            if g.row is not None:      # a user component: 1-D rows in and out
+            user = g.row is not None   # a user component: 1-D rows in and out
+            if user:
                 env[f"k{i}"], env[f"c{i}"] = g.row.kernel_row, col[0]
-                lines += [f"        i = {i}",
-                          f"        Fg, Jg = k{i}(x[c{i}], S[{s0}:{s1}], t, dt, jac)",
-                          f"        F[{r0}:{r1}] = Fg"]
-                if j1 > j0:
-                    lines.append(f"        if jac: raw[{j0}:{j1}] = Jg")
-                continue
-            env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
-            states = f"e{i}" if no_states is not None else f"S[{s0}:{s1}].reshape({s_shape})"
+                states = f"S[{s0}:{s1}]"
+            else:
+                env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
+                states = (f"e{i}" if no_states is not None
+                          else f"S[{s0}:{s1}].reshape({s_shape})")
+            flat = "Fg" if user else "Fg.ravel()"
             lines += [f"        i = {i}",
                       f"        Fg, Jg = k{i}(x[c{i}], {states}, t, dt, jac)",
-                      f"        F[{r0}:{r1}] = Fg.ravel()"]
+                      f"        F += {flat}.tolist()" if gather else f"        F[{r0}:{r1}] = {flat}"]
             if j1 > j0:
-                lines.append(f"        if jac: raw[{j0}:{j1}] = Jg.ravel()")
+                lines.append(f"        if jac: raw[{j0}:{j1}] = Jg{'' if user else '.ravel()'}")
         lines += ["    except FluidError as err:     # say which components asked for the bad state",
                   "        raise FluidError(f'in {names[i]}: {err}') from None",
-                  "    return F"]
+                  "    return array(F)" if gather else "    return F"]
         fn = function("\n".join(lines), "residual", env)
         fn.__doc__ = Assembly.residual.__doc__
         return fn

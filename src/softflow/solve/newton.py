@@ -249,6 +249,8 @@ class Newton:
     def _reusable(self, dt):
         if self.stale or self.lu_dt is None or self.age >= self.max_age:
             return False
+        if dt == self.lu_dt:      # a fixed step: the usual case
+            return True
         if self.lu_dt == 0.0 or dt == 0.0:
             return self.lu_dt == dt
         r = dt / self.lu_dt
