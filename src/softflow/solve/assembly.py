@@ -338,6 +338,14 @@ class Assembly:
         dt = 0 this checks the consistent-initial-value problem at t = 0."""
         with np.errstate(all="ignore"):
             self.residual(self.x0, self.S0, 0.0, dt, jac=True)
+        n = self.n
+        if n <= DENSE_CHECK_MAX:      # the usual answer for small systems, without sparse matrices
+            J = np.bincount(self.pattern_rows * n + self.pattern_cols, weights=self.raw,
+                            minlength=n * n).reshape(n, n)
+            if not np.isfinite(J).all():
+                return
+            if _is_regular_dense(J):
+                return
         A = self.jacobian_csc()
         if not np.isfinite(A.data).all():
             return  # reported with time and equation by the first Newton solve
@@ -402,7 +410,7 @@ class Assembly:
         if self._one_update is not None:
             g = next(g for g in self.groups if g.has_states)
             if g.row is not None:
-                self._one_update_row = g.row.update_row
+                self._one_update_row = (g.row.update_row, g.col[0])
         # node rows of small systems by a dense incidence matrix: one dot product
         # (0.3 us) against a weighted bincount (0.5 us) for the paper's scene
         nr = self.n_node_rows
@@ -491,11 +499,12 @@ class Assembly:
 
     def update_states(self, x, S, dt):
         """States at the end of a step, given the converged unknowns."""
+        if self._one_update_row is not None:      # a single user component's 1-D rows
+            update_row, col = self._one_update_row
+            new = update_row(x[col], S, dt)
+            return S.copy() if new is S else new
         if self._one_update is not None:
             update, col, s0, s1, s_shape = self._one_update
-            if self._one_update_row is not None:      # a user component's 1-D rows
-                new = self._one_update_row(x[col[0]], S, dt)
-                return S.copy() if new is S else new
             Sg = S.reshape(s_shape)
             new = update(x[col], Sg, dt)
             # a state-free update hands S itself back: never alias the old states

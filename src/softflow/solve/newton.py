@@ -257,16 +257,19 @@ class Newton:
         return self.dt_ratio[0] <= r <= self.dt_ratio[1]
 
     def solve(self, x0, S, t, dt):
+        F0 = None
+        # the usual step of a small system: the same step size, reusable factors
+        if self._quick_ok and dt == self.lu_dt and not self.stale and self.age < self.max_age:
+            self.fluid_error = None
+            out = self._quick(x0, S, t, dt)
+            if type(out) is Outcome:
+                return out
+            F0 = out
         self._F_at_x0 = None      # set by a fresh stage that factored at x0
         last = None
         if self._reusable(dt):
-            self.fluid_error = None
-            F0 = None
-            if self._quick_ok:
-                out = self._quick(x0, S, t, dt)
-                if type(out) is Outcome:
-                    return out
-                F0 = out
+            if F0 is None:
+                self.fluid_error = None
             self._set_scale(x0)
             out = self._chord(x0, S, t, dt, "reuse", F0)
             if out.converged and out.iterations >= self.max_reuse_iter:
