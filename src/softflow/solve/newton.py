@@ -149,6 +149,7 @@ class Newton:
         self.max_age = max_age
         self.dt_ratio = dt_ratio
         self.lu_dt = None      # step size the current factors were built for
+        self._dt_lo = self._dt_hi = -1.0
         self.age = 0           # steps since the last factorization
         self.stale = True      # force a fresh Jacobian at the next solve
         self.eta = 1.0         # rate/(1 - rate) seen in earlier solves, for the first test
@@ -182,6 +183,8 @@ class Newton:
         self.lin.factor()
         self.stats.factorizations += 1
         self.lu_dt = dt
+        # the step sizes these factors serve (see _reusable; 0 serves only 0)
+        self._dt_lo, self._dt_hi = self.dt_ratio[0] * dt, self.dt_ratio[1] * dt
         self.age = 0
         self.stale = False
 
@@ -247,19 +250,16 @@ class Newton:
         return (min(p.tolist()) if self._small else _min(p)) > 0.0
 
     def _reusable(self, dt):
-        if self.stale or self.lu_dt is None or self.age >= self.max_age:
-            return False
-        if dt == self.lu_dt:      # a fixed step: the usual case
-            return True
-        if self.lu_dt == 0.0 or dt == 0.0:
-            return self.lu_dt == dt
-        r = dt / self.lu_dt
-        return self.dt_ratio[0] <= r <= self.dt_ratio[1]
+        """The current factors serve a step dt: within dt_ratio of the step they
+        were built for (exactly 0 for the dt = 0 solve at t = 0)."""
+        return (not self.stale and self.lu_dt is not None and self.age < self.max_age
+                and self._dt_lo <= dt <= self._dt_hi)
 
     def solve(self, x0, S, t, dt):
         F0 = None
         # the usual step of a small system: the same step size, reusable factors
-        if self._quick_ok and dt == self.lu_dt and not self.stale and self.age < self.max_age:
+        if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi
+                and self.age < self.max_age):
             self.fluid_error = None
             out = self._quick(x0, S, t, dt)
             if type(out) is Outcome:
