@@ -10,6 +10,7 @@ Layout understood (as in ``shared/data/latex_balloon_60mm_pv.csv``)::
 from __future__ import annotations
 
 import csv
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,10 @@ def _is_number(cell):
         return False
 
 
+@lru_cache(maxsize=256)
 def _parse_unit(cell):
+    """The pint unit of a units-row cell (cached: pint's parser takes ~0.1 ms
+    a cell, and files of one kind repeat the same few units)."""
     cell = cell.strip()
     if cell in ("", "-", "1"):
         return ureg.dimensionless
