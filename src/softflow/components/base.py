@@ -143,3 +143,25 @@ class LibraryComponent(Component):
     def update(cls, P, V, S, dt):
         """States at the end of a step of length dt (backward Euler)."""
         return S
+
+    @classmethod
+    def affine(cls, P):
+        """None, or an :class:`Affine` description of this group's residual
+        (without Jacobian) as an affine map of V, which small systems evaluate
+        for all such groups with one matrix product. Only a class whose
+        :meth:`kernel` the description matches may return one (a subclass with
+        its own kernel must not inherit it)."""
+        return None
+
+
+class Affine:
+    """F[i, e] = sum_k coef[i, e, k] V[i, k] - offset(t) while valid(V) holds.
+
+    coef : (n, n_eq, n_vars) constant array
+    offset : callable t -> float or 1-D array of n·n_eq values (row order), or None
+    valid : callable V -> bool, or None for always; where it is False the
+        kernel evaluates the group instead
+    """
+
+    def __init__(self, coef, offset=None, valid=None):
+        self.coef, self.offset, self.valid = np.asarray(coef, dtype=float), offset, valid

@@ -15,7 +15,7 @@ import numpy as np
 from ..constants import pressure_atmospheric
 from ..curves.waveforms import Waveform
 from ..units import to_si
-from .base import FLUID_PORT, LibraryComponent, Params
+from .base import FLUID_PORT, Affine, LibraryComponent, Params
 
 
 class _Signal:
@@ -111,6 +111,11 @@ class _SourceParams(Params):
             self._tc = t
         return self._col
 
+    def flat_values(self, t):
+        """The values at t as a float when they are all equal, else 1-D (n,)."""
+        v = self.column(t)
+        return v if type(v) is float else v.ravel()
+
     def values(self, t):
         """Signal values at t, computed once per distinct t."""
         if self._varying and t != self._t:
@@ -187,6 +192,13 @@ class PressureSource(_Source):
         J = np.ones((P.n, 1)) if jac else None
         return F, J
 
+    @classmethod
+    def affine(cls, P):
+        # F = p - value(t), V = [p, mf]; only for this kernel, not for subclasses'
+        if cls.kernel.__func__ is not PressureSource.kernel.__func__:
+            return None
+        return Affine(np.broadcast_to([[[1.0, 0.0]]], (P.n, 1, 2)), offset=P.flat_values)
+
 
 class MassFlowSource(_Source):
     """Imposes a mass flow leaving the source through terminal ``a``.
@@ -213,6 +225,14 @@ class MassFlowSource(_Source):
         F = V[:, 1:2] + P.column(t)
         J = np.ones((P.n, 1)) if jac else None
         return F, J
+
+    @classmethod
+    def affine(cls, P):
+        # F = mf + value(t), V = [p, mf]; only for this kernel, not for subclasses'
+        if cls.kernel.__func__ is not MassFlowSource.kernel.__func__:
+            return None
+        return Affine(np.broadcast_to([[[0.0, 1.0]]], (P.n, 1, 2)),
+                      offset=lambda t: -P.flat_values(t))
 
 
 class VolumeFlowSource(_Source):

@@ -2,12 +2,14 @@
 isothermal compressible flow and optional fluid inertance."""
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
                                      resolve_friction)
-from .base import FLUID_PORT, LibraryComponent
+from .base import FLUID_PORT, Affine, LibraryComponent
 
 _COMPRESSIBLE_MODES = ("mean_density", "isothermal")
 #: groups up to this size test laminarity by a dot product (single-threaded in BLAS)
@@ -231,12 +233,29 @@ class CircularTube(LibraryComponent):
         return dp, d_pa, d_mf, d_pb
 
     @classmethod
+    def _laminar(cls, P, V):
+        """Every tube of the group below Re_laminar (a cheap test: on small
+        groups the sum of the Reynolds numbers bounds the largest)."""
+        if P.n == 1:
+            return abs(V[0, 1]) * P.re0 <= P.Re_lo
+        return P.n <= _DOT_MAX and np.abs(V[:, 1]).dot(P.re_per_mf) <= P.Re_lo
+
+    @classmethod
+    def affine(cls, P):
+        # a constant-property liquid in laminar flow (see make_params); only for
+        # this kernel, not for subclasses that replace it
+        if P.lin_map is None or cls.kernel.__func__ is not CircularTube.kernel.__func__:
+            return None
+        coef = np.empty((P.n, 2, 4))
+        coef[:] = P.lin_map.T
+        coef[:, 1, 1] = -P.c64_per_rho
+        return Affine(coef, valid=None if P.turbulent is None else partial(cls._laminar, P))
+
+    @classmethod
     def kernel(cls, P, V, S, t, dt, jac):
         if P.lin_map is not None and not jac:
-            one = P.n == 1
-            if P.turbulent is None or (abs(V[0, 1]) * P.re0 <= P.Re_lo if one else (
-                    P.n <= _DOT_MAX and np.abs(V[:, 1]).dot(P.re_per_mf) <= P.Re_lo)):
-                if one:
+            if P.turbulent is None or cls._laminar(P, V):
+                if P.n == 1:
                     return V.dot(P.lam_map), None
                 F = V.dot(P.lin_map)
                 F[:, 1] -= P.c64_per_rho * V[:, 1]

@@ -112,6 +112,7 @@ class Group:
         self.has_states = has_states
         self.begin = None  # begin_step(V, S) hook, or None
         self.row = None    # a single user component's kernel (1-D calls), or None
+        self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
         self.r0 = self.r1 = self.s0 = self.s1 = self.j0 = self.j1 = 0
 
@@ -127,6 +128,7 @@ def _library_group(cls, comps):
     g = Group(comps, kernel=partial(cls.kernel, P), update=partial(cls.update, P),
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
+    g.affine = cls.affine(P)
     # per-step coefficients (e.g. heat-transfer correlations), frozen over each step
     wants = getattr(cls, "wants_begin_step", None)
     if wants is not None and wants(P):
@@ -462,6 +464,61 @@ class Assembly:
         lines += ["    except FluidError as err:     # say which components asked for the bad state",
                   "        raise FluidError(f'in {names[i]}: {err}') from None",
                   "    return array(F)" if gather else "    return F"]
+        fn = function("\n".join(lines), "residual", env)
+        fn.__doc__ = Assembly.residual.__doc__
+        if gather:
+            fn = self._affine_residual(fn)
+        return fn
+
+    def _affine_residual(self, full):
+        """For a small system, the residual without Jacobian with the node rows and
+        every group that describes itself as affine in its variables
+        (:meth:`LibraryComponent.affine`, e.g. sources, tubes of a liquid in
+        laminar flow) evaluated as one product A·x, minus their time-dependent
+        offsets; the other groups, and affine ones whose condition fails at x,
+        through their kernels. With a Jacobian, ``full`` does it all. On the
+        paper's scene this saves two kernel calls (~1.2 us) a step."""
+        n, env = self.n, {"full": full, "array": np.array, "FluidError": FluidError,
+                          "names": [_group_name(g) for g in self.groups]}
+        A = np.zeros((n, n))
+        A[:self.n_node_rows] = self._incidence
+        body, numpy_offsets = [], []
+        for i, (g, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1) in \
+                enumerate(self._plan):
+            aff = g.affine
+            if g.row is not None:
+                env[f"k{i}"], env[f"c{i}"] = g.row.kernel_row, col[0]
+                call = f"k{i}(x[c{i}], S[{s0}:{s1}], t, dt, False)[0].tolist()"
+            else:
+                env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
+                states = (f"e{i}" if no_states is not None
+                          else f"S[{s0}:{s1}].reshape({s_shape})")
+                call = f"k{i}(x[c{i}], {states}, t, dt, False)[0].ravel().tolist()"
+            if aff is None:
+                body += [f"        i = {i}", f"        F[{r0}:{r1}] = {call}"]
+                continue
+            rows = r0 + np.arange(g.n)[:, None, None] * g.neq + np.arange(g.neq)[None, :, None]
+            np.add.at(A, (np.broadcast_to(rows, aff.coef.shape),
+                          np.broadcast_to(col[:, None, :], aff.coef.shape)), aff.coef)
+            if aff.offset is not None:
+                env[f"o{i}"] = aff.offset
+                if r1 - r0 == 1:
+                    body += [f"        i = {i}", f"        F[{r0}] -= o{i}(t)"]
+                else:
+                    numpy_offsets.append(f"    Fa[{r0}:{r1}] -= o{i}(t)")
+            if aff.valid is not None:
+                env[f"q{i}"] = aff.valid
+                body += [f"        i = {i}",
+                         f"        if not q{i}(x[c{i}]): F[{r0}:{r1}] = {call}"]
+        env["A"] = A
+        lines = (["def residual(x, S, t, dt, jac=False):",
+                  "    if jac:",
+                  "        return full(x, S, t, dt, True)",
+                  "    Fa = A.dot(x)"] + numpy_offsets +
+                 ["    F = Fa.tolist()", "    i = 0", "    try:"] + (body or ["        pass"]) +
+                 ["    except FluidError as err:     # say which components asked for the bad state",
+                  "        raise FluidError(f'in {names[i]}: {err}') from None",
+                  "    return array(F)"])
         fn = function("\n".join(lines), "residual", env)
         fn.__doc__ = Assembly.residual.__doc__
         return fn
