@@ -77,6 +77,14 @@ def test_without_title_line(tmp_path):
     np.testing.assert_allclose(t.column("Pressure", "Pa"), [1e3, 2e3], rtol=1e-12)
 
 
+def test_offset_units_convert_with_their_offset(tmp_path):
+    # plain scalings take a cached factor; degC -> K is not one and goes through pint
+    path = write(tmp_path, "Time,Temperature\nmin,degC\n0,20\n1,-273.15\n")
+    t = read_table(path)
+    np.testing.assert_allclose(t.column("Temperature", "K"), [293.15, 0.0], atol=1e-12)
+    np.testing.assert_allclose(t.column("Time", "s"), [0.0, 60.0], rtol=1e-15)
+
+
 def test_without_units_row(tmp_path):
     path = write(tmp_path, "Title line,x,y\nTime,Volume,Pressure\n0,1,10\n1,2,20\n")
     t = read_table(path)
