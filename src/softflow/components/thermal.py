@@ -97,7 +97,8 @@ def _upwind_weight(mf, jac):
     with fewer array operations (their overhead dominates small scenes);
     returns (w, dw/dmf or None; dw may be the float 0.0)."""
     s = mf * (0.5 / UPWIND_BAND)
-    if abs(s).min() >= 0.5:
+    # (the smallest |s| of a few flows on a list: 0.2 us against 1.1 us, measured)
+    if (min(map(abs, s.tolist())) if s.size <= 32 else abs(s).min()) >= 0.5:
         # every flow outside the band (the usual case): plain upwind, half the
         # array operations of the blend
         return np.greater(s, 0.0).astype(float), (0.0 if jac else None)
