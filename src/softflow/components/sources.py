@@ -113,8 +113,12 @@ class _SourceParams(Params):
 
     def flat_values(self, t):
         """The values at t as a float when they are all equal, else 1-D (n,)."""
-        v = self.column(t)
-        return v if type(v) is float else v.ravel()
+        if not self._uniform:
+            return self.values(t)
+        if self._varying and t != self._tc:
+            self._col = self._base0 + self._varying[0](t)
+            self._tc = t
+        return self._col
 
     def values(self, t):
         """Signal values at t, computed once per distinct t."""

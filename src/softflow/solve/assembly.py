@@ -412,7 +412,7 @@ class Assembly:
         if self._one_update is not None:
             g = next(g for g in self.groups if g.has_states)
             if g.row is not None:
-                self._one_update_row = (g.row.update_row, g.col[0])
+                self._one_update_row = (g.row.update_row_fn, g.col[0])
         # node rows of small systems by a dense incidence matrix: one dot product
         # (0.3 us) against a weighted bincount (0.5 us) for the paper's scene
         nr = self.n_node_rows
@@ -486,9 +486,9 @@ class Assembly:
         for i, (g, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1) in \
                 enumerate(self._plan):
             aff = g.affine
-            if g.row is not None:
-                env[f"k{i}"], env[f"c{i}"] = g.row.kernel_row, col[0]
-                call = f"k{i}(x[c{i}], S[{s0}:{s1}], t, dt, False)[0].tolist()"
+            if g.row is not None:     # the user component's generated residual itself
+                env[f"k{i}"], env[f"c{i}"] = g.row.residual_row, col[0]
+                call = f"k{i}(x[c{i}], S[{s0}:{s1}], t, dt).tolist()"
             else:
                 env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
                 states = (f"e{i}" if no_states is not None

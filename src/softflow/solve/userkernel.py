@@ -38,6 +38,10 @@ def _compiled_call(func, plan):
     return expression(f"lambda t, v, s: f({', '.join(picks)})", {"f": func})
 
 
+def _same_states(v, s, dt):
+    return s
+
+
 class UserKernel:
     """Evaluates one user component; exposes the same kernel/update interface as
     library groups, with n = 1 and a dense local Jacobian pattern."""
@@ -178,6 +182,10 @@ class UserKernel:
         self._row = function("\n".join(lines), "row", env)
         self._update = (function("\n".join(upd), "update", dict(env))
                         if self.up is not None else None)
+        #: (v, s_old, t, dt) -> residual row, and (v, s, dt) -> end-of-step states
+        #: (s itself without states): what the assembly calls directly
+        self.residual_row = self._row
+        self.update_row_fn = self._update if self._update is not None else _same_states
 
     # -- kernel interface ---------------------------------------------------------------
     # Groups of library components take (n, nv) variables and (n, ns) states; a user
