@@ -1,0 +1,91 @@
+"""The small-system paths of the solver give what the general ones give:
+Newton's written-out step (Python-list tolerance scale and norm), the dense
+LU's inverse, the thermal scenes' magnitude links and temperature clipping on
+that path, and generated code cached by its text."""
+import numpy as np
+import pytest
+from scipy.linalg import lu_factor, lu_solve
+
+import softflow as sf
+from softflow.solve import compiled, newton as newton_module
+from softflow.solve.linalg import DenseLU
+
+P0 = sf.pressure_atmospheric
+
+
+def _scene(fluid=sf.water, thermal="isothermal"):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=lambda t: P0 + (3e4 if t < 0.3 else 1e4))
+    s += sf.CircularTube("tube", fluid, length=0.5, diameter=1e-3)
+    s += sf.Container("tank", fluid, volume=2e-6) if fluid.compressible else \
+        sf.LinearAccumulator("tank", fluid, volume=2e-6, compliance=1e-11)
+    s += sf.CircularTube("tube2", fluid, length=0.3, diameter=1e-3)
+    s += sf.Container("tank2", fluid, volume=1e-6) if fluid.compressible else \
+        sf.LinearAccumulator("tank2", fluid, volume=1e-6, compliance=2e-11)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    s.connect(("tank", "a"), "tube2")
+    s.connect("tube2", "tank2")
+    return sf.Simulation(s, duration=0.6, step=2e-3, thermal=thermal)
+
+
+@pytest.mark.parametrize("fluid, thermal", [(sf.water, "isothermal"), (sf.air, "isothermal"),
+                                            (sf.air, "adiabatic")])
+def test_small_system_path_matches_the_general_one(monkeypatch, fluid, thermal):
+    fast = _scene(fluid, thermal)
+    assert fast.asm.n <= newton_module.SMALL
+    a = fast.run()
+    monkeypatch.setattr(newton_module, "SMALL", 0)      # NumPy scale and norm, no _quick
+    b = _scene(fluid, thermal).run()
+    assert a.stats["steps"] == b.stats["steps"]
+    assert abs(a.stats["newton_iterations"] - b.stats["newton_iterations"]) <= 2
+    for label in ("tank", "tank2"):
+        pa, pb = a.get(label, "pressure"), b.get(label, "pressure")
+        assert np.max(np.abs(pa - pb)) <= 1e-6 * np.ptp(pa) + 1e-9 * P0
+
+
+def test_written_out_step_takes_the_usual_steps():
+    """It must actually serve the run (else the test above compares a path with itself)."""
+    sim = _scene()
+    calls = []
+    orig = newton_module.Newton._quick
+
+    def spy(self, *args):
+        out = orig(self, *args)
+        calls.append(type(out) is newton_module.Outcome)
+        return out
+
+    newton_module.Newton._quick = spy
+    try:
+        res = sim.run()
+    finally:
+        newton_module.Newton._quick = orig
+    # this scene needs two iterations in most steps (then _chord goes on from the
+    # residual _quick evaluated); the others take the written-out step
+    assert sum(calls) > 0.25 * res.stats["steps"]
+    assert len(calls) + res.stats["factorizations"] >= res.stats["steps"]
+
+
+def test_dense_inverse_solves_as_lapack():
+    sim = _scene()
+    sim.run()
+    asm = sim.asm
+    asm.residual(sim.result.X[-1], sim.result.S[-1], 0.5, 2e-3, jac=True)
+    lin = DenseLU(asm)
+    lin.factor()
+    J = lin._J
+    b = np.random.default_rng(3).standard_normal(asm.n) * np.abs(J).max(axis=1)
+    x = lin.solve(b)
+    ref = lu_solve(lu_factor(J), b)
+    # equal to the round-off the conditioning allows, row by row in the residual
+    assert np.all(np.abs(J @ x - b) <= 1e-9 * (np.abs(J) @ np.abs(ref) + np.abs(b)))
+
+
+def test_generated_code_is_compiled_once_per_text():
+    src = "def f(x):\n    return x + k"
+    f1 = compiled.function(src, "f", {"k": 1})
+    f2 = compiled.function(src, "f", {"k": 2})
+    assert f1.__code__ is f2.__code__            # one compilation
+    assert (f1(1), f2(1)) == (2, 3)               # each with its own values
+    g = compiled.expression("lambda x: x * k", {"k": 3})
+    assert g(2) == 6
