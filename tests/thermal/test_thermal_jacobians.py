@@ -186,3 +186,23 @@ def test_thermal_jacobian_matches_finite_differences(name):
     worst = np.unravel_index(np.argmax(err), err.shape)
     assert err.max() <= 1.0, (f"{name}: instance {worst[0]}, eq {worst[1]}, var {worst[2]}: "
                               f"analytic {J[worst]:.6g}, FD {D[worst]:.6g}")
+
+
+@pytest.mark.parametrize("jac", [False, True])
+def test_upwind_weight_of_a_few_flows_equals_the_array_path(jac):
+    """Up to 32 flows the blend runs on floats; it must give the array path's
+    numbers exactly (inside, outside and across the band, and at its edges)."""
+    from softflow.components.thermal import UPWIND_BAND, _upwind_weight
+    band = UPWIND_BAND
+    few = np.array([-2 * band, -band, -0.3 * band, 0.0, 0.7 * band, band, 3 * band])
+    many = np.tile(few, 6)                       # 42 flows: the array path
+    w_few, dw_few = _upwind_weight(few.copy(), jac)
+    w_many, dw_many = _upwind_weight(many.copy(), jac)
+    np.testing.assert_array_equal(w_few, w_many[:few.size])
+    assert w_few[0] == 0.0 and w_few[-1] == 1.0 and w_few[3] == 0.5
+    if jac:
+        np.testing.assert_array_equal(dw_few, dw_many[:few.size])
+    # all outside the band: plain upwind on both paths
+    out = np.array([-3 * band, 5 * band])
+    np.testing.assert_array_equal(_upwind_weight(out.copy(), jac)[0], [0.0, 1.0])
+    assert np.isnan(_upwind_weight(np.array([np.nan, 0.0]), jac)[0][0])

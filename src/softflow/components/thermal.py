@@ -97,11 +97,24 @@ def _upwind_weight(mf, jac):
     with fewer array operations (their overhead dominates small scenes);
     returns (w, dw/dmf or None; dw may be the float 0.0)."""
     s = mf * (0.5 / UPWIND_BAND)
+    small = s.size <= 32
+    if small:
+        v = s.tolist()
     # (the smallest |s| of a few flows on a list: 0.2 us against 1.1 us, measured)
-    if (min(map(abs, s.tolist())) if s.size <= 32 else abs(s).min()) >= 0.5:
+    if (min(map(abs, v)) if small else abs(s).min()) >= 0.5:
         # every flow outside the band (the usual case): plain upwind, half the
         # array operations of the blend
         return np.greater(s, 0.0).astype(float), (0.0 if jac else None)
+    if small:
+        # a few flows: the same arithmetic on floats (1 us against 3 us for four)
+        w, dw = [], []
+        for c in v:
+            c += 0.5
+            c = 0.0 if c < 0.0 else (1.0 if c > 1.0 else c)
+            c2 = c * c
+            w.append(c2 * (3.0 - 2.0 * c))
+            dw.append((3.0 / UPWIND_BAND) * (c - c2))
+        return np.array(w), (np.array(dw) if jac else None)
     s += 0.5
     np.maximum(s, 0.0, out=s)
     np.minimum(s, 1.0, out=s)

@@ -140,10 +140,12 @@ class Newton:
         self._qtol = list(getattr(self, "_q_atol", ()))
         self._has_p = bool(self._p_idx.size)
         # the written-out step (_quick): small isothermal systems without magnitude links
-        # the written-out step (_quick) serves small systems; on larger ones steps
-        # that need a second iteration would pay its tolerance scale and norm twice
-        # (chain N = 8, 34 unknowns: 4 % slower with it, measured)
-        self._quick_ok = self._small
+        # the written-out step (_quick) serves small systems, and other dense ones
+        # while their solves take one iteration: a step that needs a second one
+        # pays the NumPy tolerance scale and norm twice (chain N = 8, 34 unknowns,
+        # 2.5 iterations a step: 4 % slower with it always on, measured)
+        self._quick_ok = lin.kind == "dense"
+        self._one_iteration = True    # the last solve converged in one iteration
         self._p_list = self._p_idx.size <= SMALL
         self.fluid_error = None   # the last fluid-range error of the current stage
         if max_reuse_iter is None:
@@ -262,7 +264,7 @@ class Newton:
         F0 = None
         # the usual step of a small system: the same step size, reusable factors
         if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi
-                and self.age < self.max_age):
+                and self.age < self.max_age and (self._small or self._one_iteration)):
             self.fluid_error = None
             out = self._quick(x0, S, t, dt)
             if type(out) is Outcome:
@@ -304,14 +306,15 @@ class Newton:
         return last
 
     def _quick(self, x0, S, t, dt):
-        """The usual step of a small system, in one frame: one chord iteration on
+        """The usual step of a dense system, in one frame: one chord iteration on
         the current factors that passes the convergence test (the steps of
         :meth:`_set_scale`, :meth:`_chord`, :meth:`_norm` and :meth:`_accept`,
-        same arithmetic), with the tolerance scale and the update norm in one
-        pass over Python lists. Returns the converged Outcome, or the residual
-        at x0 for :meth:`_chord` to go on from. The residual is not tested for
-        finiteness first: a NaN or inf in it makes the update's sum NaN, and
-        :meth:`_chord` then reports it."""
+        same arithmetic); small systems take the tolerance scale and the update
+        norm in one pass over Python lists. Returns the converged Outcome, or
+        the residual at x0 for :meth:`_chord` to go on from. The residual is
+        not tested for finiteness first: a NaN or inf in it makes the update
+        non-finite (its sum, or its dot product), and :meth:`_chord` then
+        reports it."""
         self.stats.residual_evaluations += 1
         try:
             F = self.asm.residual(x0, S, t, dt, False)
@@ -319,6 +322,15 @@ class Newton:
             self.fluid_error = err
             return np.full(self.asm.n, np.nan)
         step = self.lin.solve(F)
+        if not self._small:
+            if not all_finite(step):
+                return F
+            self._set_scale(x0)
+            nrm = self._norm(step)
+            if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
+                self._one_iteration = False
+                return F
+            return self._quick_accept(x0, step, F)
         if self._q_sorted:
             v, w = x0.tolist(), step.tolist()
         else:
@@ -347,6 +359,10 @@ class Newton:
         self._qtol = qtol
         if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
             return F
+        return self._quick_accept(x0, step, F)
+
+    def _quick_accept(self, x0, step, F):
+        """The end of :meth:`_quick` for an update that passed the test."""
         if self._T_idx.size:
             step = -self._clip_temperature(x0, -step)
         x = x0 - step
@@ -363,6 +379,7 @@ class Newton:
         as one more step on the current factors), else the failed outcome."""
         if not out.converged:
             return out
+        self._one_iteration = out.iterations == 1
         if self._p_idx.size and not self._positive(out.x):
             p = out.x[self._p_sel]
             i = int(self._p_idx[np.argmin(p)])
