@@ -424,6 +424,18 @@ class Assembly:
         if len(self.groups) <= UNROLL_MAX_GROUPS:
             self.residual = self._unrolled_residual()
 
+    def _bind_group(self, env, i, user_call):
+        """Put what generated code calls for group i into ``env`` (k<i>: its
+        kernel, or the user component's ``user_call`` row method; c<i>: its
+        columns; e<i>: its empty states) and return the source of its states
+        argument."""
+        g, kernel, col, s0, s1, s_shape, no_states = self._plan[i][:7]
+        if g.row is not None:
+            env[f"k{i}"], env[f"c{i}"] = getattr(g.row, user_call), col[0]
+            return f"S[{s0}:{s1}]"
+        env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
+        return f"e{i}" if no_states is not None else f"S[{s0}:{s1}].reshape({s_shape})"
+
     def _unrolled_residual(self):
         """:meth:`residual` with the loop over groups unrolled, compiled once from
         source whose only literals are this network's slice bounds and shapes
@@ -448,13 +460,7 @@ class Assembly:
         for i, (g, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1) in \
                 enumerate(self._plan):
             user = g.row is not None   # a user component: 1-D rows in and out
-            if user:
-                env[f"k{i}"], env[f"c{i}"] = g.row.kernel_row, col[0]
-                states = f"S[{s0}:{s1}]"
-            else:
-                env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
-                states = (f"e{i}" if no_states is not None
-                          else f"S[{s0}:{s1}].reshape({s_shape})")
+            states = self._bind_group(env, i, "kernel_row")
             flat = "Fg" if user else "Fg.ravel()"
             lines += [f"        i = {i}",
                       f"        Fg, Jg = k{i}(x[c{i}], {states}, t, dt, jac)",
@@ -486,14 +492,10 @@ class Assembly:
         for i, (g, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1) in \
                 enumerate(self._plan):
             aff = g.affine
-            if g.row is not None:     # the user component's generated residual itself
-                env[f"k{i}"], env[f"c{i}"] = g.row.residual_row, col[0]
-                call = f"k{i}(x[c{i}], S[{s0}:{s1}], t, dt).tolist()"
-            else:
-                env[f"k{i}"], env[f"c{i}"], env[f"e{i}"] = kernel, col, no_states
-                states = (f"e{i}" if no_states is not None
-                          else f"S[{s0}:{s1}].reshape({s_shape})")
-                call = f"k{i}(x[c{i}], {states}, t, dt, False)[0].ravel().tolist()"
+            # a user component: its generated residual itself
+            states = self._bind_group(env, i, "residual_row")
+            call = (f"k{i}(x[c{i}], {states}, t, dt).tolist()" if g.row is not None
+                    else f"k{i}(x[c{i}], {states}, t, dt, False)[0].ravel().tolist()")
             if aff is None:
                 body += [f"        i = {i}", f"        F[{r0}:{r1}] = {call}"]
                 continue

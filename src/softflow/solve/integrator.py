@@ -204,6 +204,14 @@ class ImplicitEuler:
     def forced_steps(self):
         return getattr(self.ctrl, "forced_steps", 0)
 
+    def _next_break(self, t, ib):
+        """(index, time) of the first breakpoint after t, searching from index ib
+        (the loops keep a pointer into the sorted breakpoints)."""
+        breaks = self.breaks
+        while ib < len(breaks) and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
+            ib += 1
+        return ib, (breaks[ib] if ib < len(breaks) else math.inf)
+
     def initial(self):
         """Consistent algebraic unknowns at t = 0 (dt = 0, states at their initial values)."""
         asm = self.asm
@@ -227,18 +235,15 @@ class ImplicitEuler:
             begin(x, S)
         disc = asm.s_discrete if asm.has_discrete else None
         predict_states = ctrl.uses_prediction
-        breaks, break_set = self.breaks, self._break_set
-        nb, ib = len(breaks), 0
-        next_break = breaks[0] if nb else math.inf
+        break_set = self._break_set
+        ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
         t = 0.0
         t_stop = T * (1 - 1e-14)
         x_prev = S_prev = h_prev = None   # the previous point, for the predictors
         extrapolate = True
         while t < t_stop:
             if next_break <= t * (1 + 1e-14) + 1e-300:
-                while ib < nb and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
-                    ib += 1
-                next_break = breaks[ib] if ib < nb else math.inf
+                ib, next_break = self._next_break(t, ib)
             h, end = propose(t, next_break if next_break < T else T)
             if x_prev is not None:
                 r = h / h_prev
@@ -289,19 +294,16 @@ class ImplicitEuler:
             begin(x, S)
         disc = asm.s_discrete if asm.has_discrete else None
         h0, n_grid, step_min = ctrl.h0, ctrl.n_grid, ctrl.step_min
-        breaks, break_set = self.breaks, self._break_set
-        nb, ib = len(breaks), 0
-        next_break = breaks[0] if nb else math.inf
-        rec_t, rec_add = rec.t, rec.add
+        break_set = self._break_set
+        ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
+        rec_add = rec.add
         t, k, h_cut = 0.0, 0, None
         t_stop = T * (1 - 1e-14)
         x_prev = h_prev = None
         extrapolate = True
         while t < t_stop:
             if next_break <= t * (1 + 1e-14) + 1e-300:
-                while ib < nb and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
-                    ib += 1
-                next_break = breaks[ib] if ib < nb else math.inf
+                ib, next_break = self._next_break(t, ib)
             grid_next = T if k + 1 >= n_grid else min((k + 1) * h0, T)
             end = next_break if next_break < grid_next else grid_next
             h = end - t
