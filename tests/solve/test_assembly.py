@@ -109,3 +109,27 @@ def test_simulation_results_do_not_depend_on_the_fast_paths():
     assert len(a.times) == len(b.times)
     pa, pb = a.get("actu", "pressure"), b.get("actu", "pressure")
     assert np.max(np.abs(pa - pb)) <= 1e-6 * (pa.max() - P0)
+
+
+class _SteeperTube(CircularTube):
+    """A subclass with its own pressure-drop law (twice the friction)."""
+
+    @classmethod
+    def pressure_drop(cls, P, pa, mf, pb, jac):
+        dp, d_pa, d_mf, d_pb = super().pressure_drop(P, pa, mf, pb, jac)
+        return 2 * dp, d_pa, (None if d_mf is None else 2 * d_mf), d_pb
+
+
+def test_a_subclass_with_its_own_pressure_drop_is_evaluated_by_it():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 1e4)
+    s += _SteeperTube("tube", sf.water, length=0.5, diameter=1e-3)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=1e-11)
+    s.connect("src", "tube")
+    s.connect("tube", "acc")
+    asm = Assembly(s)
+    x = asm.x0.copy()
+    x[asm.x_names.index("tube.a mf")] = 1e-4
+    x[asm.x_names.index("tube.b mf")] = -1e-4
+    fast, full = _both(asm, x, asm.S0, 0.0, 1e-3)
+    np.testing.assert_allclose(fast, full, rtol=1e-13, atol=1e-9)

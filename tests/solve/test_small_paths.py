@@ -35,7 +35,15 @@ def test_small_system_path_matches_the_general_one(monkeypatch, fluid, thermal):
     fast = _scene(fluid, thermal)
     assert fast.asm.n <= newton_module.SMALL
     a = fast.run()
-    monkeypatch.setattr(newton_module, "SMALL", 0)      # NumPy scale and norm, no _quick
+    # the general path: NumPy scale and norm, and no written-out step at all
+    monkeypatch.setattr(newton_module, "SMALL", 0)
+    init = newton_module.Newton.__init__
+
+    def general(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        self._quick_ok = False
+
+    monkeypatch.setattr(newton_module.Newton, "__init__", general)
     b = _scene(fluid, thermal).run()
     assert a.stats["steps"] == b.stats["steps"]
     assert abs(a.stats["newton_iterations"] - b.stats["newton_iterations"]) <= 2
@@ -89,3 +97,51 @@ def test_generated_code_is_compiled_once_per_text():
     assert (f1(1), f2(1)) == (2, 3)               # each with its own values
     g = compiled.expression("lambda x: x * k", {"k": 3})
     assert g(2) == 6
+
+
+def test_newton_takes_a_scalar_atol():
+    sim = _scene()
+    asm = sim.asm
+    from softflow.solve.linalg import make_linear_solver
+    nw = newton_module.Newton(asm, make_linear_solver(asm), newton_module.Stats(), atol=1e-6)
+    out = nw.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
+    assert out.converged
+
+
+class _KeptArray(sf.Component):
+    """A user actuator whose update_state hands back an array it keeps and
+    overwrites at the next call (the solver must copy what it stores)."""
+
+    def __init__(self, label, keep):
+        super().__init__(label)
+        self.set_terminals(sf.Terminal("a", [
+            sf.Variable("pressure", "across", label="p", initial_value=P0),
+            sf.Variable("massflow", "through", label="mf")]))
+        self.set_states(sf.Variable("mass", "local", label="mass", initial_value=1e-3))
+        buf = np.zeros(1)
+
+        def evaluate(t, p, mass):
+            return [p - (P0 + 1e9 * (mass - 1e-3))]
+
+        def update_state(dt, mass, mf):
+            if not keep:
+                return [mass + mf * dt]
+            buf[0] = mass + mf * dt
+            return buf
+
+        self.evaluate = self.auto(evaluate)
+        self.update_state = self.auto_state(update_state)
+
+
+def test_user_state_arrays_are_copied():
+    runs = []
+    for keep in (False, True):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 2e4)
+        s += sf.CircularTube("tube", sf.water, length=0.5, diameter=1e-3)
+        s += _KeptArray("act", keep)
+        s.connect("src", "tube")
+        s.connect("tube", "act")
+        runs.append(sf.Simulation(s, duration=0.2, step=1e-2).run())
+    np.testing.assert_array_equal(runs[0].get("act", "mass"), runs[1].get("act", "mass"))
+    assert runs[1].stats == runs[0].stats

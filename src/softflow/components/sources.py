@@ -95,8 +95,9 @@ class _SourceParams(Params):
         self._values = self._base
         # all sources of the group at one value (one source, or one signal and one
         # offset): column() hands out that value as a float
+        # (not for a subclass with its own values())
         self._uniform = (not self._varying or self._one_signal) and bool(
-            np.all(self._base == self._base[0]))
+            np.all(self._base == self._base[0])) and type(self).values is _SourceParams.values
         self._base0 = float(self._base[0])
         self._tc = None
         self._col = self._base0 if self._uniform else self._base[:, None]

@@ -149,7 +149,9 @@ class CircularTube(LibraryComponent):
         # linear in V = [p_a, mf_a, p_b, mf_b], F = V @ lin_map (a single tube:
         # one product, 0.3 us against 2.2 us for the general path, measured)
         P.lin_map = None
-        if P.c_per_rho is not None and not P.isothermal:
+        # (not for a subclass with its own pressure-drop law)
+        if (P.c_per_rho is not None and not P.isothermal
+                and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__):
             P.lin_map = np.array([[0.0, 1.0], [1.0, 0.0], [0.0, -1.0], [1.0, 0.0]])
             P.lam_map = P.lin_map.copy()
             P.lam_map[1, 1] = -P.c64_per_rho[0]

@@ -76,6 +76,8 @@ DENSE_CHECK_MAX = 64
 def _is_regular_dense(J):
     """:func:`_is_regular` for a small dense J: the same equilibration (rows,
     then columns, to a largest magnitude of one) and pivot test."""
+    if not J.size:
+        return True
     r = np.abs(J).max(axis=1)
     if not r.all():
         return False
@@ -87,8 +89,7 @@ def _is_regular_dense(J):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", LinAlgWarning)
         lu, _ = lu_factor(J, check_finite=False)
-    d = np.abs(np.diag(lu))
-    return bool(d.size == 0 or d.min() > 1e-12)
+    return bool(np.abs(np.diag(lu)).min() > 1e-12)
 
 
 #: Up to this many groups residual() runs as unrolled code (see Assembly._unrolled_residual).
@@ -349,10 +350,11 @@ class Assembly:
             if _is_regular_dense(J):
                 return
         A = self.jacobian_csc()
-        if not np.isfinite(A.data).all():
-            return  # reported with time and equation by the first Newton solve
-        if _is_regular(A):
-            return
+        if n > DENSE_CHECK_MAX:       # (small systems were tested above)
+            if not np.isfinite(A.data).all():
+                return  # reported with time and equation by the first Newton solve
+            if _is_regular(A):
+                return
         sym = (abs(A) + abs(A).T).tocsr()
         n_blocks, label = connected_components(sym, directed=False)
         culprits = []

@@ -52,40 +52,14 @@ class Recorder:
 class FixedStep:
     """Constant step h0 on a grid t_k = k·h0, landing on breakpoints in between.
     A failed Newton solve cuts the step by 4 (substeps are recorded too) until
-    ``step_min``; the next step aims at the grid again."""
-
-    #: judge() ignores the predicted states: the integrator need not compute them
-    uses_prediction = False
+    ``step_min``; the next step aims at the grid again. The stepping itself is
+    written into :meth:`ImplicitEuler._run_fixed`; this holds its settings and
+    the index of the last grid point reached."""
 
     def __init__(self, step, step_min, duration):
         self.h0, self.step_min, self.T = step, step_min, duration
         self.n_grid = max(1, int(math.ceil(duration / step - 1e-9)))
         self.k = 0            # index of the last grid point reached
-        self.h_cut = None     # reduced step after a failure, until the next success
-
-    def target(self, t):
-        return self.T if self.k + 1 >= self.n_grid else min((self.k + 1) * self.h0, self.T)
-
-    def propose(self, t, limit):
-        """(step, exact end point it aims at)"""
-        self._grid_next = self.target(t)
-        end = min(self._grid_next, limit)
-        if self.h_cut is not None and self.h_cut < end - t:
-            return self.h_cut, t + self.h_cut
-        return end - t, end
-
-    def failed(self, t, h, out):
-        if h / 4 < self.step_min:
-            raise StepFailure(t + h, h, out)
-        self.h_cut = h / 4
-
-    def judge(self, S, S_new, S_pred, h, h_prev):
-        return True, 0.0
-
-    def accepted(self, t_new, h, at_break):
-        self.h_cut = None
-        if t_new == self._grid_next:
-            self.k += 1
 
 
 #: Up to this many continuous states the step controller's error norm is
@@ -322,6 +296,7 @@ class ImplicitEuler:
             if not out.converged:
                 stats.rejected_steps += 1
                 if h / 4 < step_min:
+                    ctrl.k = k
                     raise StepFailure(t + h, h, out)
                 h_cut = h / 4
                 extrapolate = False

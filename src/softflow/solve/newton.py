@@ -130,16 +130,15 @@ class Newton:
         # Convergence is judged on the unclipped update.
         self._T_idx = np.array([i for i, q in nodal if q == "temperature"], dtype=np.int64)
         # atol as one value per quantity, if it is that (the small-system path needs it)
-        q_atol = [self.atol[self._q_order[a:b]] for a, b in self._q_bounds]
-        if self._small and self.atol.shape == (asm.n,) and all(
-                (v == v[0]).all() for v in q_atol):
+        atol_n = np.broadcast_to(self.atol, (asm.n,))
+        q_atol = [atol_n[self._q_order[a:b]] for a, b in self._q_bounds]
+        if self._small and all((v == v[0]).all() for v in q_atol):
             self._q_atol = [float(v[0]) for v in q_atol]
         else:
             self._small = False
         self._itol = 1.0 / self.atol
         self._qtol = list(getattr(self, "_q_atol", ()))
         self._has_p = bool(self._p_idx.size)
-        # the written-out step (_quick): small isothermal systems without magnitude links
         # the written-out step (_quick) serves small systems, and other dense ones
         # while their solves take one iteration: a step that needs a second one
         # pays the NumPy tolerance scale and norm twice (chain N = 8, 34 unknowns,
@@ -252,7 +251,11 @@ class Newton:
     def _positive(self, x):
         """All absolute node pressures of x > 0."""
         p = x[self._p_sel]
-        return (min(p.tolist()) if self._p_list else _min(p)) > 0.0
+        if self._p_list:
+            v = p.tolist()
+            s = sum(v)          # the builtin min skips a NaN that is not first; the sum does not
+            return s == s and min(v) > 0.0
+        return _min(p) > 0.0
 
     def _reusable(self, dt):
         """The current factors serve a step dt: within dt_ratio of the step they
@@ -264,7 +267,8 @@ class Newton:
         F0 = None
         # the usual step of a small system: the same step size, reusable factors
         if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi
-                and self.age < self.max_age and (self._small or self._one_iteration)):
+                and self.age < self.max_age and (self._small or self._one_iteration)
+                and self.max_reuse_iter >= 1):
             self.fluid_error = None
             out = self._quick(x0, S, t, dt)
             if type(out) is Outcome:

@@ -38,10 +38,6 @@ def _compiled_call(func, plan):
     return expression(f"lambda t, v, s: f({', '.join(picks)})", {"f": func})
 
 
-def _same_states(v, s, dt):
-    return s
-
-
 class UserKernel:
     """Evaluates one user component; exposes the same kernel/update interface as
     library groups, with n = 1 and a dense local Jacobian pattern."""
@@ -138,7 +134,8 @@ class UserKernel:
                 raise NetworkError(f"{self.comp.describe()}: update_state must return every state "
                                    f"{self.snames}; missing {missing}, unknown {extra}")
             return np.array([float(out[n]) for n in self.snames])
-        arr = np.asarray(out, dtype=float).reshape(-1)
+        # a copy: the user's function may keep the array it returns and change it later
+        arr = np.array(out, dtype=float).reshape(-1)
         if arr.size != self.ns:
             raise NetworkError(f"{self.comp.describe()}: update_state returned {arr.size} values "
                                f"for {self.ns} state(s)")
@@ -183,9 +180,9 @@ class UserKernel:
         self._update = (function("\n".join(upd), "update", dict(env))
                         if self.up is not None else None)
         #: (v, s_old, t, dt) -> residual row, and (v, s, dt) -> end-of-step states
-        #: (s itself without states): what the assembly calls directly
+        #: (None without states): what the assembly calls directly
         self.residual_row = self._row
-        self.update_row_fn = self._update if self._update is not None else _same_states
+        self.update_row_fn = self._update
 
     # -- kernel interface ---------------------------------------------------------------
     # Groups of library components take (n, nv) variables and (n, ns) states; a user
