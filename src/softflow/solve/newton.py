@@ -265,7 +265,7 @@ class Newton:
 
     def solve(self, x0, S, t, dt):
         F0 = None
-        # the usual step of a small system: the same step size, reusable factors
+        # the usual step of a dense system: a step size and factors the last ones serve
         if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi
                 and self.age < self.max_age and (self._small or self._one_iteration)
                 and self.max_reuse_iter >= 1):
