@@ -264,7 +264,7 @@ class Newton:
                 and self._dt_lo <= dt <= self._dt_hi)
 
     def solve(self, x0, S, t, dt):
-        F0 = None
+        F0 = first = None
         # the usual step of a dense system: a step size and factors the last ones serve
         if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi
                 and self.age < self.max_age and (self._small or self._one_iteration)
@@ -273,14 +273,15 @@ class Newton:
             out = self._quick(x0, S, t, dt)
             if type(out) is Outcome:
                 return out
-            F0 = out
+            F0, first = out
         self._F_at_x0 = None      # set by a fresh stage that factored at x0
         last = None
         if self._reusable(dt):
             if F0 is None:
                 self.fluid_error = None
-            self._set_scale(x0)
-            out = self._chord(x0, S, t, dt, "reuse", F0)
+            if first is None:     # (else _quick set the tolerances for x0)
+                self._set_scale(x0)
+            out = self._chord(x0, S, t, dt, "reuse", F0, first)
             if out.converged and out.iterations >= self.max_reuse_iter:
                 self.stale = True  # convergence slowing: refresh at the next step
             last = self._accept(out)
@@ -315,33 +316,34 @@ class Newton:
         :meth:`_set_scale`, :meth:`_chord`, :meth:`_norm` and :meth:`_accept`,
         same arithmetic); small systems take the tolerance scale and the update
         norm in one pass over Python lists. Returns the converged Outcome, or
-        the residual at x0 for :meth:`_chord` to go on from. The residual is
-        not tested for finiteness first: a NaN or inf in it makes the update
-        non-finite (its sum, or its dot product), and :meth:`_chord` then
-        reports it."""
+        (F, first) for :meth:`_chord` to go on from: the residual at x0 and,
+        once the tolerances for x0 are set, the first update and its norm
+        (else None). The residual is not tested for finiteness first: a NaN
+        or inf in it makes the update non-finite (its sum, or its dot
+        product), and :meth:`_chord` then reports it."""
         self.stats.residual_evaluations += 1
         try:
             F = self.asm.residual(x0, S, t, dt, False)
         except FluidError as err:     # as in _eval
             self.fluid_error = err
-            return np.full(self.asm.n, np.nan)
+            return np.full(self.asm.n, np.nan), None
         step = self.lin.solve(F)
         if not self._small:
             if not all_finite(step):
-                return F
+                return F, None
             self._set_scale(x0)
             nrm = self._norm(step)
             if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
                 self._one_iteration = False
-                return F
-            return self._quick_accept(x0, step, F)
+                return F, (step, nrm)
+            return self._quick_accept(x0, step) or (F, (step, nrm))
         if self._q_sorted:
             v, w = x0.tolist(), step.tolist()
         else:
             v, w = x0[self._q_order].tolist(), step[self._q_order].tolist()
         total = sum(w)
         if total - total != 0.0:      # NaN or inf
-            return F
+            return F, None
         rtol, nrm, qtol = self.rtol, 0.0, []
         if self._links:
             qmax = [max(map(abs, v[a:b])) for a, b in self._q_bounds]
@@ -362,16 +364,17 @@ class Newton:
                     nrm = m
         self._qtol = qtol
         if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
-            return F
-        return self._quick_accept(x0, step, F)
+            return F, (step, nrm)
+        return self._quick_accept(x0, step) or (F, (step, nrm))
 
-    def _quick_accept(self, x0, step, F):
-        """The end of :meth:`_quick` for an update that passed the test."""
+    def _quick_accept(self, x0, step):
+        """The end of :meth:`_quick` for an update that passed the test: the
+        converged Outcome, or None if an absolute pressure would be <= 0."""
         if self._T_idx.size:
             step = -self._clip_temperature(x0, -step)
         x = x0 - step
         if self._has_p and not self._positive(x):
-            return F
+            return None
         self.stats.newton_iterations += 1
         self.age += 1
         if self.max_reuse_iter <= 1:
@@ -394,8 +397,10 @@ class Newton:
         self.age += 1
         return None
 
-    def _chord(self, x0, S, t, dt, stage, F=None):
-        """Chord iterations from x0 (``F``: the residual there, if evaluated)."""
+    def _chord(self, x0, S, t, dt, stage, F=None, first=None):
+        """Chord iterations from x0 (``F``: the residual there, if evaluated;
+        ``first``: the first update and its norm, if computed, with the
+        tolerances already set for x0)."""
         fresh = stage == "fresh"
         x = x0          # never written in place: each update makes a new array
         if F is None:
@@ -416,9 +421,12 @@ class Newton:
         for k in range(limit):
             # minus the Newton update, used as it comes (x - step is bitwise
             # x + (-step)): one negation fewer per iteration
-            step = solve(F)
+            if first is None:
+                step = solve(F)
+                nrm = norm(step)
+            else:
+                (step, nrm), first = first, None
             stats.newton_iterations += 1
-            nrm = norm(step)
             if clip:
                 step = -self._clip_temperature(x, -step)
             if not math.isfinite(nrm):
