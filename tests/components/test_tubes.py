@@ -248,7 +248,8 @@ def test_lc_oscillation_frequency():
     assert (np.diff(gauge) <= 1e-6).all() and gauge.min() >= -1e-6
 
 
-def test_inertial_tube_reaches_the_steady_flow_of_the_plain_tube():
+@pytest.mark.parametrize("method", ["bdf", "euler"])
+def test_inertial_tube_reaches_the_steady_flow_of_the_plain_tube(method):
     kw = dict(length=0.3, diameter=1e-3)
     mf_plain = _between_sources(CircularTube("t", sf.water, **kw), 1.2e5, P0)
     s = sf.System()
@@ -257,11 +258,15 @@ def test_inertial_tube_reaches_the_steady_flow_of_the_plain_tube():
     s += sf.PressureSource("b", pressure=P0)
     s.connect("a", "t")
     s.connect("t", "b")
-    res = sf.Simulation(s, duration=0.5).run()    # adaptive; time constant L/(A R) ~ 30 ms
+    # adaptive; time constant L/(A R) ~ 30 ms
+    res = sf.Simulation(s, duration=0.5, method=method).run()
     mf = res.get("t", "mf", "a")
     assert mf[0] == 0.0
     assert mf[-1] == pytest.approx(mf_plain, rel=1e-4)
-    assert np.all(np.diff(mf) >= -1e-12 * mf_plain)   # overdamped: monotone rise
+    # overdamped: a monotone rise; backward Euler keeps it exactly, higher BDF
+    # orders within the tolerance (rtol 1e-3)
+    dip = 1e-12 if method == "euler" else 1e-3
+    assert np.all(np.diff(mf) >= -dip * mf_plain)
 
 
 # ---------------------------------------------------------------------------------------

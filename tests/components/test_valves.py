@@ -396,7 +396,8 @@ def test_check_valve_blocks_reverse_flow(fluid):
     # no backflow (no leakage) beyond the Newton tolerance (1e-6 of the largest flow)
     assert mf.min() >= -1e-6 * mf.max()
     m = res.get("c", "mass")
-    assert (np.diff(m) >= -1e-6 * (m.max() - m[0])).all()     # the chamber only fills
+    # the chamber only fills (higher BDF orders: within the tolerance, rtol 1e-3)
+    assert (np.diff(m) >= -1e-3 * (m.max() - m[0])).all()
     # it ends within the opening band below the source's peak minus the cracking pressure
     p_end = res.get("c", "pressure")[-1]
     assert P0 + 3e4 - 2e3 - 1e3 <= p_end <= P0 + 3e4 - 2e3
@@ -509,7 +510,7 @@ def test_snapping_valve_bursts_on_inflation_with_hysteresis():
     ran_open, rising = mode[:-1] == 1, t[1:] < 1.0
     assert mf[ran_open].max() > 100 * np.abs(mf[~ran_open & rising]).max()
     # mass balance: what left the source is in the chamber
-    supplied = np.concatenate([[0.0], np.cumsum(np.diff(t) * -res.get("src", "massflow")[1:])])
+    supplied = -res.integral("src", "massflow")
     m = res.get("c", "mass")
     assert np.abs((m - m[0]) - supplied).max() < 1e-9 * m[0]
     np.testing.assert_allclose(mf + res.get("sv", "massflow", "b")[1:], 0.0, atol=1e-15)

@@ -49,7 +49,7 @@ print(f"time constant {tau:.3f} s; choked until {t[choked][-1]:.2f} s")
 print(f"max relative error over the choked phase {err:.2e} (tolerance 5e-3); "
       f"{res.stats['steps']} steps")
 m = res.get("tank", "mass")
-vented = -np.concatenate([[0.0], np.cumsum(np.diff(t) * res.get("valve", "massflow", "a")[1:])])
+vented = -res.integral("valve", "massflow", "a")    # by the run's own quadrature
 print(f"mass balance: {np.max(np.abs(m - m[0] - vented)) / m[0]:.1e} relative")
 assert err < 5e-3
 assert abs(p[-1] - p_atm) < 1.0

