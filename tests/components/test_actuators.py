@@ -325,7 +325,7 @@ def test_actuators_with_different_curves_keep_their_own():
     assert res.success
     for a, curve in zip(acts, (soft, BALLOON, soft)):
         np.testing.assert_allclose(res.get(a.label, "pressure"),
-                                   curve(res.get(a.label, "volume")), rtol=1e-6)
+                                   curve(res.get(a.label, "volume")), rtol=1e-5)  # Newton's
     keys = {a.group_key() for a in acts}
     assert len(keys) == 2
     # the stiffer balloon takes less of the flow than the soft plateau actuators

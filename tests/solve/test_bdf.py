@@ -54,11 +54,11 @@ def test_default_is_bdf_and_step_gives_fixed_backward_euler():
 
 def test_default_settings_are_within_0_1_percent_of_rc_charging():
     res = sf.Simulation(rc_system(), duration=0.3).run()
-    assert rc_error(res) < 1.5e-3
+    assert rc_error(res) < 1e-3                      # of the 1e4 Pa step
     # the time constant read off the run (log of the remaining gap) within 0.1 %
     p = res.get("acc", "pressure")
     t = res.times
-    keep = (t > 0.02) & (t < 0.25)
+    keep = (t > 0.01) & (t < 0.15)
     slope = np.polyfit(t[keep], np.log(P0 + 1e4 - p[keep]), 1)[0]
     assert abs(-1 / slope / 0.1 - 1) < 1e-3
 
@@ -250,3 +250,34 @@ def test_update_state_not_affine_in_dt_is_refused_by_bdf_only():
     with pytest.raises(sf.SimulationError, match="'sq'.*not affine in dt.*mass \\+ mf \\* dt"):
         sf.Simulation(scene(), duration=0.1).run()
     assert sf.Simulation(scene(), duration=0.1, step=1e-3).run().success
+
+
+def test_peak_valley_snap_at_tight_rtol_runs_through():
+    """A volume-flow source fills an air actuator past its pressure peak: at
+    rtol 1e-6 the run snaps through (it used to stop with 'line search failed'),
+    and the snap time and final volume agree with fixed-step backward Euler."""
+    ml, kpa = 1e-6, 1e3
+
+    def scene():
+        curve = sf.PVCurve.peak_valley((1 * ml, 0), (5 * ml, 20 * kpa), (8 * ml, 8 * kpa),
+                                       (20 * ml, 30 * kpa), gauge=True)
+        s = sf.System()
+        s += sf.VolumeFlowSource("pump", volumeflow=1e-6, fluid=sf.air)
+        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+        s += sf.Actuator("act", sf.air, curve, initial_volume=1 * ml)
+        s.connect("pump", "tube")
+        s.connect("tube", "act")
+        return s
+
+    def snap_time(res, level=9 * ml):      # first crossing of 9 mL, past the valley
+        v, t = res.get("act", "volume"), res.times
+        i = int(np.argmax(v >= level))
+        return t[i - 1] + (level - v[i - 1]) * (t[i] - t[i - 1]) / (v[i] - v[i - 1])
+
+    tight = sf.Simulation(scene(), duration=10.0, rtol=1e-6).run()
+    fixed = sf.Simulation(scene(), duration=10.0, step=1e-3).run()
+    assert tight.success
+    assert snap_time(tight) == pytest.approx(snap_time(fixed), rel=5e-3)
+    assert tight.get("act", "volume")[-1] == pytest.approx(fixed.get("act", "volume")[-1],
+                                                           rel=5e-3)
+    assert tight.get("act", "volume")[-1] > 10 * ml                   # on the far branch

@@ -52,6 +52,7 @@ import math
 
 import numpy as np
 
+from ..constants import pressure_atmospheric
 from .integrator import Integrator, StepFailure
 
 MAX_ORDER = 5
@@ -60,7 +61,10 @@ _G = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, MAX_ORDER + 2))])
 #: local error constant of order k, times nabla^(k+1) X
 _ERR = np.array([0.0] + [1.0 / (k + 1) for k in range(1, MAX_ORDER + 3)])
 SAFETY = 0.9
-MIN_FACTOR, MAX_FACTOR = 0.2, 5.0
+MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
+#: a step is only lengthened by at least this factor (each change costs a
+#: re-interpolation and, past Newton's reuse window, a factorization)
+GROW_MIN = 1.2
 
 
 def _rescale_matrix(order, factor):
@@ -114,6 +118,11 @@ class BDF(Integrator):
         self._q_order = np.argsort(qid, kind="stable")
         self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
         self._qid = qid
+        # pressures are scaled by their gauge magnitude: what a network of soft
+        # actuators does is set by pressure differences of a fraction of an
+        # atmosphere, which rtol of the absolute pressure would hold 3-10x looser
+        self._x_offset = np.where(np.asarray(asm.x_quantity) == "pressure",
+                                  pressure_atmospheric, 0.0)
         self.forced_steps = 0
         self.order_counts = [0] * (max_order + 1)
         # time integrals of the recorded unknowns, by the same BDF (a quadrature
@@ -130,7 +139,7 @@ class BDF(Integrator):
         wS = self.atol[i] + self.rtol * np.maximum(np.abs(S_a[i]), np.abs(S_b[i]))
         if x is None or not x.size:
             return wS, None
-        qmax = np.maximum.reduceat(np.abs(x[self._q_order]), self._q_starts)
+        qmax = np.maximum.reduceat(np.abs((x - self._x_offset)[self._q_order]), self._q_starts)
         return wS, self.atol_x + self.rtol * qmax[self._qid]
 
     def _norm(self, v, w, vx=None):
@@ -235,12 +244,15 @@ class BDF(Integrator):
         t_stop = T * (1 - 1e-14)
         ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
         ns, n = S.size, x.size
-        DS = np.zeros((kmax + 3, ns))
-        DX = np.zeros((kmax + 3, n))
         qs = self._q_sel
         Q = np.zeros(x[qs].size)
-        DQ = np.zeros((kmax + 3, Q.size))
-        tables = (DS, DX, DQ)
+        # one difference table for the states, the unknowns and the quadratures
+        # (one NumPy call per operation instead of three); views name the parts
+        D = np.zeros((kmax + 3, ns + n + Q.size))
+        iS, iX, iQ = slice(0, ns), slice(ns, ns + n), slice(ns + n, None)
+        DS, DX, DQ = D[:, iS], D[:, iX], D[:, iQ]
+        tables = (D,)
+        delta = np.empty(D.shape[1])
         t = 0.0
         restart = True
         h_cap = math.inf      # while a mode switch is being located
@@ -250,9 +262,7 @@ class BDF(Integrator):
             limit = next_break if next_break < T else T
             if restart:
                 x_right, r0, xdot, h = self._restart(x, S, t, limit)
-                DS[:] = 0.0
-                DX[:] = 0.0
-                DQ[:] = 0.0
+                D[:] = 0.0
                 DS[0], DS[1] = S, h * r0
                 DX[0], DX[1] = x_right, h * xdot
                 DQ[0], DQ[1] = Q, h * x_right[qs]
@@ -269,10 +279,9 @@ class BDF(Integrator):
             end = t + h
             at_break = end == next_break
             t_new = end
-            S_pred = DS[:k + 1].sum(axis=0)
-            x_pred = DX[:k + 1].sum(axis=0)
-            g = _G[1:k + 1]
-            psi = S_pred - (g @ DS[1:k + 1]) / _G[k]
+            pred = D[:k + 1].sum(axis=0)
+            psi_all = pred - (_G[1:k + 1] @ D[1:k + 1]) / _G[k]
+            S_pred, x_pred, psi = pred[iS], pred[iX], psi_all[iS]
             c = h / _G[k]
             out = solve(x_pred, psi, math.nextafter(t_new, -math.inf) if at_break else t_new, c)
             if not out.converged:
@@ -326,11 +335,10 @@ class BDF(Integrator):
             fails = 0
             stats.steps += 1
             self.order_counts[k] += 1
-            Q_pred = DQ[:k + 1].sum(axis=0)
-            Q_new = Q_pred - (g @ DQ[1:k + 1]) / _G[k] + c * out.x[qs]
-            self._difference_update(DS, d, k)
-            self._difference_update(DX, dx, k)
-            self._difference_update(DQ, Q_new - Q_pred, k)
+            Q_new = psi_all[iQ] + c * out.x[qs]
+            delta[iS], delta[iX] = d, dx
+            delta[iQ] = Q_new - pred[iQ]
+            self._difference_update(D, delta, k)
             x, S, t, Q = out.x, S_new, t_new, Q_new
             rec.add(t, x, S, Q)
             if begin is not None:
@@ -355,7 +363,7 @@ class BDF(Integrator):
                 cands.append((SAFETY * e_hi ** (-1.0 / (k + 2)), k + 1))
             factor, k_new = max(cands)
             factor = min(MAX_FACTOR, factor)
-            if 1.0 <= factor < 1.2:
+            if 1.0 <= factor < GROW_MIN:
                 if k_new == k:
                     continue          # not worth a new step size
                 factor = 1.0          # an order change alone
