@@ -91,8 +91,10 @@ class BDF(Integrator):
 
     Newton solves for the unknowns at each step with the kernels' states
     replaced by psi and the step by c (module docstring), reusing LU factors
-    as in backward Euler; the error test covers the continuous states, the
-    unknowns follow from them."""
+    as in backward Euler. The error test covers the continuous states and the
+    unknowns; discrete states are left out (a switch restarts the method).
+    Alongside, the integrals of the recorded unknowns are integrated by the
+    same formula (:meth:`softflow.solve.result.Result.integral`)."""
 
     def __init__(self, asm, newton, stats, *, duration, rtol, atol_states, atol_unknowns,
                  step_min, step_max,
