@@ -65,6 +65,8 @@ MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
 #: a step is only lengthened by at least this factor (each change costs a
 #: re-interpolation and, past Newton's reuse window, a factorization)
 GROW_MIN = 1.2
+#: accepted steps for which a step stays below 0.9 x the last one that failed
+FAIL_HOLD = 10
 
 
 def _rescale_matrix(order, factor):
@@ -258,6 +260,10 @@ class BDF(Integrator):
         t = 0.0
         restart = True
         h_cap = math.inf      # while a mode switch is being located
+        # below a step that failed the error test, for a while: without it a step
+        # that doubles across a stability boundary (a fast mode near h·lambda = 1)
+        # fails, halves, doubles and fails again every third step
+        fail_cap, fail_hold = math.inf, 0
         while t < t_stop:
             if next_break <= t * (1 + 1e-14) + 1e-300:
                 ib, next_break = self._next_break(t, ib)
@@ -271,7 +277,7 @@ class BDF(Integrator):
                 k, n_equal, fails = 1, 0, 0
                 restart = False
             # the step: no overshoot of the limit, no sliver left before it
-            h_try = min(h, self.step_max, h_cap)
+            h_try = min(h, self.step_max, h_cap, fail_cap)
             if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
                 h_try = limit - t
             if h_try != h:
@@ -305,6 +311,7 @@ class BDF(Integrator):
                     stats.rejected_steps += 1
                     stats.error_test_failures += 1
                     fails += 1
+                    fail_cap, fail_hold = 0.9 * h, FAIL_HOLD
                     # as IDA: the first failures shrink the step from the estimate,
                     # the second by at least 4, later ones restart at order 1
                     factor = max(MIN_FACTOR, SAFETY * err ** (-1.0 / (k + 1)))
@@ -335,6 +342,10 @@ class BDF(Integrator):
                 continue
             # accepted
             fails = 0
+            if fail_hold:
+                fail_hold -= 1
+                if not fail_hold:
+                    fail_cap = math.inf
             stats.steps += 1
             self.order_counts[k] += 1
             Q_new = psi_all[iQ] + c * out.x[qs]
@@ -347,7 +358,8 @@ class BDF(Integrator):
                 begin(x, S)
             if at_break or switched:
                 restart = True
-                h_cap = math.inf
+                h_cap = fail_cap = math.inf
+                fail_hold = 0
                 newton.invalidate()
                 continue
             n_equal += 1
