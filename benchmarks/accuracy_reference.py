@@ -60,6 +60,7 @@ import scipy.sparse as sps
 from scipy.integrate import solve_ivp
 
 import softflow as sf
+from scenes import chain
 
 P_ATM = sf.pressure_atmospheric
 STEP_PA = 0.2e5                      # Pa: the source step, and the error's unit
@@ -73,21 +74,10 @@ TARGETS = (1e-2, 1e-4, 1e-6)
 
 
 def air_chain(N, friction="laminar", fluid=None):
-    """The softflow System: PressureSource -> (CircularTube -> Container) x N, with the
-    topology and parameters of ``scenes.chain`` but the tubes' friction law selectable."""
-    fluid = sf.air if fluid is None else fluid
-    s = sf.System()
-    s += sf.PressureSource("source", pressure=P_ATM + STEP_PA)
-    for i in range(N):
-        s += sf.CircularTube(f"tube{i}", fluid, length=LENGTH, diameter=DIAMETER,
-                             friction=friction)
-        s += sf.Container(f"cont{i}", fluid, volume=VOLUME, initial_pressure=P_ATM)
-    s.connect(("tube0", "a"), ("source", "a"))
-    for i in range(N):
-        s.connect((f"tube{i}", "b"), (f"cont{i}", "a"))
-        if i + 1 < N:
-            s.connect((f"cont{i}", "a"), (f"tube{i + 1}", "a"))
-    return s
+    """The softflow System: ``scenes.chain`` (PressureSource -> (CircularTube ->
+    Container) x N) with this module's parameters and the tubes' friction law."""
+    return chain(N, fluid=fluid, p_source=P_ATM + STEP_PA, length=LENGTH, diameter=DIAMETER,
+                 volume=VOLUME, friction=friction)
 
 
 class ChainODE:
