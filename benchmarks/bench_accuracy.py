@@ -1,0 +1,266 @@
+"""Work-precision benchmark: softflow's adaptive BDF and backward Euler against scipy
+BDF/Radau and SUNDIALS IDA/CVODE, on the air chain of ``accuracy_reference.py``, and
+softflow alone on the FONS paper's Fig. 3 peak-valley scene.
+
+What it measures, per solver and rtol: the error against a reference (air chain: the
+largest |p - p_ref| over containers and the solver's own output times, in units of the
+0.2 bar step; paper scene: the largest |V - V_ref| of both actuators over the run's own
+times, each divided by its reference volume range), the CPU time (process_time, median
+of repeats for runs under 0.25 s) and the accepted steps. Then the CPU time to first
+reach errors 1e-2, 1e-4, 1e-6 (``cpu_to_reach``) with softflow BDF / IDA (target <= 2x),
+and softflow BDF's error / rtol (target: within 10x).
+
+softflow timings include building the Simulation (compile) and ``run()``; the System
+is built before the clock starts. Where a softflow run would exceed ``--cap`` seconds
+(predicted from the growth of the last two runs of the sweep) it and the tighter rtols
+are skipped, and the table says so.
+
+The paper scene's reference is softflow itself at ``--paper-ref-rtol`` (1e-9), checked
+against a run 10x tighter; both are expensive (on the 2-core machine ~8 min and ~25 min
+CPU: the scene takes ~1.8 million steps at 1e-9), so they are computed once and cached
+in benchmarks/.cache/ (delete ``paper_fig3_*.npz`` there after solver changes).
+
+    python benchmarks/bench_accuracy.py              # full run, ~3 min with cached references
+    python benchmarks/bench_accuracy.py --quick      # N = 8, rtol 1e-2/1e-4/1e-6, ~30 s
+    python benchmarks/bench_accuracy.py --plot out.png --no-paper
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+import softflow as sf
+from softflow import paper_scenes as ps
+from accuracy_reference import (CACHE, DURATION, RUNNERS, RTOLS, TARGETS, air_chain,
+                                container_pressures, cpu_to_reach, error_of, reference)
+
+SF_SOLVERS = ("softflow bdf", "softflow euler")
+ALL_SOLVERS = SF_SOLVERS + tuple(RUNNERS)
+PAPER_RTOLS = tuple(10.0 ** -k for k in range(2, 8))
+PAPER_FIG, PAPER_CASE = 3, "peak-valley"
+
+
+def timed_fresh(build, solve, budget=0.25, max_runs=25):
+    """``accuracy_reference._timed``'s policy (median CPU time, >= 3 runs up to
+    ``budget`` s, one run if the first exceeds it), but each run gets a fresh
+    ``build()``, made before its clock starts. Returns (median cpu, last result)."""
+    cpus = []
+    while True:
+        arg = build()
+        t0 = time.process_time()
+        out = solve(arg)
+        cpus.append(time.process_time() - t0)
+        if cpus[0] > budget or len(cpus) >= max_runs or (len(cpus) >= 3
+                                                          and sum(cpus) >= budget):
+            return statistics.median(cpus), out
+
+
+def run_softflow(N, rtol, method="bdf", duration=DURATION):
+    """softflow on ``air_chain(N)``: (cpu [s], error, steps). The timed part is
+    ``sf.Simulation(system, duration, rtol, method)`` construction (compile) plus
+    ``run()``; the System is built before the clock starts (a fresh one per repeat).
+    The error is taken at the result's own output times."""
+    cpu, res = timed_fresh(lambda: air_chain(N), lambda s: sf.Simulation(
+        s, duration=duration, rtol=rtol, method=method).run())
+    return cpu, error_of(res.times, container_pressures(res, N), duration), res.stats["steps"]
+
+
+def sweep(run, rtols, cap=None):
+    """[(rtol, cpu, error, steps) or (rtol, None, message, None)], loosest rtol first.
+    With ``cap`` [s]: a run predicted (last cpu x its growth over the run before,
+    at least 3x) to exceed it is skipped, with every tighter rtol."""
+    rows, cpus = [], []
+    for rtol in rtols:
+        if cap is not None and cpus:
+            growth = max(3.0, cpus[-1] / cpus[-2]) if len(cpus) > 1 else 3.0
+            if cpus[-1] * growth > cap:
+                rows.append((rtol, None, f"skipped (> {cap:g} s)", None))
+                continue
+        try:
+            cpu, err, n = run(rtol)
+        except Exception as exc:                     # report it, keep sweeping
+            rows.append((rtol, None, f"failed: {type(exc).__name__}: {exc}", None))
+            continue
+        rows.append((rtol, cpu, err, n))
+        cpus.append(cpu)
+    return rows
+
+
+def cell(row):
+    _, cpu, err, n = row
+    return err if cpu is None else f"{err:.1e} / {1e3 * cpu:.1f} / {n}"
+
+
+def print_table(title, rows, names):
+    print(f"\n### {title}: error / CPU ms / steps\n")
+    print("| rtol | " + " | ".join(names) + " |")
+    print("|---" * (len(names) + 1) + "|")
+    for k, rtol in enumerate(r[0] for r in rows[names[0]]):
+        print(f"| {rtol:.0e} | " + " | ".join(cell(rows[n][k]) for n in names) + " |")
+
+
+def points(rows):
+    return [(r, c, e) for r, c, e, _ in rows if c is not None]
+
+
+def print_targets(N, rows):
+    print(f"\nN = {N}: CPU ms to first reach error <= target (log-log interpolation "
+          "between rtol points; '<=' = met at the loosest rtol)\n")
+    print("| solver | " + " | ".join(f"{t:.0e}" for t in TARGETS) + " |")
+    print("|---" * (len(TARGETS) + 1) + "|")
+    reach = {}
+    for name in ALL_SOLVERS:
+        pts = points(rows[name])
+        reach[name] = [cpu_to_reach(pts, t) for t in TARGETS]
+        cells = ["not reached" if c is None else
+                 ("<= " if pts[0][2] <= t else "") + f"{1e3 * c:.1f}"
+                 for c, t in zip(reach[name], TARGETS)]
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    ratios = ["-" if a is None or b is None else f"**{a / b:.2f}x**"
+              for a, b in zip(reach["softflow bdf"], reach["IDA"])]
+    print("| softflow bdf / IDA (target <= 2x) | " + " | ".join(ratios) + " |")
+    ok = [(r, e / r) for r, c, e, _ in rows["softflow bdf"] if c is not None]
+    print(f"\nN = {N}, softflow bdf error / rtol (target: within 10x):\n")
+    print("| rtol | " + " | ".join(f"{r:.0e}" for r, _ in ok) + " |")
+    print("|---" * (len(ok) + 1) + "|")
+    print("| error / rtol | " + " | ".join(f"{q:.2g}" for _, q in ok) + " |")
+
+
+# -- the paper scene ---------------------------------------------------------------------
+def paper_system():
+    return dict(ps.figure(PAPER_FIG))[PAPER_CASE]        # a fresh System every call
+
+
+def paper_run(rtol, method="bdf"):
+    """(cpu [s], Result): process_time around ``ps.run`` (Simulation and run)."""
+    return timed_fresh(paper_system, lambda s: ps.run(s, PAPER_FIG, rtol=rtol,
+                                                       method=method)[0])
+
+
+def paper_error(res, ref):
+    """max over t and both actuators of |V - V_ref(t)| / (V_ref range), V_ref linearly
+    interpolated at the run's own times."""
+    t_ref, refs = ref
+    return max(float(np.abs(v - np.interp(res.times, t_ref, vr)).max() / np.ptp(vr))
+               for v, vr in zip(ps.volumes(res), refs))
+
+
+def paper_cached(rtol, compute=True):
+    """softflow bdf on the paper scene at ``rtol``, cached in benchmarks/.cache/ as
+    dict(t, v1, v2, cpu, steps, rejected, made); None if not cached and not ``compute``."""
+    path = CACHE / f"paper_fig{PAPER_FIG}_{PAPER_CASE}_rtol{rtol:.0e}.npz"
+    if not path.exists():
+        if not compute:
+            return None
+        print(f"(computing the paper scene at rtol {rtol:g} for the cache: up to an hour "
+              "on 2 cores)", flush=True)
+        cpu, res = paper_run(rtol)
+        CACHE.mkdir(exist_ok=True)
+        v1, v2 = ps.volumes(res)
+        np.savez(path, t=res.times, v1=v1, v2=v2, cpu=cpu, steps=res.stats["steps"],
+                 rejected=res.stats["rejected_steps"], made=str(datetime.now())[:16])
+    return dict(np.load(path))
+
+
+def paper_reference(rtol, compute=True):
+    """((t, (v1, v2)), note): the reference at ``rtol`` and, in the note, its difference
+    to a run at rtol / 10 (same metric). None if not cached and not ``compute``."""
+    runs = [paper_cached(r, compute) for r in (rtol, rtol / 10)]
+    if any(d is None for d in runs):
+        return None
+    (ref, chk), desc = runs, []
+    for r, d in zip((rtol, rtol / 10), runs):
+        desc.append(f"rtol {r:g}: {int(d['steps'])} steps ({int(d['rejected'])} rejected), "
+                    f"{float(d['cpu']):.0f} s CPU, cached {d['made']}")
+    t_ref = ref["t"]
+    diff = max(float(np.abs(ref[k] - np.interp(t_ref, chk["t"], chk[k])).max()
+                     / np.ptp(chk[k])) for k in ("v1", "v2"))
+    note = (f"reference: softflow bdf {desc[0]}.\ncheck: {desc[1]}.\n"
+            f"difference reference - check (the error metric): {diff:.2e}")
+    return (t_ref, (ref["v1"], ref["v2"])), note
+
+
+def paper_section(rtols, ref_rtol, cap, compute=True):
+    got = paper_reference(ref_rtol, compute)
+    if got is None:
+        print(f"\n(paper scene skipped: no cached reference at rtol {ref_rtol:g}; "
+              "a full run computes it)")
+        return None
+    ref, note = got
+
+    def run(method):
+        def one(rtol):
+            cpu, res = paper_run(rtol, method)
+            return cpu, paper_error(res, ref), res.stats["steps"]
+        return one
+
+    rows = {name: sweep(run(name.split()[1]), rtols, cap) for name in SF_SOLVERS}
+    print_table(f"Fig. {PAPER_FIG} {PAPER_CASE} (water, {ps.duration(PAPER_FIG):g} s), "
+                "error = max |V - V_ref| / V_ref range", rows, SF_SOLVERS)
+    print(f"\n{note}")
+    return rows
+
+
+def plot(path, panels):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 4.5), squeeze=False)
+    for ax, (title, rows) in zip(axes[0], panels):
+        for name, rs in rows.items():
+            pts = points(rs)
+            if pts:
+                ax.loglog([1e3 * c for _, c, _ in pts], [e for _, _, e in pts], "o-",
+                          label=name, lw=2.2 if name.startswith("softflow") else 1.2)
+        ax.set(title=title, xlabel="CPU [ms]", ylabel="error")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"\nsaved {path}")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="N = 8, rtol 1e-2/1e-4/1e-6 (paper scene only if cached)")
+    parser.add_argument("--plot", default=str(Path(__file__).resolve().parent / "accuracy.png"))
+    parser.add_argument("--cap", type=float, default=5.0,
+                        help="skip air-chain softflow runs predicted longer than this [s]")
+    parser.add_argument("--paper-cap", type=float, default=20.0,
+                        help="the same for the paper scene [s]")
+    parser.add_argument("--paper-ref-rtol", type=float, default=1e-9)
+    parser.add_argument("--no-paper", action="store_true")
+    args = parser.parse_args()
+    t_start = time.perf_counter()
+    Ns, rtols = ((8,), (1e-2, 1e-4, 1e-6)) if args.quick else ((8, 200), RTOLS)
+    paper_rtols = (1e-2, 1e-4, 1e-6) if args.quick else PAPER_RTOLS
+    print(f"softflow work-precision, {datetime.now():%Y-%m-%d %H:%M}; CPU = process_time, "
+          f"median of repeats below 0.25 s; softflow runs over {args.cap:g} s (air chain) / "
+          f"{args.paper_cap:g} s (paper scene), predicted from the sweep, are skipped")
+    panels = []
+    for N in Ns:
+        reference(N)                             # computed (and cached) outside the timings
+        rows = {f"softflow {m}": sweep(lambda r, m=m: run_softflow(N, r, m), rtols, args.cap)
+                for m in ("bdf", "euler")}
+        rows.update({name: sweep(lambda r, f=f: f(N, r), rtols) for name, f in RUNNERS.items()})
+        print_table(f"Air chain, N = {N} (error in units of 0.2 bar)", rows, ALL_SOLVERS)
+        print_targets(N, rows)
+        panels.append((f"air chain N = {N}", rows))
+    if not args.no_paper:
+        rows = paper_section(paper_rtols, args.paper_ref_rtol, args.paper_cap,
+                             compute=not args.quick)
+        if rows is not None:
+            panels.append((f"Fig. {PAPER_FIG} {PAPER_CASE}", rows))
+    if args.plot:
+        plot(args.plot, panels)
+    print(f"\ntotal wall time {time.perf_counter() - t_start:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
