@@ -127,6 +127,7 @@ class BDF(Integrator):
         # atmosphere, which rtol of the absolute pressure would hold 3-10x looser
         self._x_offset = np.where(np.asarray(asm.x_quantity) == "pressure",
                                   pressure_atmospheric, 0.0)
+        self._qmax_run = None
         self.forced_steps = 0
         self.order_counts = [0] * (max_order + 1)
         # time integrals of the recorded unknowns, by the same BDF (a quadrature
@@ -144,6 +145,11 @@ class BDF(Integrator):
         if x is None or not x.size:
             return wS, None
         qmax = np.maximum.reduceat(np.abs((x - self._x_offset)[self._q_order]), self._q_starts)
+        # the largest magnitude seen so far in the run: a flow that decays to rest
+        # is held to the network's flow scale, not to its own vanishing size
+        if self._qmax_run is not None:
+            qmax = np.maximum(qmax, self._qmax_run)
+        self._qmax_run = qmax
         return wS, self.atol_x + self.rtol * qmax[self._qid]
 
     def _norm(self, v, w, vx=None):
