@@ -66,6 +66,7 @@ MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
 #: re-interpolation and, past Newton's reuse window, a factorization)
 GROW_MIN = 1.2
 #: accepted steps for which a step stays below 0.9 x the last one that failed
+#: the error test (or below the bisected step while a mode switch is located)
 FAIL_HOLD = 10
 
 
@@ -265,7 +266,7 @@ class BDF(Integrator):
         delta = np.empty(D.shape[1])
         t = 0.0
         restart = True
-        h_cap = math.inf      # while a mode switch is being located
+        h_cap, cap_hold = math.inf, 0     # while a mode switch is being located
         # below a step that failed the error test, for a while: without it a step
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
         # fails, halves, doubles and fails again every third step
@@ -343,7 +344,7 @@ class BDF(Integrator):
                 factor = max(0.5, self.step_min / h)
                 self._rescale(tables, k, factor)
                 h *= factor
-                h_cap = h
+                h_cap, cap_hold = h, FAIL_HOLD
                 n_equal = 0
                 continue
             # accepted
@@ -352,6 +353,10 @@ class BDF(Integrator):
                 fail_hold -= 1
                 if not fail_hold:
                     fail_cap = math.inf
+            if cap_hold:              # the switch did not come back: stop locating it
+                cap_hold -= 1
+                if not cap_hold:
+                    h_cap = math.inf
             stats.steps += 1
             self.order_counts[k] += 1
             Q_new = psi_all[iQ] + c * out.x[qs]
@@ -365,7 +370,7 @@ class BDF(Integrator):
             if at_break or switched:
                 restart = True
                 h_cap = fail_cap = math.inf
-                fail_hold = 0
+                fail_hold = cap_hold = 0
                 newton.invalidate()
                 continue
             n_equal += 1
