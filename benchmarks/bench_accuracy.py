@@ -124,6 +124,8 @@ def print_targets(N, rows):
     ratios = ["-" if a is None or b is None else f"**{a / b:.2f}x**"
               for a, b in zip(reach["softflow bdf"], reach["IDA"])]
     print("| softflow bdf / IDA (target <= 2x) | " + " | ".join(ratios) + " |")
+    build, _ = timed_fresh(lambda: air_chain(N), lambda s: sf.Simulation(s, duration=DURATION))
+    print(f"\n(of softflow's times, building the Simulation alone takes {1e3 * build:.1f} ms)")
     ok = [(r, e / r) for r, c, e, _ in rows["softflow bdf"] if c is not None]
     print(f"\nN = {N}, softflow bdf error / rtol (target: within 10x):\n")
     print("| rtol | " + " | ".join(f"{r:.0e}" for r, _ in ok) + " |")
