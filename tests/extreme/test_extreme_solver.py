@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from helpers import assert_balance
+from helpers import assert_balance, rc_circuit
 
 pytestmark = pytest.mark.extreme
 
@@ -34,14 +34,7 @@ def stored_mass(res, labels):
 
 
 def rc(p1=P0 + 1e4, tau=0.1, D=0.5e-3, L=1.0):
-    R = 128 * sf.water.mu * L / (math.pi * D ** 4)
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=p1)
-    s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
-    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=tau / R)
-    s.connect("tube", "src")
-    s.connect("tube", "acc")
-    return s
+    return rc_circuit(p1, tau, D, L)
 
 
 @pytest.mark.parametrize("step, duration", [(1e-7, 2e-4), (1e-5, 0.02), (1e-3, 0.5),

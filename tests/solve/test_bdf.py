@@ -6,22 +6,16 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import rc_circuit
 from softflow.solve.bdf import _rescale_matrix
 from softflow.solve.thermal import energy_balance
 
 P0 = sf.pressure_atmospheric
 
 
-def rc_system(p1=P0 + 1e4, D=0.5e-3, L=1.0, tau=0.1):
+def rc_system():
     """Laminar tube charging a water accumulator: p = p1 + (P0 - p1) exp(-t/tau)."""
-    R = 128 * sf.water.mu * L / (math.pi * D ** 4)
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=p1)
-    s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
-    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=tau / R)
-    s.connect("tube", "src")
-    s.connect("tube", "acc")
-    return s
+    return rc_circuit()
 
 
 def rc_error(res, p1=P0 + 1e4, tau=0.1):
