@@ -213,6 +213,8 @@ def test_bad_input_names_the_culprit():
             sf.Simulation(s, rtol=bad)
     with pytest.raises(ValueError, match=r"atol\['pressure'\] must be a finite number > 0"):
         sf.Simulation(s, atol={"pressure": 0.0})
+    with pytest.raises(ValueError, match="method='euler' is BDF of order 1; max_order=3"):
+        sf.Simulation(s, method="euler", max_order=3)
     with pytest.raises(ValueError, match="newton_rtol must be a finite number > 0"):
         sf.Simulation(s, newton_rtol=float("nan"))
 

@@ -116,6 +116,10 @@ class Simulation:
                 or not 1 <= max_order <= MAX_ORDER):
             raise ValueError(f"Simulation: max_order must be an integer from 1 to {MAX_ORDER}, "
                              f"got {max_order!r}")
+        if method == "euler" and max_order not in (1, MAX_ORDER):
+            raise ValueError(f"Simulation: method='euler' is BDF of order 1; max_order="
+                             f"{max_order} asks for more (use method='bdf', max_order="
+                             f"{max_order})")
         self.max_order = 1 if method == "euler" else int(max_order)
         self.step_max = (self.duration if step_max is None
                          else to_si(step_max, "s", name="step_max", owner=owner))
