@@ -48,6 +48,7 @@ tolerance before the method restarts from the new mode.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -70,6 +71,7 @@ GROW_MIN = 1.2
 FAIL_HOLD = 10
 
 
+@functools.lru_cache(maxsize=256)
 def _rescale_matrix(order, factor):
     """Matrix M with D_new[:order+1] = M @ D[:order+1]: the backward differences
     of the same interpolating polynomial at spacing ``factor`` times the old.
@@ -86,7 +88,9 @@ def _rescale_matrix(order, factor):
             A[:, j] = A[:, j - 1] * (j - 1 - m[:, 0] * scale) / j
         return A
 
-    return np.linalg.solve(basis(1.0), basis(factor))
+    M = np.linalg.solve(basis(1.0), basis(factor))
+    M.setflags(write=False)        # cached: shared by every caller
+    return M
 
 
 class BDF(Integrator):
