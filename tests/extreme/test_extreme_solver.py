@@ -301,7 +301,8 @@ def test_measured_balloon_curve_with_added_noise(smoothing, method):
     s += sf.Actuator("act", sf.air, curve, initial_volume=v[0])
     s.connect("pump", "tube")
     s.connect("tube", "act")
-    res = sf.Simulation(s, method=method, duration=38.0, breakpoints=[20.0]).run(raise_on_failure=False)
+    res = sf.Simulation(s, method=method, duration=38.0,
+                        breakpoints=[20.0]).run(raise_on_failure=False)
     if smoothing is None and not res.success:
         # raw noise can make the curve locally fall faster than the air inside can
         # expand: the quasi-static actuator then has to jump at constant mass, which

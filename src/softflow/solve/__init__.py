@@ -1,4 +1,5 @@
-"""Assembly, Newton, implicit Euler and results."""
+"""Assembly, Newton, the time integrators (fixed-step backward Euler, adaptive
+BDF) and results."""
 from .result import Result
 from .simulation import Simulation, SimulationError
 
