@@ -236,6 +236,12 @@ class Assembly:
         self.n = len(names)
         self.x_names = names
         self.x_quantity = quantities
+        # the unknowns grouped by quantity (Newton's tolerances and the integrators'
+        # error weights scale each by its quantity's largest magnitude)
+        self.q_names = sorted(set(quantities))
+        self.q_id = np.array([self.q_names.index(q) for q in quantities], dtype=np.int64)
+        self.q_order = np.argsort(self.q_id, kind="stable")
+        self.q_starts = np.searchsorted(self.q_id[self.q_order], np.arange(len(self.q_names)))
         self.through_rows = np.array(through_rows, dtype=np.int64)
         self.through_cols = np.array(through_cols, dtype=np.int64)
         self.x0 = np.zeros(self.n)
@@ -546,6 +552,10 @@ class Assembly:
             if jac and j1 > j0:
                 raw[j0:j1] = Jg.ravel()
         return F
+
+    def quantity_max(self, v):
+        """Largest |v_i| over the unknowns i of each quantity (in q_names order)."""
+        return np.maximum.reduceat(np.abs(v[self.q_order]), self.q_starts)
 
     @property
     def has_begin_step(self):

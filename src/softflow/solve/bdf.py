@@ -119,14 +119,9 @@ class BDF(Integrator):
             self.breaks.append(duration)
         self.cont = asm.s_continuous
         self._all_cont = self.cont.size == asm.S0.size
-        # unknowns: absolute tolerance per unknown, and the quantity groups whose
-        # largest magnitude scales rtol
+        # unknowns: absolute tolerance per unknown; rtol scales with the largest
+        # magnitude of each one's quantity (Assembly.quantity_max)
         self.atol_x = np.asarray(atol_unknowns, dtype=float) * np.ones(asm.n)
-        names = sorted(set(asm.x_quantity))
-        qid = np.array([names.index(q) for q in asm.x_quantity], dtype=np.int64)
-        self._q_order = np.argsort(qid, kind="stable")
-        self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
-        self._qid = qid
         # pressures are scaled by their gauge magnitude: what a network of soft
         # actuators does is set by pressure differences of a fraction of an
         # atmosphere, which rtol of the absolute pressure would hold 3-10x looser
@@ -149,13 +144,13 @@ class BDF(Integrator):
         wS = self.atol[i] + self.rtol * np.maximum(np.abs(S_a[i]), np.abs(S_b[i]))
         if x is None or not x.size:
             return wS, None
-        qmax = np.maximum.reduceat(np.abs((x - self._x_offset)[self._q_order]), self._q_starts)
+        qmax = self.asm.quantity_max(x - self._x_offset)
         # the largest magnitude seen so far in the run: a flow that decays to rest
         # is held to the network's flow scale, not to its own vanishing size
         if self._qmax_run is not None:
             qmax = np.maximum(qmax, self._qmax_run)
         self._qmax_run = qmax
-        return wS, self.atol_x + self.rtol * qmax[self._qid]
+        return wS, self.atol_x + self.rtol * qmax[self.asm.q_id]
 
     def _norm(self, v, w, vx=None):
         """Weighted RMS of the continuous entries of v and, if given, of vx

@@ -103,12 +103,8 @@ class Newton:
         self.stats = stats
         self.rtol = rtol
         self.atol = np.asarray(atol, dtype=float)
-        names = sorted(set(asm.x_quantity))
-        self._q_names, self._links = names, []
-        qid = np.array([names.index(q) for q in asm.x_quantity], dtype=np.int64)
-        self._q_order = np.argsort(qid, kind="stable")
-        self._q_starts = np.searchsorted(qid[self._q_order], np.arange(len(names)))
-        self._qid = qid
+        self._q_names, self._links = asm.q_names, []
+        self._q_order, self._q_starts, self._qid = asm.q_order, asm.q_starts, asm.q_id
         # small systems: per-quantity maxima on Python lists (see SMALL)
         self._small = 0 < asm.n <= SMALL
         bounds = np.append(self._q_starts, asm.n).tolist()
@@ -225,7 +221,7 @@ class Newton:
                 qtol.append(at + rtol * m)
             self._qtol = qtol
         elif x.size:
-            qmax = np.maximum.reduceat(np.abs(x[self._q_order]), self._q_starts)
+            qmax = self.asm.quantity_max(x)
             for q, base, factor in self._links:
                 qmax[q] = max(qmax[q], factor * qmax[base])
             # max(|x_i|, the largest |x_j| of its quantity) is that largest one
