@@ -41,7 +41,10 @@ def _figures(args):
 
 
 def main(argv=None):
+    from softflow import __version__
+
     parser = argparse.ArgumentParser(prog="softflow", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"softflow {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser("demo", help="run the FONS paper example and plot it")
     demo.add_argument("--output", default="softflow_demo.png", help="PNG file to write")
