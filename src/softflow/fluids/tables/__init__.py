@@ -36,13 +36,14 @@ class FluidTableError(FluidError):
 
 
 def default_directory() -> Path:
-    """``fluid_tables/`` at the top of the source tree (src layout, editable install)."""
-    return Path(__file__).resolve().parents[4] / "fluid_tables"
+    """``softflow/fluids/fluid_tables/``: the tables shipped inside the package (package
+    data), so a wheel or a non-editable install has them as an editable one does."""
+    return Path(__file__).resolve().parent.parent / "fluid_tables"
 
 
 def tables_directory(explicit=None) -> Path:
     """The directory the table level reads: ``explicit``, else ``$SOFTFLOW_FLUID_TABLES``,
-    else the repository's ``fluid_tables/``."""
+    else the package's own ``fluid_tables/`` (:func:`default_directory`)."""
     if explicit is not None:
         return Path(explicit)
     env = os.environ.get(TABLES_ENV)
