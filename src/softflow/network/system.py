@@ -119,6 +119,11 @@ class System:
             for t in comp.terminals:
                 if id(t) not in self._connected and id(t) not in taken:
                     return t
+            if len(comp.terminals) == 1:
+                # a one-terminal component (a tank, a source) joins its only
+                # terminal's node again: connect('tube1', 'tank') then
+                # connect('tank', 'tube2') chains through the tank, as in FONS
+                return comp.terminals[0]
             raise NetworkError(
                 f"connect: {comp.describe()} has no unconnected terminal left; name the "
                 f"terminal explicitly, e.g. connect(({spec!r}, {comp.terminals[0].label!r}), ...)")
@@ -130,9 +135,13 @@ class System:
         """Join terminals into one node.
 
         Each argument is a component label (its first unconnected terminal is
-        used, as in the FONS paper), a ``(label, terminal_label)`` tuple, a
-        Component or a Terminal. Connecting a terminal that is already part of a
-        node merges the nodes.
+        used, as in the FONS paper; a component with one terminal reuses it once
+        it is connected, so ``connect('tube1', 'tank')`` then
+        ``connect('tank', 'tube2')`` joins both tubes at the tank), a
+        ``(label, terminal_label)`` tuple, a Component or a Terminal. Connecting
+        a terminal that is already part of a node merges the nodes. A component
+        with several terminals, all connected, must be given with the terminal
+        named.
         """
         if len(specs) < 2:
             raise NetworkError("connect: give at least two terminals to join")
