@@ -32,6 +32,18 @@ class SimulationError(RuntimeError):
 METHODS = ("bdf", "euler")
 
 
+def _step_range(step, step_min, step_max):
+    """(step_min, step_max) from a ``step=(min, max)`` pair (fonsim's spelling
+    of an adaptive step range); None keeps a bound's default."""
+    if len(step) != 2:
+        raise ValueError(f"Simulation: step as a sequence must be a pair (step_min, step_max), "
+                         f"got {len(step)} values: {step!r}")
+    if step_min is not None or step_max is not None:
+        raise ValueError("Simulation: give the step range either as step=(min, max) or as "
+                         "step_min=/step_max=, not both")
+    return step[0], step[1]
+
+
 class Simulation:
     """Time integration of a System: adaptive variable-order BDF by default,
     backward (implicit) Euler at a fixed step when ``step`` is given.
@@ -40,10 +52,12 @@ class Simulation:
     ----------
     system : System
     duration : float [s] or Quantity
-    step : float [s] or Quantity, optional
+    step : float [s] or Quantity, or a tuple (step_min, step_max), optional
         Constant step: backward Euler on a fixed grid (the FONS paper's
         scheme). Without it the step is adaptive (and ``step`` is the first
-        step when ``adaptive=True`` is given).
+        step when ``adaptive=True`` is given). A pair ``(min, max)``, as fonsim
+        writes it, asks for adaptive steps within those bounds (either may be
+        None for the default); it replaces ``step_min`` and ``step_max``.
     adaptive : bool, optional
         Force adaptive (True) or fixed (False) stepping.
     method : {'bdf', 'euler'}, default 'bdf'
@@ -100,6 +114,9 @@ class Simulation:
         self.duration = to_si(duration, "s", name="duration", owner=owner)
         if not self.duration > 0:
             raise ValueError(f"Simulation: duration must be > 0 s, got {self.duration}")
+        if isinstance(step, (tuple, list)):
+            step_min, step_max = _step_range(step, step_min, step_max)
+            step = None
         self.step = None if step is None else to_si(step, "s", name="step", owner=owner)
         if self.step is not None and not self.step > 0:
             raise ValueError(f"Simulation: step must be > 0 s, got {self.step}")
