@@ -2,20 +2,37 @@
 
 The object model follows the FONS paper (Variable, Terminal, Component,
 System, Simulation), so ``import softflow as fons`` runs FONS scripts.
+
+The public names load on first use (PEP 562): ``import softflow`` itself imports
+neither pint, SciPy nor CoolProp, so the command line and scripts start fast, and a
+script pays only for what it touches (``sf.System`` loads the network, ``sf.PVCurve``
+the curves, ...).
 """
-from .components import (Actuator, CheckValve, CircularTube, Container, HystereticActuator,
-                         LibraryComponent, LinearAccumulator, MassFlowSource, Orifice,
-                         PressureSource, SnappingValve, TeslaValve, VolumeFlowSource)
-from .constants import pressure_atmospheric
-from .correlations.heat_transfer import FreeConvection
-from .curves import HysteresisLoop, PVCurve, pvcurve, read_table, waveforms
-from .fluids import (ConstantLiquid, Fluid, FluidError, IdealGas, air, ethylene_glycol,
-                     nitrogen, water)
-from .network import Component, NetworkError, Node, System, Terminal, Variable
-from .solve import Result, Simulation, SimulationError
-from .units import Q_, UnitError, ureg
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
+
+# public name -> module (relative to this package) that defines it
+_LAZY = {
+    **dict.fromkeys(["Actuator", "CheckValve", "CircularTube", "Container",
+                     "HystereticActuator", "LibraryComponent", "LinearAccumulator",
+                     "MassFlowSource", "Orifice", "PressureSource", "SnappingValve",
+                     "TeslaValve", "VolumeFlowSource"], "components"),
+    "pressure_atmospheric": "constants",
+    "FreeConvection": "correlations.heat_transfer",
+    **dict.fromkeys(["HysteresisLoop", "PVCurve", "pvcurve", "read_table"], "curves"),
+    **dict.fromkeys(["ConstantLiquid", "Fluid", "FluidError", "IdealGas", "air",
+                     "ethylene_glycol", "nitrogen", "water"], "fluids"),
+    **dict.fromkeys(["Component", "NetworkError", "Node", "System", "Terminal",
+                     "Variable"], "network"),
+    **dict.fromkeys(["Result", "Simulation", "SimulationError"], "solve"),
+    **dict.fromkeys(["Q_", "UnitError", "ureg"], "units"),
+}
+# public names that are modules themselves
+_LAZY_MODULES = {"waveforms": "curves.waveforms"}
 
 __all__ = [
     "Variable", "Terminal", "Component", "Node", "System", "NetworkError",
@@ -29,3 +46,33 @@ __all__ = [
     "ethylene_glycol",
     "pressure_atmospheric", "ureg", "Q_", "UnitError",
 ]
+
+
+def __getattr__(name):
+    if name in _LAZY_MODULES:
+        value = importlib.import_module(f".{_LAZY_MODULES[name]}", __name__)
+    elif name in _LAZY:
+        value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    else:
+        raise AttributeError(f"module 'softflow' has no attribute {name!r}")
+    globals()[name] = value          # later look-ups do not come here
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:       # the same names, eagerly, for type checkers and IDEs
+    from .components import (Actuator, CheckValve, CircularTube, Container,
+                             HystereticActuator, LibraryComponent, LinearAccumulator,
+                             MassFlowSource, Orifice, PressureSource, SnappingValve,
+                             TeslaValve, VolumeFlowSource)
+    from .constants import pressure_atmospheric
+    from .correlations.heat_transfer import FreeConvection
+    from .curves import HysteresisLoop, PVCurve, pvcurve, read_table, waveforms
+    from .fluids import (ConstantLiquid, Fluid, FluidError, IdealGas, air, ethylene_glycol,
+                         nitrogen, water)
+    from .network import Component, NetworkError, Node, System, Terminal, Variable
+    from .solve import Result, Simulation, SimulationError
+    from .units import Q_, UnitError, ureg

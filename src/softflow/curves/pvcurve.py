@@ -5,8 +5,6 @@ import bisect
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator, make_smoothing_spline
-from scipy.signal import savgol_filter
 
 from ..constants import pressure_atmospheric
 from ..units import to_si
@@ -120,6 +118,7 @@ class PVCurve:
         if smoothing is not None and smoothing is not False:
             p, slope = _smoothing_spline(v, p, smoothing, where)
         else:
+            from scipy.interpolate import PchipInterpolator   # lazy: import softflow stays fast
             slope = PchipInterpolator(v, p)(v, 1)
         self.pressure = p
         self.slope = slope
@@ -242,6 +241,7 @@ def _savgol(p, window, order, where):
             or not 0 <= order <= window - 2):
         raise ValueError(f"{where}: filter_order must be an integer from 0 to filter_window - 2 "
                          f"({window - 2}), got {order!r}")
+    from scipy.signal import savgol_filter    # lazy: scipy.signal (and .stats) take ~0.4 s
     return savgol_filter(p, int(window), int(order), mode="interp")
 
 
@@ -267,6 +267,7 @@ def _smoothing_spline(v, p, smoothing, where):
     mean_p = p.mean()
     span_p = np.ptp(p) or 1.0
     x = (v - v[0]) / span_v
+    from scipy.interpolate import make_smoothing_spline
     spl = make_smoothing_spline(x, (p - mean_p) / span_p, lam=lam)
     return spl(x) * span_p + mean_p, spl(x, 1) * (span_p / span_v)
 

@@ -13,7 +13,6 @@ on NumPy vectors: no search (the grid is uniform) and no Python loop.
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 # Maps [f(0), f(1), h f'(0), h f'(1)] to power coefficients [c0, c1, c2, c3] of a cubic
 # on [0, 1] (the cubic Hermite basis).
@@ -42,6 +41,7 @@ class UniformAxis:
 
 
 def _spline_slopes(values, nodes, axis):
+    from scipy.interpolate import CubicSpline    # lazy: only the table level builds these
     return CubicSpline(nodes, values, axis=axis, bc_type="not-a-knot")(nodes, 1)
 
 
