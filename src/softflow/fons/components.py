@@ -14,7 +14,7 @@ from .data import PVCurve
 #: An ideal check valve (fonsim's: no resistance once open) as softflow's
 #: CheckValve: a passage this wide opening over this band above the threshold.
 IDEAL_VALVE_DIAMETER = 20e-3      # [m]
-IDEAL_VALVE_OPENING_BAND = 100.0  # [Pa]
+IDEAL_VALVE_OPENING_BAND = 300.0  # [Pa] (100 Pa: the t = 0 Newton solve failed with a threshold)
 
 #: fonsim's LinearAccumulator starts empty by default (v0 = 0); softflow needs a
 #: positive fluid volume, so an empty one starts at this pressure above p0 [Pa].

@@ -1,0 +1,258 @@
+"""softflow.fons on its own (no fonsim needed): the scripts run, their
+results follow the physics, and bad input gets errors that name the culprit."""
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fonsim_scripts as S
+import softflow as sf
+import softflow.fons as fons
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(autouse=True)
+def _agg():
+    import matplotlib
+    matplotlib.use("Agg")
+
+
+# -- the scripts, softflow's fluids --------------------------------------------------------
+def test_first_network_fills_to_the_source_pressure():
+    out = S.first_network(fons, fons.air)
+    p = out["container gauge pressure [Pa]"]
+    assert np.all(np.diff(p) > 0)
+    assert p[-1] == pytest.approx(2e5 - fons.pressure_atmospheric, rel=2e-3)
+
+
+def test_volumeflow_source_into_container_is_exponential():
+    # isothermal: V dp/dt = p Q  ->  p = p_atm exp(Q t / V)
+    out = S.volumeflow_into_container(fons, fons.air, step=(None, None))
+    t = np.array([1.0, 2.5, 5.0])
+    exact = fons.pressure_atmospheric * (np.exp(1e-6 * t / 10e-6) - 1)
+    np.testing.assert_allclose(out["tank gauge pressure [Pa]"], exact, rtol=5e-3)
+
+
+def test_accumulator_pressure_is_k_times_volume():
+    out = S.accumulator(fons, fons.water)
+    dm = out["acc mass gain [kg]"]                      # at 0.25 s and 1 s
+    assert dm[0] == pytest.approx(0.25e-3, rel=1e-9)
+    # p - p0 = k dV (+ the 1 mPa an empty accumulator starts with)
+    np.testing.assert_allclose(out["acc gauge pressure [Pa]"][[0, 2]],
+                               1e9 * dm / fons.water.rho + 1e-3, rtol=1e-9)
+
+
+def test_custom_component_equals_the_library_container():
+    out = S.custom_container(fons, fons.air)
+    np.testing.assert_allclose(out["tank_0 pressure [Pa]"], out["tank_1 pressure [Pa]"],
+                               rtol=1e-6)
+
+
+def test_free_actuator_terminal_b_chains_and_curve_as_file_equals_curve_object():
+    out = S.two_balloons(fons, fons.water, step=(None, None))
+    for label in ("actu_0", "actu_1"):
+        v = out[f"{label} volume [m^3]"]
+        assert np.all(np.diff(v) >= -1e-12) and v[-1] > v[0]
+    s = []
+    for curve in (str(S.DATA), fons.data.PVCurve(str(S.DATA))):
+        a = fons.FreeActuator("a", fluid=fons.water, curve=curve)
+        s.append((a.initial_volume, a.initial_pressure))
+    assert s[0] == s[1]
+    assert s[0] == (pytest.approx(1e-6), pytest.approx(2200 + sf.pressure_atmospheric))
+
+
+@pytest.mark.parametrize("threshold", [0.0, 0.3e5])
+def test_check_valve_holds_the_pressure_less_its_threshold(threshold):
+    out = S.check_valve(fons, fons.air, threshold=threshold, step=(None, None))
+    p = out["tank pressure [Pa]"]
+    assert p[-1] == pytest.approx(2e5 - threshold, abs=300)   # within the opening band
+    assert p[1] < p[-1]                                        # filled through the tube
+    assert p[-1] == pytest.approx(p[-3], abs=1)                # closed after the pulse
+
+
+def test_paper_listing_runs_under_softflow_fons_as_under_softflow():
+    src = (ROOT / "examples" / "paper_example.py").read_text()
+    assert "import softflow as fons" in src
+    results = []
+    for line in ("import softflow as fons", "import softflow.fons as fons"):
+        ns = {}
+        cwd = Path.cwd()
+        try:
+            import os
+            os.chdir(ROOT / "examples")
+            exec(compile(src.replace("import softflow as fons", line), "paper", "exec"), ns)
+        finally:
+            os.chdir(cwd)
+        results.append((np.asarray(ns["t"]), np.asarray(ns["p_actu"])))
+    (t0, p0), (t1, p1) = results
+    # same network, same solver; the fons PV curve interpolates the same data
+    np.testing.assert_allclose(np.interp(t0, t1, p1), p0, atol=2e-3 * np.max(np.abs(p0)))
+
+
+# -- connect ------------------------------------------------------------------------------
+def test_connect_chains_pairs_and_connect_common_joins_one_node():
+    s = fons.System()
+    s += fons.PressureSource("src", pressure=2e5)
+    for i in range(3):
+        s += fons.CircularTube(f"t{i}", fluid=fons.air)
+    s.connect("src", "t0", "t1")
+    nodes = {frozenset(t.name for t in n.terminals) for n in s.nodes()}
+    assert frozenset({"src.a", "t0.a"}) in nodes and frozenset({"t0.b", "t1.a"}) in nodes
+    s.connect_common(("t0", "b"), ("t2", "a"))
+    nodes = {frozenset(t.name for t in n.terminals) for n in s.nodes()}
+    assert frozenset({"t0.b", "t1.a", "t2.a"}) in nodes
+    comp, term = s.get_component_and_terminal(("t2", "b"))
+    assert comp is s.get("t2") and term.label == "b"
+
+
+# -- unsupported names, bad input ----------------------------------------------------------
+@pytest.mark.parametrize("name, says", [
+    ("CircularTube_autodiff", "fons.CircularTube"),
+    ("Dummy", "allow_unconnected"),
+    ("circulartube_compressible", "use the component"),
+    ("NoSuchThing", "not part of fonsim 0.6's public API"),
+])
+def test_unsupported_fonsim_name_says_what_to_use(name, says):
+    with pytest.raises(fons.FonsimNameError) as info:
+        getattr(fons, name)
+    assert name in str(info.value) and says in str(info.value)
+    assert not hasattr(fons, name)   # still an AttributeError
+
+
+def test_unsupported_name_in_a_submodule():
+    with pytest.raises(fons.FonsimNameError, match="'fluid.Bingham'.*Newtonian"):
+        fons.fluid.Bingham
+
+
+def test_wave_custom_not_time_ordered_names_the_row():
+    with pytest.raises(ValueError, match=r"point 2 \(t = 0.25 s\) does not come after point 1"):
+        fons.wave.Custom([(0, 1.0), (0.5, 2.0), (0.25, 3.0)])
+    with pytest.raises(ValueError, match="relative time of row 1"):
+        fons.wave.Custom([(0, 1.0), (0.0, 2.0)], time_notation="relative")
+    with pytest.raises(ValueError, match="kind 'cubic' is not supported"):
+        fons.wave.Custom([(0, 1.0), (1.0, 2.0)], kind="cubic")
+
+
+def test_wave_custom_values_and_arithmetic():
+    w = fons.wave.Custom([(0, 1.0), (0.5, 2.0), (0.25, 3.0)], time_notation="relative")
+    assert [w(x) for x in (0.0, 0.49, 0.5, 0.74, 0.75, 9.0)] == [1, 1, 2, 2, 3, 3]
+    assert w.breakpoints == (0.5, 0.75)
+    lin = fons.wave.Custom([[0, 0.5, 1.0], [1, 3, 2]], kind="linear")   # 2 x N
+    scaled = lin * 1e5 + fons.pressure_atmospheric
+    assert scaled(0.25) == pytest.approx(2e5 + fons.pressure_atmospheric)
+    assert lin(0.25) == 2.0   # a new wave; the original is unchanged
+    assert (2 * lin - 1)(0.75) == pytest.approx(4.0)
+
+
+def _csv(tmp_path, rows):
+    path = tmp_path / "pv.csv"
+    path.write_text("Balloon,2024-01-01\nTime,Volume,Pressure\ns,ml,mbar\n" + "\n".join(rows))
+    return path
+
+
+def test_pv_csv_with_a_bad_row_names_the_line(tmp_path):
+    path = _csv(tmp_path, ["1,1,20", "2,2,abc", "3,3,300"])
+    with pytest.raises(sf.curves.csvdata.DataFileError, match=r"line 5.*'abc'"):
+        fons.data.PVCurve(str(path))
+    path = _csv(tmp_path, ["1,1,20", "2,2,250", "3,1.5,300"])
+    with pytest.raises(sf.curves.csvdata.DataFileError, match="line 6"):
+        fons.data.PVCurve(str(path))
+
+
+def test_pv_curve_reference_and_falling_volumes(tmp_path):
+    rel = fons.data.PVCurve(str(_csv(tmp_path, ["1,1,20", "2,2,250", "3,3,300"])))
+    np.testing.assert_allclose(rel.p, np.array([20, 250, 300]) * 100 + sf.pressure_atmospheric)
+    np.testing.assert_allclose(rel.v, [1e-6, 2e-6, 3e-6])
+    ab = fons.data.PVCurve(str(_csv(tmp_path, ["1,3,3000", "2,2,2500", "3,1,1020"])),
+                           pressure_reference="absolute")
+    np.testing.assert_allclose(ab.v, [1e-6, 2e-6, 3e-6])
+    np.testing.assert_allclose(ab.p, [102000, 250000, 300000])
+    assert ab.get_initial_volume(101325) == pytest.approx(1e-6)
+    with pytest.raises(TypeError, match=r"\['fill_value'\] are not supported"):
+        fons.data.PVCurve(str(S.DATA), fill_value=0)
+    with pytest.raises(ValueError, match="pressure_reference"):
+        fons.data.PVCurve(str(S.DATA), pressure_reference="gauge")
+
+
+def test_writeout_simulation_json(tmp_path):
+    s = fons.System()
+    s += fons.PressureSource("src", pressure=2e5)
+    s += fons.CircularTube("tube", fluid=fons.air)
+    s += fons.Container("tank", fluid=fons.air, volume=20e-6)
+    s.connect("src", "tube", "tank")
+    sim = fons.Simulation(s, duration=0.1)
+    sim.run()
+    path = tmp_path / "run.json"
+    fons.data.writeout_simulation(str(path), sim)
+    doc = json.loads(path.read_text())
+    tank = doc["components"]["tank"]
+    key = tank["terminals"]["a"]["over"]["p"]
+    np.testing.assert_array_equal(doc["data"][key], s.get("tank").get("pressure"))
+    np.testing.assert_array_equal(doc["data"][tank["states"]["mass"]],
+                                  s.get("tank").get_state("mass"))
+    np.testing.assert_array_equal(doc["data"][doc["simulation"]["time"]], sim.times)
+    with pytest.raises(ValueError, match="only JSON"):
+        fons.data.writeout_simulation(str(tmp_path / "run.csv"), sim)
+
+
+def test_variable_range_is_checked_on_the_results():
+    class Tank(fons.Component):
+        def __init__(self, label):
+            super().__init__(label)
+            self.set_terminals(fons.Terminal("a", fons.terminal_fluidic,
+                                             {"pressure": "p", "massflow": "mf"}))
+            self.set_states(fons.Variable("mass", "local", label="m",
+                                          initial_value=20e-6 * fons.air.rho,
+                                          range=(0, 30e-6 * fons.air.rho)))
+            self.evaluate = self.auto(lambda p, m: [p - m / 20e-6 / fons.air.rho
+                                                    * fons.pressure_atmospheric])
+            self.update_state = self.auto_state(lambda dt, m, mf: {"m": m + dt * mf})
+
+    s = fons.System()
+    s += fons.PressureSource("src", pressure=2e5)
+    s += fons.CircularTube("tube", fluid=fons.air)
+    s += Tank("tank")
+    s.connect("src", "tube", "tank")
+    with pytest.warns(RuntimeWarning, match=r"Tank 'tank': variable 'm' left its range"):
+        fons.Simulation(s, duration=0.2).run()
+
+
+def test_array_form_component_and_other_discretizations_are_refused():
+    class Raw(fons.Component):
+        def evaluate(self, values, jacobian_state, jacobian_arguments, state, arguments,
+                     elapsed_time):
+            pass
+    with pytest.raises(TypeError, match="Raw: defines evaluate.*self.evaluate = self.auto"):
+        Raw("raw")
+    s = fons.System()
+    s += fons.PressureSource("src", pressure=2e5)
+    s += fons.Container("tank", fluid=fons.air, volume=1e-5)
+    s.connect("src", "tank")
+    with pytest.raises(ValueError, match="discretization 'tustin' is not supported"):
+        fons.Simulation(s, discretization="tustin")
+
+
+def test_check_valve_without_a_fluid_nearby_is_named():
+    s = fons.System()
+    s += fons.PressureSource("src", pressure=2e5)
+    s += fons.CheckValve("valve")
+    s += fons.Sink("sink")
+    s.connect("src", "valve", "sink")
+    with pytest.raises(sf.NetworkError, match="CheckValve 'valve': no fluid given"):
+        fons.Simulation(s, duration=0.1)
+
+
+def test_fluids_carry_fonsim_attributes():
+    assert fons.air.rho_stp == pytest.approx(sf.air.rho)
+    assert fons.air.density(2 * sf.pressure_atmospheric) == pytest.approx(2 * sf.air.rho)
+    assert fons.fluids.IdealCompressible.air is fons.air
+    gas = fons.fluid.IdealCompressible("air", 1.23, 1.82e-5)
+    assert gas.density(sf.pressure_atmospheric) == pytest.approx(1.23)
+    assert gas.rho_stp == 1.23 and gas.mu == 1.82e-5
+    liquid = fons.fluid.IdealIncompressible("water", 999, 0.977e-3)
+    assert liquid.rho == 999 and liquid.viscosity(1e5) == 0.977e-3
+    assert math.isclose(fons.water.rho, sf.water.rho)
