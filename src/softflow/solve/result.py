@@ -1,11 +1,16 @@
-"""Simulation results: times and every variable as arrays, by component and label."""
+"""Simulation results: times and every variable as arrays, by component and label;
+exports (dict, CSV, pandas, xarray) and plots (matplotlib) under one naming:
+``component.name``, where ``result.get(component, name)`` gives the same values."""
 from __future__ import annotations
 
 import csv
 
 import numpy as np
 
-from ..units import to_quantity
+from ..units import Q_, quantity_unit, to_quantity
+
+#: unit written for a quantity without a known SI unit (a dimensionless state)
+_DIMENSIONLESS = "1"
 
 
 class Result:
@@ -37,6 +42,7 @@ class Result:
         # where each component lives; its variable index is built on first access
         self._where = asm.where
         self._entries = {}
+        self._specs = None          # export columns, built on first use
         # column of X (S) holding each unknown (state); -1 where it was not recorded
         if recorded is None:
             self._xcol = np.arange(asm.n)
@@ -51,8 +57,10 @@ class Result:
     def _component_entries(self, label):
         if label not in self._entries:
             if label not in self._where:
+                have = sorted(self._where)
+                listed = ", ".join(map(repr, have[:20])) + (", ..." if len(have) > 20 else "")
                 raise KeyError(f"no component {label!r} in this result (not in the system, "
-                               "or not among Simulation(record=...))")
+                               f"or not among Simulation(record=...)); it has {listed}")
             g, i = self._where[label]
             iface, states = g.iface[i]
             entries = [(v.label, v.quantity, term, "x", int(self._xcol[g.col[i, k]]))
@@ -73,7 +81,7 @@ class Result:
     def _entry(self, label, name, terminal):
         entries = self._component_entries(label)
         by_label = [e for e in entries if e[0] == name or f"{e[0]}_{e[2]}" == name]
-        cands = by_label or [e for e in entries if e[1] == name]
+        cands = by_label or [e for e in entries if e[1] == name or f"{e[1]}_{e[2]}" == name]
         if terminal is not None:
             cands = [e for e in cands if e[2] == terminal]
         if len(cands) == 1:
@@ -91,7 +99,11 @@ class Result:
                        f"pass terminal=, e.g. get({name!r}, {terms[0]!r})")
 
     def get(self, label, name, terminal=None, *, as_quantity=False):
-        """Values of variable ``name`` (label, quantity or output name) of component ``label``."""
+        """Values of variable ``name`` of component ``label``: its label (``'p'``), its
+        quantity (``'pressure'``), either with the terminal (``'massflow_a'``), a state
+        (``'mass'``) or a derived output (an Actuator's ``'volume'``); SI units, or a
+        pint Quantity with ``as_quantity=True``. ``terminal`` picks one where the
+        name occurs at several."""
         e = self._entry(label, name, terminal)
         if e[0] == "output":
             quantity, fn = self._component(label).outputs()[name]
@@ -126,52 +138,133 @@ class Result:
         return to_quantity(values, quantity) * to_quantity(1.0, "time")
 
     def __getitem__(self, key):
-        """``result['tube.massflow']`` or ``result['tube', 'massflow', 'a']``."""
+        """``result['tube.massflow_a']``, ``result['tube', 'massflow', 'a']`` or
+        ``result['time']``: every column name of :meth:`to_dict` works."""
+        if key == "time":
+            return self.times
         if isinstance(key, tuple):
             return self.get(*key)
         label, _, name = key.rpartition(".")
         return self.get(label, name)
 
-    def columns(self):
-        """Unique column names ``component.variable[_terminal]`` of every variable."""
-        cols = []
-        for label in self._where:
-            entries = self._component_entries(label)
-            counts = {}
-            for e in entries:
-                counts[e[0]] = counts.get(e[0], 0) + 1
-            for e in entries:
-                name = e[0] if counts[e[0]] == 1 else f"{e[0]}_{e[2]}"
-                cols.append((f"{label}.{name}", e))
-        return cols
+    def get_times(self, *, as_quantity=False):
+        """The recorded times [s], as a pint Quantity with ``as_quantity=True``."""
+        return Q_(self.times, "s") if as_quantity else self.times
 
-    def to_dict(self):
-        """{'time': times, 'component.variable': values, ...} (SI units)."""
-        out = {"time": self.times}
-        for name, e in self.columns():
-            out[name] = (self.X if e[3] == "x" else self.S)[:, e[4]]
+    # -- columns: one name per recorded variable and derived output ----------------------
+    def _names(self, label):
+        """[(name, quantity)] of a component's columns, each ``name`` one that
+        ``get(label, name)`` resolves to that variable: the quantity (``pressure``), or
+        the label where it names the quantity more closely (a state ``internal_energy``
+        of quantity ``energy``), with ``_terminal`` where it occurs at several
+        terminals (a quantity without a unit, such as a valve's ``dimensionless``
+        mode, goes by its label: ``open``); then the derived outputs (``volume``)
+        not already among them."""
+        entries = self._component_entries(label)
+        base = [q if quantity_unit(q) and not (q in lab and lab != q) else lab
+                for lab, q, *_ in entries]
+        names = [f"{b}_{e[2]}" if base.count(b) > 1 and e[2] is not None else b
+                 for b, e in zip(base, entries)]
+        out = []
+        for name, e in zip(names, entries):
+            if not self._resolves(label, name, e):
+                # the variable's own label, as get() takes it (two variables of one
+                # quantity at one terminal)
+                name = e[0] if [x[0] for x in entries].count(e[0]) == 1 else f"{e[0]}_{e[2]}"
+            out.append((name, e[1]))
+        taken = {n for n, _ in out}
+        for name, (quantity, _) in self._component(label).outputs().items():
+            if name not in taken and self._resolves(label, name, ("output", name)):
+                out.append((name, quantity))
+        return out
+
+    def _resolves(self, label, name, entry):
+        try:
+            return self._entry(label, name, None) == entry
+        except KeyError:
+            return False
+
+    def _column_specs(self):
+        """[(column, label, name, quantity)], built once."""
+        specs = self._specs
+        if specs is None:
+            specs = self._specs = [(f"{label}.{name}", label, name, quantity)
+                                   for label in self._where
+                                   for name, quantity in self._names(label)]
+        return specs
+
+    def columns(self):
+        """Column names ``component.name`` of every recorded variable and derived output
+        (an Actuator's ``volume``), as :meth:`to_dict`, :meth:`to_csv`,
+        :meth:`to_dataframe` and :meth:`to_xarray` name them; ``result[column]``
+        and ``result.get(component, name)`` give each one's values."""
+        return [c for c, *_ in self._column_specs()]
+
+    def units(self):
+        """{column: SI unit} of ``'time'`` and every column (``'1'``: dimensionless)."""
+        out = {"time": "s"}
+        for column, _, _, quantity in self._column_specs():
+            out[column] = quantity_unit(quantity) or _DIMENSIONLESS
+        return out
+
+    # -- exports ----------------------------------------------------------------------
+    def to_dict(self, *, as_quantity=False):
+        """{'time': times, 'component.name': values, ...} in SI units (see
+        :meth:`columns`); every value a pint Quantity with ``as_quantity=True``."""
+        out = {"time": self.get_times(as_quantity=as_quantity)}
+        for column, label, name, _ in self._column_specs():
+            out[column] = self.get(label, name, as_quantity=as_quantity)
         return out
 
     def to_csv(self, path):
-        """Write every variable to a CSV file with a names row and an SI units row."""
-        from ..units import quantity_unit
+        """Write ``time`` and every column to a CSV file: one header row with the SI
+        unit in each name (``time [s]``, ``act.pressure [Pa]``), then numbers only,
+        so ``pandas.read_csv(path)`` reads every column as floats."""
+        units = self.units()
         d = self.to_dict()
-        units = ["s"] + [quantity_unit(e[1]) or "" for _, e in self.columns()]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(list(d))
-            w.writerow(units)
+            w.writerow([f"{column} [{units[column]}]" for column in d])
             w.writerows(np.column_stack(list(d.values())).tolist())
 
     def to_dataframe(self):
-        """A pandas DataFrame indexed by time (needs the optional pandas extra)."""
+        """A pandas DataFrame indexed by ``time`` [s], one column per :meth:`columns`
+        name, SI units in ``df.attrs['units']`` ({column: unit}); ``df.attrs`` also
+        holds the run's ``status`` and ``message`` (needs pandas: the pandas extra)."""
         try:
             import pandas as pd
         except ImportError:
-            raise ImportError("to_dataframe needs pandas: pip install 'softflow[pandas]'") from None
+            raise ImportError("Result.to_dataframe needs pandas, an optional dependency: "
+                              "pip install 'softflow[pandas]' (or pip install pandas)") from None
         d = self.to_dict()
         t = d.pop("time")
-        return pd.DataFrame(d, index=pd.Index(t, name="time"))
+        df = pd.DataFrame(d, index=pd.Index(t, name="time"))
+        df.attrs.update(units=self.units(), status=self.status, message=self.message)
+        return df
+
+    def to_xarray(self):
+        """An xarray Dataset on the ``time`` coordinate [s], one data variable per
+        :meth:`columns` name with attributes ``units``, ``component``, ``variable``
+        and ``quantity``; the Dataset's attributes hold ``status``, ``message`` and
+        the scalar counters of ``stats`` (``ds.to_netcdf(...)`` writes it; needs
+        xarray: the xarray extra)."""
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError("Result.to_xarray needs xarray, an optional dependency: "
+                              "pip install 'softflow[xarray]' (or pip install xarray)") from None
+        units = self.units()
+        data = {}
+        for column, label, name, quantity in self._column_specs():
+            data[column] = ("time", self.get(label, name),
+                            {"units": units[column], "component": label, "variable": name,
+                             "quantity": quantity})
+        attrs = {"status": self.status, "message": self.message}
+        attrs.update({k: v for k, v in self.stats.items()
+                      if isinstance(v, (int, float, np.integer, np.floating))
+                      and not isinstance(v, bool)})
+        return xr.Dataset(data, coords={"time": ("time", self.times, {"units": "s"})},
+                          attrs=attrs)
 
     def __repr__(self):
         return (f"<Result {self.status}: {len(self.times)} points, "
