@@ -111,6 +111,12 @@ class HysteresisLoop:
         """Branch after a step that ended at ``volume`` (True: inflation)."""
         return self.on_inflation_curve(volume, inflating)
 
+    def plot(self, ax=None, **kwargs):
+        """Plot the inflation and the deflation curve on one Axes (keywords as
+        :meth:`PVCurve.plot`); returns the Axes."""
+        ax = self.inflation.plot(ax, label="inflation", **kwargs)
+        return self.deflation.plot(ax, label="deflation", **kwargs)
+
     def __repr__(self):
         return (f"<HysteresisLoop V {self.volume_low:.3g}..{self.volume_high:.3g} m^3>")
 

@@ -178,6 +178,61 @@ class PVCurve:
         return (f"<PVCurve {self.origin}: {len(self.volume)} points, "
                 f"V {self.volume[0]:.3g}..{self.volume[-1]:.3g} m^3>")
 
+    def plot(self, ax=None, *, volume_unit="mL", pressure_unit="mbar", gauge=True,
+             points=True, extend=0.0, label=None):
+        """Plot the curve (and, with ``points``, the samples it was built from).
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            Where to draw (default: a new figure).
+        volume_unit, pressure_unit : str
+            Display units (default mL and mbar).
+        gauge : bool
+            Pressure relative to 1 atm (default), else absolute.
+        points : bool
+            Mark the given samples (as given, before any filter or smoothing).
+        extend : float [-]
+            Also draw this fraction of the volume range beyond each end (the
+            linear continuation the solver uses there).
+        label : str, optional
+            Legend entry of the curve.
+
+        Returns
+        -------
+        matplotlib Axes
+        """
+        from ..units import Q_, UnitError
+        v0, v1 = float(self.volume[0]), float(self.volume[-1])
+        if not (isinstance(extend, (int, float)) and extend >= 0):
+            raise ValueError(f"PVCurve.plot: extend must be a fraction >= 0, got {extend!r}")
+        pad = extend * (v1 - v0)
+        v = np.unique(np.concatenate([np.linspace(v0 - pad, v1 + pad, 400), self.volume]))
+        offset = pressure_atmospheric if gauge else 0.0
+
+        def shown(values, si, unit, what):
+            try:
+                return Q_(values, si).to(unit).magnitude
+            except Exception as err:           # pint: undefined unit or wrong dimension
+                raise UnitError(f"PVCurve.plot: {what}_unit {unit!r} is not a {what} "
+                                f"unit ({err})") from None
+
+        if ax is None:
+            import matplotlib.pyplot as plt
+            _, ax = plt.subplots()
+        line, = ax.plot(shown(v, "m**3", volume_unit, "volume"),
+                        shown(self(v) - offset, "Pa", pressure_unit, "pressure"),
+                        label=label or f"PV curve ({self.origin})")
+        if points:
+            ax.plot(shown(self.volume, "m**3", volume_unit, "volume"),
+                    shown(self.measured_pressure - offset, "Pa", pressure_unit, "pressure"),
+                    ".", color=line.get_color(), alpha=0.6,
+                    label="samples" if label is None else f"{label} (samples)")
+        ax.set_xlabel(f"volume [{volume_unit}]")
+        ax.set_ylabel(f"{'gauge ' if gauge else ''}pressure [{pressure_unit}]")
+        ax.legend()
+        return ax
+
     # -- synthetic curves (the shapes of the paper's Figs. 3-5) -----------------------------
     @classmethod
     def monotonic(cls, start, knee, end, *, gauge=False):

@@ -7,7 +7,8 @@ import csv
 
 import numpy as np
 
-from ..units import Q_, quantity_unit, to_quantity
+from ..constants import pressure_atmospheric
+from ..units import Q_, UnitError, quantity_unit, to_quantity
 
 #: unit written for a quantity without a known SI unit (a dimensionless state)
 _DIMENSIONLESS = "1"
@@ -266,6 +267,135 @@ class Result:
         return xr.Dataset(data, coords={"time": ("time", self.times, {"units": "s"})},
                           attrs=attrs)
 
+    # -- plots (matplotlib, imported on first use) ----------------------------------------
+    def _series(self, spec, units, gauge, where):
+        """(column, quantity, values in the display unit, unit text, gauge) of a spec:
+        ``'act.volume'``, ``('act', 'volume')`` or ``('tube', 'massflow', 'a')``."""
+        if isinstance(spec, str):
+            label, dot, name = spec.rpartition(".")
+            if not dot:
+                raise ValueError(f"{where}: {spec!r} is not 'component.variable' (e.g. "
+                                 f"'{next(iter(self._where), 'act')}.pressure'); columns: "
+                                 f"{self.columns()}")
+            parts = (label, name, None)
+        elif isinstance(spec, (tuple, list)) and len(spec) in (2, 3):
+            parts = (*spec, None) if len(spec) == 2 else tuple(spec)
+        else:
+            raise TypeError(f"{where}: a variable is 'component.variable' or (component, "
+                            f"variable[, terminal]), got {spec!r}")
+        label, name, terminal = parts
+        values = self.get(label, name, terminal)       # KeyError lists what there is
+        e = self._entry(label, name, terminal)
+        quantity = self._component(label).outputs()[name][0] if e[0] == "output" else e[1]
+        column = f"{label}.{name}" + (f"_{terminal}" if terminal is not None else "")
+        si = quantity_unit(quantity) or "dimensionless"
+        is_gauge = gauge and quantity == "pressure"
+        if is_gauge:
+            values = values - pressure_atmospheric
+        unit = None
+        if isinstance(units, str):
+            unit = units
+        elif units:
+            unit = units.get(column, units.get(quantity))
+        if unit is not None:
+            try:
+                values = Q_(values, si).to(unit).magnitude
+            except Exception as err:        # pint: undefined unit or wrong dimension
+                raise UnitError(f"{where}: {column} is a {quantity} [{si}]; cannot show it "
+                                f"in {unit!r} ({err})") from None
+        # the unit as the caller wrote it ('mL', not pint's 'ml'); SI as pint prints it
+        shown = unit if unit is not None else (f"{Q_(1.0, si).units:~P}" or "-")
+        return column, quantity, values, shown, is_gauge
+
+    def _time_axis(self, time_unit, where):
+        try:
+            t = Q_(self.times, "s").to(time_unit).magnitude
+        except Exception as err:
+            raise UnitError(f"{where}: time_unit {time_unit!r} is not a time ({err})") from None
+        return t, f"time [{time_unit}]"
+
+    def plot(self, *variables, components=None, names=None, units=None, gauge=False,
+             time_unit="s", ax=None):
+        """Plot variables against time; one call, units on the axes.
+
+        Parameters
+        ----------
+        *variables : str or tuple
+            ``'act.volume'``, ``('act', 'volume')`` or ``('tube', 'massflow', 'a')``.
+        components, names : list of str, optional
+            Every name of every component, after ``variables``:
+            ``plot(components=['act1', 'act2'], names=['pressure', 'volume'])``.
+        units : str or dict, optional
+            Display unit: one for all (``'bar'``), or per quantity or column
+            (``{'pressure': 'mbar', 'volume': 'mL'}``); default SI.
+        gauge : bool
+            Show pressures relative to 1 atm.
+        time_unit : str
+            Unit of the time axis (default ``'s'``).
+        ax : matplotlib Axes or list of Axes, optional
+            Where to draw: one Axes per quantity; by default a new figure.
+
+        Returns
+        -------
+        Axes, or a list of Axes (stacked, sharing the time axis) when the
+        variables are of several quantities (pressure, volume, ...).
+        """
+        where = "Result.plot"
+        specs = list(variables) + [(c, n) for c in (components or []) for n in (names or [])]
+        if bool(components) != bool(names):
+            raise ValueError(f"{where}: give components= and names= together")
+        if not specs:
+            raise ValueError(f"{where}: name what to plot, e.g. plot('{next(iter(self._where), 'act')}"
+                             f".pressure'); columns: {self.columns()}")
+        series = [self._series(spec, units, gauge, where) for spec in specs]
+        t, t_axis = self._time_axis(time_unit, where)
+        groups = {}
+        for column, quantity, values, shown, is_gauge in series:
+            axis = f"{'gauge ' if is_gauge else ''}{quantity} [{shown}]"
+            groups.setdefault(axis, []).append((column, values))
+        axes = _axes(ax, len(groups), where, sharex=True)
+        for a, (axis, lines) in zip(axes, groups.items()):
+            for column, values in lines:
+                a.plot(t, values, label=column)
+            a.set_ylabel(axis)
+            a.legend()
+        axes[-1].set_xlabel(t_axis)
+        return axes[0] if len(axes) == 1 else axes
+
+    def plot_path(self, x, y, *, units=None, gauge=False, ax=None, label=None):
+        """Plot one variable against another over the run (the FONS paper's panel D:
+        ``plot_path(('act1', 'volume'), ('act2', 'volume'))``), the start marked.
+
+        ``x``, ``y``: as in :meth:`plot`; ``units``, ``gauge`` as there; ``ax``: an
+        Axes to draw in; ``label``: the legend entry. Returns the Axes.
+        """
+        where = "Result.plot_path"
+        xc, _, xv, x_unit, x_gauge = self._series(x, units, gauge, where)
+        yc, _, yv, y_unit, y_gauge = self._series(y, units, gauge, where)
+        (a,) = _axes(ax, 1, where)
+        line, = a.plot(xv, yv, label=label)
+        if len(xv):
+            a.plot(xv[:1], yv[:1], "o", color=line.get_color())
+        a.set_xlabel(f"{xc}{' (gauge)' if x_gauge else ''} [{x_unit}]")
+        a.set_ylabel(f"{yc}{' (gauge)' if y_gauge else ''} [{y_unit}]")
+        if label is not None:
+            a.legend()
+        return a
+
     def __repr__(self):
         return (f"<Result {self.status}: {len(self.times)} points, "
                 f"t = {self.times[0] if len(self.times) else 0:g}..{self.times[-1] if len(self.times) else 0:g} s>")
+
+
+def _axes(ax, n, where, sharex=False):
+    """``n`` Axes: the given one(s), or a new figure's (stacked)."""
+    if ax is None:
+        import matplotlib.pyplot as plt
+        _, axes = plt.subplots(n, 1, sharex=sharex, squeeze=False,
+                               figsize=(6.4, 2.2 + 2.2 * n if n > 1 else 4.8))
+        return list(axes[:, 0])
+    axes = list(np.ravel(ax)) if isinstance(ax, (list, tuple, np.ndarray)) else [ax]
+    if len(axes) != n:
+        raise ValueError(f"{where}: {n} quantit{'y' if n == 1 else 'ies'} to plot, each on "
+                         f"its own Axes, but ax= gives {len(axes)}")
+    return axes
