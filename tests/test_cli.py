@@ -1,0 +1,68 @@
+"""The command line: --version, and mistakes reported in one line without a traceback."""
+import subprocess
+import sys
+
+import pytest
+
+import softflow as sf
+from softflow.cli import main
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.strip() == f"softflow {sf.__version__}"
+
+
+def _one_line_error(capsys, argv):
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+def test_output_in_a_missing_folder(tmp_path, capsys):
+    target = tmp_path / "nowhere" / "demo.png"
+    err = _one_line_error(capsys, ["demo", "--output", str(target)])
+    assert err.startswith("softflow demo: error: --output")
+    assert f"folder {str(target.parent)!r} does not exist" in err
+
+
+def test_output_in_an_unknown_format(tmp_path, capsys):
+    err = _one_line_error(capsys, ["demo", "--output", str(tmp_path / "demo.xyz")])
+    assert "unknown image format .xyz" in err and ".png" in err and ".pdf" in err
+    err = _one_line_error(capsys, ["demo", "--output", str(tmp_path / "demo")])
+    assert "unknown image format (no suffix)" in err
+
+
+def test_output_that_is_a_folder(tmp_path, capsys):
+    err = _one_line_error(capsys, ["demo", "--output", str(tmp_path)])
+    assert "is a directory" in err
+
+
+def test_output_dir_that_is_a_file(tmp_path, capsys):
+    f = tmp_path / "file.txt"
+    f.write_text("")
+    err = _one_line_error(capsys, ["figures", "--fig", "3", "--output-dir", str(f)])
+    assert f"--output-dir {str(f)!r} is a file" in err
+
+
+def test_other_failures_are_one_line_too_and_traceback_on_request(tmp_path, capsys,
+                                                                   monkeypatch):
+    import softflow.demo
+
+    def broken():
+        raise RuntimeError("the scene\nbroke")
+    monkeypatch.setattr(softflow.demo, "paper_system", broken)
+    err = _one_line_error(capsys, ["demo", "--no-plot"])
+    assert "error: RuntimeError: the scene broke (softflow --traceback" in err
+    with pytest.raises(RuntimeError, match="broke"):
+        main(["--traceback", "demo", "--no-plot"])
+
+
+def test_as_a_process_the_error_is_one_line(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "softflow.cli", "demo", "--output",
+                          str(tmp_path / "missing" / "x.png")], capture_output=True, text=True)
+    assert out.returncode == 1
+    assert out.stderr.count("\n") == 1 and "does not exist" in out.stderr, out.stderr
