@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 
@@ -12,10 +13,10 @@ class CLIError(Exception):
     """A mistake on the command line (a path, a format): reported in one line."""
 
 
-def _check_output(path, option):
-    """Fail before any work if matplotlib cannot write ``path``: its folder must
+def _check_output(name: str, option: str) -> None:
+    """Fail before any work if matplotlib cannot write file ``name``: its folder must
     exist and its suffix be a format matplotlib writes."""
-    path = Path(path)
+    path = Path(name)
     if path.is_dir():
         raise CLIError(f"{option} {str(path)!r} is a directory; give a file name, "
                        f"e.g. {str(path / 'softflow_demo.png')!r}")
@@ -31,7 +32,7 @@ def _check_output(path, option):
                        f"{'.' + suffix if suffix else '(no suffix)'}; use one of {known}")
 
 
-def _demo(args):
+def _demo(args: argparse.Namespace) -> int:
     import softflow as sf
     from softflow.demo import paper_system, plot
 
@@ -54,7 +55,7 @@ def _demo(args):
     return 0
 
 
-def _figures(args):
+def _figures(args: argparse.Namespace) -> int:
     from softflow import paper_scenes
 
     out = Path(args.output_dir)
@@ -66,7 +67,7 @@ def _figures(args):
     return 0
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 an error, reported in
     one line on stderr; argparse exits with 2 on a usage error)."""
     from softflow import __version__

@@ -22,11 +22,16 @@ where the actuator changes branch, the pressure is continuous at a switch.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..units import to_si
 from .pvcurve import PVCurve, _key_points
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 #: Default mismatch allowed where the branches meet, as a fraction of the
 #: larger pressure range of the two branches.
@@ -111,7 +116,7 @@ class HysteresisLoop:
         """Branch after a step that ended at ``volume`` (True: inflation)."""
         return self.on_inflation_curve(volume, inflating)
 
-    def plot(self, ax=None, **kwargs):
+    def plot(self, ax: Axes | None = None, **kwargs: Any) -> Axes:
         """Plot the inflation and the deflation curve on one Axes (keywords as
         :meth:`PVCurve.plot`); returns the Axes."""
         ax = self.inflation.plot(ax, label="inflation", **kwargs)

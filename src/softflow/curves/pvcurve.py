@@ -3,12 +3,16 @@ from __future__ import annotations
 
 import bisect
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..units import to_si
 from .csvdata import DataFileError, read_table
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 #: Fewest samples a smoothing spline accepts (scipy's make_smoothing_spline).
 MIN_POINTS_SMOOTHING = 5
@@ -178,8 +182,9 @@ class PVCurve:
         return (f"<PVCurve {self.origin}: {len(self.volume)} points, "
                 f"V {self.volume[0]:.3g}..{self.volume[-1]:.3g} m^3>")
 
-    def plot(self, ax=None, *, volume_unit="mL", pressure_unit="mbar", gauge=True,
-             points=True, extend=0.0, label=None):
+    def plot(self, ax: Axes | None = None, *, volume_unit: str = "mL",
+             pressure_unit: str = "mbar", gauge: bool = True, points: bool = True,
+             extend: float = 0.0, label: str | None = None) -> Axes:
         """Plot the curve (and, with ``points``, the samples it was built from).
 
         Parameters

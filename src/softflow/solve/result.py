@@ -4,11 +4,29 @@ exports (dict, CSV, pandas, xarray) and plots (matplotlib) under one naming:
 from __future__ import annotations
 
 import csv
+import os
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Literal, Union, overload
 
 import numpy as np
+import numpy.typing as npt
 
 from ..constants import pressure_atmospheric
 from ..units import Q_, UnitError, quantity_unit, to_quantity
+
+if TYPE_CHECKING:
+    import pandas as pd
+    import xarray as xr
+    from matplotlib.axes import Axes
+    from pint import Quantity
+
+Array = npt.NDArray[np.float64]
+#: a variable to plot: 'component.name', (component, name) or (component, name, terminal)
+Spec = Union[str, tuple[str, str], tuple[str, str, Union[str, None]]]
+#: display units: one for all, or {quantity or column: unit}
+Units = Union[str, Mapping[str, str], None]
+#: (label, quantity, terminal or None, 'x' unknown | 's' state, column in X or S)
+Entry = tuple[str, str, Union[str, None], str, int]
 
 #: unit written for a quantity without a known SI unit (a dimensionless state)
 _DIMENSIONLESS = "1"
@@ -29,8 +47,9 @@ class Result:
         factorizations, ...
     """
 
-    def __init__(self, asm, times, X, S, status="success", message="", stats=None,
-                 recorded=None, integrals=None):
+    def __init__(self, asm: Any, times: Array, X: Array, S: Array, status: str = "success",
+                 message: str = "", stats: Mapping[str, Any] | None = None,
+                 recorded: tuple | None = None, integrals: Array | None = None) -> None:
         self.times = times
         self.X = X
         self.S = S
@@ -42,8 +61,8 @@ class Result:
         self.stats = dict(stats or {})
         # where each component lives; its variable index is built on first access
         self._where = asm.where
-        self._entries = {}
-        self._specs = None          # export columns, built on first use
+        self._entries: dict[str, list[Entry]] = {}
+        self._specs: list[tuple[str, str, str, str]] | None = None   # export columns
         # column of X (S) holding each unknown (state); -1 where it was not recorded
         if recorded is None:
             self._xcol = np.arange(asm.n)
@@ -55,7 +74,7 @@ class Result:
             self._scol[recorded[1]] = np.arange(len(recorded[1]))
             self._where = {label: asm.where[label] for label in recorded[2]}
 
-    def _component_entries(self, label):
+    def _component_entries(self, label: str) -> list[Entry]:
         if label not in self._entries:
             if label not in self._where:
                 have = sorted(self._where)
@@ -71,15 +90,15 @@ class Result:
             self._entries[label] = entries
         return self._entries[label]
 
-    def _component(self, label):
+    def _component(self, label: str) -> Any:
         g, i = self._where[label]
         return g.comps[i]
 
     @property
-    def success(self):
+    def success(self) -> bool:
         return self.status == "success"
 
-    def _entry(self, label, name, terminal):
+    def _entry(self, label: str, name: str, terminal: str | None) -> Any:
         entries = self._component_entries(label)
         by_label = [e for e in entries if e[0] == name or f"{e[0]}_{e[2]}" == name]
         cands = by_label or [e for e in entries if e[1] == name or f"{e[1]}_{e[2]}" == name]
@@ -99,7 +118,20 @@ class Result:
         raise KeyError(f"component {label!r}: {name!r} is ambiguous (terminals {terms}); "
                        f"pass terminal=, e.g. get({name!r}, {terms[0]!r})")
 
-    def get(self, label, name, terminal=None, *, as_quantity=False):
+    @overload
+    def get(self, label: str, name: str, terminal: str | None = None, *,
+            as_quantity: Literal[False] = False) -> Array: ...
+
+    @overload
+    def get(self, label: str, name: str, terminal: str | None = None, *,
+            as_quantity: Literal[True]) -> Quantity: ...
+
+    @overload
+    def get(self, label: str, name: str, terminal: str | None = None, *,
+            as_quantity: bool) -> Array | Quantity: ...
+
+    def get(self, label: str, name: str, terminal: str | None = None, *,
+            as_quantity: bool = False) -> Array | Quantity:
         """Values of variable ``name`` of component ``label``: its label (``'p'``), its
         quantity (``'pressure'``), either with the terminal (``'massflow_a'``), a state
         (``'mass'``) or a derived output (an Actuator's ``'volume'``); SI units, or a
@@ -114,7 +146,8 @@ class Result:
             values = (self.X if where == "x" else self.S)[:, idx]
         return to_quantity(values, quantity) if as_quantity else values
 
-    def integral(self, label, name, terminal=None, *, as_quantity=False):
+    def integral(self, label: str, name: str, terminal: str | None = None, *,
+                 as_quantity: bool = False) -> Array | Quantity:
         """Time integral since t = 0 of an unknown (a flow, a pressure, ...) at
         every recorded time, formed by the run's own integrator: what flowed
         through a terminal is then exactly what the states took up, to
@@ -138,7 +171,7 @@ class Result:
             return values
         return to_quantity(values, quantity) * to_quantity(1.0, "time")
 
-    def __getitem__(self, key):
+    def __getitem__(self, key: str | tuple) -> Array:
         """``result['tube.massflow_a']``, ``result['tube', 'massflow', 'a']`` or
         ``result['time']``: every column name of :meth:`to_dict` works."""
         if key == "time":
@@ -148,12 +181,12 @@ class Result:
         label, _, name = key.rpartition(".")
         return self.get(label, name)
 
-    def get_times(self, *, as_quantity=False):
+    def get_times(self, *, as_quantity: bool = False) -> Array | Quantity:
         """The recorded times [s], as a pint Quantity with ``as_quantity=True``."""
         return Q_(self.times, "s") if as_quantity else self.times
 
     # -- columns: one name per recorded variable and derived output ----------------------
-    def _names(self, label):
+    def _names(self, label: str) -> list[tuple[str, str]]:
         """[(name, quantity)] of a component's columns, each ``name`` one that
         ``get(label, name)`` resolves to that variable: the quantity (``pressure``), or
         the label where it names the quantity more closely (a state ``internal_energy``
@@ -179,13 +212,13 @@ class Result:
                 out.append((name, quantity))
         return out
 
-    def _resolves(self, label, name, entry):
+    def _resolves(self, label: str, name: str, entry: tuple) -> bool:
         try:
             return self._entry(label, name, None) == entry
         except KeyError:
             return False
 
-    def _column_specs(self):
+    def _column_specs(self) -> list[tuple[str, str, str, str]]:
         """[(column, label, name, quantity)], built once."""
         specs = self._specs
         if specs is None:
@@ -194,14 +227,14 @@ class Result:
                                    for name, quantity in self._names(label)]
         return specs
 
-    def columns(self):
+    def columns(self) -> list[str]:
         """Column names ``component.name`` of every recorded variable and derived output
         (an Actuator's ``volume``), as :meth:`to_dict`, :meth:`to_csv`,
         :meth:`to_dataframe` and :meth:`to_xarray` name them; ``result[column]``
         and ``result.get(component, name)`` give each one's values."""
         return [c for c, *_ in self._column_specs()]
 
-    def units(self):
+    def units(self) -> dict[str, str]:
         """{column: SI unit} of ``'time'`` and every column (``'1'``: dimensionless)."""
         out = {"time": "s"}
         for column, _, _, quantity in self._column_specs():
@@ -209,7 +242,7 @@ class Result:
         return out
 
     # -- exports ----------------------------------------------------------------------
-    def to_dict(self, *, as_quantity=False):
+    def to_dict(self, *, as_quantity: bool = False) -> dict[str, Any]:
         """{'time': times, 'component.name': values, ...} in SI units (see
         :meth:`columns`); every value a pint Quantity with ``as_quantity=True``."""
         out = {"time": self.get_times(as_quantity=as_quantity)}
@@ -217,7 +250,7 @@ class Result:
             out[column] = self.get(label, name, as_quantity=as_quantity)
         return out
 
-    def to_csv(self, path):
+    def to_csv(self, path: str | os.PathLike[str]) -> None:
         """Write ``time`` and every column to a CSV file: one header row with the SI
         unit in each name (``time [s]``, ``act.pressure [Pa]``), then numbers only,
         so ``pandas.read_csv(path)`` reads every column as floats."""
@@ -228,7 +261,7 @@ class Result:
             w.writerow([f"{column} [{units[column]}]" for column in d])
             w.writerows(np.column_stack(list(d.values())).tolist())
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pd.DataFrame:
         """A pandas DataFrame indexed by ``time`` [s], one column per :meth:`columns`
         name, SI units in ``df.attrs['units']`` ({column: unit}); ``df.attrs`` also
         holds the run's ``status`` and ``message`` (needs pandas: the pandas extra)."""
@@ -243,7 +276,7 @@ class Result:
         df.attrs.update(units=self.units(), status=self.status, message=self.message)
         return df
 
-    def to_xarray(self):
+    def to_xarray(self) -> xr.Dataset:
         """An xarray Dataset on the ``time`` coordinate [s], one data variable per
         :meth:`columns` name with attributes ``units``, ``component``, ``variable``
         and ``quantity``; the Dataset's attributes hold ``status``, ``message`` and
@@ -260,7 +293,7 @@ class Result:
             data[column] = ("time", self.get(label, name),
                             {"units": units[column], "component": label, "variable": name,
                              "quantity": quantity})
-        attrs = {"status": self.status, "message": self.message}
+        attrs: dict[str, Any] = {"status": self.status, "message": self.message}
         attrs.update({k: v for k, v in self.stats.items()
                       if isinstance(v, (int, float, np.integer, np.floating))
                       and not isinstance(v, bool)})
@@ -268,7 +301,8 @@ class Result:
                           attrs=attrs)
 
     # -- plots (matplotlib, imported on first use) ----------------------------------------
-    def _series(self, spec, units, gauge, where):
+    def _series(self, spec: Spec, units: Units, gauge: bool, where: str
+                ) -> tuple[str, str, Array, str, bool]:
         """(column, quantity, values in the display unit, unit text, gauge) of a spec:
         ``'act.volume'``, ``('act', 'volume')`` or ``('tube', 'massflow', 'a')``."""
         if isinstance(spec, str):
@@ -277,7 +311,7 @@ class Result:
                 raise ValueError(f"{where}: {spec!r} is not 'component.variable' (e.g. "
                                  f"'{next(iter(self._where), 'act')}.pressure'); columns: "
                                  f"{self.columns()}")
-            parts = (label, name, None)
+            parts: tuple = (label, name, None)
         elif isinstance(spec, (tuple, list)) and len(spec) in (2, 3):
             parts = (*spec, None) if len(spec) == 2 else tuple(spec)
         else:
@@ -307,15 +341,17 @@ class Result:
         shown = unit if unit is not None else (f"{Q_(1.0, si).units:~P}" or "-")
         return column, quantity, values, shown, is_gauge
 
-    def _time_axis(self, time_unit, where):
+    def _time_axis(self, time_unit: str, where: str) -> tuple[Array, str]:
         try:
             t = Q_(self.times, "s").to(time_unit).magnitude
         except Exception as err:
             raise UnitError(f"{where}: time_unit {time_unit!r} is not a time ({err})") from None
         return t, f"time [{time_unit}]"
 
-    def plot(self, *variables, components=None, names=None, units=None, gauge=False,
-             time_unit="s", ax=None):
+    def plot(self, *variables: Spec, components: Sequence[str] | None = None,
+             names: Sequence[str] | None = None, units: Units = None, gauge: bool = False,
+             time_unit: str = "s", ax: Axes | Sequence[Axes] | None = None
+             ) -> Axes | list[Axes]:
         """Plot variables against time; one call, units on the axes.
 
         Parameters
@@ -349,7 +385,7 @@ class Result:
                              f".pressure'); columns: {self.columns()}")
         series = [self._series(spec, units, gauge, where) for spec in specs]
         t, t_axis = self._time_axis(time_unit, where)
-        groups = {}
+        groups: dict[str, list[tuple[str, Array]]] = {}
         for column, quantity, values, shown, is_gauge in series:
             axis = f"{'gauge ' if is_gauge else ''}{quantity} [{shown}]"
             groups.setdefault(axis, []).append((column, values))
@@ -362,7 +398,8 @@ class Result:
         axes[-1].set_xlabel(t_axis)
         return axes[0] if len(axes) == 1 else axes
 
-    def plot_path(self, x, y, *, units=None, gauge=False, ax=None, label=None):
+    def plot_path(self, x: Spec, y: Spec, *, units: Units = None, gauge: bool = False,
+                  ax: Axes | None = None, label: str | None = None) -> Axes:
         """Plot one variable against another over the run (the FONS paper's panel D:
         ``plot_path(('act1', 'volume'), ('act2', 'volume'))``), the start marked.
 
@@ -382,20 +419,20 @@ class Result:
             a.legend()
         return a
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f"<Result {self.status}: {len(self.times)} points, "
                 f"t = {self.times[0] if len(self.times) else 0:g}..{self.times[-1] if len(self.times) else 0:g} s>")
 
 
-def _axes(ax, n, where, sharex=False):
+def _axes(ax: Any, n: int, where: str, sharex: bool = False) -> list[Axes]:
     """``n`` Axes: the given one(s), or a new figure's (stacked)."""
     if ax is None:
         import matplotlib.pyplot as plt
         _, axes = plt.subplots(n, 1, sharex=sharex, squeeze=False,
                                figsize=(6.4, 2.2 + 2.2 * n if n > 1 else 4.8))
         return list(axes[:, 0])
-    axes = list(np.ravel(ax)) if isinstance(ax, (list, tuple, np.ndarray)) else [ax]
-    if len(axes) != n:
+    given = list(np.ravel(ax)) if isinstance(ax, (list, tuple, np.ndarray)) else [ax]
+    if len(given) != n:
         raise ValueError(f"{where}: {n} quantit{'y' if n == 1 else 'ies'} to plot, each on "
-                         f"its own Axes, but ax= gives {len(axes)}")
-    return axes
+                         f"its own Axes, but ax= gives {len(given)}")
+    return given
