@@ -1,10 +1,10 @@
 """Inflatable actuators: a chamber whose volume follows a pressure–volume curve.
 
 Unknowns of an actuator: the terminal's pressure p and mass flow mf; state:
-the stored fluid mass m. The end-of-step mass m + dt * mf (backward Euler)
-and the density give the volume, and the curve gives the pressure from it:
+the stored fluid mass m, with dm/dt = mf. The mass and the density give the
+volume, and the curve gives the pressure from it:
 
-    V = (m + dt * mf) / rho(p),    residual  p - p_curve(V) = 0
+    V = m / rho(p),    residual  p - p_curve(V) = 0
 
 (with an incompressible fluid V depends on mf alone). The pressure is
 computed from the volume, never the volume from the pressure: p(V) is a
@@ -25,12 +25,16 @@ from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent, Params
+from .chambers import MASS_RATE_PATTERN, mass_rates
 
 #: Relative step of the central differences used for a callable curve without
 #: a derivative: h = FD_STEP * max(|V|, initial volume).
 FD_STEP = 1e-6
 
 ACTUATOR_PATTERN = ((0, 0), (0, 1))
+#: the residual itself depends on p (and on the mass, ACTUATOR_STATE_PATTERN)
+ACTUATOR_RESIDUAL_PATTERN = ((0, 0),)
+ACTUATOR_STATE_PATTERN = ((0, 0),)
 
 
 class _CurveFunction:
@@ -112,6 +116,9 @@ class Actuator(LibraryComponent):
     terminal_spec = (("a", FLUID_PORT),)
     state_spec = (("mass", "mass"),)
     jac_pattern = ACTUATOR_PATTERN
+    residual_pattern = ACTUATOR_RESIDUAL_PATTERN
+    state_jac_pattern = ACTUATOR_STATE_PATTERN
+    rate_pattern = MASS_RATE_PATTERN
 
     def __init__(self, label, fluid, curve, initial_volume=None, initial_pressure=None, *,
                  curve_derivative=None, thermal=None, initial_temperature=None,
@@ -164,16 +171,16 @@ class Actuator(LibraryComponent):
         return P
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        return S + dt * V[:, 1:2]
+    def rates(cls, P, V, S, jac):
+        return mass_rates(P, V, jac)
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        p, rho, vol, m_new = _volume(P, V, S, dt)
+    def residual(cls, P, V, S, t, jac):
+        p, rho, vol = _volume(P, V, S)
         if not jac:
             return (p - P.curve.value(vol))[:, None], None
         pc, dpc = P.curve.fdf(vol)
-        return _residual(P, p, rho, vol, dt, pc, dpc)
+        return _residual(P, p, rho, vol, pc, dpc)
 
     def outputs(self):
         return _volume_output(self.fluid)
@@ -189,19 +196,18 @@ def _set_initial_state(comp, v0, p0):
     comp._check_fluid_state(p0, "the initial pressure (from the PV curve)")
 
 
-def _volume(P, V, S, dt):
-    """Pressure, density, volume and mass at the end of the step."""
+def _volume(P, V, S):
+    """Pressure, density and volume of the stored mass S[:, 0]."""
     p = V[:, 0]
     rho = P.fluid.density(p)
-    m_new = S[:, 0] + dt * V[:, 1]
-    return p, rho, m_new / rho, m_new
+    return p, rho, S[:, 0] / rho
 
 
-def _residual(P, p, rho, vol, dt, pc, dpc):
-    """p - p_curve(V) with V = (m + dt mf) / rho(p), and its derivatives."""
+def _residual(P, p, rho, vol, pc, dpc):
+    """p - p_curve(V) with V = m / rho(p), and its derivatives in p and m."""
     J = np.empty((P.n, 2))
     J[:, 0] = 1.0 + dpc * vol * (P.fluid.density_dp(p) / rho)
-    J[:, 1] = -dpc * (dt / rho)
+    J[:, 1] = -dpc / rho
     return (p - pc)[:, None], J
 
 
@@ -262,6 +268,9 @@ class HystereticActuator(LibraryComponent):
     state_spec = (("mass", "mass"), ("branch", "dimensionless"))
     discrete_states = ("branch",)
     jac_pattern = ACTUATOR_PATTERN
+    residual_pattern = ACTUATOR_RESIDUAL_PATTERN
+    state_jac_pattern = ACTUATOR_STATE_PATTERN
+    rate_pattern = MASS_RATE_PATTERN
 
     def __init__(self, label, fluid, inflation_curve, deflation_curve, initial_volume=None, *,
                  initial_branch=None, meet_tolerance=None, thermal=None,
@@ -303,20 +312,21 @@ class HystereticActuator(LibraryComponent):
         return P
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        _, _, vol, m_new = _volume(P, V, S, dt)
-        out = np.empty_like(S)
-        out[:, 0] = m_new
-        out[:, 1] = P.loop.next_inflating(vol, S[:, 1] > 0.5)
-        return out
+    def rates(cls, P, V, S, jac):
+        return mass_rates(P, V, jac)
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        p, rho, vol, _ = _volume(P, V, S, dt)
+    def switch(cls, P, V, S):
+        _, _, vol = _volume(P, V, S)
+        return P.loop.next_inflating(vol, S[:, 1] > 0.5)[:, None]
+
+    @classmethod
+    def residual(cls, P, V, S, t, jac):
+        p, rho, vol = _volume(P, V, S)
         pc, dpc = P.loop.fdf_volume(vol, S[:, 1] > 0.5)
         if not jac:
             return (p - pc)[:, None], None
-        return _residual(P, p, rho, vol, dt, pc, dpc)
+        return _residual(P, p, rho, vol, pc, dpc)
 
     def outputs(self):
         return _volume_output(self.fluid)

@@ -1,11 +1,22 @@
 """LibraryComponent: components that evaluate all instances of a class at once.
 
-A library class declares its interface in class attributes and implements
-``kernel`` (residuals and their analytic Jacobian) and, if it has states,
-``update`` (the backward-Euler state update) as classmethods that work on
-NumPy arrays holding every instance of the class in the network. The
-assembly stacks the instances' parameters once per Simulation into a
-:class:`Params` namespace.
+A library class declares its interface in class attributes and states its
+equations in rate form, as classmethods that work on NumPy arrays holding
+every instance of the class in the network:
+
+``rates(P, V, S, jac)``
+    the time derivatives of its continuous states (dm/dt = mdot, ...), with
+    their analytic derivatives in the interface variables V;
+``residual(P, V, S, t, jac)``
+    its algebraic equations, with S the states at the time of V, and their
+    analytic derivatives in V and in the continuous states;
+``switch(P, V, S)``
+    the next value of each discrete state (a mode) after a converged step.
+
+A component never sees the time step: :mod:`softflow.solve.discretize` turns
+rates and residuals into the equations of one step of whichever stepper runs
+(backward Euler, BDF 1-5). The assembly stacks the instances' parameters
+once per Simulation into a :class:`Params` namespace.
 """
 from __future__ import annotations
 
@@ -44,12 +55,27 @@ class LibraryComponent(Component):
     ``param_names``
         numeric SI attributes stacked into :class:`Params`
     ``jac_pattern``
-        ``((equation, variable), ...)`` structural nonzeros of dF/dV; variables are
-        numbered in interface order (terminal variables, then locals)
+        ``((equation, variable), ...)`` structural nonzeros of the step
+        equations' Jacobian dF/dV; variables are numbered in interface order
+        (terminal variables, then locals)
+    ``residual_pattern``
+        the entries of ``jac_pattern`` that :meth:`residual` itself fills in V
+        (default: all of them)
+    ``state_jac_pattern``
+        ``((equation, state), ...)`` nonzeros of dF/dX of :meth:`residual` in the
+        continuous states X (numbered among the continuous states, in
+        ``state_spec`` order; discrete states are not counted)
+    ``rate_pattern``
+        ``((state, variable), ...)`` nonzeros of dr/dV of :meth:`rates` (states
+        numbered as in ``state_jac_pattern``)
     ``discrete_states``
-        labels of states that are modes (e.g. a valve's open/closed memory): the
-        kernel reads them at the start of the step, ``update`` switches them from
-        the converged solution, so a mode never changes inside a Newton solve
+        labels of states that are modes (e.g. a valve's open/closed memory):
+        :meth:`residual` reads them at the start of the step and :meth:`switch`
+        decides them from the converged solution, so a mode never changes
+        inside a Newton solve
+
+    Every entry of dF/dX · dr/dV must have its place in ``jac_pattern``
+    (checked when a network is compiled).
     """
 
     vectorized = True
@@ -60,7 +86,16 @@ class LibraryComponent(Component):
     state_spec: tuple = ()
     param_names: tuple = ()
     jac_pattern: tuple = ()
+    residual_pattern: tuple = None     # None: jac_pattern (set in __init_subclass__)
+    state_jac_pattern: tuple = ()
+    rate_pattern: tuple = ()
     discrete_states: tuple = ()
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        if "residual_pattern" not in cls.__dict__ and (
+                "jac_pattern" in cls.__dict__ or cls.residual_pattern is None):
+            cls.residual_pattern = cls.jac_pattern
 
     def __init__(self, label, fluid=None):
         super().__init__(label)
@@ -130,27 +165,53 @@ class LibraryComponent(Component):
         return Params(components)
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        """Residuals F (n, n_eq) and, if ``jac``, dF/dV (n, len(jac_pattern)).
+    def rates(cls, P, V, S, jac):
+        """Rates of the continuous states, r (n, n_continuous) in ``state_spec``
+        order, and, if ``jac``, dr/dV as a sequence of ``len(rate_pattern)``
+        columns (arrays of length n, or floats for entries equal in every
+        instance); else None.
 
-        V (n, n_vars) are the interface variables, S (n, n_states) the states at
-        the start of the step; states at the end of the step follow from
-        :meth:`update` and their dependence on V is part of dF/dV.
-        """
+        Rates depend on the interface variables V and on the discrete states
+        in S (the modes), never on the continuous states themselves."""
+        return np.empty((P.n, 0)), ()
+
+    @classmethod
+    def residual(cls, P, V, S, t, jac):
+        """Residuals F (n, n_eq) at time t and, if ``jac``, their Jacobian
+        (n, len(residual_pattern) + len(state_jac_pattern)): dF/dV in
+        ``residual_pattern`` order, then dF/dX in ``state_jac_pattern`` order.
+
+        S (n, n_states) holds the continuous states at the time of V and the
+        discrete states (modes) as they were at the start of the step."""
         raise NotImplementedError
 
     @classmethod
+    def switch(cls, P, V, S):
+        """The discrete states (n, n_discrete) after a step that converged to V,
+        with S the states at its end (modes still the old ones)."""
+        raise NotImplementedError(f"{cls.__name__} declares discrete states but no switch")
+
+    @classmethod
+    def kernel(cls, P, V, S, t, dt, jac):
+        """The step equations F(V, S + dt·r(V), t) and their Jacobian dF/dV in
+        ``jac_pattern`` order, for states S at the start of the step (or a
+        BDF predictor) and step dt (or its c): see :mod:`softflow.solve.discretize`."""
+        from ..solve.discretize import step_kernel
+        return step_kernel(cls, P, V, S, t, dt, jac)
+
+    @classmethod
     def update(cls, P, V, S, dt):
-        """States at the end of a step of length dt (backward Euler)."""
-        return S
+        """States at the end of the step whose equations :meth:`kernel` states."""
+        from ..solve.discretize import step_update
+        return step_update(cls, P, V, S, dt)
 
     @classmethod
     def affine(cls, P):
         """None, or an :class:`Affine` description of this group's residual
         (without Jacobian) as an affine map of V, which small systems evaluate
         for all such groups with one matrix product. Only a class whose
-        :meth:`kernel` the description matches may return one (a subclass with
-        its own kernel must not inherit it)."""
+        :meth:`residual` the description matches may return one (a subclass with
+        its own residual must not inherit it)."""
         return None
 
 

@@ -8,12 +8,22 @@ from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent
 
 
+#: dm/dt = mdot: the mass rate of a one-terminal volume depends on its mass flow (V[:, 1])
+MASS_RATE_PATTERN = ((0, 1),)
+
+
+def mass_rates(P, V, jac):
+    """The mass balance of a one-terminal volume, dm/dt = mdot (the mass flow
+    into its terminal), and its derivative: the one law every volume shares."""
+    return V[:, 1:2], ((1.0,) if jac else None)
+
+
 class Container(LibraryComponent):
     """Rigid chamber with one terminal ``a``.
 
-    A compressible fluid is stored as mass m (state, backward Euler
-    m_new = m + dt·mdot) with density(p) · volume = m_new. With an
-    incompressible fluid a rigid chamber admits no flow (mdot = 0).
+    A compressible fluid is stored as mass m (state, dm/dt = mdot) with
+    density(p) · volume = m. With an incompressible fluid a rigid chamber
+    admits no flow (mdot = 0).
 
     Parameters
     ----------
@@ -29,6 +39,8 @@ class Container(LibraryComponent):
     state_spec = (("mass", "mass"),)
     param_names = ("volume",)
     jac_pattern = ((0, 0), (0, 1))
+    state_jac_pattern = ((0, 0),)
+    rate_pattern = MASS_RATE_PATTERN
 
     def __init__(self, label, fluid, volume, initial_pressure=pressure_atmospheric, *,
                  thermal=None, initial_temperature=None, wall_temperature=None,
@@ -51,25 +63,23 @@ class Container(LibraryComponent):
         return {"volume": ("volume", lambda get: np.full(np.shape(get("mass")), vol))}
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        if not P.fluid.compressible:
-            return S
-        return S + dt * V[:, 1:2]
+    def rates(cls, P, V, S, jac):
+        return mass_rates(P, V, jac)
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         p, mf = V[:, 0], V[:, 1]
         if not P.fluid.compressible:
+            # a rigid chamber of liquid admits no flow (its mass stays the initial one)
             F = mf[:, None].copy()
-            J = np.tile([0.0, 1.0], (P.n, 1)) if jac else None
-            return F, J
-        m_new = S[:, 0] + dt * mf
-        F = (P.fluid.density(p) * P.volume - m_new)[:, None]
+            return F, (np.tile([0.0, 1.0, 0.0], (P.n, 1)) if jac else None)
+        F = (P.fluid.density(p) * P.volume - S[:, 0])[:, None]
         if not jac:
             return F, None
-        J = np.empty((P.n, 2))
+        J = np.empty((P.n, 3))
         J[:, 0] = P.fluid.density_dp(p) * P.volume
-        J[:, 1] = -dt
+        J[:, 1] = 0.0
+        J[:, 2] = -1.0
         return F, J
 
 
@@ -77,7 +87,7 @@ class LinearAccumulator(LibraryComponent):
     """Compliant chamber whose fluid volume grows linearly with pressure:
     V(p) = volume + compliance · (p - reference_pressure), terminal ``a``.
 
-    The stored mass (state) satisfies m_new = density(p) · V(p). With water and a
+    The stored mass m (state, dm/dt = mdot) satisfies m = density(p) · V(p). With water and a
     laminar tube it forms the fluidic RC circuit (tau = R·C).
 
     Parameters
@@ -96,6 +106,9 @@ class LinearAccumulator(LibraryComponent):
     state_spec = (("mass", "mass"),)
     param_names = ("volume", "compliance", "reference_pressure")
     jac_pattern = ((0, 0), (0, 1))
+    residual_pattern = ((0, 0),)
+    state_jac_pattern = ((0, 0),)
+    rate_pattern = MASS_RATE_PATTERN
 
     def __init__(self, label, fluid, volume, compliance,
                  reference_pressure=pressure_atmospheric, initial_pressure=None, *,
@@ -124,21 +137,20 @@ class LinearAccumulator(LibraryComponent):
         return [float(self.fluid.density(p)) * self._fluid_volume(p)]
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        return S + dt * V[:, 1:2]
+    def rates(cls, P, V, S, jac):
+        return mass_rates(P, V, jac)
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        p, mf = V[:, 0], V[:, 1]
+    def residual(cls, P, V, S, t, jac):
+        p = V[:, 0]
         vol = P.volume + P.compliance * (p - P.reference_pressure)
         rho = P.fluid.density(p)
-        m_new = S[:, 0] + dt * mf
-        F = (rho * vol - m_new)[:, None]
+        F = (rho * vol - S[:, 0])[:, None]
         if not jac:
             return F, None
         J = np.empty((P.n, 2))
         J[:, 0] = P.fluid.density_dp(p) * vol + rho * P.compliance
-        J[:, 1] = -dt
+        J[:, 1] = -1.0
         return F, J
 
     def outputs(self):

@@ -53,6 +53,15 @@ Energy model
   with ``thermal='isothermal'`` in a thermal scene holds T = T_wall instead.
   A HystereticActuator keeps its discrete state ``branch``: the step uses the
   branch it started on, which switches between steps from the converged volume.
+
+  These volumes are the one place where components still write their step
+  equations themselves (``kernel``/``update`` with the step dt, read by BDF
+  as psi and c like every state update): the work term p·dVol/dt needs the
+  rate of the gas volume, which is not a function of the unknowns (it is the
+  derivative of m/rho(p, T) or of the wall's V(p)), and a volume held at its
+  wall temperature (``thermal='isothermal'``) takes its internal energy from
+  its state instead of integrating it. Flow elements and sources here are in
+  rate form, around the isothermal classes' own laws.
 * **Sources** are reservoirs at their ``temperature``: a PressureSource fixes its
   node's temperature; flow sources deliver h(p, T_source) and take in the
   node's enthalpy when the flow reverses.
@@ -215,14 +224,14 @@ class ThermalTwoPort:
         return P
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        return super().update(P, V[:, _ISO_COLS], S, dt)
+    def rates(cls, P, V, S, jac):
+        return super().rates(P, V[:, _ISO_COLS], S, jac)
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         if cls.direct:
             return cls._kernel_pressure_drop(P, V, jac)
-        Fi, Ji = super().kernel(P, V[:, _ISO_COLS], S, t, dt, jac)
+        Fi, Ji = super().residual(P, V[:, _ISO_COLS], S, t, jac)
         pa, mf, Ta, Ea, pb, Tb, Eb = V[:, 0], V[:, 1], V[:, 2], V[:, 3], V[:, 4], V[:, 6], V[:, 7]
         E, w, dw, dE, T_up = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
         F = np.empty((P.n, 4))
@@ -244,11 +253,14 @@ class ThermalTwoPort:
                 coef = dp * (-1.0 / P.T_ref)
         if not jac:
             return F, None
-        nb = Ji.shape[1]
-        J = np.empty((P.n, len(cls.jac_pattern)))
+        # Ji: the flow law's V columns, then its state columns (an inertial tube's),
+        # which go last here too, after the energy rows' columns
+        nb = Ji.shape[1] - len(cls.state_jac_pattern)
+        J = np.empty((P.n, len(cls.residual_pattern) + len(cls.state_jac_pattern)))
+        J[:, len(cls.residual_pattern):] = Ji[:, nb:]
         k = nb
         if mode is None:
-            J[:, :nb] = Ji
+            J[:, :nb] = Ji[:, :nb]
         else:
             # base pattern (two-port): (0,mf_a) (0,mf_b) (1,pa) (1,mf) (1,pb); the
             # flow-law columns scale with theta, up to the constant +-1 of the
@@ -322,15 +334,21 @@ def _energy_columns(J, k, dE):
 def _two_port_variant(base, flow_temperature):
     iso_map = {0: 0, 1: 1, 2: 4, 3: 5}
     pattern = tuple((e, iso_map[v]) for e, v in base.jac_pattern)
+    res_pattern = tuple((e, iso_map[v]) for e, v in base.residual_pattern)
     if flow_temperature is not None:
         assert base.jac_pattern == ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
+        assert base.residual_pattern == base.jac_pattern and not base.state_jac_pattern
         pattern += ((1, 2), (1, 6))
+        res_pattern += ((1, 2), (1, 6))
     pattern += _ENERGY_PATTERN
+    res_pattern += _ENERGY_PATTERN
     # a CircularTube-like law p_a - p_b = dp, without states: the direct kernel
     direct = (flow_temperature == "inverse_density" and hasattr(base, "pressure_drop")
               and not base.state_spec)
     return type(f"Thermal{base.__name__}", (ThermalTwoPort, base),
                 {"flow_temperature": flow_temperature, "jac_pattern": pattern,
+                 "residual_pattern": res_pattern,
+                 "rate_pattern": tuple((st, iso_map[v]) for st, v in base.rate_pattern),
                  "direct": direct,
                  "__doc__": f"{base.__name__} in a thermal scene (see softflow.components.thermal)."})
 
@@ -376,7 +394,7 @@ class ThermalPressureSource(_ThermalSource, PressureSource):
         return P
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         F = np.empty((P.n, 2))
         F[:, 0] = V[:, 0] - P.values(t)
         F[:, 1] = V[:, 2] - P.T_source
@@ -389,7 +407,7 @@ class ThermalMassFlowSource(_ThermalSource, MassFlowSource):
     jac_pattern = ((0, 1), (1, 0), (1, 1), (1, 2), (1, 3))
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         F = np.empty((P.n, 2))
         F[:, 0] = V[:, 1] + P.values(t)
         F[:, 1], dE = _source_energy(P, V, jac)
@@ -409,7 +427,7 @@ class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
     jac_pattern = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (1, 3))
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         q = P.values(t)
         p, T = V[:, 0], V[:, 2]
         out = q >= 0

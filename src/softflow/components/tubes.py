@@ -246,7 +246,7 @@ class CircularTube(LibraryComponent):
     def affine(cls, P):
         # a constant-property liquid in laminar flow (see make_params); only for
         # this kernel, not for subclasses that replace it
-        if P.lin_map is None or cls.kernel.__func__ is not CircularTube.kernel.__func__:
+        if P.lin_map is None or cls.residual.__func__ is not CircularTube.residual.__func__:
             return None
         coef = np.empty((P.n, 2, 4))
         coef[:] = P.lin_map.T
@@ -254,7 +254,7 @@ class CircularTube(LibraryComponent):
         return Affine(coef, valid=None if P.turbulent is None else partial(cls._laminar, P))
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         if P.lin_map is not None and not jac:
             if P.turbulent is None or cls._laminar(P, V):
                 if P.n == 1:
@@ -283,37 +283,39 @@ class InertialCircularTube(CircularTube):
 
         p_a - p_b = dp_friction(mdot) + (L/A) · d(mdot)/dt
 
-    (an inertance rho L / A in volume-flow terms). The mass flow is a state,
-    integrated by backward Euler: its value at the end of a step is the flow
-    entering at ``a`` then, and starts at 0. Written as
-
-        (mdot - mdot_old) - dt A/L · (p_a - p_b - dp_friction) = 0
-
-    the equation stays regular at dt = 0, where it fixes the initial flow.
+    (an inertance rho L / A in volume-flow terms). The mass flow is a state q
+    with rate dq/dt = A/L · (p_a - p_b - dp_friction(mdot)), and the flow
+    entering at ``a`` equals it (residual mdot - q = 0), starting at 0. The
+    step equations mdot - q_old - c A/L · (...) = 0 stay regular at a zero
+    step, where they fix the initial flow.
     With a compliance it forms the fluidic LC circuit, f = 1 / (2 pi sqrt(L C)).
     ``CircularTube(..., inertance=True)`` returns this class; parameters as there.
     """
 
     state_spec = (("inertial_massflow", "massflow"),)
+    # eq 1 ties the terminal flow to the state; the state's rate brings in p_a, mf, p_b
+    residual_pattern = ((0, 1), (0, 3), (1, 1))
+    state_jac_pattern = ((1, 0),)
+    rate_pattern = ((0, 0), (0, 1), (0, 2))
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        return V[:, 1:2].copy()
-
-    @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+    def rates(cls, P, V, S, jac):
+        pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
         dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
-        k = dt / P.length_per_area
+        k = 1.0 / P.length_per_area
+        R = (k * ((pa - pb) - dp))[:, None]
+        if not jac:
+            return R, None
+        return R, (k * (1.0 - d_pa), -k * d_mf, -k * (1.0 + d_pb))
+
+    @classmethod
+    def residual(cls, P, V, S, t, jac):
         F = np.empty((P.n, 2))
-        F[:, 0] = mfa + mfb
-        F[:, 1] = (mfa - S[:, 0]) - k * ((pa - pb) - dp)
+        F[:, 0] = V[:, 1] + V[:, 3]
+        F[:, 1] = V[:, 1] - S[:, 0]
         if not jac:
             return F, None
-        J = np.empty((P.n, 5))
-        J[:, 0] = 1.0
-        J[:, 1] = 1.0
-        J[:, 2] = -k * (1.0 - d_pa)
-        J[:, 3] = 1.0 + k * d_mf
-        J[:, 4] = k * (1.0 + d_pb)
+        J = np.empty((P.n, 4))
+        J[:, :3] = 1.0
+        J[:, 3] = -1.0
         return F, J

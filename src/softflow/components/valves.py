@@ -167,7 +167,7 @@ class Orifice(LibraryComponent):
         return P
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         fl = P.fluid
         if P.model == "ISO 6358":
@@ -255,7 +255,7 @@ class CheckValve(LibraryComponent):
         self.dp_small = float(dp_at_reynolds(re, self.K, self.fluid.rho, mu, self.diameter))
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         fl = P.fluid
         dp = pa - pb
@@ -342,7 +342,7 @@ class TeslaValve(_TubeLike):
         return P
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         rho, drho = _mean_density(P.fluid, pa, pb)
         c = P.c_mu / rho
@@ -382,7 +382,7 @@ class SnappingValve(_TubeLike):
     ``diameter``; the CircularTube law, both directions).
 
     The mode is the discrete state ``open`` (0 or 1): each step uses the mode
-    from its start, and :meth:`update` switches it from the converged dp at the
+    from its start, and :meth:`switch` changes it from the converged dp at the
     end of the step, so results do not depend on Newton's iterates. Read it as
     ``result.get(label, 'open')``: the value recorded at t is the mode decided
     from dp at t, used by the step that follows.
@@ -443,14 +443,14 @@ class SnappingValve(_TubeLike):
         return P
 
     @classmethod
-    def update(cls, P, V, S, dt):
+    def switch(cls, P, V, S):
         dp = V[:, 0] - V[:, 2]
         mode = np.where(dp > P.opening_pressure, 1.0,
                         np.where(dp < P.closing_pressure, 0.0, S[:, 0]))
         return mode[:, None]
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         is_open = S[:, 0] > 0.5
         rho, drho = _mean_density(P.fluid, pa, pb)

@@ -22,6 +22,7 @@ from scipy.sparse.linalg import splu
 from ..fluids.base import FluidError
 from ..network.system import NetworkError
 from .compiled import function
+from .discretize import step_functions
 from .userkernel import UserKernel
 
 
@@ -125,8 +126,14 @@ def _group_name(g):
 
 
 def _library_group(cls, comps):
+    from ..components.base import LibraryComponent
     P = cls.make_params(comps)
-    g = Group(comps, kernel=partial(cls.kernel, P), update=partial(cls.update, P),
+    if cls.kernel.__func__ is LibraryComponent.kernel.__func__:
+        kernel, update = step_functions(cls, P)     # rates and residuals (the rule)
+    else:
+        # a class that writes its step equations itself (thermal deforming volumes)
+        kernel, update = partial(cls.kernel, P), partial(cls.update, P)
+    g = Group(comps, kernel=kernel, update=update,
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
     g.affine = cls.affine(P)

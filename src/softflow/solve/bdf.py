@@ -16,10 +16,13 @@ through the last k + 1 points, extrapolated) and d = X_{n+1} - X_pred, is
 
 (Shampine & Reichelt, The MATLAB ODE suite, SIAM J. Sci. Comput. 18, 1997;
 Hairer & Wanner, Solving ODEs II, sec. III.1). Every order and every step is
-therefore one solve of the kernels' usual equations with the start-of-step
-states replaced by psi and the step by c: a component's ``kernel(P, V, S, t,
-dt, jac)`` and ``update(P, V, S, dt)`` stay the same, read as "states =
-S + dt * rate". Backward Euler is the case k = 1 (psi = X_n, c = h).
+therefore one solve of the step equations with the start-of-step states
+replaced by psi and the step by c: library components state rates and
+residuals, which :mod:`softflow.solve.discretize` turns into the equations
+F(V, psi + c·r(V)) = 0 for any (psi, c); a user component's ``update_state``
+is read the same way, as "states = S + dt * rate" (it must be affine in dt),
+or it gives ``state_rates`` directly. Backward Euler is the case k = 1
+(psi = X_n, c = h).
 
 The unknowns x carry a difference table of their own: their predictor
 starts Newton, and their predictor-corrector difference enters the error
