@@ -1,9 +1,12 @@
 """The Component base class: the paper's interface for user-written components.
 
 A user component declares terminals and states, then assigns ``evaluate``
-(algebraic residuals) and, if it has states, ``update_state`` (the implicit
-Euler update of its states). Wrapping them in :meth:`Component.auto` and
-:meth:`Component.auto_state` tells softflow to obtain their derivatives by
+(algebraic residuals) and, if it has states, either ``update_state`` (the
+paper's way: the states at the end of a step of length dt, which must be
+affine in dt, ``mass + mf * dt``) or ``state_rates`` (their time derivatives,
+``{'mass': mf}``; softflow's own components work this way). Wrapping them in
+:meth:`Component.auto`, :meth:`Component.auto_state` or
+:meth:`Component.auto_rates` tells softflow to obtain their derivatives by
 finite differences. Library components (see ``softflow.components``) instead
 evaluate all instances of a class in one vectorized call with analytic
 Jacobians.
@@ -65,6 +68,7 @@ class Component:
         self.locals: list[Variable] = []
         self.evaluate = None
         self.update_state = None
+        self.state_rates = None
         self._result = None
 
     # -- declaring the interface -------------------------------------------------
@@ -106,6 +110,14 @@ class Component:
         """Wrap an ``update_state(dt, <variables>...)`` function returning
         ``{state_label: new_value}``; derivatives by finite differences."""
         return AutoFunction(func, "update_state")
+
+    def auto_rates(self, func):
+        """Wrap a ``state_rates(<variables>...)`` function returning
+        ``{state_label: d(state)/dt}`` (e.g. ``{'mass': mf}``), the rate form of
+        ``update_state``: every stepper then discretizes it itself. Derivatives
+        by finite differences. Rates may use the component's variables, not
+        its states (nor the time)."""
+        return AutoFunction(func, "state_rates")
 
     # -- introspection --------------------------------------------------------------
     def describe(self) -> str:

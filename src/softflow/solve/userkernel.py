@@ -38,6 +38,34 @@ def _compiled_call(func, plan):
     return expression(f"lambda t, v, s: f({', '.join(picks)})", {"f": func})
 
 
+def _update_from_rates(comp, rates, names, snames):
+    """An ``update_state`` (dt, states..., variables...) -> {state: state + dt·rate}
+    made from a component's ``state_rates``: the one place where a user's
+    rates meet the step, affine in dt by construction."""
+    if not isinstance(rates, AutoFunction):
+        rates = AutoFunction(rates, "state_rates")
+    bad = [a for a in rates.argnames if a not in names]
+    if bad:
+        kind = "a state" if any(a in snames for a in bad) else "no variable"
+        raise NetworkError(
+            f"{comp.describe()}: state_rates argument(s) {bad} name {kind}; rates may use "
+            f"the component's variables {names} (not its states, nor t)")
+    func, n_s, owner = rates.func, len(snames), comp.describe()
+
+    def update(dt, *args):
+        states, values = args[:n_s], args[n_s:]
+        r = func(*values)
+        try:
+            return {s: x + dt * float(r[s]) for s, x in zip(snames, states)}
+        except (KeyError, TypeError, IndexError, ValueError):
+            raise NetworkError(f"{owner}: state_rates must return {{state: rate}} with a "
+                               f"number for every state {snames}, got {r!r}") from None
+
+    up = AutoFunction.__new__(AutoFunction)    # its arguments are bound by name below
+    up.func, up.kind, up.argnames = update, "update_state", ("dt", *snames, *rates.argnames)
+    return up
+
+
 class UserKernel:
     """Evaluates one user component; exposes the same kernel/update interface as
     library groups, with n = 1 and a dense local Jacobian pattern."""
@@ -63,6 +91,15 @@ class UserKernel:
         self._ev_call = _compiled_call(ev.func, self.ev_args)
         self._ev_shape = (self.neq,)
         up = comp.update_state
+        rates = getattr(comp, "state_rates", None)
+        if rates is not None:
+            if up is not None:
+                raise NetworkError(f"{comp.describe()}: has both update_state and state_rates; "
+                                   "give one of them")
+            if not self.ns:
+                raise NetworkError(f"{comp.describe()}: has state_rates but no states "
+                                   "(declare them with set_states)")
+            up = _update_from_rates(comp, rates, names, snames)
         if self.ns:
             if up is None:
                 raise NetworkError(f"{comp.describe()}: has states {snames} but no update_state; "
