@@ -253,6 +253,7 @@ class BDF(Integrator):
         if begin is not None:
             begin(x, S)
         disc = asm.s_discrete if asm.has_discrete else None
+        report = self.progress
         T, kmax = self.T, self.max_order
         t_stop = T * (1 - 1e-14)
         ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
@@ -279,6 +280,7 @@ class BDF(Integrator):
             limit = next_break if next_break < T else T
             if restart:
                 x_right, r0, xdot, h = self._restart(x, S, t, limit)
+                report.restarted(t, h)
                 D[:] = 0.0
                 DS[0], DS[1] = S, h * r0
                 DX[0], DX[1] = x_right, h * xdot
@@ -303,6 +305,7 @@ class BDF(Integrator):
             out = solve(x_pred, psi, math.nextafter(t_new, -math.inf) if at_break else t_new, c)
             if not out.converged:
                 stats.rejected_steps += 1
+                report.rejected(t_new, h, "newton", out)
                 if h <= self.step_min * 1.0000001:
                     raise StepFailure(t_new, h, out)
                 factor = max(0.25, self.step_min / h)
@@ -319,6 +322,7 @@ class BDF(Integrator):
                 if h > self.step_min * 1.0000001:
                     stats.rejected_steps += 1
                     stats.error_test_failures += 1
+                    report.rejected(t_new, h, "error", err)
                     fails += 1
                     fail_cap, fail_hold = 0.9 * h, FAIL_HOLD
                     # as IDA: the first failures shrink the step from the estimate,
@@ -343,6 +347,7 @@ class BDF(Integrator):
                 # a mode switched within a step over which the solution moved by more
                 # than the tolerance: bisect until the switching step is that short
                 stats.rejected_steps += 1
+                report.rejected(t_new, h, "switch")
                 factor = max(0.5, self.step_min / h)
                 self._rescale(tables, k, factor)
                 h *= factor
@@ -365,8 +370,11 @@ class BDF(Integrator):
             delta[iS], delta[iX] = d, dx
             delta[iQ] = Q_new - pred[iQ]
             self._difference_update(D, delta, k)
+            if switched:
+                report.switched(t_new, S, S_new, disc)
             x, S, t, Q = out.x, S_new, t_new, Q_new
             rec.add(t, x, S, Q)
+            report.step(t)
             if begin is not None:
                 begin(x, S)
             if at_break or switched:

@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 
+from .progress import SILENT
+
 
 class StepFailure(Exception):
     def __init__(self, t, dt, outcome):
@@ -85,6 +87,8 @@ class Integrator:
         self.rec = Recorder(x_index, s_index, capacity=min(max(expected_steps, 16), 100_000))
 
     forced_steps = 0
+    #: reporter of the run (bar, logged events); Simulation.run sets its own
+    progress = SILENT
 
     def _next_break(self, t, ib):
         """(index, time) of the first breakpoint after t, searching from index ib
@@ -144,7 +148,7 @@ class ImplicitEuler(Integrator):
         h0, n_grid, step_min = ctrl.h0, ctrl.n_grid, ctrl.step_min
         break_set = self._break_set
         ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
-        rec_add = rec.add
+        rec_add, tick = rec.add, self.progress.step
         t, k, h_cut = 0.0, 0, None
         t_stop = T * (1 - 1e-14)
         x_prev = h_prev = None
@@ -169,6 +173,7 @@ class ImplicitEuler(Integrator):
             out = solve(x_pred, S, math.nextafter(t_new, -math.inf) if at_break else t_new, h)
             if not out.converged:
                 stats.rejected_steps += 1
+                self.progress.rejected(t_new, h, "newton", out)
                 if h / 4 < step_min:
                     ctrl.k = k
                     raise StepFailure(t + h, h, out)
@@ -182,9 +187,12 @@ class ImplicitEuler(Integrator):
             stats.steps += 1
             if disc is not None and not at_break:
                 at_break = bool((S_new[disc] != S[disc]).any())
+                if at_break:
+                    self.progress.switched(t_new, S, S_new, disc)
             x_prev, h_prev = x, h
             x, S, t = out.x, S_new, t_new
             rec_add(t, x, S)
+            tick(t)
             if begin is not None:
                 begin(x, S)
             h_cut = None

@@ -10,6 +10,7 @@ from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .bdf import BDF, MAX_ORDER
 from .integrator import ImplicitEuler, StepFailure
+from .progress import Progress
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 from .result import Result
@@ -194,13 +195,16 @@ class Simulation:
     def stats(self):
         return self.result.stats if self.result is not None else {}
 
-    def run(self, *, raise_on_failure=True):
+    def run(self, *, raise_on_failure=True, progress=None):
         """Integrate from 0 to ``duration``.
 
         Returns the Result. If the solver fails, raises SimulationError (whose
         ``result`` holds the steps computed so far), or with
         ``raise_on_failure=False`` returns that partial Result with
-        ``status == 'failed'`` and a ``message``.
+        ``status == 'failed'`` and a ``message``. ``progress``: a bar in
+        simulated time for a run longer than ~2 s of wall time, shown where
+        standard error is a terminal (None), always (True) or never (False);
+        solver events go to the logger 'softflow' (:mod:`softflow.solve.progress`).
         """
         asm = self.asm
         stats = Stats()
@@ -228,9 +232,10 @@ class Simulation:
         else:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
+        integ.progress = Progress(self.duration, progress, asm.s_names)
         error = None
         try:
-            with np.errstate(all="ignore"):
+            with np.errstate(all="ignore"), integ.progress:
                 integ.run()
         except StepFailure as fail:
             error = self._describe_failure(fail)
