@@ -41,6 +41,7 @@ class _CurveFunction:
     """p(V) [Pa] and dp/dV [Pa/m^3] of volume arrays, whatever form the curve came in."""
 
     def __init__(self, curve, derivative, volume_scale, owner):
+        self._args = (curve, derivative, volume_scale, owner)
         if hasattr(curve, "fdf_volume"):
             if derivative is not None:
                 raise ValueError(f"{owner}: curve_derivative is only for a callable curve; "
@@ -58,6 +59,13 @@ class _CurveFunction:
             self.fdf = lambda v: (self.value(v), d(v))
         else:
             self.fdf = self._central_differences
+
+    def __getstate__(self):
+        # the bound lambdas do not pickle: keep the definition, rebuild on load
+        return self._args
+
+    def __setstate__(self, args):
+        self.__init__(*args)
 
     def _central_differences(self, v):
         h = np.maximum(FD_STEP * np.abs(v), self.h_floor)

@@ -66,6 +66,11 @@ class FreeConvection:
     ...                     heat_transfer_coefficient=sf.FreeConvection("sphere"))
     """
 
+    def __deepcopy__(self, memo):
+        # a correlation is a value (it never changes once made): copies of a
+        # System share it
+        return self
+
     def __init__(self, shape="sphere", length=None, nusselt=None):
         from ..units import to_si
         owner = "FreeConvection"

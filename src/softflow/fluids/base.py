@@ -84,6 +84,11 @@ class Fluid(metaclass=_FluidConstructor):
     temperature = temperature_standard
     spec = None
 
+    def __deepcopy__(self, memo):
+        # fluids are values that never change (with_level, at make new ones):
+        # copies of a System share them, and their property caches
+        return self
+
     # -- the protocol ----------------------------------------------------------------
     def density(self, p, T=None):
         """Density [kg/m^3]."""

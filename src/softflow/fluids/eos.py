@@ -113,6 +113,11 @@ class EosFluid(Fluid):
 
     level = "eos"
 
+    def __reduce__(self):
+        # CoolProp's AbstractState does not pickle: a copy is made again from
+        # its definition (and the state cache of the process that loads it)
+        return (type(self), (self.spec, self.temperature))
+
     def __init__(self, spec: FluidSpec, temperature: float):
         import CoolProp.CoolProp as CP
         self.spec, self.name, self.temperature = spec, spec.name, float(temperature)

@@ -37,6 +37,11 @@ class TableFluid(Fluid):
 
     level = "table"
 
+    def __reduce__(self):
+        # rebuilt from its definition: the tables are read (and cached) where it
+        # is loaded instead of travelling with every pickled scene
+        return (type(self), (self.spec, self.temperature, self.out_of_range, self.tables_dir))
+
     def __init__(self, spec, temperature: float, out_of_range: str = "raise", tables_dir=None):
         self.spec, self.name, self.temperature = spec, spec.name, float(temperature)
         if out_of_range not in OUT_OF_RANGE:

@@ -211,7 +211,7 @@ class Component(ResultsMixin, _Component):
             return super().get_terminal(terminallabel)
         system = getattr(self, "_fons_system", None)
         for t in self.terminals:
-            if system is None or id(t) not in system._connected:
+            if system is None or not system.is_connected(t):
                 return t
         return None
 
@@ -265,8 +265,9 @@ class System(_System):
 
     def get_component_and_terminal(self, arg):
         """(Component, Terminal) that ``arg`` designates (see :meth:`connect`)."""
-        t = self._resolve(arg, [])
-        return t.component, t
+        label, k = self._resolve(arg, [])
+        comp = self.get(label)
+        return comp, comp.terminals[k]
 
 
 _DISCRETIZATIONS = ("backward",)

@@ -14,8 +14,20 @@ Jacobians.
 from __future__ import annotations
 
 import inspect
+import weakref
 
 from .variable import Terminal, Variable
+
+#: The last Result a Simulation computed for each component, for the FONS
+#: paper's ``system.get(label).get(name)``: kept here, weakly keyed by the
+#: component, so that running a Simulation never writes into the System.
+_LAST_RESULT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def remember_result(components, result):
+    """Make ``result`` the one :meth:`Component.get` reads for ``components``."""
+    for c in components:
+        _LAST_RESULT[c] = result
 
 
 class AutoFunction:
@@ -69,7 +81,6 @@ class Component:
         self.evaluate = None
         self.update_state = None
         self.state_rates = None
-        self._result = None
 
     # -- declaring the interface -------------------------------------------------
     def set_terminals(self, *terminals):
@@ -167,11 +178,15 @@ class Component:
         """Values of a variable over the last simulation run, as a NumPy array.
 
         ``name`` is a variable label, a quantity name (``'pressure'``) or a state;
-        give ``terminal`` when the name occurs at several terminals.
+        give ``terminal`` when the name occurs at several terminals. The last
+        run is the last ``Simulation.run()`` of a System holding this component
+        (softflow keeps that link itself; the component is not changed by a
+        run, and a pickled or copied component has no results).
         """
-        if self._result is None:
+        result = _LAST_RESULT.get(self)
+        if result is None:
             raise RuntimeError(f"{self.describe()}: no results yet; run a Simulation first")
-        return self._result.get(self.label, name, terminal=terminal, as_quantity=as_quantity)
+        return result.get(self.label, name, terminal=terminal, as_quantity=as_quantity)
 
     def __repr__(self):
         return f"<{self.describe()}>"

@@ -44,9 +44,11 @@ class System:
         self.label = label
         self.components: list[Component] = []
         self._by_label: dict[str, Component] = {}
-        self._parent: dict[int, Terminal] = {}  # union-find over terminal ids
-        self._terminal_by_id: dict[int, Terminal] = {}
-        self._connected: set[int] = set()
+        # union-find over terminals, each keyed by (component label, terminal
+        # index): plain values, so a pickled or deep-copied System keeps its
+        # connections (object ids would not survive either)
+        self._parent: dict[tuple, tuple] = {}
+        self._connected: set[tuple] = set()
 
     # -- building -----------------------------------------------------------------
     def add(self, *components):
@@ -64,9 +66,8 @@ class System:
                                    "in its __init__")
             self.components.append(c)
             self._by_label[c.label] = c
-            for t in c.terminals:
-                self._terminal_by_id[id(t)] = t
-                self._parent[id(t)] = id(t)
+            for k in range(len(c.terminals)):
+                self._parent[(c.label, k)] = (c.label, k)
         return self
 
     def __iadd__(self, component):
@@ -86,6 +87,16 @@ class System:
         hint = f"; did you mean {close}?" if close else ""
         return f"System has no component {label!r}{hint}"
 
+    def _key(self, t):
+        """(component label, terminal index) of a terminal of this system, or None."""
+        comp = t.component
+        if comp is None or self._by_label.get(comp.label) is not comp:
+            return None
+        for k, other in enumerate(comp.terminals):
+            if other is t:
+                return (comp.label, k)
+        return None
+
     def _find(self, tid):
         root = tid
         while self._parent[root] != root:
@@ -95,12 +106,13 @@ class System:
         return root
 
     def _resolve(self, spec, taken):
-        """Turn a connect() argument into a Terminal."""
+        """Turn a connect() argument into its terminal's key."""
         if isinstance(spec, Terminal):
-            if id(spec) not in self._terminal_by_id:
+            key = self._key(spec)
+            if key is None:
                 raise NetworkError(f"connect: terminal {spec.name!r} belongs to no component "
                                    "of this system")
-            return spec
+            return key
         if isinstance(spec, Component):
             spec = spec.label
         if isinstance(spec, tuple) and len(spec) == 2:
@@ -109,21 +121,21 @@ class System:
                 raise NetworkError("connect: " + self._unknown_label(label))
             comp = self._by_label[label]
             try:
-                return comp.get_terminal(term)
+                return self._key(comp.get_terminal(term))
             except KeyError as err:
                 raise NetworkError(f"connect: {err.args[0]}") from None
         if isinstance(spec, str):
             if spec not in self._by_label:
                 raise NetworkError("connect: " + self._unknown_label(spec))
             comp = self._by_label[spec]
-            for t in comp.terminals:
-                if id(t) not in self._connected and id(t) not in taken:
-                    return t
+            for k in range(len(comp.terminals)):
+                if (spec, k) not in self._connected and (spec, k) not in taken:
+                    return (spec, k)
             if len(comp.terminals) == 1:
                 # a one-terminal component (a tank, a source) joins its only
                 # terminal's node again: connect('tube1', 'tank') then
                 # connect('tank', 'tube2') chains through the tank, as in FONS
-                return comp.terminals[0]
+                return (spec, 0)
             raise NetworkError(
                 f"connect: {comp.describe()} has no unconnected terminal left; name the "
                 f"terminal explicitly, e.g. connect(({spec!r}, {comp.terminals[0].label!r}), ...)")
@@ -147,11 +159,12 @@ class System:
             raise NetworkError("connect: give at least two terminals to join")
         taken = []
         for s in specs:
-            t = self._resolve(s, taken)
-            if id(t) in taken:
+            key = self._resolve(s, taken)
+            if key in taken:
+                t = self._by_label[key[0]].terminals[key[1]]
                 raise NetworkError(f"connect: terminal {t.name!r} is given twice; a component "
                                    "cannot be connected to itself through one terminal")
-            taken.append(id(t))
+            taken.append(key)
         roots = [self._find(tid) for tid in taken]
         for r in roots[1:]:
             self._parent[r] = roots[0]
@@ -161,14 +174,19 @@ class System:
     # -- topology -----------------------------------------------------------------
     def nodes(self) -> list[Node]:
         """Current nodes, in the order of the components' terminals."""
-        groups: dict[int, list[Terminal]] = {}
+        groups: dict[tuple, list[Terminal]] = {}
         for c in self.components:
-            for t in c.terminals:
-                groups.setdefault(self._find(id(t)), []).append(t)
+            for k, t in enumerate(c.terminals):
+                groups.setdefault(self._find((c.label, k)), []).append(t)
         return [Node(i, ts) for i, ts in enumerate(groups.values())]
 
+    def is_connected(self, terminal) -> bool:
+        """Whether ``terminal`` (of a component of this system) is part of a node."""
+        return self._key(terminal) in self._connected
+
     def unconnected_terminals(self) -> list[Terminal]:
-        return [t for c in self.components for t in c.terminals if id(t) not in self._connected]
+        return [t for c in self.components for k, t in enumerate(c.terminals)
+                if (c.label, k) not in self._connected]
 
     def __contains__(self, label):
         return label in self._by_label

@@ -297,6 +297,9 @@ def energy_balance(result, system):
     stored = inflow = heat = work = 0.0
     scale = 0.0
     for c in system.components:
+        # the run's own copy of the component: a thermal Simulation compiles a
+        # copy of the System and sets its per-scene data (wall, hA) there
+        c = result._component(c.label)
         if isinstance(c, SOURCE_CLASSES):
             inflow += -float(result.integral(c.label, "energyflow")[-1])
         elif isinstance(c, VOLUME_CLASSES):
