@@ -29,6 +29,7 @@ _LAZY = {
     **dict.fromkeys(["Component", "NetworkError", "Node", "System", "Terminal",
                      "Variable"], "network"),
     **dict.fromkeys(["Result", "Simulation", "SimulationError"], "solve"),
+    **dict.fromkeys(["ModelWarning", "ComponentError"], "solve.validity"),
     **dict.fromkeys(["Q_", "UnitError", "ureg"], "units"),
 }
 # public names that are modules themselves
@@ -36,7 +37,7 @@ _LAZY_MODULES = {"waveforms": "curves.waveforms"}
 
 __all__ = [
     "Variable", "Terminal", "Component", "Node", "System", "NetworkError",
-    "Simulation", "SimulationError", "Result",
+    "Simulation", "SimulationError", "Result", "ModelWarning", "ComponentError",
     "LibraryComponent", "PressureSource", "MassFlowSource", "VolumeFlowSource",
     "CircularTube", "Container", "LinearAccumulator",
     "Orifice", "CheckValve", "TeslaValve", "SnappingValve", "Actuator", "HystereticActuator",
@@ -75,4 +76,5 @@ if TYPE_CHECKING:       # the same names, eagerly, for type checkers and IDEs
                          nitrogen, water)
     from .network import Component, NetworkError, Node, System, Terminal, Variable
     from .solve import Result, Simulation, SimulationError
+    from .solve.validity import ComponentError, ModelWarning
     from .units import Q_, UnitError, ureg

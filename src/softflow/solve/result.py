@@ -45,6 +45,10 @@ class Result:
     stats : dict
         Counters: steps, rejected_steps, newton_iterations, jacobian_evaluations,
         factorizations, ...
+    warnings : list of ValidityRecord
+        What the run's validity checks found (:mod:`softflow.solve.validity`): each
+        with ``component``, ``check``, ``measured``, ``limit``, ``unit``,
+        ``suggestion`` and ``message``; also warned as :class:`softflow.ModelWarning`.
     """
 
     def __init__(self, asm: Any, times: Array, X: Array, S: Array, status: str = "success",
@@ -59,6 +63,7 @@ class Result:
         self.status = status
         self.message = message
         self.stats = dict(stats or {})
+        self.warnings: list[Any] = []     # ValidityRecords, set by Simulation.run
         # where each component lives; its variable index is built on first access
         self._where = asm.where
         self._entries: dict[str, list[Entry]] = {}

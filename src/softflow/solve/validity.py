@@ -1,0 +1,229 @@
+"""Model validity after a run: checks evaluated on the solution, reported as
+``result.warnings`` and through Python's ``warnings`` with :class:`ModelWarning`.
+
+A run can succeed and still return an answer from outside what its models
+describe: an actuator pushed past the measured data of its PV curve is
+extrapolated (or clamped) there, not measured. Each check here looks at the
+recorded solution once, after the run (vectorized per group of components,
+so it costs a few array reductions), and returns :class:`ValidityRecord` s:
+which component, which check, the figure measured, the limit it crossed and
+what to do about it. :func:`check_result` runs every registered check and
+:func:`issue` warns once per record.
+
+Checks are registered per component class with :func:`register` (the first
+one: PV curves beyond their data). A check is ``check(group, result) ->
+[ValidityRecord]`` for one group of components compiled together (same class,
+fluid and curve), reading the result's arrays.
+
+Also here: :class:`ComponentError`, how an exception raised inside a user's
+code (``evaluate``, ``update_state``, ``state_rates``, a curve function)
+surfaces: with the component's label, the method and the time, the original
+exception chained.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+
+class ModelWarning(UserWarning):
+    """A result that comes from outside a model's range of validity (a PV curve
+    beyond its data, ...). The same records are in ``result.warnings``."""
+
+
+@dataclass(frozen=True)
+class ValidityRecord:
+    """One validity finding of a run.
+
+    Attributes
+    ----------
+    component : str
+        The component's label.
+    check : str
+        Which check (``'pv_curve_range'``, ...).
+    measured : float
+        The figure the run reached (SI units, see ``unit``).
+    limit : float
+        The limit it crossed (same unit).
+    unit : str
+        Unit of ``measured`` and ``limit``.
+    suggestion : str
+        What to change (more data, another model or policy).
+    message : str
+        The whole finding in one sentence, as warned.
+    details : dict
+        Check-specific figures (e.g. the time it first crossed the limit).
+    """
+
+    component: str
+    check: str
+    measured: float
+    limit: float
+    unit: str
+    suggestion: str
+    message: str
+    details: dict = field(default_factory=dict, compare=False)
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class ComponentError(RuntimeError):
+    """User code (``evaluate``, ``update_state``, ``state_rates``, a curve
+    function) raised while the solver evaluated a component. ``component`` is
+    its label, ``method`` the function, ``time`` the time [s] of the
+    evaluation; the original exception is ``__cause__``."""
+
+    def __init__(self, message: str, component: str | None = None,
+                 method: str | None = None, time: float | None = None) -> None:
+        super().__init__(message)
+        self.component, self.method, self.time = component, method, time
+
+
+def user_code_error(err: BaseException, describe: str, label: str, method: str,
+                    t: float | None, what: str = "") -> ComponentError:
+    """The ComponentError for ``err`` raised in ``method`` of a component
+    (``describe``: "Actuator 'act1'", ``label``: 'act1'), at time ``t``."""
+    when = f" at t = {t:.6g} s" if t is not None else ""
+    extra = f" ({what})" if what else ""
+    out = ComponentError(f"{describe}: {method}{extra} raised {type(err).__name__}{when}: {err}",
+                         component=label, method=method, time=t)
+    out.__cause__ = err
+    return out
+
+
+#: component class -> checks, each check(group, result) -> [ValidityRecord]
+_CHECKS: dict[type, list[Callable[[Any, Any], list[ValidityRecord]]]] = {}
+
+
+def register(cls: type, check: Callable[[Any, Any], list[ValidityRecord]]) -> None:
+    """Run ``check(group, result)`` after every run on each compiled group of
+    components that are instances of ``cls``."""
+    _CHECKS.setdefault(cls, []).append(check)
+
+
+def _register_library_checks() -> None:
+    if _CHECKS:
+        return
+    from ..components.actuators import Actuator, HystereticActuator
+    register(Actuator, pv_curve_range)
+    register(HystereticActuator, pv_curve_range)
+
+
+def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
+    """Every registered check on every group of the run's network."""
+    _register_library_checks()
+    records: list[ValidityRecord] = []
+    if len(result.times) == 0:
+        return records
+    for g in asm.groups:
+        for cls, checks in _CHECKS.items():
+            if isinstance(g.comps[0], cls):
+                for check in checks:
+                    records.extend(check(g, result))
+    return records
+
+
+def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
+    """Warn once per record (category :class:`ModelWarning`)."""
+    for r in records:
+        warnings.warn(r.message, ModelWarning, stacklevel=stacklevel)
+
+
+# -- reading a group's values from a result -----------------------------------------
+def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]:
+    """(indices in the group, values (times x those components)) of variable or
+    output ``name`` of the recorded components of group ``g``."""
+    keep, cols, where = [], [], None
+    for i, c in enumerate(g.comps):
+        if c.label not in result._where:          # not recorded
+            continue
+        e = result._entry(c.label, name, None)
+        if e[0] == "output":
+            keep.append(i)
+            where = "output"
+            continue
+        if e[4] < 0:
+            continue
+        keep.append(i)
+        cols.append(e[4])
+        where = e[3]
+    if not keep:
+        return [], np.empty((len(result.times), 0))
+    if where == "output":
+        labels = [g.comps[i].label for i in keep]
+        _, fn = g.comps[keep[0]].outputs()[name]
+
+        def get(n: str, term: str | None = None) -> np.ndarray:
+            return np.column_stack([result.get(lab, n, term) for lab in labels])
+        return keep, np.asarray(fn(get), dtype=float)
+    return keep, (result.X if where == "x" else result.S)[:, cols]
+
+
+# -- the checks ---------------------------------------------------------------------
+#: A volume counts as beyond a PV curve's data when it is past the first or last
+#: sample by more than this fraction of the data's volume range: adaptive steps
+#: overshoot a curve's end by about the tolerance (rtol 1e-3) when an actuator
+#: returns to where it started.
+PV_CURVE_SLACK = 0.01
+
+
+def _curves_of(comp: Any) -> list[Any]:
+    loop = getattr(comp, "loop", None)
+    if loop is not None:
+        return [loop.inflation, loop.deflation]
+    curve = getattr(comp, "curve", None)
+    return [curve] if hasattr(curve, "volume") and hasattr(curve, "extrapolate") else []
+
+
+def pv_curve_range(g: Any, result: Any) -> list[ValidityRecord]:
+    """Actuators whose volume left their PV curve's measured data (by more than
+    :data:`PV_CURVE_SLACK` of its range): how far, in which direction, when."""
+    curves = _curves_of(g.comps[0])
+    if not curves:
+        return []
+    keep, vol = group_values(g, result, "volume")
+    if not keep:
+        return []
+    lo = min(float(c.volume[0]) for c in curves)
+    hi = max(float(c.volume[-1]) for c in curves)
+    span = hi - lo
+    slack = PV_CURVE_SLACK * span
+    policies = sorted({c.extrapolate for c in curves})
+    policy = policies[0] if len(policies) == 1 else "/".join(policies)
+    origin = curves[0].origin if len(curves) == 1 else "inflation/deflation curves"
+    with np.errstate(invalid="ignore"):
+        vmax = np.nanmax(vol, axis=0)
+        vmin = np.nanmin(vol, axis=0)
+    out = []
+    for j in np.flatnonzero((vmax > hi + slack) | (vmin < lo - slack)):
+        comp = g.comps[keep[j]]
+        above = vmax[j] - hi >= lo - vmin[j]
+        reached = float(vmax[j] if above else vmin[j])
+        limit = hi if above else lo
+        past = abs(reached - limit)
+        col = vol[:, j]
+        first = int(np.argmax(col > hi + slack) if above else np.argmax(col < lo - slack))
+        t_first = float(result.times[first])
+        side = "last" if above else "first"
+        how = {"linear": "continued in a straight line with its end slope",
+               "clamp": "held at its end pressure",
+               "error": "refused (extrapolate='error')"}.get(policy, f"extrapolated ({policy})")
+        suggestion = ("measure the PV curve over the volumes the actuator reaches, or "
+                      "choose the behaviour beyond the data with PVCurve(..., "
+                      "extrapolate='clamp' or 'error')")
+        message = (f"{comp.describe()}: volume reached {reached * 1e6:.6g} mL, "
+                   f"{past * 1e6:.3g} mL ({100 * past / span:.3g} % of the data's range) "
+                   f"beyond the {side} sample of its PV curve ({origin}) at "
+                   f"{limit * 1e6:.6g} mL, first at t = {t_first:.6g} s; there the curve is "
+                   f"{how}, not measured. Suggestion: {suggestion}")
+        out.append(ValidityRecord(component=comp.label, check="pv_curve_range",
+                                  measured=reached, limit=limit, unit="m^3",
+                                  suggestion=suggestion, message=message,
+                                  details={"beyond": past, "fraction_of_range": past / span,
+                                           "first_time": t_first, "policy": policy,
+                                           "side": side}))
+    return out
