@@ -14,7 +14,12 @@ from .progress import Progress
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 from .result import Result
+from .validity import ComponentError, check_result, issue
 from .thermal import configure_thermal
+
+#: Default bound on the steps of one run (``max_steps=``): a fixed step or a step_max
+#: that asks for more is refused at construction, and a run stops past it.
+MAX_STEPS = 10_000_000
 
 #: Default absolute tolerances of the adaptive error test, per quantity [SI].
 DEFAULT_ATOL = {"pressure": 1.0, "massflow": 1e-9, "mass": 1e-12, "volume": 1e-12,
@@ -104,23 +109,29 @@ class Simulation:
         Labels of the components whose variables are kept at every step;
         default all. For networks of 1e5 components, keeping everything costs
         about as much as solving (memory bandwidth).
+    max_steps : int, default 10**7
+        Most steps a run may take (accepted and rejected). A fixed ``step``
+        (or a ``step_max``) that needs more over ``duration`` is refused at
+        construction with the estimate; pass a larger ``max_steps`` to confirm.
     """
 
     def __init__(self, system, duration=1.0, step=None, *, adaptive=None, method="bdf",
                  max_order=MAX_ORDER, step_min=None, step_max=None, rtol=1e-3, atol=None,
                  newton_rtol=1e-6, linear_solver="auto",
-                 breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal"):
+                 breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal",
+                 max_steps=MAX_STEPS):
         owner = "Simulation"
         self.system = system
         self.duration = to_si(duration, "s", name="duration", owner=owner)
-        if not self.duration > 0:
-            raise ValueError(f"Simulation: duration must be > 0 s, got {self.duration}")
+        if not (self.duration > 0 and math.isfinite(self.duration)):
+            raise ValueError(f"Simulation: duration must be a finite time > 0 s, "
+                             f"got {self.duration}")
         if isinstance(step, (tuple, list)):
             step_min, step_max = _step_range(step, step_min, step_max)
             step = None
         self.step = None if step is None else to_si(step, "s", name="step", owner=owner)
-        if self.step is not None and not self.step > 0:
-            raise ValueError(f"Simulation: step must be > 0 s, got {self.step}")
+        if self.step is not None and not (self.step > 0 and math.isfinite(self.step)):
+            raise ValueError(f"Simulation: step must be a finite time > 0 s, got {self.step}")
         self.adaptive = (self.step is None) if adaptive is None else bool(adaptive)
         if not self.adaptive and self.step is None:
             raise ValueError("Simulation: adaptive=False needs a step")
@@ -144,6 +155,8 @@ class Simulation:
         if not 0 < self.step_min <= self.step_max:
             raise ValueError(f"Simulation: need 0 < step_min <= step_max, got {self.step_min}, "
                              f"{self.step_max}")
+        self.max_steps = _check_max_steps(max_steps, self.duration, self.step, self.step_max,
+                                          self.adaptive)
         self.rtol = to_si(rtol, "", name="rtol", owner=owner)
         self.newton_rtol = to_si(newton_rtol, "", name="newton_rtol", owner=owner)
         for name, v in (("rtol", self.rtol), ("newton_rtol", self.newton_rtol)):
@@ -152,7 +165,11 @@ class Simulation:
         # default floors are set for rtol = 1e-3 and follow rtol (tolerance
         # proportionality: rtol = 1e-8 with 1 Pa floors would stop at 1 Pa)
         self.atol = {q: v * self.rtol / 1e-3 for q, v in DEFAULT_ATOL.items()}
+        known = _quantities(system)
         for q, v in (atol or {}).items():
+            if q not in known:
+                raise KeyError(f"Simulation: atol names unknown quantity {q!r}; the quantities "
+                               f"are {', '.join(map(repr, sorted(known)))}")
             unit = quantity_unit(q)
             self.atol[q] = to_si(v, unit, name=f"atol[{q!r}]", owner=owner) if unit else float(v)
             if not (self.atol[q] > 0 and math.isfinite(self.atol[q])):
@@ -174,7 +191,10 @@ class Simulation:
         xs, ss = [], []
         for label in labels:
             if label not in self.asm.where:
-                raise KeyError(f"Simulation: record names unknown component {label!r}")
+                have = sorted(self.asm.where)
+                raise KeyError(f"Simulation: record names unknown component {label!r}; the "
+                               f"components are {', '.join(map(repr, have[:20]))}"
+                               + (", ..." if len(have) > 20 else ""))
             g, i = self.asm.where[label]
             xs.extend(g.col[i].tolist())
             ss.extend(range(g.s0 + i * g.ns, g.s0 + (i + 1) * g.ns))
@@ -212,6 +232,7 @@ class Simulation:
         newton_rtol = min(self.newton_rtol, self.rtol / 20) if self.adaptive else self.newton_rtol
         newton = Newton(asm, lin, stats, rtol=newton_rtol,
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
+        newton.max_solves = self.max_steps
         gas = next((c.fluid for c in self.system.components
                     if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
         if self.thermal != "isothermal" and gas is not None:
@@ -241,9 +262,21 @@ class Simulation:
             error = self._describe_failure(fail)
         except Exception as err:  # user code or inputs failing mid-run: keep what we have
             t = integ.rec.t[-1] if integ.rec.t else 0.0
-            error = SimulationError(f"after t = {t:.6g} s: {type(err).__name__}: {err}", time=t)
-            error.__cause__ = err
+            if isinstance(err, ComponentError):    # user code: its component, method, time
+                error = SimulationError(str(err), time=t if err.time is None else err.time,
+                                        component=err.component)
+                error.method = err.method
+            else:
+                error = SimulationError(f"after t = {t:.6g} s: {type(err).__name__}: {err}",
+                                        time=t)
+            error.__cause__ = err.__cause__ if isinstance(err, ComponentError) else err
         t, X, S = integ.rec.arrays()
+        integrals = integ.rec.integrals()
+        if not len(t):     # failed at t = 0: the initial values as a 1-point result
+            xs, ss = ((slice(None), slice(None)) if self.record is None
+                      else self.record[:2])
+            t, X, S = np.zeros(1), asm.x0[xs][None, :], asm.S0[ss][None, :]
+            integrals = None if integrals is None else np.zeros_like(X)
         info = stats.as_dict()
         info["forced_steps"] = integ.forced_steps
         info["linear_solver"] = lin.kind
@@ -255,7 +288,9 @@ class Simulation:
         info["unknowns"] = asm.n
         result = Result(asm, t, X, S, status="success" if error is None else "failed",
                         message="" if error is None else str(error), stats=info,
-                        recorded=self.record, integrals=integ.rec.integrals())
+                        recorded=self.record, integrals=integrals)
+        result.warnings = check_result(asm, result)     # model validity (validity.py)
+        issue(result.warnings)
         self.result = result
         for c in self.system.components:
             c._result = result
@@ -275,3 +310,27 @@ class Simulation:
         msg = (f"solver failed at t = {fail.t:.6g} s (step {fail.dt:.3g} s): "
                f"{out.reason}{where}")
         return SimulationError(msg, time=fail.t, component=comp, equation=eq)
+
+
+def _quantities(system):
+    """Quantity names an atol may set: the defaults and every variable's and state's."""
+    out = set(DEFAULT_ATOL)
+    for c in system.components:
+        out.update(v.quantity for _, v in c.interface_variables())
+        out.update(sv.quantity for sv in c.states)
+    return out
+
+
+def _check_max_steps(max_steps, duration, step, step_max, adaptive):
+    """``max_steps`` checked, and compared with the steps the run asks for at least."""
+    if (isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer))
+            or max_steps < 1):
+        raise ValueError(f"Simulation: max_steps must be an integer >= 1, got {max_steps!r}")
+    fixed = step is not None and not adaptive
+    least = duration / (step if fixed else step_max)
+    if least > max_steps:
+        what = f"step={step:.3g} s" if fixed else f"step_max={step_max:.3g} s"
+        raise ValueError(f"Simulation: {what} over duration={duration:.6g} s asks for "
+                         f"{least:.3g} steps, more than max_steps={max_steps:.3g}; give a "
+                         f"larger step, or max_steps={math.ceil(least * 1.01)} to confirm")
+    return int(max_steps)
