@@ -152,6 +152,13 @@ def _user_group(comp):
     return g
 
 
+def _initial_states(c):
+    """A component's states at t = 0, as floats in its state order."""
+    vals = (c.initial_state_values() if c.vectorized
+            else [sv.initial_value if sv.initial_value is not None else 0.0 for sv in c.states])
+    return [float(v) for v in vals]
+
+
 class Assembly:
     """Compiled network: evaluates residuals F(x) and Jacobian values for given
     states, time and step, with no knowledge of components beyond their kernels."""
@@ -212,7 +219,6 @@ class Assembly:
 
         # unknown indices per component interface variable
         through_rows, through_cols = [], []
-        initial = {}
         for g in self.groups:
             col = np.empty((g.n, len(g.comps[0].interface_variables())), dtype=np.int64)
             # the interface as compiled (a later thermal or isothermal compile of the
@@ -225,15 +231,11 @@ class Assembly:
                     if v.role == "across":
                         nd = node_of[id(c.get_terminal(term))]
                         idx = across[(nd.index, v.quantity)]
-                        if v.initial_value is not None and idx not in initial:
-                            initial[idx] = v.initial_value
                     else:
                         idx = len(names)
                         where = f"{c.label}.{term}" if term else c.label
                         names.append(f"{where} {v.label}")
                         quantities.append(v.quantity)
-                        if v.initial_value is not None:
-                            initial[idx] = v.initial_value
                         if v.role == "through":
                             nd = node_of[id(c.get_terminal(term))]
                             through_rows.append(node_rows[(nd.index, v.quantity)])
@@ -251,9 +253,7 @@ class Assembly:
         self.q_starts = np.searchsorted(self.q_id[self.q_order], np.arange(len(self.q_names)))
         self.through_rows = np.array(through_rows, dtype=np.int64)
         self.through_cols = np.array(through_cols, dtype=np.int64)
-        self.x0 = np.zeros(self.n)
-        for idx, val in initial.items():
-            self.x0[idx] = val
+        self.x0 = self._initial_unknowns()
 
         # rows, states and Jacobian slots per group
         r = self.n_node_rows
@@ -272,10 +272,7 @@ class Assembly:
                 for e in range(g.neq):
                     row_names.append(f"equation {e} of {c.describe()}")
                 if g.ns:
-                    vals = (c.initial_state_values() if c.vectorized
-                            else [sv.initial_value if sv.initial_value is not None else 0.0
-                                  for sv in c.states])
-                    S0.extend(float(v) for v in vals)
+                    S0.extend(_initial_states(c))
                     modes = set(getattr(c, "discrete_states", ()))
                     for sv in c.states:
                         s_names.append(f"{c.label} {sv.label}")
@@ -394,6 +391,57 @@ class Assembly:
                 f"the network equations are singular in the sub-network(s) of: {names}. "
                 "Something there is undetermined: typically a closed loop of incompressible "
                 "fluid with no pressure reference, or a floating sub-network")
+
+    def _initial_unknowns(self):
+        """Initial values of the unknowns from the components' variables: a node's
+        across unknown takes the first initial value given at it."""
+        x0 = np.zeros(self.n)
+        seen = set()
+        for g in self.groups:
+            for i, c in enumerate(g.comps):
+                for k, (_, v) in enumerate(c.interface_variables()):
+                    idx = int(g.col[i, k])
+                    if v.initial_value is None or (v.role == "across" and idx in seen):
+                        continue
+                    x0[idx] = v.initial_value
+                    seen.add(idx)
+        return x0
+
+    def replace(self, components):
+        """Evaluate the given components (``{label: component}``) in place of the
+        compiled ones with those labels: same class, same group (shared
+        fluid, curve, blend range), new numbers. Kernels, initial values and
+        the generated residual are rebuilt; the topology, the sparsity and the
+        linear solver's analysis stay. What would change the structure raises
+        a NetworkError saying to build a new Simulation."""
+        touched = {}
+        for label, comp in components.items():
+            g, i = self.where[label]
+            old = g.comps[i]
+            if g.row is not None or not comp.vectorized:
+                raise NetworkError(f"{old.describe()}: a user component's parameters are fixed "
+                                   "when the Simulation is built; build a new Simulation")
+            if type(comp) is not type(old) or comp.kernel_class() is not old.kernel_class():
+                raise NetworkError(f"{old.describe()}: becoming a {type(comp).__name__} changes "
+                                   "the network's structure; build a new Simulation")
+            touched[id(g)] = g
+            g.comps[i] = comp
+        for g in touched.values():
+            keys = {c.group_key() for c in g.comps}
+            if len(keys) > 1:
+                labels = ", ".join(repr(c.label) for c in g.comps)
+                raise NetworkError(
+                    f"{labels} are evaluated together (same class, fluid, curve or flow "
+                    "regime bounds); new values that split them (e.g. another curve for one "
+                    "of them) change the network's structure: give them all the same, or "
+                    "build a new Simulation")
+            fresh = _library_group(g.comps[0].kernel_class(), g.comps)
+            g.kernel, g.update, g.affine, g.begin = fresh.kernel, fresh.update, fresh.affine, \
+                fresh.begin
+        self.x0 = self._initial_unknowns()
+        self.S0 = np.array([v for g in self.groups if g.ns for c in g.comps
+                            for v in _initial_states(c)], dtype=float)
+        self._compile_plans()
 
     def describe_row(self, row):
         return self.row_names[row]

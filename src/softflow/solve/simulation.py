@@ -124,14 +124,14 @@ class Simulation:
         self.system = system
         self.duration = to_si(duration, "s", name="duration", owner=owner)
         if not (self.duration > 0 and math.isfinite(self.duration)):
-            raise ValueError(f"Simulation: duration must be a finite time > 0 s, "
+            raise ValueError(f"Simulation: duration must be > 0 s and finite, "
                              f"got {self.duration}")
         if isinstance(step, (tuple, list)):
             step_min, step_max = _step_range(step, step_min, step_max)
             step = None
         self.step = None if step is None else to_si(step, "s", name="step", owner=owner)
         if self.step is not None and not (self.step > 0 and math.isfinite(self.step)):
-            raise ValueError(f"Simulation: step must be a finite time > 0 s, got {self.step}")
+            raise ValueError(f"Simulation: step must be > 0 s and finite, got {self.step}")
         self.adaptive = (self.step is None) if adaptive is None else bool(adaptive)
         if not self.adaptive and self.step is None:
             raise ValueError("Simulation: adaptive=False needs a step")
