@@ -20,6 +20,8 @@ once per Simulation into a :class:`Params` namespace.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
@@ -93,6 +95,9 @@ class LibraryComponent(Component):
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
+        init = cls.__dict__.get("__init__")
+        if init is not None:
+            cls.__init__ = _recording(init)
         if "residual_pattern" not in cls.__dict__ and (
                 "jac_pattern" in cls.__dict__ or cls.residual_pattern is None):
             cls.residual_pattern = cls.jac_pattern
@@ -213,6 +218,18 @@ class LibraryComponent(Component):
         :meth:`residual` the description matches may return one (a subclass with
         its own residual must not inherit it)."""
         return None
+
+
+def _recording(init):
+    """``init`` that first keeps the arguments it was called with (the
+    outermost constructor's, once) as ``_definition``: run-time parameters
+    rebuild a component from them (:mod:`softflow.solve.params`)."""
+    @functools.wraps(init)
+    def __init__(self, *args, **kwargs):
+        if "_definition" not in self.__dict__:
+            self._definition = (args, kwargs)
+        init(self, *args, **kwargs)
+    return __init__
 
 
 class Affine:

@@ -32,6 +32,13 @@ Entry = tuple[str, str, Union[str, None], str, int]
 _DIMENSIONLESS = "1"
 
 
+class _Located:
+    """Where a pickled Result finds a component: just the component."""
+
+    def __init__(self, comp: Any) -> None:
+        self.comps = [comp]
+
+
 class Result:
     """Outcome of a simulation run.
 
@@ -78,6 +85,16 @@ class Result:
             self._scol = np.full(len(asm.S0), -1)
             self._scol[recorded[1]] = np.arange(len(recorded[1]))
             self._where = {label: asm.where[label] for label in recorded[2]}
+
+    def __getstate__(self) -> dict:
+        # the compiled model stays behind: every component's variable index is
+        # made now, and each label keeps only its component (for its outputs)
+        for label in self._where:
+            self._component_entries(label)
+        state = self.__dict__.copy()
+        state["_where"] = {label: (_Located(g.comps[i]), 0)
+                           for label, (g, i) in self._where.items()}
+        return state
 
     def _component_entries(self, label: str) -> list[Entry]:
         if label not in self._entries:

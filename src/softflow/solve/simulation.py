@@ -1,11 +1,13 @@
 """Simulation: compile a System once, integrate it in time, return a Result."""
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 
 from ..constants import pressure_atmospheric
+from ..network.component import remember_result
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .bdf import BDF, MAX_ORDER
@@ -13,9 +15,11 @@ from .integrator import ImplicitEuler, StepFailure
 from .progress import Progress
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
+from .params import rebuild
+from .params import split as split_params
 from .result import Result
 from .validity import ComponentError, check_result, issue
-from .thermal import configure_thermal
+from .thermal import check_model, configure_thermal
 
 #: Default bound on the steps of one run (``max_steps=``): a fixed step or a step_max
 #: that asks for more is refused at construction, and a run stops past it.
@@ -120,6 +124,9 @@ class Simulation:
                  newton_rtol=1e-6, linear_solver="auto",
                  breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal",
                  max_steps=MAX_STEPS):
+        # what the Simulation is made of, for pickling: its compiled model holds
+        # generated code, which is rebuilt from these on load
+        self._definition = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
         owner = "Simulation"
         self.system = system
         self.duration = to_si(duration, "s", name="duration", owner=owner)
@@ -177,13 +184,29 @@ class Simulation:
                                  f"got {self.atol[q]}")
         self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
                                  for b in breakpoints)
-        self.thermal = configure_thermal(system, thermal)
-        self.asm = Assembly(system, allow_unconnected=allow_unconnected)
+        # a pure compile: the System is only read. A thermal scene adds variables
+        # and per-scene data to its components, so it is compiled from a copy
+        # (fluids and curves are shared, being values); an isothermal one
+        # needs nothing of the kind and is compiled from the System itself
+        model = system if check_model(thermal) == "isothermal" else copy.deepcopy(system)
+        self._model = model
+        self.thermal = configure_thermal(model, thermal)
+        self.asm = Assembly(model, allow_unconnected=allow_unconnected)
+        # the compiled components, and the run-time parameters now in force
+        self._compiled = {label: g.comps[i] for label, (g, i) in self.asm.where.items()}
+        self._applied = {}
         self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
         self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0
         self.linear_solver_kind = linear_solver
         self.record = None if record is None else self._record_indices(record)
         self.result = None
+
+    def __getstate__(self):
+        return {"definition": self._definition, "result": self.result}
+
+    def __setstate__(self, state):
+        self.__init__(**state["definition"])
+        self.result = state["result"]
 
     def _record_indices(self, labels):
         if isinstance(labels, str):
@@ -215,32 +238,64 @@ class Simulation:
     def stats(self):
         return self.result.stats if self.result is not None else {}
 
-    def run(self, *, raise_on_failure=True, progress=None):
+    def _set_parameters(self, params):
+        """Put the run-time parameters ``params`` in force (the compiled values
+        for every other component; see :mod:`softflow.solve.params`)."""
+        wanted = split_params(params or {}, self.asm.where)
+        if wanted and self.thermal != "isothermal":
+            raise NotImplementedError(
+                "Simulation.run(params=...): run-time parameters of thermal scenes are not "
+                "supported yet; build a new Simulation with the new values")
+        new = {label: rebuild(self._compiled[label], changes)
+               for label, changes in wanted.items()}
+        for label in self._applied:
+            new.setdefault(label, self._compiled[label])
+        if not new:
+            return
+        try:
+            self.asm.replace(new)
+        except Exception:
+            self.asm.replace({label: self._compiled[label] for label in new})
+            self._applied = {}
+            raise
+        self._applied = wanted
+
+    def run(self, *, raise_on_failure=True, progress=None, params=None):
         """Integrate from 0 to ``duration``.
 
         Returns the Result. If the solver fails, raises SimulationError (whose
         ``result`` holds the steps computed so far), or with
         ``raise_on_failure=False`` returns that partial Result with
-        ``status == 'failed'`` and a ``message``. ``progress``: a bar in
+        ``status == 'failed'`` and a ``message``.
+
+        ``params``: run-time parameters for this run, ``{"label.argument":
+        value}`` with the argument named as in the component's constructor
+        (``{"tube.diameter": sf.Q_(1.5, "mm"), "act.curve": other_curve}``;
+        Quantities or SI), checked as the constructor checks them. Other runs
+        use the values the Simulation was built with; nothing is recompiled,
+        and the System is not changed. Isothermal scenes, library components.
+        ``progress``: a bar in
         simulated time for a run longer than ~2 s of wall time, shown where
         standard error is a terminal (None), always (True) or never (False);
         solver events go to the logger 'softflow' (:mod:`softflow.solve.progress`).
         """
+        self._set_parameters(params)
         asm = self.asm
+        components = [g.comps[i] for g, i in asm.where.values()]
         stats = Stats()
         lin = make_linear_solver(asm, self.linear_solver_kind)
         newton_rtol = min(self.newton_rtol, self.rtol / 20) if self.adaptive else self.newton_rtol
         newton = Newton(asm, lin, stats, rtol=newton_rtol,
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
         newton.max_solves = self.max_steps
-        gas = next((c.fluid for c in self.system.components
+        gas = next((c.fluid for c in components
                     if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
         if self.thermal != "isothermal" and gas is not None:
             T = gas.temperature
             newton.set_magnitude_link("energyflow", "massflow",
                                       float(gas.cp(pressure_atmospheric, T)) * T)
         breaks = list(self.breakpoints)
-        for c in self.system.components:
+        for c in components:
             # periodic inputs have endless breakpoints: ask for those within the run
             until = getattr(c, "breakpoints_until", None)
             breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
@@ -292,8 +347,7 @@ class Simulation:
         result.warnings = check_result(asm, result)     # model validity (validity.py)
         issue(result.warnings)
         self.result = result
-        for c in self.system.components:
-            c._result = result
+        remember_result(self.system.components, result)
         if error is not None:
             error.result = result
             if raise_on_failure:

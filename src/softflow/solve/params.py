@@ -1,0 +1,75 @@
+"""Run-time parameters: ``Simulation.run(params={"tube.diameter": ...})``.
+
+A parameter is an argument of a library component's constructor, named
+``label.argument``. The component is rebuilt from the arguments it was made
+with, the new ones replacing theirs, so every value is checked (units,
+range) exactly as the constructor checks it; the compiled model then
+evaluates the rebuilt component in place of the old one
+(:meth:`softflow.solve.assembly.Assembly.replace`). The System is not
+touched. What would change the network's structure (the label, the fluid,
+the thermal model, a tube's inertance, a curve shared with other actuators)
+is refused with a message saying to build a new Simulation.
+"""
+from __future__ import annotations
+
+import inspect
+
+from ..network.system import NetworkError
+
+#: Constructor arguments that define the structure, not numbers of the model.
+STRUCTURAL = frozenset({"label", "fluid", "thermal", "inertance", "compressible"})
+
+
+def _signature(comp):
+    return inspect.signature(type(comp).__init__)
+
+
+def parameter_names(comp):
+    """The run-time parameters of a component (its constructor's arguments
+    that do not define structure)."""
+    names = [n for n in list(_signature(comp).parameters)[1:]
+             if n not in STRUCTURAL and not n.startswith("_")]
+    return [n for n in names if _signature(comp).parameters[n].kind not in
+            (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)]
+
+
+def split(params, labels):
+    """``{"label.name": value}`` as ``{label: {name: value}}``; clear errors for
+    keys that are not ``label.name`` or name no component."""
+    if not isinstance(params, dict):
+        raise TypeError(f"params must be a dict {{'label.parameter': value}}, got {params!r}")
+    out = {}
+    for key, value in params.items():
+        if not isinstance(key, str) or "." not in key:
+            raise KeyError(f"params: key {key!r} is not 'label.parameter' (e.g. "
+                           f"'tube.diameter')")
+        label, name = key.rsplit(".", 1)
+        if label not in labels:
+            have = ", ".join(repr(x) for x in sorted(labels)[:20])
+            raise KeyError(f"params[{key!r}]: no component {label!r}; the components are {have}")
+        out.setdefault(label, {})[name] = value
+    return out
+
+
+def rebuild(comp, changes):
+    """A new component like ``comp`` with the constructor arguments ``changes``."""
+    definition = comp.__dict__.get("_definition")
+    if not getattr(comp, "vectorized", False) or definition is None:
+        raise NetworkError(f"{comp.describe()}: a user component's parameters are fixed when "
+                           "the Simulation is built; build a new Simulation")
+    valid = parameter_names(comp)
+    for name in changes:
+        if name in STRUCTURAL:
+            raise NetworkError(f"params['{comp.label}.{name}']: {name} defines the network's "
+                               "structure; build a new Simulation to change it")
+        if name not in valid:
+            raise KeyError(f"params['{comp.label}.{name}']: {comp.describe()} has no parameter "
+                           f"{name!r}; its parameters are {', '.join(valid)}")
+    args, kwargs = definition
+    bound = _signature(comp).bind(comp, *args, **kwargs)
+    bound.arguments.update(changes)
+    try:
+        return type(comp)(*bound.args[1:], **bound.kwargs)
+    except (ValueError, TypeError) as err:
+        keys = ", ".join(f"'{comp.label}.{n}'" for n in changes)
+        raise type(err)(f"params[{keys}]: {err}") from None
