@@ -1,5 +1,6 @@
 """Command line: ``softflow demo`` runs the FONS paper example and writes a plot;
-``softflow figures`` runs the paper's Figs. 3-5 and writes their panels C and D."""
+``softflow figures`` runs the paper's Figs. 3-5 and writes their panels C and D;
+``softflow run scene.toml --duration "2 s" --output run.csv`` runs a scene file."""
 from __future__ import annotations
 
 import argparse
@@ -67,6 +68,81 @@ def _figures(args: argparse.Namespace) -> int:
     return 0
 
 
+#: --output suffixes of `softflow run` that are not images
+_DATA_SUFFIXES = {".csv": "CSV (Result.to_csv)", ".nc": "netCDF (Result.to_xarray)"}
+
+
+def _check_run_output(name: str) -> None:
+    path = Path(name)
+    if path.suffix.lower() in _DATA_SUFFIXES:
+        if path.is_dir():
+            raise CLIError(f"--output {str(path)!r} is a directory; give a file name")
+        if not path.parent.is_dir():
+            raise CLIError(f"--output {str(path)!r}: folder {str(path.parent)!r} does not exist")
+        if path.suffix.lower() == ".nc":
+            try:
+                import xarray  # noqa: F401
+            except ImportError:
+                raise CLIError(f"--output {str(path)!r}: netCDF needs xarray "
+                               "(pip install 'softflow[xarray]')") from None
+        return
+    try:
+        _check_output(name, "--output")
+    except CLIError as err:
+        if "unknown image format" in str(err):
+            raise CLIError(f"{err}, or {', '.join(_DATA_SUFFIXES)} for the data") from None
+        raise
+
+
+def _write_run_output(result: object, name: str) -> None:
+    path = Path(name)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        result.to_csv(path)                                   # type: ignore[attr-defined]
+    elif suffix == ".nc":
+        result.to_xarray().to_netcdf(path)                    # type: ignore[attr-defined]
+    else:
+        import matplotlib.pyplot as plt
+        columns = [c for c in result.columns()                # type: ignore[attr-defined]
+                   if c.endswith((".pressure", ".volume"))]
+        axes = result.plot(*columns, units={"pressure": "mbar",  # type: ignore[attr-defined]
+                                            "volume": "mL"}, gauge=True)
+        first = axes[0] if isinstance(axes, list) else axes
+        first.figure.savefig(path, dpi=120)
+        plt.close(first.figure)
+
+
+def _run(args: argparse.Namespace) -> int:
+    import softflow as sf
+    from softflow import scene as scene_files
+
+    for name in args.output:
+        _check_run_output(name)
+    scene = scene_files.read(args.scene)
+    options: dict = {}
+    if args.duration is not None:
+        options["duration"] = sf.Q_(args.duration) if any(c.isalpha() for c in args.duration) \
+            else float(args.duration)
+    elif "duration" not in scene.simulation:
+        raise CLIError(f"{args.scene}: no duration: give --duration (e.g. --duration '2 s') "
+                       "or duration = \"2 s\" in the scene's [simulation] table")
+    sim = scene.simulate(**options)
+    t0 = time.perf_counter()
+    result = sim.run(progress=False if args.no_progress else None, raise_on_failure=False)
+    elapsed = time.perf_counter() - t0
+    st = result.stats
+    print(f"softflow run {args.scene}: {len(scene.system)} components, t = 0 to "
+          f"{sim.duration:g} s: {result.status} after {st['steps']} steps "
+          f"({st['rejected_steps']} rejected) in {elapsed:.2f} s")
+    for name in args.output:
+        _write_run_output(result, name)
+        print(f"  wrote {name}")
+    if not result.success:
+        raise CLIError(f"the run failed: {result.message} (outputs hold the steps computed "
+                       "so far)" if args.output else f"the run failed: {result.message}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 ok, 1 an error, reported in
     one line on stderr; argparse exits with 2 on a usage error)."""
@@ -85,8 +161,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     figs.add_argument("--fig", type=int, nargs="+", choices=(3, 4, 5), default=[3, 4, 5],
                       help="which figures (default: all three)")
     figs.add_argument("--output-dir", default=".", help="folder for fig<N>_C.png, fig<N>_D.png")
+    run = sub.add_parser("run", help="run a scene file (softflow.scene; TOML)")
+    run.add_argument("scene", help="scene file (.toml), e.g. written by softflow.scene.save")
+    run.add_argument("--duration", help="simulated time, e.g. '2 s' or '500 ms' (default: "
+                                        "the scene's [simulation] duration)")
+    run.add_argument("--output", action="append", default=[],
+                     help="file to write: .csv, .nc (netCDF) or an image (.png, .pdf, .svg: "
+                          "pressures and volumes against time); may be repeated")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    command = {"demo": _demo, "figures": _figures}[args.command]
+    command = {"demo": _demo, "figures": _figures, "run": _run}[args.command]
     try:
         return command(args)
     except KeyboardInterrupt:
