@@ -23,6 +23,7 @@ from scipy.optimize import brentq
 
 from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
+from ..fluids.base import FluidError
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent, Params
 from .chambers import MASS_RATE_PATTERN, mass_rates
@@ -48,10 +49,12 @@ class _CurveFunction:
                                  f"{curve!r} gives its own derivative (fdf_volume)")
             self.fdf = curve.fdf_volume
             self.value = lambda v: curve.fdf_volume(v)[0]
+            self.user = None
             return
         if derivative is not None and not callable(derivative):
             raise TypeError(f"{owner}: curve_derivative must be a callable V [m^3] -> dp/dV "
                             f"[Pa/m^3], got {derivative!r}")
+        self.user = curve      # a user's function: its failures name the actuator
         self.h_floor = FD_STEP * volume_scale
         self.value = _vectorized(curve, volume_scale, owner, "curve")
         if derivative is not None:
@@ -185,13 +188,35 @@ class Actuator(LibraryComponent):
     @classmethod
     def residual(cls, P, V, S, t, jac):
         p, rho, vol = _volume(P, V, S)
-        if not jac:
-            return (p - P.curve.value(vol))[:, None], None
-        pc, dpc = P.curve.fdf(vol)
+        try:
+            if not jac:
+                return (p - P.curve.value(vol))[:, None], None
+            pc, dpc = P.curve.fdf(vol)
+        except FluidError:
+            raise
+        except Exception as err:
+            if P.curve.user is None:
+                raise
+            raise _curve_failure(P, vol, err, t)
         return _residual(P, p, rho, vol, pc, dpc)
 
     def outputs(self):
         return _volume_output(self.fluid)
+
+
+def _curve_failure(P, vol, err, t):
+    """A ComponentError naming the actuator whose volume made its (user's) curve
+    function raise: the volumes of a group are tried one at a time."""
+    from ..solve.validity import user_code_error
+    culprit, v_bad = 0, float(vol[0])
+    for i, v in enumerate(np.asarray(vol, dtype=float).tolist()):
+        try:
+            P.curve.fdf(np.array([v]))
+        except Exception:
+            culprit, v_bad = i, v
+            break
+    c = P.components[culprit]
+    return user_code_error(err, c.describe(), c.label, "curve", t, f"V = {v_bad:.6g} m^3")
 
 
 def _set_initial_state(comp, v0, p0):
@@ -229,6 +254,8 @@ def volume_at_pressure(curve, pressure):
     PCHIP does not overshoot, so the first sample at or above the pressure
     brackets the first crossing."""
     v, p, s = curve.volume, curve.pressure, curve.slope
+    if getattr(curve, "extrapolate", "linear") != "linear" and not p[0] <= pressure <= p.max():
+        return None            # 'clamp' and 'error' reach only the pressures of the data
     if pressure < p[0]:
         return v[0] + (pressure - p[0]) / s[0] if s[0] > 0 else None
     above = p >= pressure
@@ -288,6 +315,16 @@ class HystereticActuator(LibraryComponent):
         self.fluid = self._check_fluid(fluid)
         self.loop = HysteresisLoop(inflation_curve, deflation_curve,
                                    meet_tolerance=meet_tolerance, owner=self.describe())
+        refused = [name for name, c in (("inflation_curve", inflation_curve),
+                                        ("deflation_curve", deflation_curve))
+                   if getattr(c, "extrapolate", "linear") == "error"]
+        if refused:
+            # the loop evaluates both branches at every volume and picks one, so a
+            # branch that refuses volumes beyond its own data would stop every run
+            raise ValueError(f"{self.describe()}: {' and '.join(refused)} built with "
+                             "extrapolate='error', which a hysteresis loop does not support "
+                             "(it evaluates both branches everywhere); use 'linear' or "
+                             "'clamp': result.warnings reports volumes beyond the data")
         if initial_volume is None:
             v0 = float(inflation_curve.volume[0])
         else:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..constants import pressure_atmospheric
+from ..fluids.base import FluidError
 from ..units import to_si
 from .csvdata import DataFileError, read_table
 
@@ -17,6 +18,15 @@ if TYPE_CHECKING:
 #: Fewest samples a smoothing spline accepts (scipy's make_smoothing_spline).
 MIN_POINTS_SMOOTHING = 5
 
+#: What a PVCurve does beyond its first and last sample (``extrapolate=``).
+EXTRAPOLATE = ("linear", "clamp", "error")
+
+
+class CurveRangeError(FluidError):
+    """A volume beyond the data of a PV curve built with ``extrapolate='error'``.
+    Like a state outside a fluid's range, the solver treats it as a failed
+    trial point (the step is cut) and names it if the run cannot go on."""
+
 
 class PVCurve:
     """A measured or analytic pressure–volume characteristic p(V).
@@ -25,8 +35,15 @@ class PVCurve:
     C1-continuous, so Newton sees a continuous dp/dV, and free of overshoot
     between samples, so a peak–valley curve keeps its measured peak and valley.
     For noisy measurements, ``smoothing`` replaces it by a cubic smoothing
-    spline (C2) and ``filter_window`` low-passes the pressures first. Outside
-    the sampled volumes the curve continues linearly with its end slopes.
+    spline (C2) and ``filter_window`` low-passes the pressures first.
+
+    Outside the sampled volumes the curve does what ``extrapolate`` says: by
+    default (``'linear'``) it continues in a straight line with its end
+    slopes, as it always has; ``'clamp'`` holds the end pressures; ``'error'``
+    refuses (a run fails there, naming the actuator). Whatever the policy, a
+    run whose actuator goes past the data (by more than 1 % of the data's
+    volume range) says so in ``result.warnings`` and with a
+    :class:`softflow.ModelWarning`: how far and when.
 
     Synthetic curves of the shapes in the paper's Figs. 3-5 come from
     :meth:`monotonic`, :meth:`plateau` and :meth:`peak_valley`; a hysteretic
@@ -65,6 +82,11 @@ class PVCurve:
         syringe-pump measurement is); for unevenly spaced data use ``smoothing``.
     filter_order : int, default 2
         Polynomial order of the Savitzky–Golay filter.
+    extrapolate : {'linear', 'clamp', 'error'}, default 'linear'
+        Beyond the first and last volume: continue with the end slopes
+        (``'linear'``; the default, kept so that existing scenes run as before,
+        never silently: see above), hold the end pressures (``'clamp'``, dp/dV
+        = 0 there), or raise :class:`CurveRangeError` (``'error'``).
 
     Attributes
     ----------
@@ -80,7 +102,11 @@ class PVCurve:
     def __init__(self, source=None, volume=None, pressure=None, *, gauge=None,
                  volume_column="Volume", pressure_column="Pressure",
                  volume_unit=None, pressure_unit=None, smoothing=None, filter_window=None,
-                 filter_order=2):
+                 filter_order=2, extrapolate="linear"):
+        if not (isinstance(extrapolate, str) and extrapolate in EXTRAPOLATE):
+            raise ValueError(f"PVCurve: extrapolate must be one of "
+                             f"{', '.join(map(repr, EXTRAPOLATE))}, got {extrapolate!r}")
+        self.extrapolate = extrapolate
         self.gauge = (source is not None) if gauge is None else bool(gauge)
         if source is not None:
             if volume is not None or pressure is not None:
@@ -143,6 +169,10 @@ class PVCurve:
         self._c1 = np.concatenate([d[:1], d])
         self._c2 = np.concatenate([[0.0], c2, [0.0]])
         self._c3 = np.concatenate([[0.0], c3, [0.0]])
+        if self.extrapolate == "clamp":      # the end pressures, held: zero slope outside
+            self._c1[0] = self._c1[-1] = 0.0
+        self._lo, self._hi = float(v[0]), float(v[-1])
+        self._refuse = self.extrapolate == "error"
         # the scalar path (one volume per call, as in a user component) runs on lists
         self._vl = v.tolist()
         self._tl = list(zip(self._base.tolist(), self._c0.tolist(), self._c1.tolist(),
@@ -166,12 +196,24 @@ class PVCurve:
             return self._scalar(volume)
         return self._array(volume)
 
+    def _beyond(self, x):
+        lo, hi = self._lo, self._hi
+        bad = x if np.ndim(x) == 0 else (np.min(x) if np.min(x) < lo else np.max(x))
+        raise CurveRangeError(
+            f"PVCurve ({self.origin}): volume {float(bad):.9g} m^3 is beyond its data "
+            f"{lo:.9g} ... {hi:.9g} m^3 (extrapolate='error'; 'linear' or 'clamp' continue "
+            "the curve there)")
+
     def _scalar(self, x):
+        if self._refuse and not self._lo <= x <= self._hi:
+            self._beyond(x)
         b, c0, c1, c2, c3 = self._tl[bisect.bisect_right(self._vl, x)]
         x -= b
         return c0 + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
 
     def _array(self, x):
+        if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
+            self._beyond(x)
         k = np.searchsorted(self.volume, x, side="right")
         x = x - self._base[k]
         c2, c3 = self._c2[k], self._c3[k]
@@ -179,8 +221,9 @@ class PVCurve:
         return self._c0[k] + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
 
     def __repr__(self):
+        policy = "" if self.extrapolate == "linear" else f", extrapolate={self.extrapolate!r}"
         return (f"<PVCurve {self.origin}: {len(self.volume)} points, "
-                f"V {self.volume[0]:.3g}..{self.volume[-1]:.3g} m^3>")
+                f"V {self.volume[0]:.3g}..{self.volume[-1]:.3g} m^3{policy}>")
 
     def plot(self, ax: Axes | None = None, *, volume_unit: str = "mL",
              pressure_unit: str = "mbar", gauge: bool = True, points: bool = True,
@@ -240,7 +283,7 @@ class PVCurve:
 
     # -- synthetic curves (the shapes of the paper's Figs. 3-5) -----------------------------
     @classmethod
-    def monotonic(cls, start, knee, end, *, gauge=False):
+    def monotonic(cls, start, knee, end, *, gauge=False, extrapolate="linear"):
         """Stiff rise up to ``knee``, softer rise to ``end``: a soft bending actuator.
 
         Each point is a (volume [m^3], pressure [Pa]) pair (floats or Quantities);
@@ -255,10 +298,10 @@ class PVCurve:
         (vk, pk), (ve, pe) = pts["knee"], pts["end"]
         pts = {"start": pts["start"], "knee": pts["knee"],
                "mid": (0.5 * (vk + ve), 0.5 * (pk + pe)), "end": pts["end"]}
-        return _from_points(pts, gauge, "monotonic")
+        return _from_points(pts, gauge, "monotonic", extrapolate)
 
     @classmethod
-    def plateau(cls, start, knee, plateau_end, end, *, gauge=False):
+    def plateau(cls, start, knee, plateau_end, end, *, gauge=False, extrapolate="linear"):
         """Stiff rise to ``knee``, a (nearly) flat plateau to ``plateau_end``, then
         stiffening to ``end`` (the paper's Fig. 4 actuators).
 
@@ -271,10 +314,10 @@ class PVCurve:
         _require(pts, "start", "<", "knee", where)
         _require(pts, "knee", "<=", "plateau_end", where)
         _require(pts, "plateau_end", "<", "end", where)
-        return _from_points(pts, gauge, "plateau")
+        return _from_points(pts, gauge, "plateau", extrapolate)
 
     @classmethod
-    def peak_valley(cls, start, peak, valley, end, *, gauge=False):
+    def peak_valley(cls, start, peak, valley, end, *, gauge=False, extrapolate="linear"):
         """Rise to ``peak``, fall to ``valley``, rise again to ``end`` (a latex
         balloon; the paper's Figs. 3 and 5).
 
@@ -288,7 +331,7 @@ class PVCurve:
         _require(pts, "start", "<", "peak", where)
         _require(pts, "valley", "<", "peak", where)
         _require(pts, "valley", "<", "end", where)
-        return _from_points(pts, gauge, "peak-valley")
+        return _from_points(pts, gauge, "peak-valley", extrapolate)
 
 
 # -- helpers ------------------------------------------------------------------------------
@@ -361,8 +404,9 @@ def _require(pts, a, op, b, where):
                          f"pressure at {b} ({pb:.6g} Pa)")
 
 
-def _from_points(pts, gauge, kind):
+def _from_points(pts, gauge, kind, extrapolate="linear"):
     vols, pres = zip(*pts.values())
-    curve = PVCurve(volume=np.array(vols), pressure=np.array(pres), gauge=gauge)
+    curve = PVCurve(volume=np.array(vols), pressure=np.array(pres), gauge=gauge,
+                    extrapolate=extrapolate)
     curve.origin = f"{kind} through {len(vols)} points"
     return curve

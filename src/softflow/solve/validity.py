@@ -89,7 +89,7 @@ def user_code_error(err: BaseException, describe: str, label: str, method: str,
     (``describe``: "Actuator 'act1'", ``label``: 'act1'), at time ``t``."""
     when = f" at t = {t:.6g} s" if t is not None else ""
     extra = f" ({what})" if what else ""
-    out = ComponentError(f"{describe}: {method}{extra} raised {type(err).__name__}{when}: {err}",
+    out = ComponentError(f"{describe}: {method}{extra} raised{when}: {type(err).__name__}: {err}",
                          component=label, method=method, time=t)
     out.__cause__ = err
     return out
@@ -213,8 +213,9 @@ def pv_curve_range(g: Any, result: Any) -> list[ValidityRecord]:
                "clamp": "held at its end pressure",
                "error": "refused (extrapolate='error')"}.get(policy, f"extrapolated ({policy})")
         suggestion = ("measure the PV curve over the volumes the actuator reaches, or "
-                      "choose the behaviour beyond the data with PVCurve(..., "
-                      "extrapolate='clamp' or 'error')")
+                      "choose what happens beyond the data with PVCurve(..., extrapolate=...): "
+                      "'linear' continues the end slope, 'clamp' holds the end pressure, "
+                      "'error' stops the run there")
         message = (f"{comp.describe()}: volume reached {reached * 1e6:.6g} mL, "
                    f"{past * 1e6:.3g} mL ({100 * past / span:.3g} % of the data's range) "
                    f"beyond the {side} sample of its PV curve ({origin}) at "
