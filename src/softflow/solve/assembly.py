@@ -24,6 +24,7 @@ from ..network.system import NetworkError
 from .compiled import function
 from .discretize import step_functions
 from .userkernel import UserKernel
+from .validity import ComponentError, user_code_error
 
 
 def _equilibrated(A):
@@ -93,6 +94,41 @@ def _is_regular_dense(J):
     return bool(np.abs(np.diag(lu)).min() > 1e-12)
 
 
+#: Parameters named (where a component has them) when its scale is extreme.
+_SCALE_PARAMETERS = ("length", "diameter", "volume", "initial_volume", "compliance",
+                     "capacitance", "K", "Cd", "C", "conductance", "closed_conductance")
+
+
+def _check_fluids_at_nodes(nodes):
+    """Components joined at one node must carry the same fluid (name and solute
+    fraction; level and temperature may differ): a different one is an interface
+    the network does not model, and its mass balance would mix two fluids."""
+    for nd in nodes:
+        seen = {}
+        for t in nd.terminals:
+            comp = t.component if hasattr(t, "component") else None
+            fluid = getattr(comp, "fluid", None)
+            if fluid is None:
+                continue
+            name = getattr(fluid, "name", repr(fluid))
+            key = (name, getattr(getattr(fluid, "spec", None), "fraction", None),
+                   bool(getattr(fluid, "compressible", True)))
+            seen.setdefault(key, []).append(comp)
+        if len(seen) > 1:
+            parts = "; ".join(
+                f"{', '.join(c.describe() for c in comps)}: {_fluid_name(comps[0].fluid)}"
+                for comps in seen.values())
+            raise NetworkError(
+                f"different fluids meet at {nd.name}: {parts}. A node joins components of "
+                "one fluid; give them the same fluid (a deliberate interface between two "
+                "fluids needs a component that models it)")
+
+
+def _fluid_name(fluid):
+    frac = getattr(getattr(fluid, "spec", None), "fraction", None)
+    return f"{fluid.name!r}" + (f" (fraction {frac:g})" if frac is not None else "")
+
+
 #: Up to this many groups residual() runs as unrolled code (see Assembly._unrolled_residual).
 UNROLL_MAX_GROUPS = 64
 
@@ -117,6 +153,18 @@ class Group:
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
         self.r0 = self.r1 = self.s0 = self.s1 = self.j0 = self.j1 = 0
+
+
+def _group_failure(g, err, t):
+    """The ComponentError for an exception from inside a library group's kernel
+    (a user's input function or curve, typically): the component, or every
+    component of the group where it is one of several."""
+    if g.n == 1:
+        c = g.comps[0]
+        return user_code_error(err, c.describe(), c.label, "its equations", t)
+    labels = [c.label for c in g.comps]
+    return user_code_error(err, f"one of {_group_name(g)}", ", ".join(labels),
+                           "its equations", t)
 
 
 def _group_name(g):
@@ -175,6 +223,7 @@ class Assembly:
                 "allow_unconnected=True to treat them as closed ends (zero flow)")
         nodes = system.nodes()
         self.nodes = nodes
+        _check_fluids_at_nodes(nodes)
         node_of = {id(t): nd for nd in nodes for t in nd.terminals}
 
         names, quantities = [], []
@@ -392,6 +441,77 @@ class Assembly:
                 "Something there is undetermined: typically a closed loop of incompressible "
                 "fluid with no pressure reference, or a floating sub-network")
 
+    def diagnose_scale(self):
+        """Which component's scale is extreme relative to the rest, from the Jacobian
+        last evaluated (``raw``): after equilibrating rows and columns (each to a
+        largest magnitude of one), the component whose equations hold the smallest
+        structural entry, if it is below 1e-12 (a coefficient lost to round-off
+        against the others: a conductance, volume or compliance many orders of
+        magnitude from the network's). Returns (message, row) or (None, None)."""
+        J = csc_matrix((self.jacobian_data(), self.indices, self.indptr),
+                       shape=(self.n, self.n)).tocoo()
+        if not np.isfinite(J.data).all() or not J.nnz:
+            return None, None
+        a = np.abs(J.data)
+        r = np.zeros(self.n)
+        np.maximum.at(r, J.row, a)
+        a = a / np.where(r > 0, r, 1.0)[J.row]
+        c = np.zeros(self.n)
+        np.maximum.at(c, J.col, a)
+        a = a / np.where(c > 0, c, 1.0)[J.col]
+        tiny = (a < 1e-12) & (a > 0) & (J.row >= self.n_node_rows)
+        if tiny.any():
+            k = np.flatnonzero(tiny)[np.argmin(a[tiny])]
+            row, col = int(J.row[k]), int(J.col[k])
+            what = (f"in its equation the coefficient of {self.x_names[col]} is {a[k]:.1e} "
+                    "of the largest after scaling, below round-off")
+        else:
+            # no coefficient lost within a row: the rows themselves many orders of
+            # magnitude apart (an LU without scaling sees them as singular)
+            comp_rows = r[self.n_node_rows:]
+            nz = np.flatnonzero(comp_rows > 0)
+            if nz.size < 2 or comp_rows[nz].max() < 1e12 * comp_rows[nz].min():
+                return None, None
+            logs = np.log10(comp_rows[nz])
+            median = float(np.median(logs))
+            j = int(nz[np.argmax(np.abs(logs - median))])
+            row = self.n_node_rows + j
+            what = (f"its equation's coefficients are {comp_rows[j]:.1e} against a median "
+                    f"{10 ** median:.1e} of the network's equations, "
+                    f"{comp_rows[nz].max() / comp_rows[nz].min():.1e} apart in all")
+        label, _ = self.component_of_row(row)
+        g, i = self.where[label]
+        comp = g.comps[i]
+        params = [f"{name} = {getattr(comp, name):.3g}" for name in _SCALE_PARAMETERS
+                  if isinstance(getattr(comp, name, None), (int, float))]
+        shown = f" ({', '.join(params)})" if params else ""
+        msg = (f"the scale of {comp.describe()}{shown} is extreme relative to the rest of "
+               f"the network: {what}. Check its dimensions (units), or leave it out if it "
+               "is meant to be closed or open")
+        return msg, row
+
+    def subnetworks(self):
+        """(x_block, s_block, count): which independent sub-network (connected
+        part of the network) each unknown and each state belongs to, numbered
+        from 0. Made once; a connected network is one block."""
+        if getattr(self, "_subnetworks", None) is None:
+            first, others = [], []
+            for g in self.groups:
+                cols = g.col
+                if cols.shape[1] > 1:
+                    first.append(np.repeat(cols[:, :1], cols.shape[1] - 1, axis=1).ravel())
+                    others.append(cols[:, 1:].ravel())
+            a = np.concatenate(first) if first else np.zeros(0, dtype=np.int64)
+            b = np.concatenate(others) if others else np.zeros(0, dtype=np.int64)
+            graph = csc_matrix((np.ones(a.size), (a, b)), shape=(self.n, self.n))
+            count, x_block = connected_components(graph, directed=False)
+            s_block = np.empty(len(self.S0), dtype=np.int64)
+            for g in self.groups:
+                if g.ns:
+                    s_block[g.s0:g.s1] = np.repeat(x_block[g.col[:, 0]], g.ns)
+            self._subnetworks = (x_block, s_block, int(count))
+        return self._subnetworks
+
     def _initial_unknowns(self):
         """Initial values of the unknowns from the components' variables: a node's
         across unknown takes the first initial value given at it."""
@@ -507,7 +627,7 @@ class Assembly:
         env = {"empty": np.empty, "array": np.array, "bincount": np.bincount,
                "FluidError": FluidError, "raw": self.raw, "inc": self._incidence,
                "trows": self.through_rows, "tcols": self.through_cols,
-               "names": [_group_name(g) for g in self.groups]}
+               "names": [_group_name(g) for g in self.groups], **self._failure_env()}
         nr = self.n_node_rows
         # small systems gather F as one list (a list per part and one array at the
         # end: 0.9 us against 1.2 us for slice assignments on the paper's scene)
@@ -532,12 +652,20 @@ class Assembly:
                 lines.append(f"        if jac: raw[{j0}:{j1}] = Jg{'' if user else '.ravel()'}")
         lines += ["    except FluidError as err:     # say which components asked for the bad state",
                   "        raise FluidError(f'in {names[i]}: {err}') from None",
+                  "    except PASS:",
+                  "        raise",
+                  "    except Exception as err:     # user code inside: name the component",
+                  "        raise failure(groups[i], err, t)",
                   "    return array(F)" if gather else "    return F"]
         fn = function("\n".join(lines), "residual", env)
         fn.__doc__ = Assembly.residual.__doc__
         if gather:
             fn = self._affine_residual(fn)
         return fn
+
+    def _failure_env(self):
+        return {"PASS": (ComponentError, NetworkError), "failure": _group_failure,
+                "groups": self.groups}
 
     def _affine_residual(self, full):
         """For a small system, the residual without Jacobian with the node rows and
@@ -548,7 +676,8 @@ class Assembly:
         through their kernels. With a Jacobian, ``full`` does it all. On the
         paper's scene this saves two kernel calls (~1.2 us) a step."""
         n, env = self.n, {"full": full, "array": np.array, "FluidError": FluidError,
-                          "names": [_group_name(g) for g in self.groups]}
+                          "names": [_group_name(g) for g in self.groups],
+                          **self._failure_env()}
         A = np.zeros((n, n))
         A[:self.n_node_rows] = self._incidence
         body, numpy_offsets = [], []
@@ -583,6 +712,10 @@ class Assembly:
                  ["    F = Fa.tolist()", "    i = 0", "    try:"] + (body or ["        pass"]) +
                  ["    except FluidError as err:     # say which components asked for the bad state",
                   "        raise FluidError(f'in {names[i]}: {err}') from None",
+                  "    except PASS:",
+                  "        raise",
+                  "    except Exception as err:     # user code inside: name the component",
+                  "        raise failure(groups[i], err, t)",
                   "    return array(F)"])
         fn = function("\n".join(lines), "residual", env)
         fn.__doc__ = Assembly.residual.__doc__
@@ -603,6 +736,10 @@ class Assembly:
                                 else no_states, t, dt, jac)
             except FluidError as err:     # say which components asked for the bad state
                 raise FluidError(f"in {_group_name(g)}: {err}") from None
+            except (ComponentError, NetworkError):
+                raise
+            except Exception as err:      # user code inside: name the component
+                raise _group_failure(g, err, t)
             F[r0:r1] = Fg.ravel()
             if jac and j1 > j0:
                 raw[j0:j1] = Jg.ravel()

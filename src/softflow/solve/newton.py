@@ -82,6 +82,10 @@ _min = np.minimum.reduce
 SMALL = 32
 
 
+class StepLimitError(RuntimeError):
+    """A run went past ``Simulation(max_steps=...)`` solves."""
+
+
 @dataclass
 class Outcome:
     converged: bool
@@ -154,6 +158,8 @@ class Newton:
         self.age = 0           # steps since the last factorization
         self.stale = True      # force a fresh Jacobian at the next solve
         self.eta = 1.0         # rate/(1 - rate) seen in earlier solves, for the first test
+        self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
+        self._solves = 0
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -260,6 +266,12 @@ class Newton:
                 and self._dt_lo <= dt <= self._dt_hi)
 
     def solve(self, x0, S, t, dt):
+        if self.max_solves is not None:
+            self._solves += 1
+            if self._solves > self.max_solves:
+                raise StepLimitError(
+                    f"more than max_steps = {self.max_solves} steps (accepted and rejected) "
+                    f"by t = {t:.6g} s; pass a larger Simulation(max_steps=...) to go on")
         F0 = first = None
         # the usual step of a dense system: a step size and factors the last ones serve
         if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi
@@ -408,8 +420,7 @@ class Newton:
             try:
                 self._factor(dt)
             except SingularJacobian as err:
-                return Outcome(False, x, 0, f"singular Jacobian ({err.args[0]})",
-                               err.args[1] if len(err.args) > 1 else None)
+                return self._singular(x, 0, err)
             self._F_at_x0 = F
         limit = self.max_iter if fresh else self.max_reuse_iter
         prev = None
@@ -494,8 +505,7 @@ class Newton:
                         self._factor(dt)
                     factored = False
                 except SingularJacobian as err:
-                    return Outcome(False, x, k, f"singular Jacobian ({err.args[0]})",
-                                   err.args[1] if len(err.args) > 1 else None)
+                    return self._singular(x, k, err)
                 rs = self.lin.row_scale
             f0 = float(np.linalg.norm(F * rs))
             if watch and f0 < (1 - 1e-4) * f_ref:
@@ -548,6 +558,20 @@ class Newton:
                 self._eval(x, S, t, dt, jac=True)   # Jacobian at the damped iterate
         return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
                        self._worst_row(F))
+
+    def _singular(self, x, iterations, err):
+        """The failed Outcome of a singular Jacobian: names the component whose scale
+        is extreme relative to the rest where that is the cause (its row), else the
+        factorization's own row."""
+        row = err.args[1] if len(err.args) > 1 else None
+        reason = f"singular Jacobian ({err.args[0]})"
+        try:
+            why, culprit = self.asm.diagnose_scale()
+        except Exception:         # a diagnosis must never hide the failure itself
+            why, culprit = None, None
+        if why is not None:
+            reason, row = f"{reason}: {why}", culprit
+        return Outcome(False, x, iterations, reason, row)
 
     def _contracts(self, Fn, dx):
         """Deuflhard's natural monotonicity test (Newton Methods for Nonlinear

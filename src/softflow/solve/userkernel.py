@@ -8,9 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..fluids.base import FluidError
 from ..network.component import AutoFunction
 from ..network.system import NetworkError
 from .compiled import expression, function
+from .validity import ComponentError, user_code_error
+
+#: Exceptions that pass from user code unchanged: a fluid asked for a state outside
+#: its range (the solver cuts the step, as for library components), and softflow's
+#: own errors that already name the component.
+_PASS = (FluidError, NetworkError)
 
 #: Typical magnitude per quantity, used to size finite-difference steps at zero.
 _TYPICAL = {"pressure": 1e5, "massflow": 1e-4, "mass": 1e-4, "volume": 1e-5,
@@ -50,11 +57,16 @@ def _update_from_rates(comp, rates, names, snames):
         raise NetworkError(
             f"{comp.describe()}: state_rates argument(s) {bad} name {kind}; rates may use "
             f"the component's variables {names} (not its states, nor t)")
-    func, n_s, owner = rates.func, len(snames), comp.describe()
+    func, n_s, owner, label = rates.func, len(snames), comp.describe(), comp.label
 
     def update(dt, *args):
         states, values = args[:n_s], args[n_s:]
-        r = func(*values)
+        try:
+            r = func(*values)
+        except _PASS:
+            raise
+        except Exception as err:    # the caller adds the time (UserKernel._fail)
+            raise user_code_error(err, owner, label, "state_rates", None)
         try:
             return {s: x + dt * float(r[s]) for s, x in zip(snames, states)}
         except (KeyError, TypeError, IndexError, ValueError):
@@ -134,8 +146,21 @@ class UserKernel:
         return out
 
     # -- calls into user code ---------------------------------------------------------
+    def _fail(self, err, method, t):
+        """The ComponentError for an exception ``err`` from the user's ``method``
+        (one from ``state_rates``, raised without the time, gets it here)."""
+        if isinstance(err, ComponentError):
+            method, err = err.method, err.__cause__
+        return user_code_error(err, self.comp.describe(), self.comp.label, method, t)
+
     def _call_ev(self, t, v, s):
-        return self._residual_of(self._ev_call(t, v, s))
+        try:
+            out = self._ev_call(t, v, s)
+        except _PASS:
+            raise
+        except Exception as err:
+            raise self._fail(err, "evaluate", t)
+        return self._residual_of(out)
 
     def _residual_of(self, out):
         """evaluate's answer as a 1-D float array of length neq, or a clear error."""
@@ -153,8 +178,13 @@ class UserKernel:
                     f"and local variable)")
         return out
 
-    def _call_up(self, dt, v, s):
-        out = self._up_call(dt, v, s)
+    def _call_up(self, dt, v, s, t=None):
+        try:
+            out = self._up_call(dt, v, s)
+        except _PASS:
+            raise
+        except Exception as err:
+            raise self._fail(err, "update_state", t)
         if type(out) is dict and len(out) == self.ns:
             try:   # the usual answer, every state once: no diagnostics needed
                 return self._up_states(out)
@@ -187,7 +217,7 @@ class UserKernel:
         diagnostics of :meth:`_states_of` and :meth:`_residual_of`."""
         env = {"ev": self.ev.func, "asarray": np.asarray, "array": np.array, "f": float,
                "residual_of": self._residual_of, "states_of": self._states_of,
-               "shape": self._ev_shape, "ns": self.ns}
+               "shape": self._ev_shape, "ns": self.ns, "PASS": _PASS, "fail": self._fail}
         ev_picks = ", ".join("t" if kind == "t" else f"{kind}[{int(k)}]"
                              for kind, k in self.ev_args)
         lines = ["def row(v, s, t, dt):"]
@@ -197,7 +227,13 @@ class UserKernel:
             up_picks = ", ".join("dt" if kind == "t" else f"{kind}[{int(k)}]"
                                  for kind, k in self.up_args)
             states = ", ".join(f"f(o[k{i}])" for i in range(self.ns))
-            update = ["    o = up(" + up_picks + ")",
+            # (a try block costs nothing until it catches, Python >= 3.11)
+            update = ["    try:",
+                      "        o = up(" + up_picks + ")",
+                      "    except PASS:",
+                      "        raise",
+                      "    except Exception as err:",
+                      "        raise fail(err, 'update_state', T)",
                       "    if type(o) is dict and len(o) == ns:",
                       "        try:",
                       f"            s = array([{states}])",
@@ -205,9 +241,15 @@ class UserKernel:
                       "            s = states_of(o)",
                       "    else:",
                       "        s = states_of(o)"]
-            lines += update
-            upd = (["def update(v, s, dt):"] + update + ["    return s"])
-        lines += ["    r = ev(" + ev_picks + ")",
+            lines += [u.replace("T)", "t)") for u in update]
+            upd = (["def update(v, s, dt):"] + [u.replace("T)", "None)") for u in update]
+                   + ["    return s"])
+        lines += ["    try:",
+                  "        r = ev(" + ev_picks + ")",
+                  "    except PASS:",
+                  "        raise",
+                  "    except Exception as err:",
+                  "        raise fail(err, 'evaluate', t)",
                   "    try:",
                   "        F = asarray(r, dtype=float)",
                   "    except (TypeError, ValueError):",
@@ -244,7 +286,7 @@ class UserKernel:
         the order of ``pattern``) at the variables v and start-of-step states s_old."""
         if not jac:
             return self._row(v, s_old, t, dt), None
-        s = self._call_up(dt, v, s_old) if self.up is not None else s_old
+        s = self._call_up(dt, v, s_old, t) if self.up is not None else s_old
         F = self._call_ev(t, v, s)
         v = v.copy()     # perturbed in place below
         J = np.zeros((self.neq, self.nv))
@@ -266,7 +308,7 @@ class UserKernel:
                 h = _REL * max(abs(v[k]), self.vscale[k])
                 vk = v[k]
                 v[k] = vk + h
-                dSdv[:, k] = (self._call_up(dt, v, s_old) - s) / h
+                dSdv[:, k] = (self._call_up(dt, v, s_old, t) - s) / h
                 v[k] = vk
             J += dFds @ dSdv
         return F, J.ravel()
