@@ -32,7 +32,10 @@ hold). Local error: (1/(k+1)) (X_{n+1} - X_pred, x_{n+1} - x_pred) in the
 weighted RMS norm, weights atol + rtol |X_i| for the states and
 atol + rtol max_j |x_j| over the unknowns j of the same quantity for the
 unknowns (as Newton's tolerances: a nearly stagnant tube is held to the
-network's flow scale, not to its own vanishing flow). After k + 1 steps at one step size
+network's flow scale, not to its own vanishing flow). A network made of
+independent sub-networks (the variants of a batched sweep) is tested per
+sub-network: the error is the largest of their own norms, each with its own
+quantity scales, so every one of them meets the tolerance. After k + 1 steps at one step size
 the estimates of orders k - 1 and k + 1 (from nabla^k and nabla^(k+2)) choose
 the order and the next step. A step size change re-interpolates the
 difference table onto the new spacing ("quasi-constant step size"), which
@@ -131,6 +134,18 @@ class BDF(Integrator):
         self._x_offset = np.where(np.asarray(asm.x_quantity) == "pressure",
                                   pressure_atmospheric, 0.0)
         self._qmax_run = None
+        # independent sub-networks (e.g. the variants of a batched sweep) each
+        # meet the tolerance: the error is the largest of their own norms, and
+        # an unknown's scale is that of its quantity in its own sub-network
+        x_block, s_block, self._n_blocks = asm.subnetworks()
+        if self._n_blocks > 1:
+            nq = len(asm.q_names)
+            key = x_block * nq + asm.q_id
+            self._bq_order = np.argsort(key, kind="stable")
+            self._bq_starts = np.searchsorted(key[self._bq_order], np.arange(self._n_blocks * nq))
+            self._bq_key = key
+            self._x_block = x_block
+            self._s_block = s_block[self.cont]
         self.forced_steps = 0
         self.order_counts = [0] * (max_order + 1)
         # time integrals of the recorded unknowns, by the same BDF (a quadrature
@@ -147,24 +162,45 @@ class BDF(Integrator):
         wS = self.atol[i] + self.rtol * np.maximum(np.abs(S_a[i]), np.abs(S_b[i]))
         if x is None or not x.size:
             return wS, None
-        qmax = self.asm.quantity_max(x - self._x_offset)
+        if self._n_blocks > 1:
+            # per (sub-network, quantity); a pair with no unknowns reads the next
+            # pair's start, which no unknown indexes
+            v = np.abs(x - self._x_offset)[self._bq_order]
+            starts = np.minimum(self._bq_starts, v.size - 1)
+            qmax = np.maximum.reduceat(v, starts)
+            key = self._bq_key
+        else:
+            qmax = self.asm.quantity_max(x - self._x_offset)
+            key = self.asm.q_id
         # the largest magnitude seen so far in the run: a flow that decays to rest
         # is held to the network's flow scale, not to its own vanishing size
         if self._qmax_run is not None:
             qmax = np.maximum(qmax, self._qmax_run)
         self._qmax_run = qmax
-        return wS, self.atol_x + self.rtol * qmax[self.asm.q_id]
+        return wS, self.atol_x + self.rtol * qmax[key]
 
     def _norm(self, v, w, vx=None):
         """Weighted RMS of the continuous entries of v and, if given, of vx
         (w from :meth:`_weights`)."""
         wS, wx = w
         e = (v if self._all_cont else v[self.cont]) / wS
+        if self._n_blocks > 1:
+            return self._block_norm(e, None if vx is None or wx is None else vx / wx)
         acc, size = e.dot(e), e.size
         if vx is not None and wx is not None:
             ex = vx / wx
             acc, size = acc + ex.dot(ex), size + ex.size
         return float(math.sqrt(acc / size)) if size else 0.0
+
+    def _block_norm(self, e, ex):
+        """The largest of the sub-networks' weighted RMS norms."""
+        nb = self._n_blocks
+        acc = np.bincount(self._s_block, weights=e * e, minlength=nb)
+        size = np.bincount(self._s_block, minlength=nb).astype(float)
+        if ex is not None:
+            acc += np.bincount(self._x_block, weights=ex * ex, minlength=nb)
+            size += np.bincount(self._x_block, minlength=nb)
+        return float(math.sqrt(np.max(acc / np.maximum(size, 1.0))))
 
     # -- restarts ------------------------------------------------------------------
     def _probe(self, x, S, t, h):

@@ -12,6 +12,7 @@ is refused with a message saying to build a new Simulation.
 """
 from __future__ import annotations
 
+import functools
 import inspect
 
 from ..network.system import NetworkError
@@ -20,17 +21,28 @@ from ..network.system import NetworkError
 STRUCTURAL = frozenset({"label", "fluid", "thermal", "inertance", "compressible"})
 
 
+@functools.lru_cache(maxsize=None)
+def _class_signature(cls):
+    return inspect.signature(cls.__init__)
+
+
 def _signature(comp):
-    return inspect.signature(type(comp).__init__)
+    return _class_signature(type(comp))
+
+
+@functools.lru_cache(maxsize=None)
+def _class_parameters(cls):
+    params = _class_signature(cls).parameters
+    return tuple(n for n in list(params)[1:]
+                 if n not in STRUCTURAL and not n.startswith("_")
+                 and params[n].kind not in (inspect.Parameter.VAR_POSITIONAL,
+                                            inspect.Parameter.VAR_KEYWORD))
 
 
 def parameter_names(comp):
     """The run-time parameters of a component (its constructor's arguments
     that do not define structure)."""
-    names = [n for n in list(_signature(comp).parameters)[1:]
-             if n not in STRUCTURAL and not n.startswith("_")]
-    return [n for n in names if _signature(comp).parameters[n].kind not in
-            (inspect.Parameter.VAR_POSITIONAL, inspect.Parameter.VAR_KEYWORD)]
+    return list(_class_parameters(type(comp)))
 
 
 def split(params, labels):
@@ -51,8 +63,9 @@ def split(params, labels):
     return out
 
 
-def rebuild(comp, changes):
-    """A new component like ``comp`` with the constructor arguments ``changes``."""
+def rebuild(comp, changes, label=None):
+    """A new component like ``comp`` with the constructor arguments ``changes``
+    (and, where given, another ``label``: a batch's copy of a scene)."""
     definition = comp.__dict__.get("_definition")
     if not getattr(comp, "vectorized", False) or definition is None:
         raise NetworkError(f"{comp.describe()}: a user component's parameters are fixed when "
@@ -68,6 +81,8 @@ def rebuild(comp, changes):
     args, kwargs = definition
     bound = _signature(comp).bind(comp, *args, **kwargs)
     bound.arguments.update(changes)
+    if label is not None:
+        bound.arguments["label"] = label
     try:
         return type(comp)(*bound.args[1:], **bound.kwargs)
     except (ValueError, TypeError) as err:
