@@ -128,6 +128,9 @@ def check_fraction(spec: FluidSpec, value) -> float:
 @lru_cache(maxsize=None)
 def fraction_range(solution: str) -> tuple[float, float]:
     """CoolProp's (min, max) mass fraction of an INCOMP solution."""
+    snap = _snapshot()
+    if snap is not None and solution in snap[2]:
+        return snap[2][solution]
     import CoolProp.CoolProp as CP
     fid = f"INCOMP::{solution}"
     return CP.PropsSI("fraction_min", fid), CP.PropsSI("fraction_max", fid)
@@ -174,9 +177,46 @@ def make_fluid(name, level: str = "eos", temperature=temperature_standard, fract
 
 
 # -- CoolProp's name lists (read once, only when a non-built-in name is used) -------------
+# Importing CoolProp takes 2-3 s (its fluid library loads), most of an error's wait
+# for a misspelt name or a fraction out of range. The lists below are CoolProp's own
+# (written from it; tests/test_bad_input_catalogue.py checks them against the installed
+# CoolProp): used when that is the version installed, which importlib.metadata says
+# without importing it, so names and fractions are validated in milliseconds and
+# CoolProp is loaded only for a fluid that exists.
+@lru_cache(maxsize=None)
+def _snapshot():
+    """(names {lower: canonical}, incompressibles, {solution: (min, max)}) from the
+    lists below, or None where another CoolProp version is installed."""
+    from importlib import metadata
+    try:
+        installed = metadata.version("CoolProp")
+    except metadata.PackageNotFoundError:
+        return None
+    if installed != _SNAPSHOT_VERSION:
+        return None
+    names = {}
+    for entry in " ".join(_SNAPSHOT_FLUIDS.split()).split(";"):
+        canonical, *aliases = entry.split()
+        names[canonical.lower()] = canonical
+        for alias in aliases:
+            names.setdefault(alias.lower(), canonical)
+    solutions = {}
+    for item in _SNAPSHOT_SOLUTIONS.split():
+        name, lo, hi = item.split(":")
+        solutions[name] = (float(lo), float(hi))
+    return names, frozenset(_SNAPSHOT_PURE.split()) | frozenset(solutions), solutions
+
+
 @lru_cache(maxsize=None)
 def _coolprop_names() -> dict:
     """lower-case name or alias -> CoolProp's canonical fluid name."""
+    snap = _snapshot()
+    if snap is not None:
+        return snap[0]
+    return _coolprop_names_live()
+
+
+def _coolprop_names_live() -> dict:
     import CoolProp.CoolProp as CP
     names = {}
     for fluid in CP.get_global_param_string("FluidsList").split(","):
@@ -189,12 +229,18 @@ def _coolprop_names() -> dict:
 
 @lru_cache(maxsize=None)
 def _incompressible_solutions() -> frozenset:
+    snap = _snapshot()
+    if snap is not None:
+        return frozenset(snap[2])
     import CoolProp.CoolProp as CP
     return frozenset(CP.get_global_param_string("incompressible_list_solution").split(","))
 
 
 @lru_cache(maxsize=None)
 def _incompressibles() -> frozenset:
+    snap = _snapshot()
+    if snap is not None:
+        return snap[1]
     import CoolProp.CoolProp as CP
     pure = CP.get_global_param_string("incompressible_list_pure").split(",")
     return frozenset(pure) | _incompressible_solutions()
@@ -213,3 +259,62 @@ def _unknown(name):
     hint = f"; did you mean {', '.join(map(repr, suggestions))}?" if suggestions else ""
     raise FluidError(f"unknown fluid {name!r}: neither a softflow built-in "
                      f"({', '.join(BUILTIN)}) nor a CoolProp fluid name{hint}")
+
+
+# -- CoolProp 8.0.0's lists (see _snapshot): 'Name alias ...;' per fluid, the pure
+# incompressibles, and 'solution:min:max' mass fractions ---------------------------------
+_SNAPSHOT_VERSION = "8.0.0"
+_SNAPSHOT_FLUIDS = """
+R1234ze(E) R1234ZE R1234ZEE; CarbonDioxide R744 co2; CycloHexane CYCLOHEX; R218;
+ParaDeuterium; HFE143m HFE-143m RE143A; Neon R720; 1-Butene 1Butene Butene; MD3M
+Dodecamethylpentasiloxane; R116; R236EA; R1123 Trifluoroethylene HFO1123; Toluene; R22;
+IsoButane R600A ISOBUTAN; CycloPropane CYCLOPRO; HydrogenSulfide H2S; Propylene PROPYLEN
+R1270; R143a; R11; R12; n-Perfluorobutane C4F10; p-Xylene pXylene PC8H10; OrthoHydrogen
+ORTHOHYD; m-Xylene mXylene MC8H10; MethylLinolenate MLINOLEN; NitrousOxide N2O; Xenon
+Xe; R115; Methanol; D6 Dodecamethylcyclohexasiloxane; HydrogenChloride HCl; n-Octane
+nOctane Octane NC8H18 n-C8H18; Krypton; D5 Decamethylcyclopentasiloxane; R410A; R23;
+Ammonia NH3 R717; RC318; Benzene; Argon R740 Ar; R1233zd(E) R-1233zd(E) R1233zdE
+TRANS-1-CHLORO-3 3 3-TRIFLUOROPROPENE; R1336mzz(Z) R1336MZZZ HFO-1336mzz-Z cis-1 1 4
+4-Hexafluoro-2-butene; R1234yf; R1243zf R-1243zf 3 3-trifluoroprop-1-ene; CarbonMonoxide
+CO; Fluorine; R245fa; MD2M Decamethyltetrasiloxane; n-Dodecane nDodecane Dodecane C12
+NC12H26 n-C12H26; Methane CH4 R50 n-C1H4; Isopentane ipentane R601a; R1224YDZ; R1130(E)
+trans-1 2-dichloroethene trans-12-dichloroethene R1130E R-1130(E); R245ca; SES36;
+n-Decane Decane NC10H22 n-C10H22; DiethylEther DEE; Ethylene R1150; R113; R123;
+R1336mzz(E) (E)-1 1 4 4-HEXAFLUORO-2-BUTENE R1336MZZE; n-Perfluoropentane C5F12; Water
+H2O R718; R114; R124; MDM Octamethyltrisiloxane; n-Hexane nHexane Hexane NC6H14 n-C6H14;
+PropyleneGlycol 1 2-Propanediol PGLYCOL PG; R227EA; Dichloroethane 1 2-dichloroethane;
+Helium He R704; o-Xylene oXylene OC8H10; MethylPalmitate MPALMITA; VinylChloride
+Chloroethene; R13; R404A; EthyleneOxide; R40 MethylChloride; Ethane R170 n-C2H6; MM
+Hexamethyldisiloxane; R125; R1234ze(Z) R1234ZEZ; R236FA; R142b; n-Propane Propane R290
+C3H8 NC3H8 n-C3H8; R21; ParaHydrogen PARAHYD; SulfurHexafluoride SF6; Nitrogen N2 R728;
+CarbonylSulfide COS; Hydrogen H2 R702; trans-2-Butene T2BUTENE; IsoButene IBUTENE;
+Oxygen O2 R732; R41; OrthoDeuterium; R134a; SulfurDioxide SO2; Neopentane neopentn;
+R507A; R1132(E) trans-1 2-difluoroethene R1132E R-1132E R-1132(E); Isohexane ihexane;
+Cyclopentane CYCLOPEN; DimethylCarbonate DMC; Novec649 Novec1230; MD4M
+Tetradecamethylhexasiloxane; MethylStearate MSTEARAT; n-Nonane nonane NC9H20 n-C9H20;
+MethylOleate MOLEATE; DimethylEther DME RE170; HeavyWater D2O; Air R729; R13I1 CF3I;
+MethylLinoleate MLINOLEA; R32; n-Heptane nHeptane Heptane NC7H16 n-C7H16; n-Butane
+nButane butane R600 NC4H10 n-C4H10; Tetrahydrofuran THF; n-Pentane nPentane Pentane R601
+NC5H12 n-C5H12; R14; n-Perfluorohexane C6F14; n-Undecane Undecane C11 NC11H24 n-C11H24;
+Ethanol C2H6O; R161 Fluoroethane; Chlorine Cl2; Acetone; R407C; R141b; EthylBenzene
+EBENZENE; R152A; D4 Octamethylcyclotetrasiloxane; Deuterium D2; Propyne; R365MFC;
+cis-2-Butene C2BUTENE
+"""
+_SNAPSHOT_PURE = """
+TY24 AS55 NBS PGLT HCB Hexane XLT AS30 PNF PCL HC10 ExampleDigitalPure PLR DowJ DowJ2
+SAB HFE2 HC20 TVP1 HC30 AS20 LiqNa ZS45 AS40 FoodIce DSF FoodFiber PMS2 HY40 TY10 TCO
+PCR TY20 PHR ZS25 HY30 DowQ Water DEB TVP1869 ExamplePure FoodProtein FoodAsh HCM
+FoodFat T66 AS10 FoodWater ZS55 TY15 T72 DowQ2 S800 HC40 PHE ZS10 HFE FoodCarbohydrate
+TX22 Air PBB HY45 PMR XLT2 Ethanol PMS1 HY50 Acetone TD12 ZS40 NaK HC50 HY20 PNF2
+"""
+_SNAPSHOT_SOLUTIONS = """
+MEA:0:0.6 IceEA:0.05:0.35 MKA:0:0.45 AEG:0.1:0.6 ZMC:0.3:0.7 MKA2:0.11:0.41 AKF:0.4:1
+ZLC:0.3:0.7 VMG:0.072:0.206 MEA2:0.11:0.6 ZFC:0.3:0.6 MPG2:0.15:0.57 VMA:0.1:0.9
+ExampleSolution:0.05:0.35 VNA:0.07:0.231 MAM2:0.078:0.236 MAM:0:0.3 MNA2:0:0.23
+APG:0.1:0.6 MKC:0:0.4 AL:0.1:0.6 MNA:0:0.23 MMG2:0:0.205 ZAC:0.06:0.5 VCA:0.147:0.299
+MGL:0:0.6 MKF:0:0.48 MGL2:0.195:0.63 MLI:0:0.24 GKN:0.1:0.6 VKC:0.128:0.389 MITSW:0:0.12
+LiBr:0:0.75 MMA2:0.078:0.474 PK2:0.3:1 AN:0.1:0.6 IcePG:0.05:0.35 MMG:0:0.3 MEG2:0:0.56
+ExampleMelinder:0:0.6 ZM:0:1 MCA2:0.09:0.294 MEG:0:0.6 MKC2:0:0.39 ExampleSecCool:0:0.5
+IceNA:0.05:0.35 MPG:0:0.6 MMA:0:0.6 MCA:0:0.3 FRE:0.19:0.5 PKL:0.1:0.6
+ExampleDigital:0:1
+"""

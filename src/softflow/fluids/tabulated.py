@@ -12,11 +12,13 @@ handed to CoolProp (``out_of_range='eos'``); it is never extrapolated.
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from .base import Fluid, FluidError, broadcast_state
 from .eos import EosFluid, check_state_range
-from .tables import load_table
+from .tables import load_table, table_files, tables_directory
 
 OUT_OF_RANGE = ("raise", "eos")
 
@@ -48,6 +50,10 @@ class TableFluid(Fluid):
             raise FluidError(f"fluid {spec.name!r}: out_of_range must be 'raise' or 'eos', "
                              f"got {out_of_range!r}")
         self.out_of_range, self.tables_dir = out_of_range, tables_dir
+        # a temperature outside the table is refused from its metadata, before
+        # load_table checks the table against the installed CoolProp (importing
+        # it: 2-3 s)
+        self._check_temperature(_metadata_range(spec, tables_dir))
         self.table = load_table(spec, tables_dir)
         meta = self.table.meta
         self.liquid = bool(meta["liquid"])
@@ -55,12 +61,17 @@ class TableFluid(Fluid):
         self.p_range, self.T_range = self.table.p_range, self.table.T_range
         self.molar_mass = meta["molar_mass"]
         self.R = meta["specific_gas_constant"]     # CoolProp's, so that Z matches it
-        T_lo, T_hi = self.T_range
+        self._check_temperature(self.T_range)
+        self._eos = None
+
+    def _check_temperature(self, T_range):
+        if T_range is None:
+            return
+        T_lo, T_hi = T_range
         if not T_lo * (1 - 1e-9) <= self.temperature <= T_hi * (1 + 1e-9):   # round-off slack
             raise FluidError(f"{self!r}: temperature {self.temperature:g} K is outside the "
                              f"table range {T_lo:g} ... {T_hi:g} K (use out-of-table "
                              f"temperatures at level 'eos')")
-        self._eos = None
 
     def _level_options(self):
         return {"out_of_range": self.out_of_range, "tables_dir": self.tables_dir}
@@ -194,3 +205,13 @@ class TableFluid(Fluid):
                 self._density(p, T) * self.R * self._Tv(T)), p, T)
         return self._evaluate("compressibility", lambda p, T: self._get("Z", p, T), p, T)
 
+
+def _metadata_range(spec, tables_dir):
+    """The temperature range [K] a table's metadata records, or None where it cannot be
+    read (load_table then says why)."""
+    try:
+        _, json_path = table_files(spec.table_stem, tables_directory(tables_dir))
+        lo, hi = json.loads(json_path.read_text())["temperature_range"]
+        return float(lo), float(hi)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
