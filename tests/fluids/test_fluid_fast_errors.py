@@ -32,7 +32,7 @@ def test_snapshot_equals_the_installed_coolprop():
                            CP.PropsSI("fraction_max", f"INCOMP::{s}")) for s in solutions}
 
 
-@pytest.mark.parametrize("code, message", [
+ERRORS = [
     ("sf.Fluid('Airr', level='eos')", "unknown fluid 'Airr'"),
     ("sf.Fluid('INCOMP::MPGG')", "did you mean 'INCOMP::MPG'"),
     ("sf.ethylene_glycol.at(fraction=0.7)", "fraction 0.7 is outside CoolProp's range for "
@@ -41,13 +41,21 @@ def test_snapshot_equals_the_installed_coolprop():
                                      "INCOMP::MPG: 0 ... 0.6"),
     ("sf.Fluid('Air', level='table', temperature=500)",
      "temperature 500 K is outside the table range 233.15 ... 423.15 K"),
-])
-def test_fluid_input_errors_do_not_load_coolprop(code, message):
+]
+
+
+@pytest.mark.parametrize("code, message", ERRORS)
+def test_fluid_input_errors_name_what_was_expected(code, message):
     import softflow as sf
-    with pytest.raises(sf.FluidError, match=message.replace("(", r"\(").replace(".", r"\.")):
+    with pytest.raises(sf.FluidError) as info:
         eval(code, {"sf": sf})
-    assert not _coolprop_loaded_by(
-        f"import softflow as sf\ntry:\n    {code}\nexcept sf.FluidError:\n    pass")
+    assert message in str(info.value)
+
+
+def test_fluid_input_errors_do_not_load_coolprop():
+    tries = "\n".join(f"try:\n    {code}\nexcept sf.FluidError:\n    pass"
+                      for code, _ in ERRORS)
+    assert not _coolprop_loaded_by(f"import softflow as sf\n{tries}")
 
 
 def test_another_coolprop_version_reads_the_live_lists(monkeypatch):
