@@ -31,6 +31,7 @@ _LAZY = {
     **dict.fromkeys(["Result", "Simulation", "SimulationError"], "solve"),
     **dict.fromkeys(["ModelWarning", "ComponentError"], "solve.validity"),
     **dict.fromkeys(["Q_", "UnitError", "ureg"], "units"),
+    **dict.fromkeys(["sweep", "SweepResult"], "sweep"),
 }
 # public names that are modules themselves
 _LAZY_MODULES = {"waveforms": "curves.waveforms"}
@@ -46,6 +47,7 @@ __all__ = [
     "Fluid", "FluidError", "IdealGas", "ConstantLiquid", "air", "nitrogen", "water",
     "ethylene_glycol",
     "pressure_atmospheric", "ureg", "Q_", "UnitError",
+    "sweep", "SweepResult",
 ]
 
 
@@ -77,4 +79,5 @@ if TYPE_CHECKING:       # the same names, eagerly, for type checkers and IDEs
     from .network import Component, NetworkError, Node, System, Terminal, Variable
     from .solve import Result, Simulation, SimulationError
     from .solve.validity import ComponentError, ModelWarning
+    from .sweep import SweepResult, sweep
     from .units import Q_, UnitError, ureg

@@ -1,0 +1,769 @@
+"""Design studies: one Simulation run over many parameter variants.
+
+``sf.sweep(sim, params)`` runs a compiled :class:`~softflow.Simulation` once per
+variant with run-time parameters (``sim.run(params=variant)``, see
+:mod:`softflow.solve.params`: nothing is recompiled, the System is not
+touched), samples the chosen outputs on one time grid and returns a
+:class:`SweepResult` (``.to_xarray()``, ``.to_dataframe()``).
+
+``params`` is a grid, ``{"tube.diameter": [...], "tank.volume": [...]}`` (the
+Cartesian product of the lists; the last key varies fastest), or an explicit
+list of variants ``[{"tube.diameter": ...}, ...]``. A grid's list may be a
+dict ``{coordinate: value}`` to label values that are not numbers (curves,
+waveforms): ``{"act.curve": {15e3: curve_15, 22e3: curve_22}}``.
+
+Engines
+-------
+``"serial"``
+    A loop of ``sim.run(params=v, raise_on_failure=False)`` in this process, on
+    ``sim`` itself (afterwards ``sim.result``, and the paper's
+    ``system.get(label).get(name)``, hold the last variant's run; the
+    parameters are back to the compiled values).
+``"processes"``
+    :class:`concurrent.futures.ProcessPoolExecutor` with ``workers`` processes
+    (default: the CPU count). The Simulation is pickled once (it pickles as its
+    definition) and each worker unpickles, so recompiles, it once through the
+    pool's initializer; variants go to the workers in chunks.
+``"dask"``
+    A :class:`dask.distributed.Client` (``client=``; a real cluster needs only
+    ``Client("tcp://scheduler:8786")``), or by default a ``LocalCluster`` of
+    ``workers`` single-threaded worker processes started for the sweep and
+    closed after it. The pickled Simulation is scattered to every worker once;
+    chunks of variants are tasks that Dask's scheduler places. Each worker
+    thread unpickles the Simulation once per sweep. Needs the ``dask`` extra:
+    ``pip install 'softflow[dask]'``.
+``"batched"``
+    The variants solved together as one vectorized network by
+    :mod:`softflow.solve.batched` (``_run_batched(sim, variants, progress=)``:
+    one Result-like object per variant, in order, each with ``times``,
+    ``status``, ``message``, ``warnings`` and ``get(label, name)``). Its
+    variants share the step sequence, each meeting the tolerance on its own:
+    within the tolerance of, not bitwise equal to, their serial runs. Its bar
+    is the batched run's, in simulated time.
+
+The serial, process and Dask engines give the same numbers: each variant is
+the same run of the same compiled model (bitwise the same at fixed steps and
+with the adaptive BDF).
+A variant whose run fails is recorded with its status ``'failed'`` and the
+solver's message, NaN past the time it reached, and the sweep goes on.
+Every variant is checked before any is run (keys, units, ranges, structure),
+with the errors of ``Simulation.run(params=...)`` naming the variant.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import itertools
+import math
+import os
+import pickle
+import re
+import sys
+import threading
+import time
+import types
+import uuid
+import warnings
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+ENGINES = ("serial", "processes", "dask", "batched")
+
+#: points of the default time grid of adaptive runs
+DEFAULT_POINTS = 201
+
+
+# ----------------------------------------------------------------------------------------
+# the result
+class SweepResult:
+    """Outputs of a sweep on one time grid, one row per variant.
+
+    Attributes
+    ----------
+    variants : list of dict
+        The variants in run order, ``{'label.parameter': value}`` as given.
+    grid : dict or None
+        For a grid sweep, ``{'label.parameter': coordinate values}`` (SI numbers,
+        or labels for values that are not numbers), in the grid's order; None for
+        an explicit list of variants.
+    outputs : list of str
+        ``'label.variable'`` names of the sampled outputs.
+    units : dict
+        ``{output or parameter coordinate: SI unit}`` (``'1'``: dimensionless).
+    times : ndarray [s]
+        The common time grid.
+    data : ndarray, shape (n_variants, n_outputs, n_times)
+        The sampled values (NaN where a failed run did not reach).
+    status : list of str
+        ``'success'`` or ``'failed'`` per variant.
+    messages : list of str
+        Why a variant failed, or ``''``.
+    warnings : list of list of str
+        The model-validity warnings of each variant's run (``Result.warnings``).
+    coordinate_names : dict
+        ``{'label.parameter': name}`` of each parameter's coordinate in
+        :meth:`to_xarray` and column in :meth:`to_dataframe`: the key itself, or
+        ``'<key> (parameter)'`` where the key is also the name of a result column
+        of the scene (``'tank.volume'``, ``'source.pressure'``).
+    engine : str
+    wall_time : float [s]
+        Wall time of the sweep (checks, runs and sampling).
+    """
+
+    def __init__(self, variants, grid, outputs, units, times, data, status, messages,
+                 warnings_, engine, wall_time, coords, names):
+        self.variants = variants
+        self.grid = grid
+        self.outputs = outputs
+        self.units = units
+        self.times = times
+        self.data = data
+        self.status = status
+        self.messages = messages
+        self.warnings = warnings_
+        self.engine = engine
+        self.wall_time = wall_time
+        self._coords = coords      # {key: (values per variant, unit or None)}
+        self.coordinate_names = names
+
+    def __len__(self) -> int:
+        return len(self.variants)
+
+    def __repr__(self) -> str:
+        failed = sum(s != "success" for s in self.status)
+        shape = ("x".join(str(len(v)) for v in self.grid.values()) + " grid"
+                 if self.grid is not None else "list")
+        return (f"<SweepResult {len(self)} variants ({shape}, engine {self.engine!r}), "
+                f"{failed} failed, {len(self.outputs)} outputs x {len(self.times)} times>")
+
+    @property
+    def failed(self) -> list[int]:
+        """Indices of the variants whose run failed."""
+        return [i for i, s in enumerate(self.status) if s != "success"]
+
+    def __getitem__(self, output: str) -> np.ndarray:
+        """``sweep_result['tank.pressure']``: that output's values, shape
+        (n_variants, n_times), SI units."""
+        try:
+            k = self.outputs.index(output)
+        except ValueError:
+            raise KeyError(f"SweepResult: no output {output!r}; the outputs are "
+                           f"{_listing(self.outputs)}") from None
+        return self.data[:, k, :]
+
+    # -- exports --------------------------------------------------------------------------
+    def to_xarray(self):
+        """An xarray Dataset: for a grid, one dimension per swept parameter (its
+        coordinate in SI units, ``units`` in its attributes) and ``time``; for an
+        explicit list of variants, dimensions ``variant`` and ``time``, each
+        parameter a coordinate along ``variant`` (NaN, or ``''``, where a
+        variant does not set it). One data variable per output, named
+        ``'label.variable'``, with attributes ``units``, ``component`` and
+        ``variable``; ``status`` and ``message`` are coordinates over the
+        variants (needs xarray: the xarray extra)."""
+        try:
+            import xarray as xr
+        except ImportError:
+            raise ImportError("SweepResult.to_xarray needs xarray, an optional dependency: "
+                              "pip install 'softflow[xarray]' (or pip install xarray)") from None
+        if self.grid is not None:
+            dims = [self.coordinate_names[key] for key in self.grid]
+            shape = tuple(len(v) for v in self.grid.values())
+            coords = {name: (name, np.asarray(values), self._unit_attrs(key))
+                      for name, (key, values) in zip(dims, self.grid.items())}
+        else:
+            dims = ["variant"]
+            shape = (len(self.variants),)
+            coords = {"variant": ("variant", np.arange(len(self.variants)))}
+            for key, (values, _) in self._coords.items():
+                coords[self.coordinate_names[key]] = ("variant", np.asarray(values),
+                                                      self._unit_attrs(key))
+        coords["time"] = ("time", self.times, {"units": "s"})
+        coords["status"] = (dims, np.array(self.status, dtype=object).reshape(shape))
+        coords["message"] = (dims, np.array(self.messages, dtype=object).reshape(shape))
+        data = {}
+        for k, output in enumerate(self.outputs):
+            label, _, name = output.rpartition(".")
+            data[output] = (dims + ["time"],
+                            self.data[:, k, :].reshape(shape + (len(self.times),)),
+                            {"units": self.units[output], "component": label,
+                             "variable": name})
+        attrs = {"engine": self.engine, "variants": len(self.variants),
+                 "failed": len(self.failed)}
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+
+    def to_dataframe(self):
+        """A pandas DataFrame in tidy (long) form: one row per variant and time,
+        columns ``variant``, one per swept parameter (SI numbers, or labels),
+        ``status``, ``message``, ``time`` and one per output; SI units in
+        ``df.attrs['units']``. ``df.melt(id_vars=[...])`` makes it longer still
+        (needs pandas: the pandas extra)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("SweepResult.to_dataframe needs pandas, an optional dependency: "
+                              "pip install 'softflow[pandas]' (or pip install pandas)"
+                              ) from None
+        n, nt = len(self.variants), len(self.times)
+        columns: dict[str, Any] = {"variant": np.repeat(np.arange(n), nt)}
+        for key, (values, _) in self._coords.items():
+            columns[self.coordinate_names[key]] = np.repeat(np.asarray(values), nt)
+        columns["status"] = np.repeat(np.array(self.status, dtype=object), nt)
+        columns["message"] = np.repeat(np.array(self.messages, dtype=object), nt)
+        columns["time"] = np.tile(self.times, n)
+        for k, output in enumerate(self.outputs):
+            columns[output] = self.data[:, k, :].reshape(-1)
+        df = pd.DataFrame(columns)
+        df.attrs["units"] = {"time": "s", **{self.coordinate_names[key]: unit for key, (_, unit)
+                                              in self._coords.items() if unit},
+                             **{o: self.units[o] for o in self.outputs}}
+        df.attrs["engine"] = self.engine
+        return df
+
+    def _unit_attrs(self, key):
+        unit = self._coords[key][1]
+        return {"parameter": key, **({"units": unit} if unit else {})}
+
+
+# ----------------------------------------------------------------------------------------
+# sweep
+def sweep(sim, params, outputs=None, engine="serial", times=None, progress=None,
+          client=None, workers=None):
+    """Run ``sim`` once per parameter variant and collect the outputs.
+
+    Parameters
+    ----------
+    sim : Simulation
+        Compiled once; each variant is ``sim.run(params=variant)``.
+    params : dict of lists, or list of dicts
+        A grid ``{'label.parameter': [values]}`` (Cartesian product; a dict
+        ``{coordinate: value}`` in place of a list labels the values), or the
+        variants themselves ``[{'label.parameter': value, ...}, ...]``. Keys
+        and values as in ``Simulation.run(params=...)``: Quantities or SI.
+    outputs : sequence of str, optional
+        ``'label.variable'`` columns of the runs' Results (``Result.columns()``);
+        default all.
+    engine : {'serial', 'processes', 'dask', 'batched'}
+        See :mod:`softflow.sweep`.
+    times : array_like [s] or Quantity, optional
+        Common time grid, within [0, duration], increasing. Default: the fixed
+        step grid (k·step, and the duration) for fixed-step Simulations, else
+        201 points over the duration. Adaptive runs are interpolated linearly
+        between the run's own steps (so a grid finer than the steps shows
+        straight lines between them; the error-controlled values are those at
+        the steps).
+    progress : bool, optional
+        A tqdm bar over the variants: None shows it where standard error is a
+        terminal, True always, False never.
+    client : dask.distributed.Client, optional
+        The Dask engine's client (default: a LocalCluster started for the sweep).
+    workers : int, optional
+        Worker processes of the 'processes' engine and of the default
+        LocalCluster (default: the CPU count).
+
+    Returns
+    -------
+    SweepResult
+    """
+    from .solve.simulation import Simulation
+    t_start = time.perf_counter()
+    if not isinstance(sim, Simulation):
+        raise TypeError(f"sweep: sim must be a softflow Simulation, got {type(sim).__name__}")
+    if engine not in ENGINES:
+        raise ValueError(f"sweep: unknown engine {engine!r}; the engines are "
+                         f"{', '.join(map(repr, ENGINES))}")
+    if progress is not None and not isinstance(progress, bool):
+        raise TypeError(f"sweep: progress must be True, False or None, got {progress!r}")
+    if client is not None and engine != "dask":
+        raise ValueError(f"sweep: client= is for engine='dask', not {engine!r}")
+    if workers is not None:
+        if engine not in ("processes", "dask"):
+            raise ValueError(f"sweep: workers= is for engine='processes' or 'dask', "
+                             f"not {engine!r}")
+        if client is not None:
+            raise ValueError("sweep: workers= sizes the LocalCluster that engine='dask' "
+                             "starts; with client= the cluster's workers are used")
+        if (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
+                or workers < 1):
+            raise ValueError(f"sweep: workers must be an integer >= 1, got {workers!r}")
+    if engine == "dask":
+        _import_distributed()
+    batched = _batched_runner() if engine == "batched" else None
+
+    variants, grid_values = _variants(params)
+    _check_variants(sim, variants)
+    columns, units = _columns(sim)
+    outputs = _outputs(outputs, columns)
+    times = _times(sim, times)
+    coords, grid = _coordinates(sim, variants, grid_values)
+    names = {key: f"{key} (parameter)" if key in units else key for key in coords}
+    units = {o: units[o] for o in outputs}
+    for key, (_, unit) in coords.items():
+        if unit:
+            units[names[key]] = unit
+
+    n = len(variants)
+    bar = _bar(n, progress, engine) if engine != "batched" else None
+    try:
+        if engine == "serial":
+            outcomes = _serial(sim, variants, outputs, times, bar)
+        elif engine == "processes":
+            outcomes = _processes(sim, variants, outputs, times, bar,
+                                  workers or os.cpu_count() or 1)
+        elif engine == "dask":
+            outcomes = _dask(sim, variants, outputs, times, bar, client,
+                             workers or os.cpu_count() or 1)
+        else:
+            from .solve.validity import ModelWarning
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ModelWarning)
+                # one run of all the variants: its own bar, in simulated time
+                results = batched(sim, variants, progress=progress)
+            if len(results) != n:
+                raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
+                                   f"results for {n} variants")
+            outcomes = [_outcome(r, outputs, times) for r in results]
+            if bar is not None:
+                bar.update(n)
+    finally:
+        if bar is not None:
+            bar.close()
+
+    data = np.stack([o[2] for o in outcomes]) if n else np.empty((0, len(outputs), len(times)))
+    status = [o[0] for o in outcomes]
+    messages = [o[1] for o in outcomes]
+    warned = [o[3] for o in outcomes]
+    if any(warned):
+        from .solve.validity import ModelWarning
+        k = sum(bool(w) for w in warned)
+        first = next(w for w in warned if w)[0]
+        warnings.warn(f"sweep: {k} of {n} variants raised model-validity warnings (see "
+                      f"SweepResult.warnings), e.g.: {first}", ModelWarning, stacklevel=2)
+    return SweepResult(variants, grid, outputs, units, times, data, status, messages,
+                       warned, engine, time.perf_counter() - t_start, coords, names)
+
+
+# ----------------------------------------------------------------------------------------
+# input
+def _listing(names, most=30):
+    names = list(names)
+    return ", ".join(map(repr, names[:most])) + (", ..." if len(names) > most else "")
+
+
+def _variants(params):
+    """(variants, grid) from a grid dict or a list of dicts; grid is
+    {key: (values, coordinate labels or None)} or None."""
+    if isinstance(params, Mapping):
+        if not params:
+            raise ValueError("sweep: params is an empty grid; give {'label.parameter': "
+                             "[values, ...]}")
+        grid = {}
+        for key, values in params.items():
+            if not isinstance(key, str):
+                raise KeyError(f"sweep: params key {key!r} is not 'label.parameter' "
+                               "(e.g. 'tube.diameter')")
+            labels = None
+            if isinstance(values, Mapping):
+                labels = list(values.keys())
+                values = list(values.values())
+            elif isinstance(values, (str, bytes)) or not _is_sequence(values):
+                raise TypeError(f"sweep: params[{key!r}] must be a list of values (a grid "
+                                f"axis), got {values!r}; for a single value use [value]")
+            else:
+                values = list(values)
+            if not values:
+                raise ValueError(f"sweep: params[{key!r}] is empty: the grid has no "
+                                 "variants")
+            grid[key] = (values, labels)
+        keys = list(grid)
+        variants = [dict(zip(keys, combo))
+                    for combo in itertools.product(*(grid[k][0] for k in keys))]
+        return variants, grid
+    if isinstance(params, (str, bytes)) or not _is_sequence(params):
+        raise TypeError("sweep: params must be a grid {'label.parameter': [values]} or a "
+                        f"list of variants [{{'label.parameter': value}}, ...], got "
+                        f"{type(params).__name__}")
+    variants = list(params)
+    if not variants:
+        raise ValueError("sweep: params is an empty list of variants")
+    for i, v in enumerate(variants):
+        if not isinstance(v, Mapping):
+            raise TypeError(f"sweep: variant {i} must be a dict {{'label.parameter': "
+                            f"value}}, got {v!r}")
+    return [dict(v) for v in variants], None
+
+
+def _is_sequence(values):
+    if isinstance(values, Sequence) or isinstance(values, np.ndarray):
+        return True
+    # a pint Quantity holding an array
+    return hasattr(values, "magnitude") and np.ndim(values.magnitude) == 1
+
+
+def _describe_variant(i, n, variant):
+    shown = ", ".join(f"{k}={_short(v)}" for k, v in variant.items())
+    return f"variant {i} of {n} ({shown})"
+
+
+def _short(value):
+    if hasattr(value, "magnitude") and hasattr(value, "units"):
+        return f"{value:~P}"
+    text = repr(value) if isinstance(value, str) else str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _check_variants(sim, variants):
+    """Put each variant's parameters in force once, as a run would (keys, units,
+    ranges and structure checked by :mod:`softflow.solve.params` and
+    ``Assembly.replace``: ~0.2 ms a variant), then the compiled values back.
+    Errors name the variant."""
+    n = len(variants)
+    try:
+        for i, variant in enumerate(variants):
+            try:
+                sim._set_parameters(variant)
+            except Exception as err:
+                raise _renamed(err, f"sweep: {_describe_variant(i, n, variant)}: "
+                                    f"{_message(err)}") from err
+    finally:
+        sim._set_parameters(None)
+
+
+def _message(err):
+    return err.args[0] if isinstance(err, KeyError) and err.args else str(err)
+
+
+def _renamed(err, message):
+    """An exception of ``err``'s type with ``message`` (ValueError where the type
+    takes other arguments)."""
+    try:
+        new = type(err)(message)
+    except Exception:
+        new = ValueError(message)
+    return new
+
+
+def _columns(sim):
+    """The Result columns of ``sim``'s runs and their units, without running."""
+    from .solve.result import Result
+    asm = sim.asm
+    record = sim.record
+    x0 = asm.x0 if record is None else asm.x0[record[0]]
+    s0 = asm.S0 if record is None else asm.S0[record[1]]
+    probe = Result(asm, np.zeros(1), x0[None, :], s0[None, :], recorded=record)
+    units = probe.units()
+    units.pop("time")
+    return probe.columns(), units
+
+
+def _outputs(outputs, columns):
+    if outputs is None:
+        return list(columns)
+    if isinstance(outputs, str):
+        outputs = [outputs]
+    outputs = list(outputs)
+    if not outputs:
+        raise ValueError("sweep: outputs is empty; give 'label.variable' names, or None "
+                         "for all")
+    for o in outputs:
+        if o not in columns:
+            raise KeyError(f"sweep: unknown output {o!r}; the outputs are {_listing(columns)}")
+    if len(set(outputs)) != len(outputs):
+        raise ValueError(f"sweep: outputs repeat a name: {outputs}")
+    return outputs
+
+
+def _times(sim, times):
+    from .units import to_si
+    T = sim.duration
+    if times is None:
+        if not sim.adaptive:
+            # the fixed-step integrator's grid t_k = k * step, ending on the duration
+            n = max(1, int(math.ceil(T / sim.step - 1e-9)))
+            grid = np.minimum(np.arange(n + 1) * sim.step, T)
+            grid[-1] = T
+            return grid
+        return np.linspace(0.0, T, DEFAULT_POINTS)
+    grid = np.atleast_1d(to_si(times, "s", name="times", owner="sweep"))
+    if grid.ndim != 1 or not len(grid):
+        raise ValueError(f"sweep: times must be a non-empty 1-D array of times, got shape "
+                         f"{grid.shape}")
+    if not np.all(np.isfinite(grid)) or grid[0] < 0 or grid[-1] > T * (1 + 1e-12):
+        raise ValueError(f"sweep: times must lie within [0, {T:.6g}] s (the duration), got "
+                         f"{grid.min():.6g}..{grid.max():.6g} s")
+    if np.any(np.diff(grid) <= 0):
+        raise ValueError("sweep: times must be increasing")
+    return grid.astype(float)
+
+
+def _is_number(value):
+    if isinstance(value, bool):
+        return False
+    if hasattr(value, "magnitude") and hasattr(value, "units"):
+        return np.ndim(value.magnitude) == 0 and isinstance(
+            value.magnitude, (int, float, np.integer, np.floating))
+    return isinstance(value, (int, float, np.integer, np.floating))
+
+
+def _si_unit(sim, key):
+    """The SI unit the constructor expects for parameter ``key``, or None: asked
+    of the constructor itself with a value of a dimension no parameter has."""
+    from .solve.params import rebuild, split
+    from .units import Q_
+    try:
+        (label, changes), = split({key: None}, sim.asm.where).items()
+        comp = sim._compiled[label]
+        rebuild(comp, {name: Q_(1.0, "mol") for name in changes})
+    except Exception as err:      # the UnitError names the unit: '... [m], got 1 mol'
+        found = re.search(r"expects [^\[]*\[([^\]]+)\]", str(err))
+        return found.group(1) if found else None
+    return None
+
+
+def _to_si(value, unit):
+    if hasattr(value, "magnitude") and hasattr(value, "units"):
+        return float(value.to(unit).magnitude) if unit else float(
+            value.to_base_units().magnitude)
+    return float(value)
+
+
+def _labels(values):
+    """Coordinate labels for values that are not numbers: their text, made unique."""
+    text = [_short(v) for v in values]
+    if len(set(text)) == len(text):
+        return text
+    return [f"{t} #{i}" for i, t in enumerate(text)]
+
+
+def _coordinates(sim, variants, grid):
+    """{key: (value per variant, SI unit or None)} and, for a grid, {key: axis}."""
+    if grid is not None:
+        coords, axes = {}, {}
+        shape = tuple(len(values) for values, _ in grid.values())
+        index = np.unravel_index(np.arange(len(variants)), shape)
+        for j, (key, (values, labels)) in enumerate(grid.items()):
+            unit = None
+            if labels is not None:           # {coordinate: value}: the user's coordinates
+                axis = np.asarray(labels)
+            elif all(_is_number(x) for x in values):
+                unit = _si_unit(sim, key)
+                axis = np.array([_to_si(x, unit) for x in values])
+            else:
+                axis = np.array(_labels(values), dtype=object)
+            axes[key] = axis
+            coords[key] = (axis[index[j]], unit)
+        return coords, axes
+    coords = {}
+    for key in dict.fromkeys(k for v in variants for k in v):
+        given = [v[key] for v in variants if key in v]
+        if all(_is_number(x) for x in given):
+            unit = _si_unit(sim, key)
+            coords[key] = (np.array([_to_si(v[key], unit) if key in v else np.nan
+                                     for v in variants]), unit)
+        else:
+            labels = iter(_labels(given))
+            coords[key] = (np.array([next(labels) if key in v else "" for v in variants],
+                                    dtype=object), None)
+    return coords, None
+
+
+def _bar(n, progress, engine):
+    if progress is None:
+        isatty = getattr(sys.stderr, "isatty", None)
+        progress = bool(isatty and isatty())
+    if not progress:
+        return None
+    from tqdm import tqdm
+    return tqdm(total=n, unit="variant", desc=f"sweep ({engine})")
+
+
+# ----------------------------------------------------------------------------------------
+# running one variant (in this process or a worker)
+def _outcome(result, outputs, times):
+    """(status, message, values (n_outputs, n_times), warnings) of one run."""
+    values = np.full((len(outputs), len(times)), np.nan)
+    t = result.times
+    if len(t):
+        reached = times <= t[-1] * (1 + 1e-12) if result.status != "success" else slice(None)
+        at = times[reached]
+        for k, column in enumerate(outputs):
+            label, _, name = column.rpartition(".")
+            values[k, reached] = np.interp(at, t, result.get(label, name))
+    return (result.status, result.message, values,
+            [str(w) for w in getattr(result, "warnings", [])])
+
+
+def _run_variant(sim, variant, outputs, times):
+    from .solve.validity import ModelWarning
+    try:
+        with warnings.catch_warnings():
+            # each run's validity records are kept (SweepResult.warnings) and the
+            # sweep warns once, in the caller's process
+            warnings.simplefilter("ignore", ModelWarning)
+            result = sim.run(params=variant, raise_on_failure=False, progress=False)
+        return _outcome(result, outputs, times)
+    except Exception as err:     # anything but a solver failure: recorded, not raised
+        return ("failed", f"{type(err).__name__}: {err}",
+                np.full((len(outputs), len(times)), np.nan), [])
+
+
+def _run_chunk(sim, chunk, outputs, times):
+    return [(i, _run_variant(sim, variant, outputs, times)) for i, variant in chunk]
+
+
+def _chunks(variants, workers):
+    size = max(1, min(64, math.ceil(len(variants) / (4 * workers))))
+    indexed = list(enumerate(variants))
+    return [indexed[k:k + size] for k in range(0, len(indexed), size)]
+
+
+def _serial(sim, variants, outputs, times, bar):
+    out = []
+    try:
+        for variant in variants:
+            out.append(_run_variant(sim, variant, outputs, times))
+            if bar is not None:
+                bar.update(1)
+    finally:
+        sim._set_parameters(None)
+    return out
+
+
+def _lost(chunk, err, outputs, times):
+    """Outcomes of a chunk whose worker failed (not the run: the process)."""
+    message = f"worker failed: {type(err).__name__}: {err}"
+    return [(i, ("failed", message, np.full((len(outputs), len(times)), np.nan), []))
+            for i, _ in chunk]
+
+
+# -- processes ------------------------------------------------------------------------------
+_WORKER_SIM = None
+
+
+def _init_worker(blob):
+    global _WORKER_SIM
+    _WORKER_SIM = pickle.loads(blob)
+
+
+def _worker_chunk(chunk, outputs, times):
+    return _run_chunk(_WORKER_SIM, chunk, outputs, times)
+
+
+def _pickled(sim, engine):
+    """The Simulation as it travels to workers (its definition, recompiled there)."""
+    try:
+        return pickle.dumps(sim)
+    except Exception as err:
+        raise TypeError(f"sweep: engine={engine!r} sends the Simulation to its workers by "
+                        f"pickle, and this one does not pickle ({type(err).__name__}: {err}); "
+                        "define user components and functions at module level, or use "
+                        "engine='serial'") from err
+
+
+def _processes(sim, variants, outputs, times, bar, workers):
+    blob = _pickled(sim, "processes")
+    chunks = _chunks(variants, workers)
+    out = [None] * len(variants)
+    with concurrent.futures.ProcessPoolExecutor(
+            max_workers=min(workers, len(chunks)), initializer=_init_worker,
+            initargs=(blob,)) as pool:
+        futures = {pool.submit(_worker_chunk, chunk, outputs, times): chunk
+                   for chunk in chunks}
+        for future in concurrent.futures.as_completed(futures):
+            chunk = futures[future]
+            try:
+                done = future.result()
+            except Exception as err:
+                done = _lost(chunk, err, outputs, times)
+            for i, outcome in done:
+                out[i] = outcome
+            if bar is not None:
+                bar.update(len(chunk))
+    return out
+
+
+# -- dask ---------------------------------------------------------------------------------
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError as err:
+        raise ImportError("sweep: engine='dask' needs dask.distributed, an optional "
+                          "dependency: pip install 'softflow[dask]' (or pip install "
+                          f"'dask[distributed]'); import failed: {err}") from None
+    return distributed
+
+
+# per worker thread: (sweep token, Simulation), so that threads never share a model
+_LOCAL = threading.local()
+
+
+def _dask_chunk(chunk, blob, token, outputs, times):
+    held = getattr(_LOCAL, "sim", None)
+    if held is None or held[0] != token:
+        _LOCAL.sim = held = (token, pickle.loads(blob))
+    return _run_chunk(held[1], chunk, outputs, times)
+
+
+def _dask(sim, variants, outputs, times, bar, client, workers):
+    distributed = _import_distributed()
+    own = client is None
+    cluster = None
+    if own:
+        import logging
+        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
+                                           processes=True, dashboard_address=None,
+                                           silence_logs=logging.ERROR)
+        client = distributed.Client(cluster)
+    try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        chunks = _chunks(variants, n_workers)
+        blob = client.scatter(_pickled(sim, "dask"), broadcast=True)
+        token = uuid.uuid4().hex
+        futures = client.map(_dask_chunk, chunks, blob=blob, token=token, outputs=outputs,
+                             times=times, pure=False)
+        which = {f.key: chunk for f, chunk in zip(futures, chunks)}
+        out = [None] * len(variants)
+        for future in distributed.as_completed(futures):
+            chunk = which[future.key]
+            try:
+                done = future.result()
+            except Exception as err:
+                done = _lost(chunk, err, outputs, times)
+            for i, outcome in done:
+                out[i] = outcome
+            if bar is not None:
+                bar.update(len(chunk))
+        return out
+    finally:
+        if own:
+            client.close()
+            cluster.close()
+
+
+# -- batched ------------------------------------------------------------------------------
+def _batched_runner():
+    import importlib
+    import importlib.util
+    if importlib.util.find_spec("softflow.solve.batched") is None:
+        raise NotImplementedError("sweep: engine='batched' needs softflow.solve.batched "
+                                  "(_run_batched), which this softflow does not have yet; "
+                                  "use engine='processes' or 'dask'")
+    module = importlib.import_module("softflow.solve.batched")
+    runner = getattr(module, "_run_batched", None)
+    if runner is None:
+        raise NotImplementedError("sweep: engine='batched': softflow.solve.batched has no "
+                                  "_run_batched(sim, variants)")
+    return runner
+
+
+# ----------------------------------------------------------------------------------------
+# ``import softflow.sweep`` makes the package attribute ``softflow.sweep`` this module
+# (the import system sets it), where ``sf.sweep`` is otherwise the function: the module
+# is callable as the function, so ``sf.sweep(sim, params)`` works either way.
+class _CallableModule(types.ModuleType):
+    def __call__(self, *args, **kwargs):
+        return sweep(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule
