@@ -70,6 +70,11 @@ def to_si(value, unit: str, *, name: str, owner: str | None = None):
     owner : str, optional
         Who owns the parameter, e.g. ``"CircularTube 'tube'"``.
     """
+    tp = type(value)
+    if tp is float:
+        return value            # a plain SI number, the common case: no pint, no NumPy
+    if tp is int:
+        return float(value)
     where = f"{owner}: " if owner else ""
     if isinstance(value, pint.Quantity):
         target = ureg.Unit(unit)

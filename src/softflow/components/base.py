@@ -21,6 +21,7 @@ once per Simulation into a :class:`Params` namespace.
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 
@@ -105,21 +106,41 @@ class LibraryComponent(Component):
     def __init__(self, label, fluid=None):
         super().__init__(label)
         self.fluid = fluid
+        cls = type(self)
+        templates = _INTERFACE.get(cls)
+        if templates is None:
+            templates = _interface_templates(cls)
+        if templates is _CUSTOM:
+            # a subclass that redefines set_terminals/set_states gets them called
+            terms = []
+            for tlabel, vars_ in self.terminal_spec:
+                vs = [Variable(q, role, label=lab,
+                               initial_value=pressure_atmospheric if q == "pressure" else 0.0)
+                      for q, role, lab in vars_]
+                terms.append(Terminal(tlabel, vs))
+            self.set_terminals(*terms)
+            self.set_states(*[Variable(q, "local", label=lab) for lab, q in self.state_spec])
+            return
+        # the interface, checked once per class (see _interface_templates), copied
+        terminal_templates, state_templates = templates
         terms = []
-        for tlabel, vars_ in self.terminal_spec:
-            vs = [Variable(q, role, label=lab,
-                           initial_value=pressure_atmospheric if q == "pressure" else 0.0)
-                  for q, role, lab in vars_]
-            terms.append(Terminal(tlabel, vs))
-        self.set_terminals(*terms)
-        self.set_states(*[Variable(q, "local", label=lab) for lab, q in self.state_spec])
+        for tlabel, vars_ in terminal_templates:
+            t = _of_checked(tlabel, [v.copy() for v in vars_])
+            t.component = self
+            terms.append(t)
+        self.terminals = terms
+        self.states = [v.copy() for v in state_templates]
 
     # -- helpers for subclasses ------------------------------------------------------
     def _si(self, value, unit, name, *, positive=False, nonnegative=False):
-        v = to_si(value, unit, name=name, owner=self.describe())
-        if np.ndim(v) != 0:
-            raise ValueError(f"{self.describe()}: {name} must be a scalar, got an array")
-        if not np.isfinite(v):
+        tp = type(value)
+        if tp is float or tp is int:
+            v = float(value)    # a plain SI number: what to_si would return
+        else:
+            v = to_si(value, unit, name=name, owner=self.describe())
+            if np.ndim(v) != 0:
+                raise ValueError(f"{self.describe()}: {name} must be a scalar, got an array")
+        if not _isfinite(v):
             raise ValueError(f"{self.describe()}: {name} must be finite, got {v}")
         if positive and not v > 0:
             raise ValueError(f"{self.describe()}: {name} must be > 0 [{unit}], got {v}")
@@ -129,15 +150,13 @@ class LibraryComponent(Component):
 
     def _check_fluid_state(self, pressure, name):
         """A fluid-range error for an initial state, naming this component and parameter."""
-        from ..fluids.base import FluidError
         try:
             self.fluid.density(pressure)
-        except FluidError as err:
-            raise FluidError(f"{self.describe()}: {name} = {pressure:.6g} Pa: {err}") from None
+        except _fluid_base().FluidError as err:
+            raise _fluid_base().FluidError(f"{self.describe()}: {name} = {pressure:.6g} Pa: {err}") from None
 
     def _check_fluid(self, fluid):
-        from ..fluids.base import Fluid
-        if not isinstance(fluid, Fluid):
+        if not isinstance(fluid, _fluid_base().Fluid):
             raise TypeError(f"{self.describe()}: fluid must be a softflow Fluid (e.g. sf.air, "
                             f"sf.water), got {fluid!r}")
         return fluid
@@ -220,13 +239,64 @@ class LibraryComponent(Component):
         return None
 
 
+def _fluid_base():
+    """softflow.fluids.base, imported on first use (it loads the fluid stack)."""
+    global _FLUID_BASE
+    if _FLUID_BASE is None:
+        from ..fluids import base
+        _FLUID_BASE = base
+    return _FLUID_BASE
+
+
+_FLUID_BASE = None
+_isfinite = math.isfinite
+_of_checked = Terminal._of_checked
+
+#: per library class: (((terminal label, (Variable, ...)), ...), (state Variable, ...)),
+#: the interface its constructor copies, or _CUSTOM
+_INTERFACE: dict = {}
+_CUSTOM = object()
+
+
+def _interface_templates(cls):
+    """The interface of a library class, built and checked once, the way
+    ``Terminal(...)``, ``set_terminals`` and ``set_states`` build and check it
+    for each instance; ``_CUSTOM`` where the class redefines those methods."""
+    if (cls.set_terminals is not Component.set_terminals
+            or cls.set_states is not Component.set_states):
+        _INTERFACE[cls] = _CUSTOM
+        return _CUSTOM
+    probe = Component.__new__(cls)
+    Component.__init__(probe, "interface")
+    try:
+        terms = []
+        for tlabel, vars_ in cls.terminal_spec:
+            vs = [Variable(q, role, label=lab,
+                           initial_value=pressure_atmospheric if q == "pressure" else 0.0)
+                  for q, role, lab in vars_]
+            terms.append(Terminal(tlabel, vs))
+        Component.set_terminals(probe, *terms)
+        Component.set_states(probe, *[Variable(q, "local", label=lab)
+                                      for lab, q in cls.state_spec])
+    except (TypeError, ValueError):
+        # an ill-declared class: each instance builds (and fails) as it always did
+        _INTERFACE[cls] = _CUSTOM
+        return _CUSTOM
+    templates = (tuple((t.label, tuple(t.variables)) for t in probe.terminals),
+                 tuple(probe.states))
+    _INTERFACE[cls] = templates
+    return templates
+
+
 def _recording(init):
     """``init`` that first keeps the arguments it was called with (the
     outermost constructor's, once) as ``_definition``: run-time parameters
     rebuild a component from them (:mod:`softflow.solve.params`)."""
     @functools.wraps(init)
     def __init__(self, *args, **kwargs):
-        if "_definition" not in self.__dict__:
+        # getattr, not self.__dict__: reading __dict__ would make every
+        # instance build its attribute dict (time, and one more object to collect)
+        if getattr(self, "_definition", None) is None:
             self._definition = (args, kwargs)
         init(self, *args, **kwargs)
     return __init__

@@ -225,9 +225,17 @@ def friction_names():
     return sorted(set(fluids.friction.fmethods) | set(ANALYTIC_FRICTION) | {"laminar"})
 
 
+#: names already resolved (every tube of a network asks for the same one or two)
+_RESOLVED: dict = {}
+
+
 def resolve_friction(name):
     """Canonical name of a friction correlation given loosely ('Swamee-Jain',
     'churchill', 'Colebrook'); raises KeyError listing close matches."""
+    if type(name) is str:
+        known = _RESOLVED.get(name)
+        if known is not None:
+            return known
     import difflib
 
     if not isinstance(name, str):
@@ -237,9 +245,11 @@ def resolve_friction(name):
     lowered = {n.lower(): n for n in names}
     lowered.update(_ALIASES)
     if key in lowered:
+        _RESOLVED[name] = lowered[key]
         return lowered[key]
     starts = [n for n in names if n.lower().startswith(key + "_")]
     if len(starts) == 1:
+        _RESOLVED[name] = starts[0]
         return starts[0]
     close = difflib.get_close_matches(key, list(lowered), n=4, cutoff=0.6)
     hint = (f"; did you mean {', '.join(repr(lowered[c]) for c in close)}?" if close

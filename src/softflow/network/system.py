@@ -107,6 +107,15 @@ class System:
 
     def _resolve(self, spec, taken):
         """Turn a connect() argument into its terminal's key."""
+        if type(spec) is str:
+            # the common case first (a str is none of the types tested below)
+            comp = self._by_label.get(spec)
+            if comp is not None:
+                connected = self._connected
+                for k in range(len(comp.terminals)):
+                    key = (spec, k)
+                    if key not in connected and key not in taken:
+                        return key
         if isinstance(spec, Terminal):
             key = self._key(spec)
             if key is None:
@@ -158,16 +167,20 @@ class System:
         if len(specs) < 2:
             raise NetworkError("connect: give at least two terminals to join")
         taken = []
+        resolve = self._resolve
         for s in specs:
-            key = self._resolve(s, taken)
+            key = resolve(s, taken)
             if key in taken:
                 t = self._by_label[key[0]].terminals[key[1]]
                 raise NetworkError(f"connect: terminal {t.name!r} is given twice; a component "
                                    "cannot be connected to itself through one terminal")
             taken.append(key)
-        roots = [self._find(tid) for tid in taken]
-        for r in roots[1:]:
-            self._parent[r] = roots[0]
+        find, parent = self._find, self._parent
+        root = find(taken[0])
+        for tid in taken[1:]:
+            r = find(tid)
+            if r != root:
+                parent[r] = root
         self._connected.update(taken)
         return self
 

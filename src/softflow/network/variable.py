@@ -38,7 +38,9 @@ class Variable:
         self.quantity = quantity
         self.role = role
         self.label = label if label is not None else quantity
-        if initial_value is not None:
+        if type(initial_value) is float:
+            pass            # a plain SI float: nothing to convert or check
+        elif initial_value is not None:
             unit = quantity_unit(quantity)
             if unit is not None:
                 initial_value = to_si(initial_value, unit, name="initial_value",
@@ -49,14 +51,19 @@ class Variable:
         self.initial_value = initial_value
 
     def copy(self) -> "Variable":
-        new = Variable.__new__(Variable)
-        for name in self.__slots__:
-            setattr(new, name, getattr(self, name))
+        new = _new_variable(Variable)
+        new.quantity = self.quantity
+        new.role = self.role
+        new.label = self.label
+        new.initial_value = self.initial_value
         return new
 
     def __repr__(self):
         return (f"Variable({self.quantity!r}, {self.role!r}, label={self.label!r}, "
                 f"initial_value={self.initial_value!r})")
+
+
+_new_variable = object.__new__
 
 
 class Terminal:
@@ -84,6 +91,17 @@ class Terminal:
         self.variables = [v.copy() for v in variables]
         self.component = None  # set by Component.set_terminals
 
+    @classmethod
+    def _of_checked(cls, label, variables):
+        """A Terminal of ``variables`` (new Variables, already checked, this
+        terminal's own): the constructor's result without its checks and
+        copies, for library classes whose interface is checked once per class."""
+        t = _new_terminal(cls)
+        t.label = label
+        t.variables = variables
+        t.component = None
+        return t
+
     @property
     def across(self):
         return [v for v in self.variables if v.role == "across"]
@@ -99,3 +117,6 @@ class Terminal:
 
     def __repr__(self):
         return f"Terminal({self.name!r}, {[v.label for v in self.variables]})"
+
+
+_new_terminal = object.__new__

@@ -1,0 +1,111 @@
+"""Fixed costs (issue 13, item 6 "Faster start"): building a large System,
+compiling it into a Simulation, and the per-run overhead of a small scene.
+
+    python benchmarks/bench_build.py                  # N = 10 000, 5 repeats
+    python benchmarks/bench_build.py --n 2000 --repeat 3 --runs 200
+
+(1) build: PressureSource -> (CircularTube('t{i}', air, 0.1, 1e-3) ->
+    Container('c{i}', air, 1e-6)) x N, chained with connect(prev, 't{i}') and
+    connect('t{i}', 'c{i}'): constructors + connect, per component;
+(2) compile: sf.Simulation(s, duration=0.01, step=1e-3) on that System, per
+    component;
+(3) a small scene's fixed per-run cost: source-tube-container, one fixed 1 ms
+    step, repeated sim.run().
+
+Each figure is the median over --repeat repeats with its range (min-max); the
+last column is the median's ratio to the issue's target (<= 1 meets it).
+Timings are wall clock: note the machine's load (printed) next to them.
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import os
+import statistics
+import time
+import warnings
+
+import softflow as sf
+
+#: issue 13 targets: build and compile [us per component], per-run cost [ms]
+TARGET_BUILD_US = 20.0
+TARGET_COMPILE_US = 10.0
+TARGET_RUN_MS = 0.5
+
+
+def build_chain(n):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=1.2e5)
+    prev = "src"
+    for i in range(n):
+        s += sf.CircularTube(f"t{i}", sf.air, 0.1, 1e-3)
+        s += sf.Container(f"c{i}", sf.air, 1e-6)
+        s.connect(prev, f"t{i}")
+        s.connect(f"t{i}", f"c{i}")
+        prev = f"c{i}"
+    return s
+
+
+def small_scene():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=1.2e5)
+    s += sf.CircularTube("t", sf.air, 0.1, 1e-3)
+    s += sf.Container("c", sf.air, 1e-6)
+    s.connect("src", "t")
+    s.connect("t", "c")
+    return s
+
+
+def summary(values):
+    return statistics.median(values), min(values), max(values)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=10_000, help="tube+container pairs")
+    ap.add_argument("--repeat", type=int, default=5, help="repeats of build and compile")
+    ap.add_argument("--runs", type=int, default=300, help="small-scene runs per repeat")
+    args = ap.parse_args()
+
+    # validity findings of these scenes (a fast-filling tank) are not the subject
+    warnings.simplefilter("ignore", sf.ModelWarning)
+    # warm up: imports, lazy modules, first-call caches
+    sim = sf.Simulation(build_chain(10), duration=0.01, step=1e-3)
+    sim.run()
+
+    build_us, compile_us, run_ms = [], [], []
+    for _ in range(args.repeat):
+        gc.collect()
+        t0 = time.perf_counter()
+        s = build_chain(args.n)
+        t1 = time.perf_counter()
+        sf.Simulation(s, duration=0.01, step=1e-3)
+        t2 = time.perf_counter()
+        build_us.append((t1 - t0) / len(s) * 1e6)
+        compile_us.append((t2 - t1) / len(s) * 1e6)
+        del s
+
+    sim = sf.Simulation(small_scene(), duration=1e-3, step=1e-3)
+    sim.run()
+    for _ in range(args.repeat):
+        ts = []
+        for _ in range(args.runs):
+            t0 = time.perf_counter()
+            sim.run()
+            ts.append(time.perf_counter() - t0)
+        run_ms.append(statistics.median(ts) * 1e3)
+
+    load = os.getloadavg()
+    print(f"N = {args.n} pairs ({2 * args.n + 1} components), {args.repeat} repeats; "
+          f"{os.cpu_count()} CPUs, load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
+    print(f"{'':32s} {'median':>9s} {'min-max':>17s} {'target':>8s} {'ratio':>6s}")
+    rows = [("build System [us/component]", build_us, TARGET_BUILD_US),
+            ("Simulation(...) [us/component]", compile_us, TARGET_COMPILE_US),
+            ("small run() [ms/run]", run_ms, TARGET_RUN_MS)]
+    for name, values, target in rows:
+        med, lo, hi = summary(values)
+        print(f"{name:32s} {med:9.2f} {lo:8.2f}-{hi:<8.2f} {target:8.2f} {med / target:6.2f}")
+
+
+if __name__ == "__main__":
+    main()
