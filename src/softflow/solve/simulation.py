@@ -113,6 +113,12 @@ class Simulation:
         Labels of the components whose variables are kept at every step;
         default all. For networks of 1e5 components, keeping everything costs
         about as much as solving (memory bandwidth).
+    beyond_limits : {'error', 'warn'}, default 'error'
+        What a run does where a model passes its own maximum (a gas tube
+        choking, :mod:`softflow.solve.model_checks`): 'error' stops it there
+        (SimulationError; the result up to that point has status 'failed'),
+        'warn' returns the whole run with a ModelWarning. Validity findings
+        short of that are always warnings (``result.warnings``).
     max_steps : int, default 10**7
         Most steps a run may take (accepted and rejected). A fixed ``step``
         (or a ``step_max``) that needs more over ``duration`` is refused at
@@ -123,7 +129,7 @@ class Simulation:
                  max_order=MAX_ORDER, step_min=None, step_max=None, rtol=1e-3, atol=None,
                  newton_rtol=1e-6, linear_solver="auto",
                  breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal",
-                 max_steps=MAX_STEPS):
+                 max_steps=MAX_STEPS, beyond_limits="error"):
         # what the Simulation is made of, for pickling: its compiled model holds
         # generated code, which is rebuilt from these on load
         self._definition = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
@@ -162,6 +168,10 @@ class Simulation:
         if not 0 < self.step_min <= self.step_max:
             raise ValueError(f"Simulation: need 0 < step_min <= step_max, got {self.step_min}, "
                              f"{self.step_max}")
+        if beyond_limits not in ("error", "warn"):
+            raise ValueError(f"Simulation: beyond_limits must be 'error' or 'warn', got "
+                             f"{beyond_limits!r}")
+        self.beyond_limits = beyond_limits
         self.max_steps = _check_max_steps(max_steps, self.duration, self.step, self.step_max,
                                           self.adaptive)
         self.rtol = to_si(rtol, "", name="rtol", owner=owner)
@@ -172,7 +182,8 @@ class Simulation:
         # default floors are set for rtol = 1e-3 and follow rtol (tolerance
         # proportionality: rtol = 1e-8 with 1 Pa floors would stop at 1 Pa)
         self.atol = {q: v * self.rtol / 1e-3 for q, v in DEFAULT_ATOL.items()}
-        known = _quantities(system)
+        # every variable's quantity, looked up only where an atol names one
+        known = _quantities(system) if atol else ()
         for q, v in (atol or {}).items():
             if q not in known:
                 raise KeyError(f"Simulation: atol names unknown quantity {q!r}; the quantities "
@@ -345,6 +356,19 @@ class Simulation:
                         message="" if error is None else str(error), stats=info,
                         recorded=self.record, integrals=integrals)
         result.warnings = check_result(asm, result)     # model validity (validity.py)
+        fatal = [w for w in result.warnings if w.details.get("fatal")]
+        if fatal and error is None and self.beyond_limits == "error":
+            # past a model's own maximum (a choked tube): no result from there on
+            first = min(fatal, key=lambda w: w.details["first_time"])
+            cut = max(1, int(np.searchsorted(t, first.details["first_time"])))
+            error = SimulationError(f"stopped at t = {first.details['first_time']:.6g} s: "
+                                    f"{first.message}", time=first.details["first_time"],
+                                    component=first.component)
+            records = result.warnings
+            result = Result(asm, t[:cut], X[:cut], S[:cut], status="failed",
+                            message=str(error), stats=info, recorded=self.record,
+                            integrals=None if integrals is None else integrals[:cut])
+            result.warnings = records
         issue(result.warnings)
         self.result = result
         remember_result(self.system.components, result)

@@ -111,6 +111,8 @@ def _register_library_checks() -> None:
     from ..components.actuators import Actuator, HystereticActuator
     register(Actuator, pv_curve_range)
     register(HystereticActuator, pv_curve_range)
+    from .model_checks import register_all     # tubes, orifices, gases, thermal
+    register_all(register)
 
 
 def check_result(asm: Any, result: Any) -> list[ValidityRecord]:

@@ -1,0 +1,273 @@
+"""Validity checks of softflow's physical models, run on every solution.
+
+Registered with :func:`softflow.solve.validity.register`; each looks at the
+recorded solution of one compiled group (a few array reductions) and returns
+:class:`~softflow.solve.validity.ValidityRecord` s. A record whose
+``details['fatal']`` is True is a result from past a model's own maximum:
+the run stops there (:class:`softflow.solve.simulation.SimulationError`,
+status 'failed', the result cut before it) instead of returning it.
+
+Checks
+------
+``tube_reynolds``
+    A tube with ``friction='laminar'`` whose Reynolds number passed its
+    ``Re_laminar`` (2 300): Hagen–Poiseuille under-predicts the pressure drop
+    of transitional and turbulent flow.
+``tube_mach`` / ``tube_choked``
+    Gas tubes: the Mach number at the tube's low-pressure end, v/c with
+    v = |mdot| / (rho(p_low) A). Both tube laws stop being valid where
+    isothermal pipe flow chokes, at v = sqrt(R T), i.e. Mach 1/sqrt(gamma)
+    (0.845 for air; Crane TP-410; ``fluids.compressible.isothermal_gas``
+    finds the same limit): more pressure difference would not give more flow,
+    and a law that keeps giving more (or past its maximum, less) returns a
+    wrong answer. That is fatal (``tube_choked``). Below it, the default
+    ``compressible='mean_density'`` law neglects the gas's acceleration, which
+    matters from about Mach 0.3 (``tube_mach``; use ``compressible='isothermal'``).
+``orifice_choked``
+    An orifice given by K or Cd (an incompressible law) with a gas, at a
+    pressure ratio below the critical ratio (2/(gamma+1))^(gamma/(gamma-1))
+    (0.528 for air): the real flow is choked there; the ISO 6358 model
+    (``C``, ``b``) describes it.
+``gas_compressibility``
+    A gas at the ``ideal`` level whose compressibility factor Z (from CoolProp
+    at the pressures and temperatures the run visited) differs from 1 by more
+    than ``max(10 rtol, 1e-3)``: the ideal-gas density is off by that much.
+``thermal_time_scale``
+    An isothermal gas volume that filled or emptied much faster than its wall
+    can exchange heat: the time scale m / |mdot| against the thermal time
+    constant m cv / (h A) with h from free convection (a sphere of the
+    volume's size, 10 K difference: an estimate). Faster than a tenth of it,
+    the gas is closer to adiabatic than to isothermal.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..constants import pressure_atmospheric
+from .validity import ValidityRecord, group_values
+
+#: Mach number at the low-pressure end above which the mean-density tube law's
+#: neglect of the gas's acceleration is no longer small (~5 % of the drop).
+MACH_INCOMPRESSIBLE = 0.3
+#: A volume's fill time below this fraction of its thermal time constant is
+#: reported as not isothermal.
+THERMAL_FRACTION = 0.1
+#: Temperature difference [K] and heat-transfer shape assumed for the thermal
+#: time constant of a volume that has no thermal model.
+THERMAL_DT = 10.0
+
+
+def _record(comp, check, measured, limit, unit, suggestion, message, **details):
+    return ValidityRecord(component=comp.label, check=check, measured=float(measured),
+                          limit=float(limit), unit=unit, suggestion=suggestion,
+                          message=f"{comp.describe()}: {message} Suggestion: {suggestion}",
+                          details=details)
+
+
+def _rtol(result):
+    return float(result.stats.get("rtol", 1e-3))
+
+
+# -- tubes ---------------------------------------------------------------------------
+def tube_reynolds(g, result):
+    comp0 = g.comps[0]
+    if getattr(comp0, "friction", None) != "laminar":
+        return []
+    keep, mf = group_values(g, result, "massflow_a")
+    out = []
+    for j, i in enumerate(keep):
+        c = g.comps[i]
+        area = math.pi * c.diameter ** 2 / 4
+        mu = float(c.fluid.viscosity(pressure_atmospheric))
+        re = np.abs(mf[:, j]) * c.diameter / (mu * area)
+        k = int(np.argmax(re))
+        if re[k] > c.Re_laminar:
+            out.append(_record(
+                c, "tube_reynolds", re[k], c.Re_laminar, "",
+                "use a turbulent correlation (friction='Haaland', the default, blends "
+                "laminar and turbulent flow)",
+                f"Reynolds number reached {re[k]:.4g} at t = {result.times[k]:.6g} s, past "
+                f"Re_laminar = {c.Re_laminar:g} of its friction='laminar' law, which then "
+                "under-predicts the pressure drop.", time=float(result.times[k])))
+    return out
+
+
+def tube_mach(g, result):
+    comp0 = g.comps[0]
+    fluid = comp0.fluid
+    if fluid is None or not fluid.compressible:
+        return []
+    keep, mf = group_values(g, result, "massflow_a")
+    if not keep:
+        return []
+    _, pa = group_values(g, result, "pressure_a")
+    _, pb = group_values(g, result, "pressure_b")
+    out = []
+    for j, i in enumerate(keep):
+        c = g.comps[i]
+        p_low = np.minimum(pa[:, j], pb[:, j])
+        p_high = np.maximum(pa[:, j], pb[:, j])
+        area = math.pi * c.diameter ** 2 / 4
+        with np.errstate(all="ignore"):
+            v = np.abs(mf[:, j]) / (fluid.density(p_low) * area)
+            mach = v / fluid.speed_of_sound(p_low)
+        gamma = float(fluid.gamma(pressure_atmospheric))
+        choke = 1.0 / math.sqrt(gamma)
+        k = int(np.nanargmax(mach))
+        if not mach[k] > MACH_INCOMPRESSIBLE:
+            continue
+        t = float(result.times[k])
+        ratio = float(p_low[k] / p_high[k])
+        if mach[k] >= choke:
+            first = int(np.argmax(mach >= choke))
+            out.append(_record(
+                c, "tube_choked", mach[k], choke, "",
+                "choked tube flow is not modelled: lower the pressure ratio, shorten or "
+                "widen the tube, or model the restriction as an Orifice with the ISO 6358 "
+                "law (C, b), which chokes",
+                f"gas flow chokes: Mach {mach[k]:.3g} at its low-pressure end at t = {t:.6g} s "
+                f"(pressure ratio p_low/p_high = {ratio:.3g}), past the isothermal choking "
+                f"limit Mach 1/sqrt(gamma) = {choke:.3g}, where more pressure difference "
+                "gives no more flow; the tube law has left its range.",
+                fatal=True, first_time=float(result.times[first]), pressure_ratio=ratio,
+                time=t))
+        elif getattr(c, "compressible", None) == "mean_density":
+            out.append(_record(
+                c, "tube_mach", mach[k], MACH_INCOMPRESSIBLE, "",
+                "use CircularTube(..., compressible='isothermal'), which adds the gas's "
+                "acceleration",
+                f"Mach {mach[k]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
+                f"{ratio:.3g}): the mean-density law neglects the gas's acceleration, which is "
+                f"no longer small past Mach {MACH_INCOMPRESSIBLE}.", time=t))
+    return out
+
+
+def orifice_choked(g, result):
+    comp0 = g.comps[0]
+    fluid = comp0.fluid
+    if fluid is None or not fluid.compressible or getattr(comp0, "model", None) == "ISO 6358":
+        return []
+    keep, pa = group_values(g, result, "pressure_a")
+    if not keep:
+        return []
+    _, pb = group_values(g, result, "pressure_b")
+    gamma = float(fluid.gamma(pressure_atmospheric))
+    critical = (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))
+    out = []
+    for j, i in enumerate(keep):
+        c = g.comps[i]
+        ratio = np.minimum(pa[:, j], pb[:, j]) / np.maximum(pa[:, j], pb[:, j])
+        k = int(np.argmin(ratio))
+        if ratio[k] < critical:
+            out.append(_record(
+                c, "orifice_choked", ratio[k], critical, "",
+                "give the orifice by its ISO 6358 sonic conductance and critical ratio "
+                "(Orifice(..., C=..., b=...)), which chokes",
+                f"pressure ratio p_low/p_high reached {ratio[k]:.3g} at t = "
+                f"{result.times[k]:.6g} s, below the critical ratio {critical:.3g}: the real "
+                "flow is choked there, and the incompressible K/Cd law over-predicts it.",
+                time=float(result.times[k])))
+    return out
+
+
+# -- gases ---------------------------------------------------------------------------
+def gas_compressibility(g, result):
+    comp0 = g.comps[0]
+    fluid = comp0.fluid
+    if fluid is None or not fluid.compressible or fluid.level != "ideal":
+        return []
+    keep, p = group_values(g, result, "pressure")
+    if not keep or not p.size:
+        return []
+    T = [float(fluid.temperature)]
+    try:
+        _, temps = group_values(g, result, "temperature")
+        if temps.size:
+            T = [float(np.nanmin(temps)), float(np.nanmax(temps))]
+    except KeyError:
+        pass
+    with np.errstate(all="ignore"):
+        p_max = np.nanmax(p, axis=0)
+    j = int(np.nanargmax(p_max))
+    c = g.comps[keep[j]]
+    limit = max(10 * _rtol(result), 1e-3)
+    # Z - 1 = B p / (R T) to first order; |B| < 1.5e-4 m^3/mol for common gases
+    # (CO2: 1.2e-4 at 20 C), so below this pressure CoolProp need not be asked
+    if float(p_max[j]) * 1.5e-4 / (8.314 * min(T)) <= limit:
+        return []
+    try:
+        from ..fluids.base import Fluid
+        real = Fluid(fluid.name, level="eos", temperature=T[0])
+        pressures = np.array([float(np.nanmin(p)), float(p_max[j])])
+        z = [float(real.compressibility(pp, tt)) for pp in pressures for tt in T]
+    except Exception:        # a fluid CoolProp does not know, or a state outside it
+        return []
+    dz = max(z, key=lambda v: abs(v - 1.0)) - 1.0
+    if abs(dz) <= limit:
+        return []
+    return [_record(
+        c, "gas_compressibility", dz, limit, "",
+        f"use the fluid's 'table' or 'eos' level (sf.{fluid.name}.with_level('table'))",
+        f"the ideal-gas density of {fluid.name} is off by Z - 1 = {dz:+.3g} at the pressures "
+        f"the run reached (up to {pressures[1] / 1e5:.4g} bar) and {', '.join(f'{x:.4g}' for x in T)} "
+        f"K, more than {limit:.3g} (10 x rtol).", pressure=float(pressures[1]))]
+
+
+# -- thermal -------------------------------------------------------------------------
+def thermal_time_scale(g, result):
+    comp0 = g.comps[0]
+    fluid = comp0.fluid
+    if fluid is None or not fluid.compressible or getattr(comp0, "_thermal", None) is not None:
+        return []
+    keep, mass = group_values(g, result, "mass")
+    if not keep:
+        return []
+    _, mf = group_values(g, result, "massflow")
+    _, p = group_values(g, result, "pressure")
+    out = []
+    from ..correlations.heat_transfer import FreeConvection
+    sphere = FreeConvection("sphere")
+    for j, i in enumerate(keep):
+        c = g.comps[i]
+        flow = np.abs(mf[:, j])
+        k = int(np.argmax(flow))
+        if not flow[k] > 0:
+            continue
+        m = float(mass[k, j])
+        t_fill = m / float(flow[k])
+        T = float(fluid.temperature)
+        vol = m / float(fluid.density(p[k, j]))
+        length = sphere.characteristic_length(vol)
+        area = math.pi * length ** 2
+        try:
+            h = float(sphere.coefficient(fluid, p[k, j], T + THERMAL_DT, T, length))
+        except Exception:      # a fluid without conductivity: no estimate
+            continue
+        t_thermal = m * float(fluid.cv(p[k, j])) / (h * area)
+        if t_fill < THERMAL_FRACTION * t_thermal:
+            out.append(_record(
+                c, "thermal_time_scale", t_fill, THERMAL_FRACTION * t_thermal, "s",
+                "run the scene with thermal='adiabatic' (or 'heat_transfer' with the "
+                "volume's area and a heat-transfer coefficient)",
+                f"its gas filled or emptied on a time scale m/|mdot| = {t_fill:.3g} s at "
+                f"t = {result.times[k]:.6g} s, much faster than its wall exchanges heat (thermal "
+                f"time constant ~{t_thermal:.3g} s, free convection estimate): the gas is "
+                "closer to adiabatic than to the isothermal model, and its pressure swings "
+                "are larger than computed.", thermal_time_constant=t_thermal,
+                time=float(result.times[k])))
+    return out
+
+
+def register_all(register):
+    from ..components.actuators import Actuator, HystereticActuator
+    from ..components.chambers import Container, LinearAccumulator
+    from ..components.tubes import CircularTube
+    from ..components.valves import Orifice
+    register(CircularTube, tube_reynolds)
+    register(CircularTube, tube_mach)
+    register(Orifice, orifice_choked)
+    for cls in (Container, LinearAccumulator, Actuator, HystereticActuator):
+        register(cls, gas_compressibility)
+        register(cls, thermal_time_scale)

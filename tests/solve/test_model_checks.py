@@ -1,0 +1,153 @@
+"""Validity checks of the physical models (softflow.solve.model_checks): each
+limit from both sides, against independent references where there is one."""
+import warnings
+
+import numpy as np
+import pytest
+from fluids.compressible import P_isothermal_critical_flow, isothermal_gas
+from fluids.friction import friction_factor
+
+import softflow as sf
+
+P0 = sf.pressure_atmospheric
+
+
+def _checks(res):
+    return {w.check for w in res.warnings}
+
+
+def _tube(p1, p2, *, length=1.0, diameter=4e-3, **kw):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=p1)
+    s += sf.CircularTube("tube", sf.air, length, diameter, **kw)
+    s += sf.PressureSource("out", pressure=p2)
+    s.connect("src", "tube")
+    s.connect("tube", "out")
+    return s
+
+
+def _run(system, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        return sf.Simulation(system, duration=0.01, **kw).run(raise_on_failure=False)
+
+
+def _critical_outlet_pressure(p1, length, diameter):
+    """fluids' isothermal critical outlet pressure, with the Haaland friction
+    factor at the critical flow (fixed point)."""
+    area = np.pi * diameter ** 2 / 4
+    mu = float(sf.air.viscosity(P0))
+    fd = 0.03
+    for _ in range(30):
+        p2 = P_isothermal_critical_flow(P=p1, fd=fd, D=diameter, L=length)
+        m = isothermal_gas(rho=float(sf.air.density(p1)), fd=fd, P1=p1, P2=p2 * (1 + 1e-9),
+                           L=length, D=diameter)
+        fd = friction_factor(Re=m * diameter / (mu * area), eD=1.5e-6 / diameter,
+                             Method="Haaland")
+    return p2
+
+
+@pytest.mark.parametrize("factor, choked", [(0.97, True), (1.03, False)])
+def test_choking_against_the_isothermal_critical_pressure_of_fluids(factor, choked):
+    p1 = 3e5
+    p2 = factor * _critical_outlet_pressure(p1, 1.0, 4e-3)     # ~1.05 bar
+    res = _run(_tube(p1, p2, compressible="isothermal"))
+    assert ("tube_choked" in _checks(res)) is choked
+    if choked:       # no result from past the model's maximum
+        assert res.status == "failed"
+        assert "tube" in res.message and "pressure ratio" in res.message
+        assert "0.845" in res.message      # the limit, Mach 1/sqrt(1.4)
+        with pytest.raises(sf.SimulationError, match="gas flow chokes"):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", sf.ModelWarning)
+                sf.Simulation(_tube(p1, p2, compressible="isothermal"), duration=0.01).run()
+    else:
+        assert res.success
+
+
+def test_a_choked_tube_can_be_returned_with_a_warning_instead():
+    with pytest.warns(sf.ModelWarning, match="gas flow chokes"):
+        res = sf.Simulation(_tube(1e6, 1e5), duration=0.01, beyond_limits="warn").run()
+    assert res.success and "tube_choked" in _checks(res)
+    with pytest.raises(ValueError, match="beyond_limits must be 'error' or 'warn'"):
+        sf.Simulation(_tube(1e6, 1e5), duration=0.01, beyond_limits="ignore")
+
+
+@pytest.mark.parametrize("p1, warned", [(1.25e5, True), (1.02e5 + 1e3, False)])
+def test_mean_density_law_past_mach_0_3_suggests_the_isothermal_law(p1, warned):
+    res = _run(_tube(p1, P0, length=0.2))
+    assert res.success
+    assert ("tube_mach" in _checks(res)) is warned
+    if warned:
+        w = next(w for w in res.warnings if w.check == "tube_mach")
+        assert 0.3 < w.measured < 0.845 and "compressible='isothermal'" in w.suggestion
+
+
+@pytest.mark.parametrize("dp, warned", [(2e4, True), (2e3, False)])
+def test_laminar_law_past_its_reynolds_range(dp, warned):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + dp)
+    s += sf.CircularTube("tube", sf.water, 1.0, 2e-3, friction="laminar")
+    s += sf.PressureSource("out", pressure=P0)
+    s.connect("src", "tube")
+    s.connect("tube", "out")
+    res = _run(s)
+    re = res.get("tube", "massflow_a")[-1] * 2e-3 / (sf.water.mu * np.pi * 1e-6)
+    assert bool(re > 2300) is warned     # Re ~5 000 and ~500
+    assert ("tube_reynolds" in _checks(res)) is warned
+
+
+@pytest.mark.parametrize("p1, warned", [(3e5, True), (1.3e5, False)])
+def test_incompressible_orifice_below_the_critical_pressure_ratio(p1, warned):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=p1)
+    s += sf.Orifice("o", sf.air, diameter=1e-3, K=2.0)
+    s += sf.PressureSource("out", pressure=1e5)
+    s.connect("src", "o")
+    s.connect("o", "out")
+    res = _run(s)
+    assert ("orifice_choked" in _checks(res)) is warned
+    iso = sf.System()
+    iso += sf.PressureSource("src", pressure=p1)
+    iso += sf.Orifice("o", sf.air, C=1e-8, b=0.3)
+    iso += sf.PressureSource("out", pressure=1e5)
+    iso.connect("src", "o")
+    iso.connect("o", "out")
+    assert "orifice_choked" not in _checks(_run(iso))      # ISO 6358 models choking
+
+
+@pytest.mark.parametrize("bar, rtol, warned", [(200.0, 1e-3, True), (5.0, 1e-3, False),
+                                               (20.0, 1e-4, True)])
+def test_ideal_gas_density_against_coolprop_z(bar, rtol, warned):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=bar * 1e5)
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-4, initial_pressure=bar * 1e5)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    res = _run(s, rtol=rtol)
+    assert ("gas_compressibility" in _checks(res)) is warned
+    z = float(sf.Fluid("air", level="eos").compressibility(bar * 1e5))
+    if warned:
+        w = next(w for w in res.warnings if w.check == "gas_compressibility")
+        assert w.measured == pytest.approx(z - 1, rel=1e-6)
+        assert "'table'" in w.suggestion
+    table = s   # the same scene at the table level: no finding
+    for c in table:
+        if getattr(c, "fluid", None) is not None:
+            c.fluid = sf.air.with_level("table")
+    assert "gas_compressibility" not in _checks(_run(table, rtol=rtol))
+
+
+@pytest.mark.parametrize("diameter, warned", [(4e-3, True), (0.1e-3, False)])
+def test_isothermal_volume_filled_faster_than_its_wall_exchanges_heat(diameter, warned):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=1.5e5)
+    s += sf.CircularTube("tube", sf.air, 0.1, diameter)
+    s += sf.Container("tank", sf.air, 1e-3)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    res = _run(s)
+    assert ("thermal_time_scale" in _checks(res)) is warned
+    adiabatic = _run(s, thermal="adiabatic")
+    assert "thermal_time_scale" not in _checks(adiabatic)
