@@ -11,6 +11,7 @@ of components' equations, contiguous per group.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from functools import partial
 
 import numpy as np
@@ -103,6 +104,16 @@ def _check_fluids_at_nodes(nodes):
     """Components joined at one node must carry the same fluid (name and solute
     fraction; level and temperature may differ): a different one is an interface
     the network does not model, and its mass balance would mix two fluids."""
+    fluids = {}
+    for nd in nodes:
+        for t in nd.terminals:
+            fluid = getattr(t.component if hasattr(t, "component") else None, "fluid", None)
+            if fluid is not None:
+                fluids[id(fluid)] = fluid
+        if len(fluids) > 1:
+            break
+    else:
+        return      # one fluid object everywhere (the common case): nothing can differ
     for nd in nodes:
         seen = {}
         for t in nd.terminals:
@@ -207,6 +218,66 @@ def _initial_states(c):
     return [float(v) for v in vals]
 
 
+class _Names(Sequence):
+    """Names of the unknowns or rows, for messages: spelled out on first use
+    (tens of thousands of f-strings were a fifth of compiling a large network).
+    A read-only sequence of str; pickles and copies as a list."""
+
+    def __init__(self, make):
+        self._make = make
+        self._list = None
+
+    def _names(self):
+        if self._list is None:
+            self._list = self._make()
+            self._make = None
+        return self._list
+
+    def __getitem__(self, i):
+        return self._names()[i]
+
+    def __len__(self):
+        return len(self._names())
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def index(self, value, *args):
+        return self._names().index(value, *args)
+
+    def __eq__(self, other):
+        return list(self._names()) == (list(other) if isinstance(other, (Sequence,)) else other)
+
+    def __reduce__(self):
+        return (list, (self._names(),))
+
+    def __repr__(self):
+        return repr(self._names())
+
+
+def _unknown_names(across_named, groups):
+    """Names of the unknowns in x order: node across unknowns, then each group's
+    interface variables that are not across ones (as compiled, g.iface)."""
+    names = [f"{nd.name} {q}" for nd, q in across_named]
+    for g in groups:
+        for c, (iface, _) in zip(g.comps, g.iface):
+            for term, v in iface:
+                if v.role != "across":
+                    where = f"{c.label}.{term}" if term else c.label
+                    names.append(f"{where} {v.label}")
+    return names
+
+
+def _row_names(node_through, groups):
+    """Names of the rows: node conservation rows, then each group's equations."""
+    names = [f"conservation of {q} at {nd.name}" for nd, q in node_through]
+    for g in groups:
+        for c in g.comps:
+            for e in range(g.neq):
+                names.append(f"equation {e} of {c.describe()}")
+    return names
+
+
 class Assembly:
     """Compiled network: evaluates residuals F(x) and Jacobian values for given
     states, time and step, with no knowledge of components beyond their kernels."""
@@ -226,22 +297,24 @@ class Assembly:
         _check_fluids_at_nodes(nodes)
         node_of = {id(t): nd for nd in nodes for t in nd.terminals}
 
-        names, quantities = [], []
+        # unknowns and rows are numbered here; their names (for messages) are
+        # spelled out on first use (_Names), from the lists of what they name
+        quantities = []
         across = {}
+        across_named = []           # (node, quantity) of each node across unknown
+        node_through = []           # (node, quantity) of each node conservation row
+        node_rows = {}
         for nd in nodes:
             for q in nd.quantities("across"):
-                across[(nd.index, q)] = len(names)
-                names.append(f"{nd.name} {q}")
+                across[(nd.index, q)] = len(quantities)
+                across_named.append((nd, q))
                 quantities.append(q)
-        #: node across unknowns (pressures, temperatures) are x[:n_across]
-        self.n_across = len(names)
-        node_rows = {}
-        row_names = []
-        for nd in nodes:
             for q in nd.quantities("through"):
-                node_rows[(nd.index, q)] = len(row_names)
-                row_names.append(f"conservation of {q} at {nd.name}")
-        self.n_node_rows = len(row_names)
+                node_rows[(nd.index, q)] = len(node_through)
+                node_through.append((nd, q))
+        #: node across unknowns (pressures, temperatures) are x[:n_across]
+        self.n_across = len(quantities)
+        self.n_node_rows = len(node_through)
 
         # groups, in first-appearance order
         groups, keyed = [], {}
@@ -269,47 +342,51 @@ class Assembly:
         # unknown indices per component interface variable
         through_rows, through_cols = [], []
         for g in self.groups:
-            col = np.empty((g.n, len(g.comps[0].interface_variables())), dtype=np.int64)
             # the interface as compiled (a later thermal or isothermal compile of the
             # same components changes their variables, not this Assembly's results)
             g.iface = []
-            for i, c in enumerate(g.comps):
+            cols = []
+            for c in g.comps:
                 iface = c.interface_variables()
                 g.iface.append((iface, list(c.states)))
-                for k, (term, v) in enumerate(iface):
-                    if v.role == "across":
-                        nd = node_of[id(c.get_terminal(term))]
+                terminal_of = {t.label: t for t in c.terminals}
+                row = []
+                for term, v in iface:
+                    role = v.role
+                    if role == "across":
+                        nd = node_of[id(terminal_of[term])]
                         idx = across[(nd.index, v.quantity)]
                     else:
-                        idx = len(names)
-                        where = f"{c.label}.{term}" if term else c.label
-                        names.append(f"{where} {v.label}")
+                        idx = len(quantities)
                         quantities.append(v.quantity)
-                        if v.role == "through":
-                            nd = node_of[id(c.get_terminal(term))]
+                        if role == "through":
+                            nd = node_of[id(terminal_of[term])]
                             through_rows.append(node_rows[(nd.index, v.quantity)])
                             through_cols.append(idx)
-                    col[i, k] = idx
-            g.col = col
-        self.n = len(names)
-        self.x_names = names
+                    row.append(idx)
+                cols.append(row)
+            g.col = np.array(cols, dtype=np.int64).reshape(
+                g.n, len(g.comps[0].interface_variables()))
+        self.n = len(quantities)
+        self.x_names = _Names(partial(_unknown_names, across_named, self.groups))
         self.x_quantity = quantities
         # the unknowns grouped by quantity (Newton's tolerances and the integrators'
         # error weights scale each by its quantity's largest magnitude)
         self.q_names = sorted(set(quantities))
-        self.q_id = np.array([self.q_names.index(q) for q in quantities], dtype=np.int64)
+        q_index = {q: k for k, q in enumerate(self.q_names)}
+        self.q_id = np.array([q_index[q] for q in quantities], dtype=np.int64)
         self.q_order = np.argsort(self.q_id, kind="stable")
         self.q_starts = np.searchsorted(self.q_id[self.q_order], np.arange(len(self.q_names)))
         self.through_rows = np.array(through_rows, dtype=np.int64)
         self.through_cols = np.array(through_cols, dtype=np.int64)
-        self.x0 = self._initial_unknowns()
+        self.x0 = self._initial_unknowns(compiled=True)
 
         # rows, states and Jacobian slots per group
         r = self.n_node_rows
         s = 0
         j = len(through_rows)
         s_quantity, s_names, S0, s_discrete = [], [], [], []
-        self.row_names = row_names
+        self.row_names = _Names(partial(_row_names, node_through, self.groups))
         for g in self.groups:
             g.r0, g.r1 = r, r + g.n * g.neq
             r = g.r1
@@ -318,8 +395,6 @@ class Assembly:
             g.j0, g.j1 = j, j + g.n * len(g.pattern)
             j = g.j1
             for c in g.comps:
-                for e in range(g.neq):
-                    row_names.append(f"equation {e} of {c.describe()}")
                 if g.ns:
                     S0.extend(_initial_states(c))
                     modes = set(getattr(c, "discrete_states", ()))
@@ -512,15 +587,17 @@ class Assembly:
             self._subnetworks = (x_block, s_block, int(count))
         return self._subnetworks
 
-    def _initial_unknowns(self):
+    def _initial_unknowns(self, compiled=False):
         """Initial values of the unknowns from the components' variables: a node's
-        across unknown takes the first initial value given at it."""
+        across unknown takes the first initial value given at it (``compiled``:
+        the interfaces just compiled, g.iface, are the components' own)."""
         x0 = np.zeros(self.n)
         seen = set()
         for g in self.groups:
+            cols = g.col.tolist()
             for i, c in enumerate(g.comps):
-                for k, (_, v) in enumerate(c.interface_variables()):
-                    idx = int(g.col[i, k])
+                iface = g.iface[i][0] if compiled else c.interface_variables()
+                for (_, v), idx in zip(iface, cols[i]):
                     if v.initial_value is None or (v.role == "across" and idx in seen):
                         continue
                     x0[idx] = v.initial_value
