@@ -104,30 +104,28 @@ def tube_mach(g, result):
         return []
     _, pa = group_values(g, result, "pressure_a")
     _, pb = group_values(g, result, "pressure_b")
+    area = np.array([math.pi * g.comps[i].diameter ** 2 / 4 for i in keep])
+    p_low, p_high = np.minimum(pa, pb), np.maximum(pa, pb)
+    with np.errstate(all="ignore"):
+        mach = np.abs(mf) / (fluid.density(p_low) * area) / fluid.speed_of_sound(p_low)
+        mach = np.where(np.isfinite(mach), mach, 0.0)
+    peak = mach.max(axis=0)
+    gamma = float(fluid.gamma(pressure_atmospheric))
+    choke = 1.0 / math.sqrt(gamma)
     out = []
-    for j, i in enumerate(keep):
-        c = g.comps[i]
-        p_low = np.minimum(pa[:, j], pb[:, j])
-        p_high = np.maximum(pa[:, j], pb[:, j])
-        area = math.pi * c.diameter ** 2 / 4
-        with np.errstate(all="ignore"):
-            v = np.abs(mf[:, j]) / (fluid.density(p_low) * area)
-            mach = v / fluid.speed_of_sound(p_low)
-        gamma = float(fluid.gamma(pressure_atmospheric))
-        choke = 1.0 / math.sqrt(gamma)
-        k = int(np.nanargmax(mach))
-        if not mach[k] > MACH_INCOMPRESSIBLE:
-            continue
+    for j in np.flatnonzero(peak > MACH_INCOMPRESSIBLE):
+        c = g.comps[keep[j]]
+        k = int(np.argmax(mach[:, j]))
         t = float(result.times[k])
-        ratio = float(p_low[k] / p_high[k])
-        if mach[k] >= choke:
-            first = int(np.argmax(mach >= choke))
+        ratio = float(p_low[k, j] / p_high[k, j])
+        if peak[j] >= choke:
+            first = int(np.argmax(mach[:, j] >= choke))
             out.append(_record(
-                c, "tube_choked", mach[k], choke, "",
+                c, "tube_choked", peak[j], choke, "",
                 "choked tube flow is not modelled: lower the pressure ratio, shorten or "
                 "widen the tube, or model the restriction as an Orifice with the ISO 6358 "
                 "law (C, b), which chokes",
-                f"gas flow chokes: Mach {mach[k]:.3g} at its low-pressure end at t = {t:.6g} s "
+                f"gas flow chokes: Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s "
                 f"(pressure ratio p_low/p_high = {ratio:.3g}), past the isothermal choking "
                 f"limit Mach 1/sqrt(gamma) = {choke:.3g}, where more pressure difference "
                 "gives no more flow; the tube law has left its range.",
@@ -135,10 +133,10 @@ def tube_mach(g, result):
                 time=t))
         elif getattr(c, "compressible", None) == "mean_density":
             out.append(_record(
-                c, "tube_mach", mach[k], MACH_INCOMPRESSIBLE, "",
+                c, "tube_mach", peak[j], MACH_INCOMPRESSIBLE, "",
                 "use CircularTube(..., compressible='isothermal'), which adds the gas's "
                 "acceleration",
-                f"Mach {mach[k]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
+                f"Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
                 f"{ratio:.3g}): the mean-density law neglects the gas's acceleration, which is "
                 f"no longer small past Mach {MACH_INCOMPRESSIBLE}.", time=t))
     return out
@@ -226,37 +224,37 @@ def thermal_time_scale(g, result):
         return []
     _, mf = group_values(g, result, "massflow")
     _, p = group_values(g, result, "pressure")
-    out = []
+    flow = np.abs(mf)
+    k = np.argmax(flow, axis=0)
+    cols = np.arange(len(keep))
+    peak, m, pk = flow[k, cols], mass[k, cols], p[k, cols]
+    moving = peak > 0
+    if not moving.any():
+        return []
     from ..correlations.heat_transfer import FreeConvection
     sphere = FreeConvection("sphere")
-    for j, i in enumerate(keep):
-        c = g.comps[i]
-        flow = np.abs(mf[:, j])
-        k = int(np.argmax(flow))
-        if not flow[k] > 0:
-            continue
-        m = float(mass[k, j])
-        t_fill = m / float(flow[k])
-        T = float(fluid.temperature)
-        vol = m / float(fluid.density(p[k, j]))
-        length = sphere.characteristic_length(vol)
-        area = math.pi * length ** 2
+    T = float(fluid.temperature)
+    with np.errstate(all="ignore"):
+        t_fill = np.where(moving, m / peak, np.inf)
+        length = sphere.characteristic_length(m / fluid.density(pk))
         try:
-            h = float(sphere.coefficient(fluid, p[k, j], T + THERMAL_DT, T, length))
+            h = sphere.coefficient(fluid, pk, T + THERMAL_DT, T, length)
         except Exception:      # a fluid without conductivity: no estimate
-            continue
-        t_thermal = m * float(fluid.cv(p[k, j])) / (h * area)
-        if t_fill < THERMAL_FRACTION * t_thermal:
-            out.append(_record(
-                c, "thermal_time_scale", t_fill, THERMAL_FRACTION * t_thermal, "s",
-                "run the scene with thermal='adiabatic' (or 'heat_transfer' with the "
-                "volume's area and a heat-transfer coefficient)",
-                f"its gas filled or emptied on a time scale m/|mdot| = {t_fill:.3g} s at "
-                f"t = {result.times[k]:.6g} s, much faster than its wall exchanges heat (thermal "
-                f"time constant ~{t_thermal:.3g} s, free convection estimate): the gas is "
-                "closer to adiabatic than to the isothermal model, and its pressure swings "
-                "are larger than computed.", thermal_time_constant=t_thermal,
-                time=float(result.times[k])))
+            return []
+        t_thermal = m * fluid.cv(pk) / (h * np.pi * length ** 2)
+    out = []
+    for j in np.flatnonzero(t_fill < THERMAL_FRACTION * t_thermal):
+        c = g.comps[keep[j]]
+        out.append(_record(
+            c, "thermal_time_scale", t_fill[j], THERMAL_FRACTION * t_thermal[j], "s",
+            "run the scene with thermal='adiabatic' (or 'heat_transfer' with the "
+            "volume's area and a heat-transfer coefficient)",
+            f"its gas filled or emptied on a time scale m/|mdot| = {t_fill[j]:.3g} s at "
+            f"t = {result.times[k[j]]:.6g} s, much faster than its wall exchanges heat "
+            f"(thermal time constant ~{t_thermal[j]:.3g} s, free convection estimate): the gas "
+            "is closer to adiabatic than to the isothermal model, and its pressure swings "
+            "are larger than computed.", thermal_time_constant=float(t_thermal[j]),
+            time=float(result.times[k[j]])))
     return out
 
 
