@@ -302,6 +302,12 @@ class BDF(Integrator):
         iS, iX, iQ = slice(0, ns), slice(ns, ns + n), slice(ns + n, None)
         DS, DX, DQ = D[:, iS], D[:, iX], D[:, iQ]
         tables = (D,)
+        sens = self.sens
+        if sens is not None:
+            # the states' sensitivities, differenced and rescaled with the states
+            Dp = np.zeros((kmax + 3, sens.n_p * ns))
+            sS = self.sens_S.ravel()
+            tables = (D, Dp)
         delta = np.empty(D.shape[1])
         t = 0.0
         restart = True
@@ -321,6 +327,9 @@ class BDF(Integrator):
                 DS[0], DS[1] = S, h * r0
                 DX[0], DX[1] = x_right, h * xdot
                 DQ[0], DQ[1] = Q, h * x_right[qs]
+                if sens is not None:      # order 1: psi is the value alone
+                    Dp[:] = 0.0
+                    Dp[0] = sS
                 k, n_equal, fails = 1, 0, 0
                 restart = False
             # the step: no overshoot of the limit, no sliver left before it
@@ -403,6 +412,13 @@ class BDF(Integrator):
             stats.steps += 1
             self.order_counts[k] += 1
             Q_new = psi_all[iQ] + c * out.x[qs]
+            if sens is not None:
+                pred_p = Dp[:k + 1].sum(axis=0)
+                psi_p = pred_p - (_G[1:k + 1] @ Dp[1:k + 1]) / _G[k]
+                sS = sens.step(out.x, psi, psi_p.reshape(sens.n_p, ns),
+                               math.nextafter(t_new, -math.inf) if at_break else t_new,
+                               c)[1].ravel()
+                self._difference_update(Dp, sS - pred_p, k)
             delta[iS], delta[iX] = d, dx
             delta[iQ] = Q_new - pred[iQ]
             self._difference_update(D, delta, k)

@@ -89,6 +89,8 @@ class Integrator:
     forced_steps = 0
     #: reporter of the run (bar, logged events); Simulation.run sets its own
     progress = SILENT
+    #: forward sensitivities carried along (softflow.solve.sensitivity), or None
+    sens = None
 
     def _next_break(self, t, ib):
         """(index, time) of the first breakpoint after t, searching from index ib
@@ -106,6 +108,8 @@ class Integrator:
             raise StepFailure(0.0, 0.0, out)
         self.newton.invalidate()
         self.rec.add(0.0, out.x, asm.S0.copy())
+        if self.sens is not None:
+            self.sens_S = self.sens.initial(out.x, asm.S0)[1]
         return out.x, asm.S0.copy()
 
 
@@ -189,6 +193,9 @@ class ImplicitEuler(Integrator):
                 at_break = bool((S_new[disc] != S[disc]).any())
                 if at_break:
                     self.progress.switched(t_new, S, S_new, disc)
+            if self.sens is not None:      # backward Euler: psi = S_n, c = h
+                self.sens_S = self.sens.step(out.x, S, self.sens_S, math.nextafter(
+                    t_new, -math.inf) if at_break and t_new in break_set else t_new, h)[1]
             x_prev, h_prev = x, h
             x, S, t = out.x, S_new, t_new
             rec_add(t, x, S)

@@ -86,6 +86,45 @@ class Result:
             self._scol[recorded[1]] = np.arange(len(recorded[1]))
             self._where = {label: asm.where[label] for label in recorded[2]}
 
+    def _set_sensitivities(self, sens: Any, x_index: Any, s_index: Any, n_points: int) -> None:
+        """Keep the run's sensitivities (softflow.solve.sensitivity) for the
+        recorded unknowns and states, at the result's points."""
+        arrays = sens.arrays(x_index, s_index)
+        self._sens = {}
+        for p, name in enumerate(sens.names):
+            sx, ss = arrays[name]
+            _, _, _, _, eps, comp, twin = sens.parameters[p]
+            self._sens[name] = (sx[:n_points], ss[:n_points], eps, comp.label, twin)
+
+    def sensitivity(self, label: str, name: str, parameter: str, terminal: str | None = None,
+                    ) -> Array:
+        """d(variable)/d(parameter) over time, shaped like ``get(label, name)``, in SI
+        units per SI unit of the parameter (a run with
+        ``sensitivities=[parameter]``; see :mod:`softflow.solve.sensitivity` for
+        what it means across switches)."""
+        sens = getattr(self, "_sens", None) or {}
+        if parameter not in sens:
+            have = sorted(sens) or "none (run with sensitivities=[...])"
+            raise KeyError(f"no sensitivity to {parameter!r} in this result; it has {have}")
+        sx, ss, eps, owner, twin = sens[parameter]
+        e = self._entry(label, name, terminal)
+        if e[0] != "output":
+            if e[4] < 0:
+                raise KeyError(f"{label!r} {name!r} was not recorded (Simulation(record=...))")
+            return (sx if e[3] == "x" else ss)[:, e[4]].copy()
+        # a derived output: along the perturbed trajectory, with the perturbed
+        # component's own output function where it is the parameter's owner
+        comp = twin if label == owner else self._component(label)
+        _, fn = comp.outputs()[name]
+        _, fn0 = self._component(label).outputs()[name]
+
+        def moved(n: str, term: str | None = None) -> Array:
+            return self.get(label, n, term) + eps * self.sensitivity(label, n, parameter, term)
+
+        def here(n: str, term: str | None = None) -> Array:
+            return self.get(label, n, term)
+        return (np.asarray(fn(moved), dtype=float) - np.asarray(fn0(here), dtype=float)) / eps
+
     def __getstate__(self) -> dict:
         # the compiled model stays behind: every component's variable index is
         # made now, and each label keeps only its component (for its outputs)

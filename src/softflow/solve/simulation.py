@@ -271,7 +271,7 @@ class Simulation:
             raise
         self._applied = wanted
 
-    def run(self, *, raise_on_failure=True, progress=None, params=None):
+    def run(self, *, raise_on_failure=True, progress=None, params=None, sensitivities=None):
         """Integrate from 0 to ``duration``.
 
         Returns the Result. If the solver fails, raises SimulationError (whose
@@ -289,6 +289,11 @@ class Simulation:
         simulated time for a run longer than ~2 s of wall time, shown where
         standard error is a terminal (None), always (True) or never (False);
         solver events go to the logger 'softflow' (:mod:`softflow.solve.progress`).
+
+        ``sensitivities``: parameters (``"label.argument"``, numeric, as in
+        ``params``) to differentiate the run with respect to, alongside it
+        (:mod:`softflow.solve.sensitivity`); read them with
+        :meth:`Result.sensitivity`.
         """
         self._set_parameters(params)
         asm = self.asm
@@ -320,6 +325,17 @@ class Simulation:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
         integ.progress = Progress(self.duration, progress, asm.s_names)
+        sens = None
+        if sensitivities:
+            if self.thermal != "isothermal":
+                raise NotImplementedError(
+                    "Simulation.run(sensitivities=...): sensitivities of thermal scenes are "
+                    "not supported yet (isothermal scenes only)")
+            from .sensitivity import Sensitivities
+            names = [sensitivities] if isinstance(sensitivities, str) else list(sensitivities)
+            sens = Sensitivities(asm, newton, names,
+                                 {label: g.comps[i] for label, (g, i) in asm.where.items()})
+            integ.sens = sens
         error = None
         try:
             with np.errstate(all="ignore"), integ.progress:
@@ -355,6 +371,9 @@ class Simulation:
         result = Result(asm, t, X, S, status="success" if error is None else "failed",
                         message="" if error is None else str(error), stats=info,
                         recorded=self.record, integrals=integrals)
+        if sens is not None:
+            xs, ss = ((slice(None), slice(None)) if self.record is None else self.record[:2])
+            result._set_sensitivities(sens, xs, ss, len(t))
         result.warnings = check_result(asm, result)     # model validity (validity.py)
         fatal = [w for w in result.warnings if w.details.get("fatal")]
         if fatal and error is None and self.beyond_limits == "error":
@@ -369,6 +388,8 @@ class Simulation:
                             message=str(error), stats=info, recorded=self.record,
                             integrals=None if integrals is None else integrals[:cut])
             result.warnings = records
+            if sens is not None:
+                result._set_sensitivities(sens, xs, ss, cut)
         issue(result.warnings)
         self.result = result
         remember_result(self.system.components, result)
