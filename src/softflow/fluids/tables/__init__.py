@@ -51,8 +51,14 @@ def tables_directory(explicit=None) -> Path:
 
 
 def coolprop_version() -> str:
-    import CoolProp
-    return CoolProp.__version__
+    """The installed CoolProp's version, read from its package metadata (importing
+    CoolProp costs seconds: a table-level scene, or its error, need not)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("CoolProp")
+    except PackageNotFoundError:
+        import CoolProp
+        return CoolProp.__version__
 
 
 def sha256_of(path: Path) -> str:
