@@ -1,7 +1,11 @@
 #!/usr/bin/env python3
 # The FONS paper's 44-line example (section V), with only its import line
-# changed, and the measured latex balloon curve as the actuator's PV file.
-# Run it from this folder:  cd examples && python paper_example.py
+# changed, and the measured latex balloon curve as the actuator's PV file
+# (found beside this script, so it runs from any folder). After the listing it
+# prints the actuator's pressure and saves the plot as paper_example.png in the
+# current folder:  python examples/paper_example.py
+import os
+CSV = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'latex_balloon_60mm_pv.csv')
 import softflow as fons
 p0 = fons.pressure_atmospheric
 
@@ -31,7 +35,7 @@ system += fons.PressureSource('source',
 system += fons.CircularTube(label='tube', fluid=fons.water,
                             length=0.60, diameter=1e-3)
 system += Actuator('actu', fluid=fons.water,
-                   pvcurve=fons.pvcurve.PVCurve('latex_balloon_60mm_pv.csv'))
+                   pvcurve=fons.pvcurve.PVCurve(CSV))
 
 # Connect the components to each other
 system.connect('tube', 'source')
@@ -44,3 +48,20 @@ sim.run()
 # Put results in local variables (e.g. for visualization later)
 t = sim.times
 p_actu = (system.get('actu').get('pressure') - p0) * 1e-5
+
+# == After the listing: print and plot the result ==
+if __name__ == '__main__':
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    print(f"actuator gauge pressure: {p_actu[0]:.4f} bar at t = 0, peak {p_actu.max():.4f} bar "
+          f"at t = {t[p_actu.argmax()]:.3f} s, {p_actu[-1]:.4f} bar at t = {t[-1]:.1f} s "
+          f"({len(t)} points)")
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.plot(t, p_actu)
+    ax.set_xlabel('time [s]')
+    ax.set_ylabel('actuator pressure [bar, gauge]')
+    ax.set_title('FONS paper example: latex balloon inflated through a tube')
+    fig.tight_layout()
+    fig.savefig('paper_example.png', dpi=120)
+    print(f"plot saved to {os.path.abspath('paper_example.png')}")

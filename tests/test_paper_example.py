@@ -22,13 +22,21 @@ def test_listing_differs_from_the_paper_only_in_import_and_csv_name():
 
 
 @pytest.fixture(scope="module")
-def paper_run():
+def paper_run(tmp_path_factory):
+    """The listing run from another folder, as a script (its epilogue prints and
+    saves the plot there)."""
     cwd = os.getcwd()
-    os.chdir(EXAMPLES)
+    os.chdir(tmp_path_factory.mktemp("elsewhere"))
     try:
-        return runpy.run_path(str(EXAMPLES / "paper_example.py"))
+        out = runpy.run_path(str(EXAMPLES / "paper_example.py"), run_name="__main__")
+        out["_png"] = Path("paper_example.png").resolve()
+        return out
     finally:
         os.chdir(cwd)
+
+
+def test_paper_example_saves_its_plot_where_it_is_run(paper_run):
+    assert paper_run["_png"].stat().st_size > 10_000
 
 
 def test_paper_example_runs_and_is_physical(paper_run):
