@@ -1,0 +1,209 @@
+"""Fitting and design: thin layers over :mod:`scipy.optimize`.
+
+:func:`fit` adjusts run-time parameters so that recorded variables match
+measured traces, by ``scipy.optimize.least_squares`` with the Jacobian from
+the run's own forward sensitivities (:mod:`softflow.solve.sensitivity`): one
+run per iteration gives the residuals and their derivatives. :func:`design`
+minimizes a user's objective of a run with ``scipy.optimize.minimize``.
+Parameters are named as in ``Simulation.run(params=...)`` and worked on
+relative to their starting values, so that a diameter [m] and a volume
+[m^3] are equally well scaled.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from .units import to_si
+
+
+def _si(value):
+    """A number in SI: a Quantity in base units, or the number itself."""
+    if hasattr(value, "to_base_units"):
+        return float(value.to_base_units().magnitude)
+    return float(value)
+
+
+@dataclass
+class FitResult:
+    """What :func:`fit` or :func:`design` found.
+
+    Attributes
+    ----------
+    params : dict
+        The fitted (or designed) parameter values, SI.
+    success : bool
+    message : str
+        scipy's message.
+    cost : float
+        The objective at the end (least squares: half the sum of squared
+        scaled residuals).
+    runs : int
+        Simulation runs made.
+    result : Result
+        The run at the fitted parameters.
+    optimizer : object
+        scipy's own result (``OptimizeResult``).
+    """
+
+    params: dict
+    success: bool
+    message: str
+    cost: float
+    runs: int
+    result: Any = None
+    optimizer: Any = field(default=None, repr=False)
+
+
+def _start(sim, params, x0):
+    names = list(params)
+    if not names:
+        raise ValueError("fit: name at least one parameter to adjust, e.g. params="
+                         "['tube.diameter']")
+    start = {}
+    for name in names:
+        if x0 is not None and name in x0:
+            start[name] = _si(x0[name])
+            continue
+        label, arg = name.rsplit(".", 1) if "." in name else (name, "")
+        if label not in sim.asm.where:
+            raise KeyError(f"fit: parameter {name!r}: no component {label!r}")
+        g, i = sim.asm.where[label]
+        value = getattr(sim._compiled[label], arg, None)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value == 0:
+            raise ValueError(f"fit: parameter {name!r} is not a nonzero number "
+                             f"({value!r}); give its starting value in x0")
+        start[name] = float(value)
+    return names, np.array([start[n] for n in names])
+
+
+def _bounds(names, theta0, bounds):
+    lo = np.full(len(names), -np.inf)
+    hi = np.full(len(names), np.inf)
+    for k, name in enumerate(names):
+        if bounds and name in bounds:
+            a, b = bounds[name]
+            lo[k] = -np.inf if a is None else _si(a)
+            hi[k] = np.inf if b is None else _si(b)
+            if not lo[k] < hi[k]:
+                raise ValueError(f"fit: bounds of {name!r} must have lower < upper, got "
+                                 f"{bounds[name]!r}")
+    return lo / theta0, hi / theta0     # relative, theta0 > 0 assumed below
+
+
+def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -> FitResult:
+    """Fit run-time parameters of ``sim`` to measured traces.
+
+    Parameters
+    ----------
+    sim : Simulation
+        An isothermal scene (sensitivities need one).
+    measured : dict
+        ``{"label.variable": (times [s], values [SI])}``: each compared with the
+        run's values interpolated linearly at those times.
+    params : sequence of str
+        Parameters to adjust (``"label.argument"``, numeric).
+    bounds : dict, optional
+        ``{"label.argument": (lower, upper)}`` (SI or Quantities; None for none).
+    x0 : dict, optional
+        Starting values (default: the values the Simulation was built with).
+    scale : dict, optional
+        ``{"label.variable": typical size}`` of each trace's residuals (default:
+        its measured range), so traces of different units weigh alike.
+    **options
+        Passed to ``scipy.optimize.least_squares`` (e.g. ``xtol``, ``max_nfev``).
+
+    Returns
+    -------
+    FitResult
+    """
+    from scipy.optimize import least_squares
+    names, theta0 = _start(sim, params, x0)
+    if np.any(theta0 <= 0):
+        raise ValueError("fit: starting values must be > 0 (parameters are worked on "
+                         f"relative to them); got {dict(zip(names, theta0))}")
+    traces = []
+    for key, (times, values) in measured.items():
+        if not isinstance(key, str) or "." not in key:
+            raise KeyError(f"fit: measured key {key!r} is not 'label.variable'")
+        label, var = key.rsplit(".", 1)
+        times = np.asarray(to_si(times, "s", name="times", owner=f"fit[{key!r}]"), dtype=float)
+        values = np.asarray(values, dtype=float)
+        if times.shape != values.shape or times.ndim != 1 or not times.size:
+            raise ValueError(f"fit[{key!r}]: times and values must be 1-D arrays of one "
+                             f"length, got {times.shape} and {values.shape}")
+        size = (scale or {}).get(key) or float(np.ptp(values)) or float(np.abs(values).max()) or 1.0
+        traces.append((label, var, times, values, size))
+    lo, hi = _bounds(names, theta0, bounds)
+    cache = {"u": None, "runs": 0}
+
+    def run(u):
+        if cache["u"] is not None and np.array_equal(u, cache["u"]):
+            return cache["res"]
+        theta = u * theta0
+        res = sim.run(params=dict(zip(names, theta)), sensitivities=names,
+                      raise_on_failure=False)
+        cache.update(u=u.copy(), res=res)
+        cache["runs"] += 1
+        return res
+
+    def residuals(u):
+        res = run(u)
+        if not res.success:
+            return np.full(sum(tr[2].size for tr in traces), 1e6)
+        out = [(np.interp(times, res.times, res.get(label, var)) - values) / size
+               for label, var, times, values, size in traces]
+        return np.concatenate(out)
+
+    def jacobian(u):
+        res = run(u)
+        cols = []
+        for k, name in enumerate(names):
+            if not res.success:
+                cols.append(np.zeros(sum(tr[2].size for tr in traces)))
+                continue
+            cols.append(np.concatenate([
+                np.interp(times, res.times, res.sensitivity(label, var, name)) * theta0[k]
+                / size for label, var, times, values, size in traces]))
+        return np.column_stack(cols)
+
+    opt = least_squares(residuals, np.ones(len(names)), jac=jacobian, bounds=(lo, hi),
+                        **options)
+    theta = opt.x * theta0
+    final = sim.run(params=dict(zip(names, theta)), raise_on_failure=False)
+    return FitResult(params=dict(zip(names, theta)), success=bool(opt.success),
+                     message=str(opt.message), cost=float(opt.cost),
+                     runs=cache["runs"] + 1, result=final, optimizer=opt)
+
+
+def design(sim, objective: Callable[[Any], float], params, *, bounds=None, x0=None,
+           method=None, **options) -> FitResult:
+    """Minimize ``objective(result)`` over run-time parameters of ``sim`` with
+    ``scipy.optimize.minimize`` (``method`` and ``options`` passed on; the
+    default, L-BFGS-B with bounds or BFGS without, takes finite-difference
+    gradients of whole runs; a derivative-free method such as 'Powell' or
+    'Nelder-Mead' suits objectives that are not smooth, e.g. times of events).
+    A failed run counts as ``inf``. Parameters are worked on relative to their
+    starting values."""
+    from scipy.optimize import minimize
+    names, theta0 = _start(sim, params, x0)
+    lo, hi = _bounds(names, theta0, bounds)
+    runs = {"n": 0}
+
+    def f(u):
+        runs["n"] += 1
+        res = sim.run(params=dict(zip(names, u * theta0)), raise_on_failure=False)
+        if not res.success:
+            return np.inf
+        return float(objective(res))
+
+    has_bounds = np.isfinite(lo).any() or np.isfinite(hi).any()
+    opt = minimize(f, np.ones(len(names)), method=method,
+                   bounds=list(zip(lo, hi)) if has_bounds else None, **options)
+    theta = np.asarray(opt.x) * theta0
+    final = sim.run(params=dict(zip(names, theta)), raise_on_failure=False)
+    return FitResult(params=dict(zip(names, theta)), success=bool(opt.success),
+                     message=str(getattr(opt, "message", "")), cost=float(opt.fun),
+                     runs=runs["n"] + 1, result=final, optimizer=opt)
