@@ -97,6 +97,29 @@ class Outcome:
     contracting: bool = False
 
 
+def _network_setup(asm):
+    """What Newton derives from the compiled network alone (kept on the Assembly:
+    every run of a Simulation builds a new Newton)."""
+    bounds = np.append(asm.q_starts, asm.n).tolist()
+    q_bounds = list(zip(bounds[:-1], bounds[1:]))
+    q_sorted = bool(np.array_equal(asm.q_order, np.arange(asm.n)))
+    # absolute node pressures must stay positive: a solution with p <= 0 is
+    # rejected (user locals of quantity 'pressure', e.g. a difference, are not)
+    nodal = list(enumerate(asm.x_quantity[:asm.n_across]))
+    p_idx = np.array([i for i, q in nodal if q == "pressure"], dtype=np.int64)
+    # isothermal scenes: the node pressures are x[:n], read as a view
+    contiguous = p_idx.size and np.array_equal(
+        p_idx, np.arange(p_idx[0], p_idx[0] + p_idx.size))
+    p_sel = (slice(int(p_idx[0]), int(p_idx[-1]) + 1) if contiguous else p_idx)
+    # thermal scenes: a node through which (almost) nothing flows has a weakly
+    # determined temperature, and a Newton update from a zero-flow start can move
+    # it by orders of magnitude; each node temperature update is clipped to
+    # [-50 %, +100 %] of its value, the other unknowns are left as they are.
+    # Convergence is judged on the unclipped update.
+    T_idx = np.array([i for i, q in nodal if q == "temperature"], dtype=np.int64)
+    return q_bounds, q_sorted, p_idx, p_sel, T_idx
+
+
 class Newton:
     """Solves F(x; S, t, dt) = 0 for x, reusing LU factors across iterations and steps."""
 
@@ -109,33 +132,29 @@ class Newton:
         self.atol = np.asarray(atol, dtype=float)
         self._q_names, self._links = asm.q_names, []
         self._q_order, self._q_starts, self._qid = asm.q_order, asm.q_starts, asm.q_id
+        # what depends on the compiled network only, derived once per Assembly
+        setup = asm.__dict__.get("_newton_setup")
+        if setup is None:
+            setup = asm._newton_setup = _network_setup(asm)
+        (self._q_bounds, self._q_sorted, self._p_idx, self._p_sel, self._T_idx) = setup
         # small systems: per-quantity maxima on Python lists (see SMALL)
         self._small = 0 < asm.n <= SMALL
-        bounds = np.append(self._q_starts, asm.n).tolist()
-        self._q_bounds = list(zip(bounds[:-1], bounds[1:]))
-        self._q_sorted = bool(np.array_equal(self._q_order, np.arange(asm.n)))
-        # absolute node pressures must stay positive: a solution with p <= 0 is
-        # rejected (user locals of quantity 'pressure', e.g. a difference, are not)
-        nodal = list(enumerate(asm.x_quantity[:asm.n_across]))
-        self._p_idx = np.array([i for i, q in nodal if q == "pressure"], dtype=np.int64)
-        # isothermal scenes: the node pressures are x[:n], read as a view
-        contiguous = self._p_idx.size and np.array_equal(
-            self._p_idx, np.arange(self._p_idx[0], self._p_idx[0] + self._p_idx.size))
-        self._p_sel = (slice(int(self._p_idx[0]), int(self._p_idx[-1]) + 1) if contiguous
-                       else self._p_idx)
-        # thermal scenes: a node through which (almost) nothing flows has a weakly
-        # determined temperature, and a Newton update from a zero-flow start can move
-        # it by orders of magnitude; each node temperature update is clipped to
-        # [-50 %, +100 %] of its value, the other unknowns are left as they are.
-        # Convergence is judged on the unclipped update.
-        self._T_idx = np.array([i for i, q in nodal if q == "temperature"], dtype=np.int64)
         # atol as one value per quantity, if it is that (the small-system path needs it)
-        atol_n = np.broadcast_to(self.atol, (asm.n,))
-        q_atol = [atol_n[self._q_order[a:b]] for a, b in self._q_bounds]
-        if self._small and all((v == v[0]).all() for v in q_atol):
-            self._q_atol = [float(v[0]) for v in q_atol]
-        else:
-            self._small = False
+        if self._small:
+            key = (self.atol.shape, self.atol.tobytes())
+            known = asm.__dict__.get("_newton_q_atol")
+            if known is not None and known[0] == key:
+                q_atol = known[1]
+            else:
+                atol_n = np.broadcast_to(self.atol, (asm.n,))
+                per_q = [atol_n[self._q_order[a:b]] for a, b in self._q_bounds]
+                q_atol = ([float(v[0]) for v in per_q] if all((v == v[0]).all() for v in per_q)
+                          else None)
+                asm._newton_q_atol = (key, q_atol)
+            if q_atol is not None:
+                self._q_atol = list(q_atol)
+            else:
+                self._small = False
         self._itol = 1.0 / self.atol
         self._qtol = list(getattr(self, "_q_atol", ()))
         self._has_p = bool(self._p_idx.size)
