@@ -23,6 +23,7 @@ _LAZY = {
                      "TeslaValve", "VolumeFlowSource"], "components"),
     "pressure_atmospheric": "constants",
     "FreeConvection": "correlations.heat_transfer",
+    **dict.fromkeys(["assess", "Assessment", "AssessmentError"], "assess"),
     **dict.fromkeys(["HysteresisLoop", "PVCurve", "pvcurve", "read_table"], "curves"),
     **dict.fromkeys(["ConstantLiquid", "Fluid", "FluidError", "IdealGas", "air",
                      "ethylene_glycol", "nitrogen", "water"], "fluids"),
@@ -32,6 +33,7 @@ _LAZY = {
     **dict.fromkeys(["ModelWarning", "ComponentError"], "solve.validity"),
     **dict.fromkeys(["Q_", "UnitError", "ureg"], "units"),
     **dict.fromkeys(["sweep", "SweepResult"], "sweep"),
+    **dict.fromkeys(["fit", "design", "FitResult"], "fitting"),
 }
 # public names that are modules themselves
 _LAZY_MODULES = {"waveforms": "curves.waveforms"}
@@ -47,7 +49,7 @@ __all__ = [
     "Fluid", "FluidError", "IdealGas", "ConstantLiquid", "air", "nitrogen", "water",
     "ethylene_glycol",
     "pressure_atmospheric", "ureg", "Q_", "UnitError",
-    "sweep", "SweepResult",
+    "sweep", "SweepResult", "fit", "design", "FitResult", "assess", "Assessment", "AssessmentError",
 ]
 
 
@@ -71,6 +73,7 @@ if TYPE_CHECKING:       # the same names, eagerly, for type checkers and IDEs
                              HystereticActuator, LibraryComponent, LinearAccumulator,
                              MassFlowSource, Orifice, PressureSource, SnappingValve,
                              TeslaValve, VolumeFlowSource)
+    from .assess import Assessment, AssessmentError, assess
     from .constants import pressure_atmospheric
     from .correlations.heat_transfer import FreeConvection
     from .curves import HysteresisLoop, PVCurve, pvcurve, read_table, waveforms
@@ -79,5 +82,6 @@ if TYPE_CHECKING:       # the same names, eagerly, for type checkers and IDEs
     from .network import Component, NetworkError, Node, System, Terminal, Variable
     from .solve import Result, Simulation, SimulationError
     from .solve.validity import ComponentError, ModelWarning
+    from .fitting import FitResult, design, fit
     from .sweep import SweepResult, sweep
     from .units import Q_, UnitError, ureg

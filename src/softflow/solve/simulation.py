@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ..assess import resolve_auto
 from ..constants import pressure_atmospheric
 from ..network.component import remember_result
 from ..units import quantity_unit, to_si
@@ -123,13 +124,26 @@ class Simulation:
         Most steps a run may take (accepted and rejected). A fixed ``step``
         (or a ``step_max``) that needs more over ``duration`` is refused at
         construction with the estimate; pass a larger ``max_steps`` to confirm.
+    model : {None, 'auto'}, default None
+        'auto' lets softflow choose the thermal model, the fluid level, the
+        friction and tube laws and rtol: :func:`softflow.assess` runs the scene
+        in its cheapest configuration and one level up where its validity
+        checks say so, and the Simulation compiles the recommended System (a
+        new one; ``system`` is not changed). The Assessment is
+        ``sim.assessment``. ``thermal``, ``rtol`` and ``step`` given with it
+        conflict and raise.
+    tolerance : float [-], default 0.01 with model='auto'
+        Accepted error of each output (the volumes' pressures) as a fraction
+        of its range, for model='auto'.
     """
 
     def __init__(self, system, duration=1.0, step=None, *, adaptive=None, method="bdf",
                  max_order=MAX_ORDER, step_min=None, step_max=None, rtol=1e-3, atol=None,
                  newton_rtol=1e-6, linear_solver="auto",
                  breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal",
-                 max_steps=MAX_STEPS, beyond_limits="error"):
+                 max_steps=MAX_STEPS, beyond_limits="error", model=None, tolerance=None):
+        if model is not None or tolerance is not None:    # let softflow choose: softflow.assess
+            system, thermal, rtol, model, tolerance, self.assessment = resolve_auto(locals())
         # what the Simulation is made of, for pickling: its compiled model holds
         # generated code, which is rebuilt from these on load
         self._definition = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
