@@ -79,7 +79,7 @@ def test_paper_listing_runs_under_softflow_fons_as_under_softflow():
     assert "import softflow as fons" in src
     results = []
     for line in ("import softflow as fons", "import softflow.fons as fons"):
-        ns = {}
+        ns = {"__file__": str(ROOT / "examples" / "paper_example.py")}
         cwd = Path.cwd()
         try:
             import os
