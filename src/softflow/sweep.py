@@ -292,10 +292,10 @@ def sweep(sim, params, outputs=None, engine="serial", times=None, progress=None,
     batched = _batched_runner() if engine == "batched" else None
 
     variants, grid_values = _variants(params)
-    _check_variants(sim, variants)
     columns, units = _columns(sim)
     outputs = _outputs(outputs, columns)
     times = _times(sim, times)
+    _check_variants(sim, variants)
     coords, grid = _coordinates(sim, variants, grid_values)
     names = {key: f"{key} (parameter)" if key in units else key for key in coords}
     units = {o: units[o] for o in outputs}
@@ -324,8 +324,6 @@ def sweep(sim, params, outputs=None, engine="serial", times=None, progress=None,
                 raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
                                    f"results for {n} variants")
             outcomes = [_outcome(r, outputs, times) for r in results]
-            if bar is not None:
-                bar.update(n)
     finally:
         if bar is not None:
             bar.close()
