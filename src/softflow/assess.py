@@ -229,7 +229,7 @@ def _normalize_outputs(system, outputs):
 
 
 def _series(result, output):
-    label, name, terminal = output
+    label, name, terminal = output if len(output) == 3 else (*output, None)
     return np.asarray(result.get(label, name, terminal), dtype=float)
 
 
