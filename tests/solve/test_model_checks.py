@@ -151,3 +151,26 @@ def test_isothermal_volume_filled_faster_than_its_wall_exchanges_heat(diameter, 
     assert ("thermal_time_scale" in _checks(res)) is warned
     adiabatic = _run(s, thermal="adiabatic")
     assert "thermal_time_scale" not in _checks(adiabatic)
+
+
+@pytest.mark.parametrize("compliance, warned", [(1e-9, True), (1e-8, False)])
+def test_liquid_tube_without_inertance_against_its_inertial_time_constant(compliance, warned):
+    """A water RC circuit 20x slower than its tube's column (inertance changes
+    the result by ~4 %) is reported; 200x slower (~0.4 %) is not."""
+    runs = []
+    for inertance in (False, True):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 1e4)
+        s += sf.CircularTube("tube", sf.water, 1.0, 2e-3, inertance=inertance)
+        s += sf.LinearAccumulator("acc", sf.water, 1e-6, compliance)
+        s.connect("src", "tube")
+        s.connect("tube", "acc")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            runs.append(sf.Simulation(s, duration=5.0).run())
+    plain, inertial = runs
+    assert ("tube_inertia" in _checks(plain)) is warned
+    effect = np.max(np.abs(np.interp(inertial.times, plain.times, plain.get("acc", "pressure"))
+                           - inertial.get("acc", "pressure"))) / 1e4
+    assert bool(effect > 0.01) is warned
+    assert "tube_inertia" not in _checks(inertial)
