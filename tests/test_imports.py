@@ -55,3 +55,12 @@ def test_lazy_names_are_the_real_objects():
     assert set(sf.__all__) <= set(dir(sf))
     with pytest.raises(AttributeError, match="no attribute 'Simulator'"):
         sf.Simulator
+
+
+def test_scene_module_loads_on_first_use():
+    out = subprocess.run([sys.executable, "-c",
+                          "import softflow as sf, sys\n"
+                          "assert 'softflow.scene' not in sys.modules\n"
+                          "assert sf.scene is sys.modules['softflow.scene'] and callable(sf.scene.save)"],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr

@@ -36,7 +36,7 @@ _LAZY = {
     **dict.fromkeys(["fit", "design", "FitResult"], "fitting"),
 }
 # public names that are modules themselves
-_LAZY_MODULES = {"waveforms": "curves.waveforms"}
+_LAZY_MODULES = {"waveforms": "curves.waveforms", "scene": "scene"}
 
 __all__ = [
     "Variable", "Terminal", "Component", "Node", "System", "NetworkError",
@@ -82,6 +82,7 @@ if TYPE_CHECKING:       # the same names, eagerly, for type checkers and IDEs
     from .network import Component, NetworkError, Node, System, Terminal, Variable
     from .solve import Result, Simulation, SimulationError
     from .solve.validity import ComponentError, ModelWarning
+    from . import scene
     from .fitting import FitResult, design, fit
     from .sweep import SweepResult, sweep
     from .units import Q_, UnitError, ureg
