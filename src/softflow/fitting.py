@@ -99,7 +99,6 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
     Parameters
     ----------
     sim : Simulation
-        An isothermal scene (sensitivities need one).
     measured : dict
         ``{"label.variable": (times [s], values [SI])}``: each compared with the
         run's values interpolated linearly at those times.

@@ -92,16 +92,33 @@ def test_a_new_curve_for_one_of_two_sharing_it_is_structural():
     assert res.success
 
 
-def test_user_components_and_thermal_scenes_refuse_params():
+def test_user_components_refuse_params():
     import sys
     sys.path.insert(0, str(__import__("pathlib").Path(__file__).parent))
     from test_user_rates import scene as user_scene
     sim = sf.Simulation(user_scene("rates"), duration=0.1)
     with pytest.raises(NetworkError, match="user component's parameters are fixed"):
         sim.run(params={"act.p": 1.0})
-    thermal = sf.Simulation(scene(), duration=0.1, thermal="adiabatic")
-    with pytest.raises(NotImplementedError, match="thermal scenes"):
-        thermal.run(params={"tube.diameter": 2e-3})
+
+
+@pytest.mark.parametrize("change, built", [
+    ({"tube.diameter": 1.5e-3}, dict(diameter=1.5e-3)),
+    ({"tank.volume": 3e-5, "tank.initial_pressure": 1.1e5}, dict(volume=3e-5, p_tank=1.1e5)),
+])
+def test_thermal_scenes_take_params_too(change, built):
+    """An adiabatic scene: the rebuilt components are put into the scene's
+    thermal model as the compiled ones were; bitwise a fresh thermal build."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(scene(), duration=0.3, thermal="adiabatic")
+        base = sim.run()
+        changed = sim.run(params=change)
+        fresh = sf.Simulation(scene(**built), duration=0.3, thermal="adiabatic").run()
+        _same(changed, fresh)
+        np.testing.assert_array_equal(changed.get("tank", "temperature"),
+                                      fresh.get("tank", "temperature"))
+        _same(sim.run(), base)
 
 
 @pytest.mark.parametrize("thermal", ["isothermal", "adiabatic"])

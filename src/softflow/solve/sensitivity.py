@@ -38,6 +38,7 @@ import numpy as np
 
 from ..network.system import NetworkError
 from .params import parameter_names, rebuild
+from .thermal import configure_like
 
 #: Relative step of the directional finite differences.
 REL_STEP = 1e-6
@@ -48,7 +49,7 @@ MAX_CORRECTIONS = 6
 class Sensitivities:
     """The sensitivity equations of a compiled network for a list of parameters."""
 
-    def __init__(self, asm, newton, names, components):
+    def __init__(self, asm, newton, names, components, thermal="isothermal"):
         self.asm, self.newton = asm, newton
         self.names = list(names)
         self.parameters = []     # (group, index in group, kernel_p, update_p, eps)
@@ -75,7 +76,7 @@ class Sensitivities:
                     f"({value!r}); sensitivities are taken with respect to numeric "
                     "parameters (e.g. a diameter, a volume, a pressure)")
             eps = REL_STEP * (abs(value) if value != 0 else 1.0)
-            twin = rebuild(comp, {name: value + eps})
+            twin = configure_like(rebuild(comp, {name: value + eps}), comp, thermal)
             comps = list(g.comps)
             comps[i] = twin
             fresh = _library_group(twin.kernel_class(), comps)

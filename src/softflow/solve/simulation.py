@@ -20,7 +20,7 @@ from .params import rebuild
 from .params import split as split_params
 from .result import Result
 from .validity import ComponentError, check_result, issue
-from .thermal import check_model, configure_thermal
+from .thermal import check_model, configure_like, configure_thermal
 
 #: Default bound on the steps of one run (``max_steps=``): a fixed step or a step_max
 #: that asks for more is refused at construction, and a run stops past it.
@@ -267,11 +267,8 @@ class Simulation:
         """Put the run-time parameters ``params`` in force (the compiled values
         for every other component; see :mod:`softflow.solve.params`)."""
         wanted = split_params(params or {}, self.asm.where)
-        if wanted and self.thermal != "isothermal":
-            raise NotImplementedError(
-                "Simulation.run(params=...): run-time parameters of thermal scenes are not "
-                "supported yet; build a new Simulation with the new values")
-        new = {label: rebuild(self._compiled[label], changes)
+        new = {label: configure_like(rebuild(self._compiled[label], changes),
+                                     self._compiled[label], self.thermal)
                for label, changes in wanted.items()}
         for label in self._applied:
             new.setdefault(label, self._compiled[label])
@@ -298,7 +295,8 @@ class Simulation:
         (``{"tube.diameter": sf.Q_(1.5, "mm"), "act.curve": other_curve}``;
         Quantities or SI), checked as the constructor checks them. Other runs
         use the values the Simulation was built with; nothing is recompiled,
-        and the System is not changed. Isothermal scenes, library components.
+        and the System is not changed. Library components (thermal scenes
+        included).
         ``progress``: a bar in
         simulated time for a run longer than ~2 s of wall time, shown where
         standard error is a terminal (None), always (True) or never (False);
@@ -341,14 +339,11 @@ class Simulation:
         integ.progress = Progress(self.duration, progress, asm.s_names)
         sens = None
         if sensitivities:
-            if self.thermal != "isothermal":
-                raise NotImplementedError(
-                    "Simulation.run(sensitivities=...): sensitivities of thermal scenes are "
-                    "not supported yet (isothermal scenes only)")
             from .sensitivity import Sensitivities
             names = [sensitivities] if isinstance(sensitivities, str) else list(sensitivities)
             sens = Sensitivities(asm, newton, names,
-                                 {label: g.comps[i] for label, (g, i) in asm.where.items()})
+                                 {label: g.comps[i] for label, (g, i) in asm.where.items()},
+                                 thermal=self.thermal)
             integ.sens = sens
         error = None
         try:

@@ -106,23 +106,40 @@ def configure_thermal(system, model):
         if fluid is None:
             raise NetworkError(f"{c.describe()}: no gas found at its terminal to give it "
                                "thermal properties; connect it to a tube, orifice or volume")
-        _check_gas(c, fluid, model)
-        if isinstance(c, VOLUME_CLASSES):
-            _setup_volume(c, model)
-            T0 = c._T_initial
-        elif isinstance(c, SOURCE_CLASSES):
-            c._thermal_fluid = fluid
-            T_src = getattr(c, "temperature", None)
-            c._T_source = float(fluid.temperature) if T_src is None else T_src
-            _check_range(c, fluid, c._T_source, "temperature")
-            T0 = c._T_source
-            c._thermal = "source"
-        else:
-            T0 = float(fluid.temperature)
-            c._thermal = "flow"
-        c._h0 = h0
-        _enter(c, T0)
+        _configure_one(c, model, fluid, h0)
     return model
+
+
+def _configure_one(c, model, fluid, h0):
+    """Put one library component into the scene's thermal model, with the gas
+    ``fluid`` found for it and the scene's energy reference ``h0``."""
+    from ..components.thermal import SOURCE_CLASSES, VOLUME_CLASSES
+    _check_gas(c, fluid, model)
+    if isinstance(c, VOLUME_CLASSES):
+        _setup_volume(c, model)
+        T0 = c._T_initial
+    elif isinstance(c, SOURCE_CLASSES):
+        c._thermal_fluid = fluid
+        T_src = getattr(c, "temperature", None)
+        c._T_source = float(fluid.temperature) if T_src is None else T_src
+        _check_range(c, fluid, c._T_source, "temperature")
+        T0 = c._T_source
+        c._thermal = "source"
+    else:
+        T0 = float(fluid.temperature)
+        c._thermal = "flow"
+    c._h0 = h0
+    _enter(c, T0)
+
+
+def configure_like(new, old, model):
+    """Put ``new`` (a component rebuilt from ``old`` with other numbers) into the
+    thermal model ``old`` was compiled in; nothing in an isothermal scene."""
+    if model == "isothermal" or getattr(old, "_thermal", None) is None:
+        return new
+    fluid = getattr(new, "fluid", None) or getattr(old, "_thermal_fluid", None) or old.fluid
+    _configure_one(new, model, fluid, old._h0)
+    return new
 
 
 def _node_fluids(system):
