@@ -112,13 +112,7 @@ class LibraryComponent(Component):
             templates = _interface_templates(cls)
         if templates is _CUSTOM:
             # a subclass that redefines set_terminals/set_states gets them called
-            terms = []
-            for tlabel, vars_ in self.terminal_spec:
-                vs = [Variable(q, role, label=lab,
-                               initial_value=pressure_atmospheric if q == "pressure" else 0.0)
-                      for q, role, lab in vars_]
-                terms.append(Terminal(tlabel, vs))
-            self.set_terminals(*terms)
+            self.set_terminals(*_spec_terminals(cls))
             self.set_states(*[Variable(q, "local", label=lab) for lab, q in self.state_spec])
             return
         # the interface, checked once per class (see _interface_templates), copied
@@ -258,6 +252,15 @@ _INTERFACE: dict = {}
 _CUSTOM = object()
 
 
+def _spec_terminals(cls):
+    """New Terminals of a library class's ``terminal_spec`` (pressures start at
+    1 atm, the other variables at 0)."""
+    return [Terminal(tlabel, [Variable(q, role, label=lab,
+                                       initial_value=pressure_atmospheric if q == "pressure"
+                                       else 0.0) for q, role, lab in vars_])
+            for tlabel, vars_ in cls.terminal_spec]
+
+
 def _interface_templates(cls):
     """The interface of a library class, built and checked once, the way
     ``Terminal(...)``, ``set_terminals`` and ``set_states`` build and check it
@@ -269,13 +272,7 @@ def _interface_templates(cls):
     probe = Component.__new__(cls)
     Component.__init__(probe, "interface")
     try:
-        terms = []
-        for tlabel, vars_ in cls.terminal_spec:
-            vs = [Variable(q, role, label=lab,
-                           initial_value=pressure_atmospheric if q == "pressure" else 0.0)
-                  for q, role, lab in vars_]
-            terms.append(Terminal(tlabel, vs))
-        Component.set_terminals(probe, *terms)
+        Component.set_terminals(probe, *_spec_terminals(cls))
         Component.set_states(probe, *[Variable(q, "local", label=lab)
                                       for lab, q in cls.state_spec])
     except (TypeError, ValueError):
