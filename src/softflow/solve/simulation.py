@@ -84,7 +84,7 @@ class Simulation:
     rtol : float, default 1e-3
         Relative tolerance of the adaptive error test: the local error of each
         state per step, in the weighted RMS norm with weights
-        atol + rtol·|state|.
+        ``atol + rtol·|state|``.
     atol : dict, optional
         Absolute tolerances per quantity name, SI. Those not given are
         DEFAULT_ATOL (set for rtol = 1e-3) times rtol/1e-3, so that the error
