@@ -9,7 +9,6 @@ drifts, and ``-W`` turns every warning into an error in CI.
 from __future__ import annotations
 
 import os
-import re
 
 import softflow
 
@@ -45,43 +44,3 @@ autodoc_typehints = "none"         # the docstrings give types and units
 autodoc_default_options = {"members": True, "undoc-members": False}
 # names the public API re-exports but whose own pages we do not build
 nitpicky = False
-
-
-_ABS = re.compile(r"(?<![|\w`])\|([^|\s`][^|`\n]*?)\|(?![|\w`])")
-
-
-def _plain_text_math(app, what, name, obj, options, lines):
-    """Docstrings write absolute values as |x| (plain-text math), which
-    reStructuredText reads as a substitution: escape the bars."""
-    for i, line in enumerate(lines):
-        if "|" in line and not line.lstrip().startswith(("|", "+")):
-            lines[i] = _ABS.sub(r"\\|\1\\|", line)
-
-
-_SECTION = re.compile(r"^(Parameters|Attributes|Other Parameters|Returns|Raises)\s*$")
-
-
-def _close_sections(app, what, name, obj, options, lines):
-    """A free paragraph after a numpydoc list (no header of its own) would be read
-    as more entries: give it a Notes header (runs before napoleon)."""
-    in_list = False
-    i = 0
-    while i < len(lines):
-        line = lines[i]
-        if _SECTION.match(line) and i + 1 < len(lines) and set(lines[i + 1]) == {"-"}:
-            in_list, i = True, i + 2
-            continue
-        if in_list and line and not line[0].isspace() and " : " not in line \
-                and " " in line and i > 0 and not lines[i - 1].strip():
-            lines[i:i] = ["Notes", "-----"]
-            in_list = False
-            i += 2
-        elif in_list and line and not line[0].isspace() and i + 1 < len(lines) \
-                and lines[i + 1] and set(lines[i + 1]) == {"-"}:
-            in_list = False
-        i += 1
-
-
-def setup(app):
-    app.connect("autodoc-process-docstring", _close_sections, priority=400)
-    app.connect("autodoc-process-docstring", _plain_text_math)

@@ -112,7 +112,7 @@ class Actuator(LibraryComponent):
         NumPy arrays (it is called once per Newton iteration with the volumes of
         all actuators sharing it); one that does not is called per volume.
         Without ``curve_derivative`` its slope comes from central differences
-        with step 1e-6 * max(|V|, initial volume).
+        with step ``1e-6 * max(|V|, initial volume)``.
     initial_volume : float [m^3] or Quantity, optional
         Volume at t = 0. Default: the first volume of a PVCurve; a callable
         curve needs it.

@@ -50,7 +50,7 @@ class CircularTube(LibraryComponent):
     (Haaland by default, as in the FONS paper), blended C1-smoothly between
     Re_laminar and Re_turbulent:
 
-        p_a - p_b = (f Re) · mu L / (2 rho A D^2) · mdot,   Re = |mdot| D / (mu A)
+        p_a - p_b = (f Re) · mu L / (2 rho A D^2) · mdot,   Re = ``|mdot|`` D / (mu A)
 
     where mdot is the mass flow entering at ``a``. Mass is conserved:
     mdot_a + mdot_b = 0. Writing the law with f·Re keeps it linear in mdot at

@@ -63,7 +63,7 @@ class Orifice(LibraryComponent):
     K/Cd models take rho at the upstream pressure (continuous at dp = 0 because
     the flow vanishes there), and replace the square root by a linear-like odd
     cubic below the dp at which the orifice Reynolds number rho v D/mu equals
-    ``Re_laminar`` (density at 1 atm). For gases they hold while |dp| is small
+    ``Re_laminar`` (density at 1 atm). For gases they hold while ``|dp|`` is small
     against the upstream pressure; beyond, use the ISO 6358 model. The ISO model
     turns laminar-like above the pressure ratio ``pr_laminar``.
 
@@ -290,7 +290,7 @@ class TeslaValve(_TubeLike):
 
     Forward the pressure drop is :class:`~softflow.components.tubes.CircularTube`'s
     (Hagen–Poiseuille / Haaland, density at the mean pressure), dp_t(mdot).
-    Backward, at equal |mdot|, it is Di·dp_t. The direction is blended on the
+    Backward, at equal ``|mdot|``, it is Di·dp_t. The direction is blended on the
     backward side only:
 
         dp = D(mdot)·dp_t(mdot),  D = 1 + (Di - 1)·(1 - w(mdot)),

@@ -55,6 +55,8 @@ class HysteresisLoop:
     owner : str, optional
         Who owns the loop, for error messages (e.g. ``"HystereticActuator 'a1'"``).
 
+    Notes
+    -----
     Iterating a loop gives (inflation_curve, deflation_curve), so
     ``HystereticActuator('a', fluid, *loop)`` works.
     """
