@@ -93,6 +93,9 @@ class Result:
         self._sens = {}
         for p, name in enumerate(sens.names):
             sx, ss = arrays[name]
+            if len(sx) < n_points:      # a run that failed before its sensitivities
+                sx = np.vstack([sx, np.full((n_points - len(sx), sx.shape[1]), np.nan)])
+                ss = np.vstack([ss, np.full((n_points - len(ss), ss.shape[1]), np.nan)])
             _, _, _, _, eps, comp, twin = sens.parameters[p]
             self._sens[name] = (sx[:n_points], ss[:n_points], eps, comp.label, twin)
 

@@ -168,10 +168,8 @@ class Sensitivities:
 
     def arrays(self, x_index, s_index):
         """{parameter: (s_x over time (T x recorded unknowns), s_S (T x recorded states))}."""
-        X = np.array(self.records_x)
-        S = np.array(self.records_s)
-        out = {}
-        for p, name in enumerate(self.names):
-            out[name] = (X[:, p][:, x_index] if X.size else np.zeros((0, 0)),
-                         S[:, p][:, s_index] if S.size else np.zeros((0, 0)))
-        return out
+        n_x, n_s = self.asm.n, len(self.asm.S0)
+        X = np.array(self.records_x).reshape(-1, self.n_p, n_x)
+        S = np.array(self.records_s).reshape(-1, self.n_p, n_s)
+        return {name: (X[:, p][:, x_index], S[:, p][:, s_index])
+                for p, name in enumerate(self.names)}
