@@ -15,8 +15,13 @@ from __future__ import annotations
 
 import inspect
 import weakref
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 from .variable import Terminal, Variable
+
+if TYPE_CHECKING:
+    from .._typing import Array, Quantity
+    from ..solve.result import Result
 
 #: The last Result a Simulation computed for each component, for the FONS
 #: paper's ``system.get(label).get(name)``: kept here, weakly keyed by the
@@ -24,7 +29,7 @@ from .variable import Terminal, Variable
 _LAST_RESULT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def remember_result(components, result):
+def remember_result(components: Iterable[Component], result: Result) -> None:
     """Make ``result`` the one :meth:`Component.get` reads for ``components``."""
     for c in components:
         _LAST_RESULT[c] = result
@@ -38,7 +43,7 @@ class AutoFunction:
     ``t`` is the time and, for ``update_state``, ``dt`` is the step.
     """
 
-    def __init__(self, func, kind):
+    def __init__(self, func: Callable[..., Any], kind: str) -> None:
         if not callable(func):
             raise TypeError(f"auto: expected a function, got {func!r}")
         self.func = func
@@ -51,10 +56,10 @@ class AutoFunction:
                     "supported; name each variable it needs")
         self.argnames = tuple(p.name for p in params)
 
-    def __call__(self, *args, **kwargs):
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
         return self.func(*args, **kwargs)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"<{self.kind} {self.func.__name__}{self.argnames}>"
 
 
@@ -70,7 +75,7 @@ class Component:
     #: True for library classes that evaluate all their instances at once.
     vectorized = False
 
-    def __init__(self, label):
+    def __init__(self, label: str) -> None:
         if not isinstance(label, str) or not label:
             raise ValueError(
                 f"{type(self).__name__}: label must be a non-empty string, got {label!r}")
@@ -78,34 +83,35 @@ class Component:
         self.terminals: list[Terminal] = []
         self.states: list[Variable] = []
         self.locals: list[Variable] = []
-        self.evaluate = None
-        self.update_state = None
-        self.state_rates = None
+        self.evaluate: Callable[..., Any] | None = None
+        self.update_state: Callable[..., Any] | None = None
+        self.state_rates: Callable[..., Any] | None = None
 
     # -- declaring the interface -------------------------------------------------
-    def set_terminals(self, *terminals):
+    def set_terminals(self, *terminals: Terminal | list[Terminal] | tuple[Terminal, ...]) -> None:
         """Declare the component's terminals (Terminal objects), in order."""
         if len(terminals) == 1 and isinstance(terminals[0], (list, tuple)):
             terminals = tuple(terminals[0])
-        for t in terminals:
+        terms: tuple[Terminal, ...] = terminals  # type: ignore[assignment]  # checked below
+        for t in terms:
             if not isinstance(t, Terminal):
                 raise TypeError(f"{self.describe()}: set_terminals expects Terminal objects, got {t!r}")
-        labels = [t.label for t in terminals]
+        labels = [t.label for t in terms]
         if len(set(labels)) != len(labels):
             raise ValueError(f"{self.describe()}: duplicate terminal labels {labels}")
-        for t in terminals:
+        for t in terms:
             t.component = self
-        self.terminals = list(terminals)
+        self.terminals = list(terms)
 
-    def set_states(self, *variables):
+    def set_states(self, *variables: Variable | list[Variable] | tuple[Variable, ...]) -> None:
         """Declare state variables, integrated in time by ``update_state``."""
         self.states = [self._check_local(v, "set_states") for v in _flatten(variables)]
 
-    def set_locals(self, *variables):
+    def set_locals(self, *variables: Variable | list[Variable] | tuple[Variable, ...]) -> None:
         """Declare algebraic local unknowns (each adds one equation to ``evaluate``)."""
         self.locals = [self._check_local(v, "set_locals") for v in _flatten(variables)]
 
-    def _check_local(self, v, where):
+    def _check_local(self, v: Variable, where: str) -> Variable:
         if not isinstance(v, Variable):
             raise TypeError(f"{self.describe()}: {where} expects Variable objects, got {v!r}")
         if v.role != "local":
@@ -113,16 +119,16 @@ class Component:
                              f"{v.role!r}; it must be 'local'")
         return v.copy()
 
-    def auto(self, func):
+    def auto(self, func: Callable[..., Any]) -> AutoFunction:
         """Wrap an ``evaluate(t, <variables>...)`` function; derivatives by finite differences."""
         return AutoFunction(func, "evaluate")
 
-    def auto_state(self, func):
+    def auto_state(self, func: Callable[..., Any]) -> AutoFunction:
         """Wrap an ``update_state(dt, <variables>...)`` function returning
         ``{state_label: new_value}``; derivatives by finite differences."""
         return AutoFunction(func, "update_state")
 
-    def auto_rates(self, func):
+    def auto_rates(self, func: Callable[..., Any]) -> AutoFunction:
         """Wrap a ``state_rates(<variables>...)`` function returning
         ``{state_label: d(state)/dt}`` (e.g. ``{'mass': mf}``), the rate form of
         ``update_state``: every stepper then discretizes it itself. Derivatives
@@ -134,26 +140,27 @@ class Component:
     def describe(self) -> str:
         return f"{type(self).__name__} {self.label!r}"
 
-    def get_terminal(self, label):
+    def get_terminal(self, label: str) -> Terminal:
         for t in self.terminals:
             if t.label == label:
                 return t
         raise KeyError(f"{self.describe()} has no terminal {label!r}; "
                        f"its terminals are {[t.label for t in self.terminals]}")
 
-    def interface_variables(self):
+    def interface_variables(self) -> list[tuple[str | None, Variable]]:
         """(terminal_label or None, Variable) for every algebraic variable, in order:
         terminal variables first, then locals. This is the order of V in kernels."""
-        out = [(t.label, v) for t in self.terminals for v in t.variables]
+        out: list[tuple[str | None, Variable]] = [
+            (t.label, v) for t in self.terminals for v in t.variables]
         out += [(None, v) for v in self.locals]
         return out
 
-    def variable_names(self):
+    def variable_names(self) -> tuple[list[str], list[str]]:
         """Names by which evaluate/update_state arguments address each variable.
 
         Returns (names of interface variables, names of states)."""
         iface = self.interface_variables()
-        counts = {}
+        counts: dict[str, int] = {}
         for _, v in iface:
             counts[v.label] = counts.get(v.label, 0) + 1
         names = [v.label if counts[v.label] == 1 else f"{v.label}_{term}"
@@ -165,16 +172,17 @@ class Component:
         """Equations the component must provide: one per through variable and local."""
         return sum(len(t.through) for t in self.terminals) + len(self.locals)
 
-    def breakpoints(self):
+    def breakpoints(self) -> Iterable[float]:
         """Times at which this component's inputs are discontinuous (for the integrator)."""
         return ()
 
-    def outputs(self):
+    def outputs(self) -> dict[str, Callable[..., Array]]:
         """Derived result quantities: {name: function(get) -> array}; see Result.get."""
         return {}
 
     # -- results ------------------------------------------------------------------------
-    def get(self, name, terminal=None, *, as_quantity=False):
+    def get(self, name: str, terminal: str | None = None, *,
+            as_quantity: bool = False) -> Array | Quantity:
         """Values of a variable over the last simulation run, as a NumPy array.
 
         ``name`` is a variable label, a quantity name (``'pressure'``) or a state;
@@ -188,12 +196,12 @@ class Component:
             raise RuntimeError(f"{self.describe()}: no results yet; run a Simulation first")
         return result.get(self.label, name, terminal=terminal, as_quantity=as_quantity)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"<{self.describe()}>"
 
 
-def _flatten(items):
-    out = []
+def _flatten(items: Iterable[Any]) -> list[Any]:
+    out: list[Any] = []
     for it in items:
         if isinstance(it, (list, tuple)):
             out.extend(it)

@@ -1,8 +1,17 @@
 """System: a set of components and the nodes that join their terminals."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, Iterable, Iterator, Union
+
 from .component import Component
 from .variable import Terminal
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+    #: What :meth:`System.connect` takes: a component label, a ``(label, terminal)``
+    #: pair, a Component or a Terminal.
+    TerminalSpec = Union[str, tuple[str, str], Component, Terminal]
 
 
 class NetworkError(ValueError):
@@ -13,23 +22,23 @@ class Node:
     """A junction of terminals: one unknown per across quantity, one
     conservation equation per through quantity."""
 
-    def __init__(self, index, terminals):
+    def __init__(self, index: int, terminals: Iterable[Terminal]) -> None:
         self.index = index
         self.terminals = list(terminals)
 
     @property
-    def name(self):
+    def name(self) -> str:
         return "node(" + ", ".join(t.name for t in self.terminals) + ")"
 
-    def quantities(self, role):
-        seen = []
+    def quantities(self, role: str) -> list[str]:
+        seen: list[str] = []
         for t in self.terminals:
             for v in t.variables:
                 if v.role == role and v.quantity not in seen:
                     seen.append(v.quantity)
         return seen
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"<Node {self.index}: {[t.name for t in self.terminals]}>"
 
 
@@ -40,7 +49,7 @@ class System:
     terminals with :meth:`connect`.
     """
 
-    def __init__(self, label="system"):
+    def __init__(self, label: str = "system") -> None:
         self.label = label
         self.components: list[Component] = []
         self._by_label: dict[str, Component] = {}
@@ -51,7 +60,7 @@ class System:
         self._connected: set[tuple] = set()
 
     # -- building -----------------------------------------------------------------
-    def add(self, *components):
+    def add(self, *components: Component | list[Component] | tuple[Component, ...]) -> Self:
         """Add one or more components; their labels must be unique."""
         for c in components:
             if isinstance(c, (list, tuple)):
@@ -70,24 +79,24 @@ class System:
                 self._parent[(c.label, k)] = (c.label, k)
         return self
 
-    def __iadd__(self, component):
+    def __iadd__(self, component: Component | list[Component] | tuple[Component, ...]) -> Self:
         self.add(component)
         return self
 
-    def get(self, label) -> Component:
+    def get(self, label: str) -> Component:
         """The component with this label."""
         try:
             return self._by_label[label]
         except KeyError:
             raise KeyError(self._unknown_label(label)) from None
 
-    def _unknown_label(self, label):
+    def _unknown_label(self, label: object) -> str:
         import difflib
         close = difflib.get_close_matches(str(label), list(self._by_label), n=3)
         hint = f"; did you mean {close}?" if close else ""
         return f"System has no component {label!r}{hint}"
 
-    def _key(self, t):
+    def _key(self, t: Terminal) -> tuple[str, int] | None:
         """(component label, terminal index) of a terminal of this system, or None."""
         comp = t.component
         if comp is None or self._by_label.get(comp.label) is not comp:
@@ -97,7 +106,7 @@ class System:
                 return (comp.label, k)
         return None
 
-    def _find(self, tid):
+    def _find(self, tid: tuple) -> tuple:
         root = tid
         while self._parent[root] != root:
             root = self._parent[root]
@@ -105,8 +114,9 @@ class System:
             self._parent[tid], tid = root, self._parent[tid]
         return root
 
-    def _resolve(self, spec, taken):
+    def _resolve(self, spec: Any, taken: list) -> Any:
         """Turn a connect() argument into its terminal's key."""
+        key: tuple[str, int] | None
         if type(spec) is str:
             # the common case first (a str is none of the types tested below)
             comp = self._by_label.get(spec)
@@ -152,7 +162,7 @@ class System:
             "connect: expected a component label, a (label, terminal) tuple, a Component "
             f"or a Terminal, got {spec!r}")
 
-    def connect(self, *specs):
+    def connect(self, *specs: TerminalSpec) -> Self:
         """Join terminals into one node.
 
         Each argument is a component label (its first unconnected terminal is
@@ -166,7 +176,7 @@ class System:
         """
         if len(specs) < 2:
             raise NetworkError("connect: give at least two terminals to join")
-        taken = []
+        taken: list = []
         resolve = self._resolve
         for s in specs:
             key = resolve(s, taken)
@@ -193,7 +203,7 @@ class System:
                 groups.setdefault(self._find((c.label, k)), []).append(t)
         return [Node(i, ts) for i, ts in enumerate(groups.values())]
 
-    def is_connected(self, terminal) -> bool:
+    def is_connected(self, terminal: Terminal) -> bool:
         """Whether ``terminal`` (of a component of this system) is part of a node."""
         return self._key(terminal) in self._connected
 
@@ -201,14 +211,14 @@ class System:
         return [t for c in self.components for k, t in enumerate(c.terminals)
                 if (c.label, k) not in self._connected]
 
-    def __contains__(self, label):
+    def __contains__(self, label: object) -> bool:
         return label in self._by_label
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Component]:
         return iter(self.components)
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(self.components)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"<System {self.label!r}: {len(self.components)} components>"

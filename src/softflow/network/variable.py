@@ -1,7 +1,13 @@
 """Variables and terminals, the paper's vocabulary for a component's interface."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Iterable
+
 from ..units import quantity_unit, to_si
+
+if TYPE_CHECKING:
+    from .._typing import Scalar
+    from .component import Component
 
 ROLES = ("across", "through", "local")
 
@@ -28,7 +34,8 @@ class Variable:
 
     __slots__ = ("quantity", "role", "label", "initial_value")
 
-    def __init__(self, quantity, role, label=None, initial_value=None):
+    def __init__(self, quantity: str, role: str, label: str | None = None,
+                 initial_value: Scalar | None = None) -> None:
         if not isinstance(quantity, str) or not quantity:
             raise ValueError(f"Variable: quantity must be a non-empty string, got {quantity!r}")
         if role not in ROLES:
@@ -48,7 +55,7 @@ class Variable:
             else:
                 initial_value = to_si(initial_value, "", name="initial_value",
                                       owner=f"Variable {self.label!r} ({quantity})")
-        self.initial_value = initial_value
+        self.initial_value: float | None = initial_value  # type: ignore[assignment]
 
     def copy(self) -> "Variable":
         new = _new_variable(Variable)
@@ -58,7 +65,7 @@ class Variable:
         new.initial_value = self.initial_value
         return new
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f"Variable({self.quantity!r}, {self.role!r}, label={self.label!r}, "
                 f"initial_value={self.initial_value!r})")
 
@@ -73,7 +80,7 @@ class Terminal:
     several terminals.
     """
 
-    def __init__(self, label, variables):
+    def __init__(self, label: str, variables: Iterable[Variable]) -> None:
         if not isinstance(label, str) or not label:
             raise ValueError(f"Terminal: label must be a non-empty string, got {label!r}")
         variables = list(variables)
@@ -89,10 +96,10 @@ class Terminal:
             raise ValueError(f"Terminal {label!r}: a quantity appears twice")
         self.label = label
         self.variables = [v.copy() for v in variables]
-        self.component = None  # set by Component.set_terminals
+        self.component: Component | None = None  # set by Component.set_terminals
 
     @classmethod
-    def _of_checked(cls, label, variables):
+    def _of_checked(cls, label: str, variables: list[Variable]) -> Terminal:
         """A Terminal of ``variables`` (new Variables, already checked, this
         terminal's own): the constructor's result without its checks and
         copies, for library classes whose interface is checked once per class."""
@@ -103,11 +110,11 @@ class Terminal:
         return t
 
     @property
-    def across(self):
+    def across(self) -> list[Variable]:
         return [v for v in self.variables if v.role == "across"]
 
     @property
-    def through(self):
+    def through(self) -> list[Variable]:
         return [v for v in self.variables if v.role == "through"]
 
     @property
@@ -115,7 +122,7 @@ class Terminal:
         owner = self.component.label if self.component is not None else "?"
         return f"{owner}.{self.label}"
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"Terminal({self.name!r}, {[v.label for v in self.variables]})"
 
 
