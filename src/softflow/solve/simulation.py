@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import copy
 import math
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 
@@ -22,6 +23,11 @@ from .result import Result
 from .validity import ComponentError, check_result, issue
 from .thermal import check_model, configure_like, configure_thermal
 
+if TYPE_CHECKING:
+    from .._typing import Array, Scalar
+    from ..network.system import System
+    from .sensitivity import Sensitivities
+
 #: Default bound on the steps of one run (``max_steps=``): a fixed step or a step_max
 #: that asks for more is refused at construction, and a run stops past it.
 MAX_STEPS = 10_000_000
@@ -35,7 +41,8 @@ class SimulationError(RuntimeError):
     """A run failed. ``result`` holds everything computed up to the failure;
     ``time``, ``component`` and ``equation`` say where."""
 
-    def __init__(self, message, result=None, time=None, component=None, equation=None):
+    def __init__(self, message: str, result: Result | None = None, time: float | None = None,
+                 component: str | None = None, equation: str | None = None) -> None:
         super().__init__(message)
         self.result, self.time, self.component, self.equation = result, time, component, equation
 
@@ -137,11 +144,15 @@ class Simulation:
         of its range, for model='auto'.
     """
 
-    def __init__(self, system, duration=1.0, step=None, *, adaptive=None, method="bdf",
-                 max_order=MAX_ORDER, step_min=None, step_max=None, rtol=1e-3, atol=None,
-                 newton_rtol=1e-6, linear_solver="auto",
-                 breakpoints=(), allow_unconnected=False, record=None, thermal="isothermal",
-                 max_steps=MAX_STEPS, beyond_limits="error", model=None, tolerance=None):
+    def __init__(self, system: System, duration: Scalar = 1.0, step: Scalar | None = None, *,
+                 adaptive: bool | None = None, method: str = "bdf", max_order: int = MAX_ORDER,
+                 step_min: Scalar | None = None, step_max: Scalar | None = None,
+                 rtol: float = 1e-3, atol: Mapping[str, float] | None = None,
+                 newton_rtol: float = 1e-6, linear_solver: str = "auto",
+                 breakpoints: Iterable[Scalar] = (), allow_unconnected: bool = False,
+                 record: str | Iterable[str] | None = None, thermal: str = "isothermal",
+                 max_steps: int = MAX_STEPS, beyond_limits: str = "error",
+                 model: str | None = None, tolerance: float | None = None) -> None:
         if model is not None or tolerance is not None:    # let softflow choose: softflow.assess
             system, thermal, rtol, model, tolerance, self.assessment = resolve_auto(locals())
         # what the Simulation is made of, for pickling: its compiled model holds
@@ -213,24 +224,25 @@ class Simulation:
         # and per-scene data to its components, so it is compiled from a copy
         # (fluids and curves are shared, being values); an isothermal one
         # needs nothing of the kind and is compiled from the System itself
-        model = system if check_model(thermal) == "isothermal" else copy.deepcopy(system)
+        model = (system if check_model(thermal) == "isothermal"  # type: ignore[assignment]
+                 else copy.deepcopy(system))
         self._model = model
         self.thermal = configure_thermal(model, thermal)
         self.asm = Assembly(model, allow_unconnected=allow_unconnected)
         # the compiled components, and the run-time parameters now in force
         self._compiled = {label: g.comps[i] for label, (g, i) in self.asm.where.items()}
-        self._applied = {}
+        self._applied: dict[str, Any] = {}
         self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
         self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0
         self.linear_solver_kind = linear_solver
         self.record = None if record is None else self._record_indices(record)
-        self.result = None
+        self.result: Result | None = None
 
-    def __getstate__(self):
+    def __getstate__(self) -> dict[str, Any]:
         return {"definition": self._definition, "result": self.result}
 
-    def __setstate__(self, state):
-        self.__init__(**state["definition"])
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__init__(**state["definition"])  # type: ignore[misc]
         self.result = state["result"]
 
     def _record_indices(self, labels):
@@ -253,14 +265,14 @@ class Simulation:
         return np.array([self.atol.get(q, 1e-9) * factor for q in quantities], dtype=float)
 
     @property
-    def times(self):
+    def times(self) -> Array:
         """Times of the last run [s] (the paper's ``sim.times``)."""
         if self.result is None:
             raise RuntimeError("Simulation.times: call run() first")
         return self.result.times
 
     @property
-    def stats(self):
+    def stats(self) -> dict[str, Any]:
         return self.result.stats if self.result is not None else {}
 
     def _set_parameters(self, params):
@@ -282,7 +294,9 @@ class Simulation:
             raise
         self._applied = wanted
 
-    def run(self, *, raise_on_failure=True, progress=None, params=None, sensitivities=None):
+    def run(self, *, raise_on_failure: bool = True, progress: bool | None = None,
+            params: Mapping[str, Any] | None = None,
+            sensitivities: Iterable[str] | None = None) -> Result:
         """Integrate from 0 to ``duration``.
 
         Returns the Result. If the solver fails, raises SimulationError (whose
@@ -327,6 +341,7 @@ class Simulation:
             # periodic inputs have endless breakpoints: ask for those within the run
             until = getattr(c, "breakpoints_until", None)
             breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
+        integ: BDF | ImplicitEuler
         if self.adaptive:
             integ = BDF(asm, newton, stats, duration=self.duration, rtol=self.rtol,
                         atol_states=self._atol_vector(asm.s_quantity),
@@ -336,15 +351,15 @@ class Simulation:
         else:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
-        integ.progress = Progress(self.duration, progress, asm.s_names)
-        sens = None
+        integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
+        sens: Sensitivities | None = None
         if sensitivities:
             from .sensitivity import Sensitivities
             names = [sensitivities] if isinstance(sensitivities, str) else list(sensitivities)
             sens = Sensitivities(asm, newton, names,
                                  {label: g.comps[i] for label, (g, i) in asm.where.items()},
                                  thermal=self.thermal)
-            integ.sens = sens
+            integ.sens = sens  # type: ignore[assignment]
         error = None
         try:
             with np.errstate(all="ignore"), integ.progress:
@@ -356,7 +371,7 @@ class Simulation:
             if isinstance(err, ComponentError):    # user code: its component, method, time
                 error = SimulationError(str(err), time=t if err.time is None else err.time,
                                         component=err.component)
-                error.method = err.method
+                error.method = err.method  # type: ignore[attr-defined]
             else:
                 error = SimulationError(f"after t = {t:.6g} s: {type(err).__name__}: {err}",
                                         time=t)
@@ -374,7 +389,7 @@ class Simulation:
         info["method"] = self.method if self.adaptive else "euler"
         info["rtol"] = self.rtol
         # accepted steps per order (index 0 unused); fixed steps are all order 1
-        info["order_steps"] = (list(integ.order_counts) if self.adaptive
+        info["order_steps"] = (list(integ.order_counts) if self.adaptive  # type: ignore[union-attr]
                                else [0, stats.steps])
         info["unknowns"] = asm.n
         result = Result(asm, t, X, S, status="success" if error is None else "failed",
