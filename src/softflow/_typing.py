@@ -5,11 +5,15 @@ annotations`` the hints stay strings), so they cost nothing at run time.
 """
 from __future__ import annotations
 
-from typing import Union
+from typing import Any, Callable, Union
 
 import numpy as np
 import numpy.typing as npt
 from pint import Quantity
+
+from .correlations.heat_transfer import FreeConvection
+from .curves.pvcurve import PVCurve
+from .curves.waveforms import Waveform
 
 #: A float array, as the kernels and results hold values (SI units).
 Array = npt.NDArray[np.float64]
@@ -17,5 +21,11 @@ Array = npt.NDArray[np.float64]
 Scalar = Union[float, Quantity]
 #: Values that may be arrays: array-likes in SI units, or a Quantity holding them.
 ArrayLike = Union[npt.ArrayLike, Quantity]
+#: A source's value: constant (Quantity or SI), a waveform, or a function of time [s].
+Input = Union[float, Quantity, Waveform, Callable[[float], Any]]
+#: A PV curve: a PVCurve (or an object with its ``fdf_volume``), or a function V -> p.
+Curve = Union[PVCurve, Callable[[Any], Any]]
+#: A wall's heat-transfer coefficient: a number [W/(m^2 K)] or a correlation.
+HeatTransfer = Union[float, Quantity, FreeConvection]
 
-__all__ = ["Array", "ArrayLike", "Quantity", "Scalar"]
+__all__ = ["Array", "ArrayLike", "Curve", "HeatTransfer", "Input", "Quantity", "Scalar"]

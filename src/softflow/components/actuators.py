@@ -18,6 +18,8 @@ a tube-fed actuator 800 Pa away from its source, which this form solves.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, Callable
+
 import numpy as np
 from scipy.optimize import brentq
 
@@ -27,6 +29,10 @@ from ..fluids.base import FluidError
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent, Params
 from .chambers import MASS_RATE_PATTERN, mass_rates
+
+if TYPE_CHECKING:
+    from .._typing import Curve, HeatTransfer, Scalar
+    from ..fluids.base import Fluid
 
 #: Relative step of the central differences used for a callable curve without
 #: a derivative: h = FD_STEP * max(|V|, initial volume).
@@ -125,15 +131,19 @@ class Actuator(LibraryComponent):
     """
 
     terminal_spec = (("a", FLUID_PORT),)
-    state_spec = (("mass", "mass"),)
-    jac_pattern = ACTUATOR_PATTERN
+    state_spec: tuple = (("mass", "mass"),)
+    jac_pattern: tuple = ACTUATOR_PATTERN
     residual_pattern = ACTUATOR_RESIDUAL_PATTERN
     state_jac_pattern = ACTUATOR_STATE_PATTERN
     rate_pattern = MASS_RATE_PATTERN
 
-    def __init__(self, label, fluid, curve, initial_volume=None, initial_pressure=None, *,
-                 curve_derivative=None, thermal=None, initial_temperature=None,
-                 wall_temperature=None, heat_transfer_coefficient=None, area=None, hA=None):
+    def __init__(self, label: str, fluid: Fluid, curve: Curve,
+                 initial_volume: Scalar | None = None, initial_pressure: Scalar | None = None,
+                 *, curve_derivative: Callable[[Any], Any] | None = None,
+                 thermal: str | None = None, initial_temperature: Scalar | None = None,
+                 wall_temperature: Scalar | None = None,
+                 heat_transfer_coefficient: HeatTransfer | None = None,
+                 area: Scalar | None = None, hA: Scalar | None = None) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         if not (hasattr(curve, "fdf_volume") or callable(curve)):
@@ -300,17 +310,20 @@ class HystereticActuator(LibraryComponent):
     """
 
     terminal_spec = (("a", FLUID_PORT),)
-    state_spec = (("mass", "mass"), ("branch", "dimensionless"))
+    state_spec: tuple = (("mass", "mass"), ("branch", "dimensionless"))
     discrete_states = ("branch",)
-    jac_pattern = ACTUATOR_PATTERN
+    jac_pattern: tuple = ACTUATOR_PATTERN
     residual_pattern = ACTUATOR_RESIDUAL_PATTERN
     state_jac_pattern = ACTUATOR_STATE_PATTERN
     rate_pattern = MASS_RATE_PATTERN
 
-    def __init__(self, label, fluid, inflation_curve, deflation_curve, initial_volume=None, *,
-                 initial_branch=None, meet_tolerance=None, thermal=None,
-                 initial_temperature=None, wall_temperature=None,
-                 heat_transfer_coefficient=None, area=None, hA=None):
+    def __init__(self, label: str, fluid: Fluid, inflation_curve: PVCurve,
+                 deflation_curve: PVCurve, initial_volume: Scalar | None = None, *,
+                 initial_branch: str | None = None, meet_tolerance: Scalar | None = None,
+                 thermal: str | None = None, initial_temperature: Scalar | None = None,
+                 wall_temperature: Scalar | None = None,
+                 heat_transfer_coefficient: HeatTransfer | None = None,
+                 area: Scalar | None = None, hA: Scalar | None = None) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.loop = HysteresisLoop(inflation_curve, deflation_curve,
@@ -377,6 +390,6 @@ class HystereticActuator(LibraryComponent):
         return _volume_output(self.fluid)
 
 
-if Actuator.__doc__:   # None under python -OO
+if Actuator.__doc__ and HystereticActuator.__doc__:   # None under python -OO
     Actuator.__doc__ += THERMAL_VOLUME_DOC
     HystereticActuator.__doc__ += THERMAL_VOLUME_DOC

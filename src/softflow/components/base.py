@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import TYPE_CHECKING, Any, Hashable, Sequence
 
 import numpy as np
 
@@ -29,6 +30,10 @@ from ..constants import pressure_atmospheric
 from ..network.component import Component
 from ..network.variable import Terminal, Variable
 from ..units import to_si
+
+if TYPE_CHECKING:
+    from .._typing import Array
+    from ..fluids.base import Fluid
 
 #: Standard fluid port: absolute pressure (across) and mass flow into the component (through).
 FLUID_PORT = (("pressure", "across", "p"), ("massflow", "through", "mf"))
@@ -89,7 +94,7 @@ class LibraryComponent(Component):
     state_spec: tuple = ()
     param_names: tuple = ()
     jac_pattern: tuple = ()
-    residual_pattern: tuple = None     # None: jac_pattern (set in __init_subclass__)
+    residual_pattern: tuple | None = None     # None: jac_pattern (set in __init_subclass__)
     state_jac_pattern: tuple = ()
     rate_pattern: tuple = ()
     discrete_states: tuple = ()
@@ -103,7 +108,7 @@ class LibraryComponent(Component):
                 "jac_pattern" in cls.__dict__ or cls.residual_pattern is None):
             cls.residual_pattern = cls.jac_pattern
 
-    def __init__(self, label, fluid=None):
+    def __init__(self, label: str, fluid: Fluid | None = None) -> None:
         super().__init__(label)
         self.fluid = fluid
         cls = type(self)
@@ -156,15 +161,15 @@ class LibraryComponent(Component):
         return fluid
 
     # -- grouping and kernels ----------------------------------------------------------
-    def group_key(self):
+    def group_key(self) -> Hashable:
         """Instances with equal keys are evaluated together in one kernel call."""
         return (type(self), id(self.fluid))
 
-    def initial_states(self):
+    def initial_states(self) -> list[float]:
         """State values at t = 0, in ``state_spec`` order."""
         return [0.0] * len(self.state_spec)
 
-    def kernel_class(self):
+    def kernel_class(self) -> type[LibraryComponent]:
         """The class whose kernels evaluate this instance: its own in isothermal
         scenes, its thermal variant (:mod:`softflow.components.thermal`) in thermal ones."""
         if self._thermal is None:
@@ -172,18 +177,18 @@ class LibraryComponent(Component):
         from .thermal import thermal_class
         return thermal_class(type(self))
 
-    def initial_state_values(self):
+    def initial_state_values(self) -> list[float]:
         """Initial states of the compiled model (thermal variants add internal energy)."""
         if self._thermal is None:
             return self.initial_states()
         return self.kernel_class().thermal_initial_states(self)
 
     @classmethod
-    def make_params(cls, components) -> Params:
+    def make_params(cls, components: Sequence[LibraryComponent]) -> Params:
         return Params(components)
 
     @classmethod
-    def rates(cls, P, V, S, jac):
+    def rates(cls, P: Params, V: Array, S: Array, jac: bool) -> tuple[Array, Any]:
         """Rates of the continuous states, r (n, n_continuous) in ``state_spec``
         order, and, if ``jac``, dr/dV as a sequence of ``len(rate_pattern)``
         columns (arrays of length n, or floats for entries equal in every
@@ -194,7 +199,8 @@ class LibraryComponent(Component):
         return np.empty((P.n, 0)), ()
 
     @classmethod
-    def residual(cls, P, V, S, t, jac):
+    def residual(cls, P: Params, V: Array, S: Array, t: float,
+                 jac: bool) -> tuple[Array, Array | None]:
         """Residuals F (n, n_eq) at time t and, if ``jac``, their Jacobian
         (n, len(residual_pattern) + len(state_jac_pattern)): dF/dV in
         ``residual_pattern`` order, then dF/dX in ``state_jac_pattern`` order.
@@ -204,13 +210,14 @@ class LibraryComponent(Component):
         raise NotImplementedError
 
     @classmethod
-    def switch(cls, P, V, S):
+    def switch(cls, P: Params, V: Array, S: Array) -> Array:
         """The discrete states (n, n_discrete) after a step that converged to V,
         with S the states at its end (modes still the old ones)."""
         raise NotImplementedError(f"{cls.__name__} declares discrete states but no switch")
 
     @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def kernel(cls, P: Params, V: Array, S: Array, t: float, dt: float,
+               jac: bool) -> tuple[Array, Array | None]:
         """The step equations F(V, S + dt·r(V), t) and their Jacobian dF/dV in
         ``jac_pattern`` order, for states S at the start of the step (or a
         BDF predictor) and step dt (or its c): see :mod:`softflow.solve.discretize`."""
@@ -218,13 +225,13 @@ class LibraryComponent(Component):
         return step_kernel(cls, P, V, S, t, dt, jac)
 
     @classmethod
-    def update(cls, P, V, S, dt):
+    def update(cls, P: Params, V: Array, S: Array, dt: float) -> Array:
         """States at the end of the step whose equations :meth:`kernel` states."""
         from ..solve.discretize import step_update
         return step_update(cls, P, V, S, dt)
 
     @classmethod
-    def affine(cls, P):
+    def affine(cls, P: Params) -> Affine | None:
         """None, or an :class:`Affine` description of this group's residual
         (without Jacobian) as an affine map of V, which small systems evaluate
         for all such groups with one matrix product. Only a class whose

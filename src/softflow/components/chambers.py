@@ -1,11 +1,17 @@
 """Volumes that store fluid: rigid containers and linear accumulators."""
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
 from .base import FLUID_PORT, LibraryComponent
+
+if TYPE_CHECKING:
+    from .._typing import HeatTransfer, Scalar
+    from ..fluids.base import Fluid
 
 
 #: dm/dt = mdot: the mass rate of a one-terminal volume depends on its mass flow (V[:, 1])
@@ -36,15 +42,18 @@ class Container(LibraryComponent):
     """
 
     terminal_spec = (("a", FLUID_PORT),)
-    state_spec = (("mass", "mass"),)
+    state_spec: tuple = (("mass", "mass"),)
     param_names = ("volume",)
-    jac_pattern = ((0, 0), (0, 1))
+    jac_pattern: tuple = ((0, 0), (0, 1))
     state_jac_pattern = ((0, 0),)
     rate_pattern = MASS_RATE_PATTERN
 
-    def __init__(self, label, fluid, volume, initial_pressure=pressure_atmospheric, *,
-                 thermal=None, initial_temperature=None, wall_temperature=None,
-                 heat_transfer_coefficient=None, area=None, hA=None):
+    def __init__(self, label: str, fluid: Fluid, volume: Scalar,
+                 initial_pressure: Scalar = pressure_atmospheric, *,
+                 thermal: str | None = None, initial_temperature: Scalar | None = None,
+                 wall_temperature: Scalar | None = None,
+                 heat_transfer_coefficient: HeatTransfer | None = None,
+                 area: Scalar | None = None, hA: Scalar | None = None) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.volume = self._si(volume, "m**3", "volume", positive=True)
@@ -103,17 +112,20 @@ class LinearAccumulator(LibraryComponent):
     """
 
     terminal_spec = (("a", FLUID_PORT),)
-    state_spec = (("mass", "mass"),)
+    state_spec: tuple = (("mass", "mass"),)
     param_names = ("volume", "compliance", "reference_pressure")
-    jac_pattern = ((0, 0), (0, 1))
+    jac_pattern: tuple = ((0, 0), (0, 1))
     residual_pattern = ((0, 0),)
     state_jac_pattern = ((0, 0),)
     rate_pattern = MASS_RATE_PATTERN
 
-    def __init__(self, label, fluid, volume, compliance,
-                 reference_pressure=pressure_atmospheric, initial_pressure=None, *,
-                 thermal=None, initial_temperature=None, wall_temperature=None,
-                 heat_transfer_coefficient=None, area=None, hA=None):
+    def __init__(self, label: str, fluid: Fluid, volume: Scalar, compliance: Scalar,
+                 reference_pressure: Scalar = pressure_atmospheric,
+                 initial_pressure: Scalar | None = None, *, thermal: str | None = None,
+                 initial_temperature: Scalar | None = None,
+                 wall_temperature: Scalar | None = None,
+                 heat_transfer_coefficient: HeatTransfer | None = None,
+                 area: Scalar | None = None, hA: Scalar | None = None) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.volume = self._si(volume, "m**3", "volume", positive=True)

@@ -10,12 +10,18 @@ takes them relative to the atmosphere instead.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..curves.waveforms import Waveform
 from ..units import to_si
 from .base import FLUID_PORT, Affine, LibraryComponent, Params
+
+if TYPE_CHECKING:
+    from .._typing import Input, Scalar
+    from ..fluids.base import Fluid
 
 
 class _Signal:
@@ -172,9 +178,10 @@ class PressureSource(_Source):
         the temperature of the gas at its terminal); ignored when isothermal.
     """
 
-    jac_pattern = ((0, 0),)
+    jac_pattern: tuple = ((0, 0),)
 
-    def __init__(self, label, pressure, *, gauge=False, temperature=None):
+    def __init__(self, label: str, pressure: Input, *, gauge: bool = False,
+                 temperature: Scalar | None = None) -> None:
         super().__init__(label)
         self._set_temperature(temperature)
         if not isinstance(gauge, bool):
@@ -215,9 +222,10 @@ class MassFlowSource(_Source):
         the temperature of the gas at its terminal); ignored when isothermal.
     """
 
-    jac_pattern = ((0, 1),)
+    jac_pattern: tuple = ((0, 1),)
 
-    def __init__(self, label, massflow, *, temperature=None):
+    def __init__(self, label: str, massflow: Input, *,
+                 temperature: Scalar | None = None) -> None:
         super().__init__(label)
         self._set_temperature(temperature)
         self.signal = _Signal(massflow, "kg/s", "massflow", self.describe())
@@ -259,9 +267,10 @@ class VolumeFlowSource(_Source):
         the temperature of the gas at its terminal); ignored when isothermal.
     """
 
-    jac_pattern = ((0, 0), (0, 1))
+    jac_pattern: tuple = ((0, 0), (0, 1))
 
-    def __init__(self, label, volumeflow, fluid, *, temperature=None):
+    def __init__(self, label: str, volumeflow: Input, fluid: Fluid, *,
+                 temperature: Scalar | None = None) -> None:
         super().__init__(label)
         self._set_temperature(temperature)
         self.fluid = self._check_fluid(fluid)

@@ -681,7 +681,9 @@ class _ThermalCurveVolume(_ThermalVolume):
         return F, J
 
 
-class ThermalActuator(_ThermalCurveVolume, Actuator):
+# _initial_volume: the thermal volumes' classmethod (comp) and Actuator's constructor
+# helper share a name (a thermal class is a kernel class, never constructed)
+class ThermalActuator(_ThermalCurveVolume, Actuator):  # type: ignore[misc]
     """Actuator in a thermal scene: V = m_new / rho(p, T), p = curve(V), work p·dV."""
 
     state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))

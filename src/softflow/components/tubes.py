@@ -3,6 +3,7 @@ isothermal compressible flow and optional fluid inertance."""
 from __future__ import annotations
 
 from functools import partial
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -10,6 +11,12 @@ from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
                                      resolve_friction)
 from .base import FLUID_PORT, Affine, LibraryComponent
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+    from .._typing import Scalar
+    from ..fluids.base import Fluid
 
 _COMPRESSIBLE_MODES = ("mean_density", "isothermal")
 #: groups up to this size test laminarity by a dot product (single-threaded in BLAS)
@@ -100,14 +107,15 @@ class CircularTube(LibraryComponent):
     # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: pressure drop
     jac_pattern = ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
 
-    def __new__(cls, *args, inertance=False, **kwargs):
+    def __new__(cls, *args: Any, inertance: bool = False, **kwargs: Any) -> Self:
         if inertance and cls is CircularTube:
-            cls = InertialCircularTube
+            cls = InertialCircularTube  # type: ignore[assignment]
         return super().__new__(cls)
 
-    def __init__(self, label, fluid, length, diameter, roughness=1.5e-6,
-                 Re_laminar=2300.0, Re_turbulent=4000.0, *, friction="Haaland",
-                 compressible="mean_density", inertance=False):
+    def __init__(self, label: str, fluid: Fluid, length: Scalar, diameter: Scalar,
+                 roughness: Scalar = 1.5e-6, Re_laminar: float = 2300.0,
+                 Re_turbulent: float = 4000.0, *, friction: str = "Haaland",
+                 compressible: str = "mean_density", inertance: bool = False) -> None:
         super().__init__(label, fluid=None)
         set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         try:

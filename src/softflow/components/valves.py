@@ -7,6 +7,8 @@ mdot = mf_a > 0 is flow from a to b and dp = p_a - p_b.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..constants import pressure_atmospheric
@@ -15,6 +17,10 @@ from ..correlations.orifice import (dp_at_reynolds, loss_coefficient_from_discha
                                     massflow_ISO_6358, massflow_loss_coefficient)
 from .base import FLUID_PORT, LibraryComponent
 from .tubes import set_tube_coefficients, set_tube_geometry
+
+if TYPE_CHECKING:
+    from .._typing import Scalar
+    from ..fluids.base import Fluid
 
 TWO_PORTS = (("a", FLUID_PORT), ("b", FLUID_PORT))
 # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: flow law
@@ -94,8 +100,10 @@ class Orifice(LibraryComponent):
     param_names = ("area", "K", "dp_small", "C", "b", "subsonic_index", "pr_laminar")
     jac_pattern = TWO_PORT_PATTERN
 
-    def __init__(self, label, fluid, diameter=None, *, K=None, Cd=None, C=None, b=None,
-                 m=0.5, Re_laminar=10.0, pr_laminar=0.999):
+    def __init__(self, label: str, fluid: Fluid, diameter: Scalar | None = None, *,
+                 K: float | None = None, Cd: float | None = None, C: Scalar | None = None,
+                 b: float | None = None, m: float = 0.5, Re_laminar: float = 10.0,
+                 pr_laminar: float = 0.999) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         given = [name for name, v in (("K", K), ("Cd", Cd), ("C", C)) if v is not None]
@@ -236,8 +244,9 @@ class CheckValve(LibraryComponent):
     param_names = ("area", "K", "dp_small", "cracking_pressure", "opening_band", "leakage")
     jac_pattern = TWO_PORT_PATTERN
 
-    def __init__(self, label, fluid, diameter, cracking_pressure=0.0, opening_band=1e3, Cd=0.6,
-                 leakage=0.0, Re_laminar=10.0):
+    def __init__(self, label: str, fluid: Fluid, diameter: Scalar,
+                 cracking_pressure: Scalar = 0.0, opening_band: Scalar = 1e3, Cd: float = 0.6,
+                 leakage: Scalar = 0.0, Re_laminar: float = 10.0) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.diameter = self._si(diameter, "m", "diameter", positive=True)
@@ -324,8 +333,10 @@ class TeslaValve(_TubeLike):
                    "diodicity", "Re_blend")
     jac_pattern = TWO_PORT_PATTERN
 
-    def __init__(self, label, fluid, length, diameter, diodicity=2.0, roughness=1.5e-6,
-                 Re_laminar=2300.0, Re_turbulent=4000.0, Re_blend=10.0):
+    def __init__(self, label: str, fluid: Fluid, length: Scalar, diameter: Scalar,
+                 diodicity: float = 2.0, roughness: Scalar = 1.5e-6,
+                 Re_laminar: float = 2300.0, Re_turbulent: float = 4000.0,
+                 Re_blend: float = 10.0) -> None:
         super().__init__(label)
         self._init_tube(fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         self.diodicity = self._si(diodicity, "", "diodicity")
@@ -417,9 +428,11 @@ class SnappingValve(_TubeLike):
                    "opening_pressure", "closing_pressure", "closed_conductance")
     jac_pattern = TWO_PORT_PATTERN
 
-    def __init__(self, label, fluid, opening_pressure, closing_pressure, closed_conductance,
-                 length=0.01, diameter=0.002, initially_open=False, roughness=1.5e-6,
-                 Re_laminar=2300.0, Re_turbulent=4000.0):
+    def __init__(self, label: str, fluid: Fluid, opening_pressure: Scalar,
+                 closing_pressure: Scalar, closed_conductance: Scalar, length: Scalar = 0.01,
+                 diameter: Scalar = 0.002, initially_open: bool = False,
+                 roughness: Scalar = 1.5e-6, Re_laminar: float = 2300.0,
+                 Re_turbulent: float = 4000.0) -> None:
         super().__init__(label)
         self._init_tube(fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         self.opening_pressure = self._si(opening_pressure, "Pa", "opening_pressure",

@@ -42,7 +42,7 @@ _SPAN_RELATIVE = ("enthalpy", "internal_energy")
 def table_properties(spec, liquid: bool) -> tuple:
     """Which properties a table of this fluid holds."""
     first = ("density",) if liquid else ("Z",)
-    rest = ("viscosity", "cp", "cv", "enthalpy", "internal_energy")
+    rest: tuple[str, ...] = ("viscosity", "cp", "cv", "enthalpy", "internal_energy")
     if spec.backend != "INCOMP":
         rest += ("speed_of_sound",)
     return first + rest
