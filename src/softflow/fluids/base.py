@@ -16,10 +16,17 @@ an instance of ``Fluid``.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..constants import pressure_atmospheric, temperature_standard
 from ..units import Q_, to_si
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
+
+    from .._typing import Array, ArrayLike, Quantity, Scalar
 
 #: Unit of each property that :meth:`Fluid.quantity` can return.
 PROPERTY_UNITS = {
@@ -90,67 +97,67 @@ class Fluid(metaclass=_FluidConstructor):
         return self
 
     # -- the protocol ----------------------------------------------------------------
-    def density(self, p, T=None):
+    def density(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Density [kg/m^3]."""
         raise NotImplementedError(self._missing("density"))
 
-    def density_dp(self, p, T=None):
+    def density_dp(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """(d rho / d p) at constant T [kg/(m^3 Pa)]."""
         raise NotImplementedError(self._missing("density_dp"))
 
-    def density_dT(self, p, T=None):
+    def density_dT(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """(d rho / d T) at constant p [kg/(m^3 K)]."""
         raise NotImplementedError(self._missing("density_dT"))
 
-    def viscosity(self, p, T=None):
+    def viscosity(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Dynamic viscosity [Pa s]."""
         raise NotImplementedError(self._missing("viscosity"))
 
-    def conductivity(self, p, T=None):
+    def conductivity(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Thermal conductivity [W/(m K)] (used by heat-transfer correlations)."""
         raise NotImplementedError(self._missing("conductivity"))
 
-    def cp(self, p, T=None):
+    def cp(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Specific isobaric heat capacity [J/(kg K)]."""
         raise NotImplementedError(self._missing("cp"))
 
-    def cv(self, p, T=None):
+    def cv(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Specific isochoric heat capacity [J/(kg K)]."""
         raise NotImplementedError(self._missing("cv"))
 
-    def gamma(self, p, T=None):
+    def gamma(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Ratio of specific heats cp/cv [-]."""
         return self.cp(p, T) / self.cv(p, T)
 
-    def enthalpy(self, p, T=None):
+    def enthalpy(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Specific enthalpy [J/kg] (reference state: CoolProp's for the fluid)."""
         raise NotImplementedError(self._missing("enthalpy"))
 
-    def enthalpy_dp(self, p, T=None):
+    def enthalpy_dp(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """(d h / d p) at constant T [J/(kg Pa)]."""
         raise NotImplementedError(self._missing("enthalpy_dp"))
 
-    def enthalpy_dT(self, p, T=None):
+    def enthalpy_dT(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """(d h / d T) at constant p [J/(kg K)] (= cp, up to interpolation error)."""
         raise NotImplementedError(self._missing("enthalpy_dT"))
 
-    def internal_energy(self, p, T=None):
+    def internal_energy(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Specific internal energy [J/kg]."""
         raise NotImplementedError(self._missing("internal_energy"))
 
-    def internal_energy_dp(self, p, T=None):
+    def internal_energy_dp(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """(d u / d p) at constant T [J/(kg Pa)]."""
         raise NotImplementedError(self._missing("internal_energy_dp"))
 
-    def internal_energy_dT(self, p, T=None):
+    def internal_energy_dT(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """(d u / d T) at constant p [J/(kg K)] (= cv for an ideal gas only)."""
         raise NotImplementedError(self._missing("internal_energy_dT"))
 
-    def speed_of_sound(self, p, T=None):
+    def speed_of_sound(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Speed of sound [m/s]."""
         raise NotImplementedError(self._missing("speed_of_sound"))
 
-    def compressibility(self, p, T=None):
+    def compressibility(self, p: npt.ArrayLike, T: npt.ArrayLike | None = None) -> Array:
         """Compressibility factor Z = p / (rho R T) [-]."""
         raise NotImplementedError(self._missing("compressibility"))
 
@@ -167,7 +174,7 @@ class Fluid(metaclass=_FluidConstructor):
     def is_compressible(self) -> bool:
         return self.compressible
 
-    def quantity(self, prop: str, p, T=None):
+    def quantity(self, prop: str, p: ArrayLike, T: ArrayLike | None = None) -> Quantity:
         """A property as a pint Quantity; ``p`` and ``T`` may be Quantities.
 
         Parameters
@@ -186,7 +193,7 @@ class Fluid(metaclass=_FluidConstructor):
         T_si = None if T is None else to_si(T, "K", name="T", owner=repr(self))
         return Q_(getattr(self, prop)(p_si, T_si), PROPERTY_UNITS[prop])
 
-    def with_level(self, level: str, **options) -> "Fluid":
+    def with_level(self, level: str, **options: Any) -> "Fluid":
         """The same fluid (name, temperature, fraction) at another fidelity level."""
         if self.spec is None:
             raise FluidError(f"{self!r} was built by hand, not from the catalog, so it "
@@ -194,7 +201,8 @@ class Fluid(metaclass=_FluidConstructor):
         from .catalog import make_fluid
         return make_fluid(self.spec, level=level, temperature=self.temperature, **options)
 
-    def at(self, temperature=None, *, fraction=None) -> "Fluid":
+    def at(self, temperature: Scalar | None = None, *,
+           fraction: float | None = None) -> "Fluid":
         """The same fluid and level at another temperature [K] (and solute fraction [-])."""
         if self.spec is None:
             raise FluidError(f"{self!r} was built by hand; it has no catalog entry to "
@@ -225,7 +233,7 @@ def broadcast_state(fluid, p, T):
     return p, T, scalar
 
 
-def check_temperature(value, owner) -> float:
+def check_temperature(value: Scalar, owner: str) -> float:
     """A fluid temperature from a Quantity or kelvin number; must be a finite absolute T > 0."""
     T = to_si(value, "K", name="temperature", owner=owner)
     if np.ndim(T) != 0 or not np.isfinite(T) or T <= 0:
