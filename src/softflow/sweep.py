@@ -709,9 +709,12 @@ def _dask(sim, variants, outputs, times, bar, client, workers):
     cluster = None
     if own:
         import logging
-        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
-                                           processes=True, dashboard_address=None,
-                                           silence_logs=logging.ERROR)
+        with warnings.catch_warnings():
+            # its HTTP server moves to a free port where 8787 is taken, saying so
+            warnings.filterwarnings("ignore", message="Port .* is already in use")
+            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1,
+                                               processes=True, dashboard_address=None,
+                                               silence_logs=logging.ERROR)
         client = distributed.Client(cluster)
     try:
         n_workers = max(1, len(client.scheduler_info().get("workers", {})))
