@@ -73,3 +73,15 @@ def test_fit_bad_input():
     with pytest.raises(ValueError, match="lower < upper"):
         fit(sim, {"act.pressure": (t, t)}, ["tube.diameter"],
             bounds={"tube.diameter": (2e-3, 1e-3)})
+
+
+def test_fit_a_tube_and_the_balloon_curves_pressure_scale():
+    """examples/fit_balloon.py: the measured latex balloon curve, 1.0 mm tube and
+    pressure_scale 1.15 recovered from 30 % off with 100 Pa noise on a 19 kPa
+    trace (measured: 0.09 % and 0.3 %, 9 runs)."""
+    import runpy
+    from pathlib import Path
+    ns = runpy.run_path(str(Path(__file__).resolve().parents[1] / "examples" / "fit_balloon.py"))
+    out = ns["main"]()
+    assert out.params["tube.diameter"] == pytest.approx(1.0e-3, rel=0.01)
+    assert out.params["act.pressure_scale"] == pytest.approx(1.15, rel=0.01)

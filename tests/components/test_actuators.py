@@ -453,3 +453,28 @@ def test_every_volume_reports_its_volume():
     v_acc = res.get("acc", "volume")
     np.testing.assert_allclose(v_acc, 1e-5 + 1e-10 * (res.get("acc", "pressure") - P0), rtol=1e-6)
     assert res.get("tank", "volume", as_quantity=True)[0].to("mL").magnitude == pytest.approx(10)
+
+
+def test_pressure_scale_scales_the_curves_gauge_pressure():
+    """An actuator with pressure_scale s behaves as one whose curve's gauge
+    pressure is s times the measured one (same run, to Newton's tolerance)."""
+    import softflow as sf
+    P0 = sf.pressure_atmospheric
+    base = sf.PVCurve(volume=np.array([1.0, 2.0, 4.0, 8.0]) * 1e-6,
+                      pressure=P0 + np.array([0.0, 1.5e4, 2.5e4, 3.0e4]))
+    stiff = sf.PVCurve(volume=base.volume, pressure=P0 + 1.3 * (base.pressure - P0))
+    runs = []
+    for curve, scale in ((base, 1.3), (stiff, 1.0)):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 3.5e4)
+        s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+        s += sf.Actuator("act", sf.air, curve, pressure_scale=scale)
+        s.connect("src", "tube")
+        s.connect("tube", "act")
+        runs.append(sf.Simulation(s, duration=0.5, step=1e-3).run())
+    a, b = runs
+    np.testing.assert_allclose(a.get("act", "pressure"), b.get("act", "pressure"), rtol=0,
+                               atol=1.0)
+    np.testing.assert_allclose(a.get("act", "volume"), b.get("act", "volume"), rtol=1e-6)
+    with pytest.raises(ValueError, match="pressure_scale must be > 0"):
+        sf.Actuator("bad", sf.air, base, pressure_scale=0.0)

@@ -54,6 +54,8 @@ def _instances():
         ("LinearAccumulator-air", [sf.LinearAccumulator(f"a{i}", air, 1e-5, 1e-11)
                                    for i in range(3)]),
         ("Actuator-pvcurve", [sf.Actuator(f"act{i}", air, pv) for i in range(3)]),
+        ("Actuator-scaled", [sf.Actuator(f"act{i}", air, pv, pressure_scale=0.8 + 0.3 * i)
+                             for i in range(3)]),
         ("Actuator-callable", [sf.Actuator(f"act{i}", water, lambda v: P0 + 1e9 * v,
                                            initial_volume=1e-6) for i in range(3)]),
         ("HystereticActuator", [sf.HystereticActuator(f"h{i}", air, *loop) for i in range(3)]),

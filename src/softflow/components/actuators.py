@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 from scipy.optimize import brentq
 
+from ..constants import pressure_atmospheric
 from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
 from ..fluids.base import FluidError
@@ -128,9 +129,14 @@ class Actuator(LibraryComponent):
         i.e. on the first rising branch of a peak–valley curve.
     curve_derivative : callable, optional
         dp/dV [Pa/m^3] of a callable curve, V [m^3] -> float or array.
+    pressure_scale : float [-], default 1
+        Scales the curve's gauge pressure, p = p_atm + pressure_scale · (curve(V)
+        - p_atm): a stiffer (> 1) or softer (< 1) actuator of the same shape, a
+        number to fit to measurements (``sf.fit``) or to design with.
     """
 
     terminal_spec = (("a", FLUID_PORT),)
+    param_names = ("pressure_scale",)
     state_spec: tuple = (("mass", "mass"),)
     jac_pattern: tuple = ACTUATOR_PATTERN
     residual_pattern = ACTUATOR_RESIDUAL_PATTERN
@@ -143,9 +149,11 @@ class Actuator(LibraryComponent):
                  thermal: str | None = None, initial_temperature: Scalar | None = None,
                  wall_temperature: Scalar | None = None,
                  heat_transfer_coefficient: HeatTransfer | None = None,
-                 area: Scalar | None = None, hA: Scalar | None = None) -> None:
+                 area: Scalar | None = None, hA: Scalar | None = None,
+                 pressure_scale: Scalar = 1.0) -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
+        self.pressure_scale = self._si(pressure_scale, "", "pressure_scale", positive=True)
         if not (hasattr(curve, "fdf_volume") or callable(curve)):
             raise TypeError(f"{self.describe()}: curve must be a PVCurve or a callable V [m^3] "
                             f"-> absolute pressure [Pa], got {curve!r}")
@@ -154,11 +162,15 @@ class Actuator(LibraryComponent):
         v0 = self._initial_volume(curve, initial_volume, initial_pressure)
         self._curve_fn = _CurveFunction(curve, curve_derivative, abs(v0) or 1e-9,
                                         self.describe())
-        _set_initial_state(self, v0, float(self._curve_fn.value(np.array([v0]))[0]))
+        _set_initial_state(self, v0, self._scaled(float(self._curve_fn.value(np.array([v0]))[0])))
         thermal_volume_fields(self, initial_temperature, wall_temperature,
                               heat_transfer_coefficient, area, hA, thermal)
 
     # -- set-up ---------------------------------------------------------------------------
+    def _scaled(self, p):
+        """The curve's absolute pressure p with its gauge part scaled."""
+        return pressure_atmospheric + self.pressure_scale * (p - pressure_atmospheric)
+
     def _initial_volume(self, curve, initial_volume, initial_pressure):
         if initial_volume is not None and initial_pressure is not None:
             raise ValueError(f"{self.describe()}: give initial_volume or initial_pressure, "
@@ -172,7 +184,9 @@ class Actuator(LibraryComponent):
         if initial_pressure is None:
             return float(curve.volume[0])
         p0 = self._si(initial_pressure, "Pa", "initial_pressure", positive=True)
-        v0 = volume_at_pressure(curve, p0)
+        # the curve's own pressure there (its gauge part is scaled by pressure_scale)
+        v0 = volume_at_pressure(curve, pressure_atmospheric
+                                + (p0 - pressure_atmospheric) / self.pressure_scale)
         if v0 is None or not v0 > 0:
             raise ValueError(f"{self.describe()}: initial_pressure {p0:.6g} Pa is not reached "
                              f"by the PV curve at a positive volume ({curve!r})")
@@ -189,7 +203,21 @@ class Actuator(LibraryComponent):
     def make_params(cls, components):
         P = Params(components)
         P.curve = components[0]._curve_fn
+        P.scaled = bool(np.any(P.pressure_scale != 1.0))
         return P
+
+    @staticmethod
+    def curve_pressure(P, vol, jac):
+        """(p, dp/dV or None) of the group's curve at ``vol``, gauge part scaled."""
+        if jac:
+            pc, dpc = P.curve.fdf(vol)
+        else:
+            pc, dpc = P.curve.value(vol), None
+        if P.scaled:
+            s = P.pressure_scale
+            pc = pressure_atmospheric + s * (pc - pressure_atmospheric)
+            dpc = None if dpc is None else s * dpc
+        return pc, dpc
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -199,9 +227,9 @@ class Actuator(LibraryComponent):
     def residual(cls, P, V, S, t, jac):
         p, rho, vol = _volume(P, V, S)
         try:
+            pc, dpc = cls.curve_pressure(P, vol, jac)
             if not jac:
-                return (p - P.curve.value(vol))[:, None], None
-            pc, dpc = P.curve.fdf(vol)
+                return (p - pc)[:, None], None
         except FluidError:
             raise
         except Exception as err:

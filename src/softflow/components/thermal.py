@@ -695,7 +695,7 @@ class ThermalActuator(_ThermalCurveVolume, Actuator):  # type: ignore[misc]
 
     @classmethod
     def _curve(cls, P, vol, S, jac):
-        return P.curve.fdf(vol) if jac else (P.curve.value(vol), None)
+        return Actuator.curve_pressure(P, vol, jac)
 
 
 class ThermalHystereticActuator(_ThermalCurveVolume, HystereticActuator):
