@@ -85,3 +85,14 @@ def test_fit_a_tube_and_the_balloon_curves_pressure_scale():
     out = ns["main"]()
     assert out.params["tube.diameter"] == pytest.approx(1.0e-3, rel=0.01)
     assert out.params["act.pressure_scale"] == pytest.approx(1.15, rel=0.01)
+
+
+def test_fit_checks_units_and_the_time_span():
+    sim = sf.Simulation(scene(), duration=0.1)
+    t = np.linspace(0, 0.1, 5)
+    with pytest.raises(sf.UnitError, match="act.pressure"):
+        fit(sim, {"act.pressure": (t, sf.Q_(t, "m"))}, ["tube.diameter"])
+    with pytest.raises(ValueError, match="leave the simulated span"):
+        fit(sim, {"act.pressure": (t + 1.0, t)}, ["tube.diameter"])
+    with pytest.raises(KeyError, match="'act.pres'.*has no variable 'pres'"):
+        fit(sim, {"act.pres": (t, t)}, ["tube.diameter"])

@@ -16,7 +16,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .units import to_si
+from .units import quantity_unit, to_si
 
 
 def _si(value):
@@ -79,6 +79,21 @@ def _start(sim, params, x0):
     return names, np.array([start[n] for n in names])
 
 
+def _quantity_of(sim, label, var, key):
+    """The quantity of a component's variable or output, by its entry in a
+    result of ``sim`` (a clear KeyError naming what exists otherwise)."""
+    from .solve.result import Result
+    asm = sim.asm
+    probe = Result(asm, np.zeros(1), asm.x0[None, :], asm.S0[None, :])
+    try:
+        entry = probe._entry(label, var, None)
+    except KeyError as err:
+        raise KeyError(f"fit: measured key {key!r}: {err.args[0]}") from None
+    if entry[0] == "output":
+        return probe._component(label).outputs()[var][0]
+    return entry[1]
+
+
 def _bounds(names, theta0, bounds):
     lo = np.full(len(names), -np.inf)
     hi = np.full(len(names), np.inf)
@@ -129,7 +144,17 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
             raise KeyError(f"fit: measured key {key!r} is not 'label.variable'")
         label, var = key.rsplit(".", 1)
         times = np.asarray(to_si(times, "s", name="times", owner=f"fit[{key!r}]"), dtype=float)
+        quantity = _quantity_of(sim, label, var, key)
+        unit = quantity_unit(quantity) if quantity else None
+        if unit is not None:       # Quantities converted (and checked) to the output's unit
+            values = to_si(values, unit, name="values", owner=f"fit[{key!r}]")
+        elif hasattr(values, "magnitude"):
+            values = values.to_base_units().magnitude
         values = np.asarray(values, dtype=float)
+        if times.size and (times.min() < 0 or times.max() > sim.duration * (1 + 1e-12)):
+            raise ValueError(f"fit[{key!r}]: measured times {times.min():.6g} ... "
+                             f"{times.max():.6g} s leave the simulated span 0 ... "
+                             f"{sim.duration:.6g} s")
         if times.shape != values.shape or times.ndim != 1 or not times.size:
             raise ValueError(f"fit[{key!r}]: times and values must be 1-D arrays of one "
                              f"length, got {times.shape} and {values.shape}")
