@@ -418,14 +418,11 @@ def _check_variants(sim, variants):
     Errors name the variant."""
     n = len(variants)
     try:
-        for i, variant in enumerate(variants):
-            try:
-                sim._set_parameters(variant)
-            except Exception as err:
-                raise _renamed(err, f"sweep: {_describe_variant(i, n, variant)}: "
-                                    f"{_message(err)}") from err
-    finally:
-        sim._set_parameters(None)
+        sim.check_params(*variants)
+    except Exception as err:
+        i = getattr(err, "variant_index", 0)
+        raise _renamed(err, f"sweep: {_describe_variant(i, n, variants[i])}: "
+                            f"{_message(err)}") from err
 
 
 def _message(err):
@@ -651,7 +648,7 @@ def _worker_chunk(chunk, outputs, times):
 def _pickled(sim, engine):
     """The Simulation as it travels to workers (its definition, recompiled there)."""
     try:
-        return pickle.dumps(sim)
+        return pickle.dumps(sim.without_result())
     except Exception as err:
         raise TypeError(f"sweep: engine={engine!r} sends the Simulation to its workers by "
                         f"pickle, and this one does not pickle ({type(err).__name__}: {err}); "

@@ -132,3 +132,16 @@ def test_simulation_and_result_pickle_and_rerun_bitwise(thermal):
     np.testing.assert_array_equal(back.get("act0", "volume"), res.get("act0", "volume"))
     assert back.to_dataframe().shape == res.to_dataframe().shape
     assert back.stats == res.stats and back.status == res.status
+
+
+def test_check_params_and_without_result():
+    sim = sf.Simulation(scene(), duration=0.1)
+    base = sim.run()
+    sim.check_params({"tube.diameter": 2e-3}, {"tank.volume": 2e-5})
+    _same(sim.run(), base)                       # the compiled values stay in force
+    with pytest.raises(ValueError, match="diameter must be > 0") as info:
+        sim.check_params({"tube.diameter": 2e-3}, {"tube.diameter": -1.0})
+    assert info.value.variant_index == 1
+    light = pickle.dumps(sim.without_result())
+    assert len(light) < len(pickle.dumps(sim)) and sim.result is base
+    _same(pickle.loads(light).run(), base)

@@ -275,6 +275,29 @@ class Simulation:
     def stats(self) -> dict[str, Any]:
         return self.result.stats if self.result is not None else {}
 
+    def check_params(self, *params):
+        """Check sets of run-time parameters (each as ``run(params=...)`` would take
+        it: keys, units, ranges, structure) without running; the compiled values
+        stay in force. Raises the error a run would, with ``variant_index`` set to
+        the position of the set that failed."""
+        try:
+            for i, p in enumerate(params):
+                try:
+                    self._set_parameters(p)
+                except Exception as err:
+                    err.variant_index = i
+                    raise
+        finally:
+            self._set_parameters(None)
+
+    def without_result(self):
+        """A shallow copy that pickles without the last run's Result (what a
+        Simulation sent to workers needs: its definition)."""
+        import copy as _copy
+        twin = _copy.copy(self)
+        twin.result = None
+        return twin
+
     def _set_parameters(self, params):
         """Put the run-time parameters ``params`` in force (the compiled values
         for every other component; see :mod:`softflow.solve.params`)."""
