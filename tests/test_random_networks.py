@@ -1,103 +1,402 @@
-"""Randomized networks (issue 17, hypothesis): random trees of library components
-behind a pressure source, random sizes across physical ranges, air or water,
-adaptive or fixed steps. Each run either succeeds with finite values, positive
-absolute pressures and mass conserved (what left the source is what the volumes
-hold, to 1e-12 relative as the run integrated it), or fails with a
-SimulationError naming a component and a time: never an exception from inside
-NumPy, SciPy or CoolProp, never an unbounded run (max_steps)."""
+"""Randomized networks (issue 17, hypothesis).
+
+Random graphs of library components: a spanning tree of nodes, extra edges
+that close loops (parallel branches included), junctions where several
+components meet. Each node holds at most one storage volume (Container,
+LinearAccumulator, Actuator with a monotonic, peak-valley or plateau curve,
+HystereticActuator: the curves of :mod:`softflow.paper_scenes` with random key
+points) or a pressure source, a flow source possibly beside a volume; each
+edge is a two-port (CircularTube with random friction law, tube law and
+inertance, Orifice with K, Cd or ISO 6358, CheckValve, TeslaValve,
+SnappingValve). Sources drive constants or waveforms. Fluids: air, water,
+ethylene glycol at level 'ideal' or 'table' ('eos' in a handful of examples,
+its own test); fixed or adaptive steps; isothermal or, with air, adiabatic.
+
+Each run either succeeds with finite values, positive absolute pressures and
+mass conserved (what the sources delivered is what the volumes gained, to
+1e-12 relative, as the run integrated it), or fails with a SimulationError
+naming a component and a time (a gas tube past its choking limit included), or
+stops at ``max_steps``; a network refused at compile time (NetworkError) names
+its components. Never an exception from inside NumPy, SciPy or CoolProp, never
+an unbounded run.
+
+Examples per CI run: EXAMPLES (default suite) + EXAMPLES_SLOW (slow test,
+still run in CI) + EXAMPLES_EOS = 2 003, derandomized (the same examples every
+run). Violations found are kept as plain cases in test_random_network_cases.py
+(xfail until fixed) and recognised here by ``_known`` so that the rest still runs.
+"""
+import math
 import warnings
 
 import numpy as np
 import pytest
 
 import softflow as sf
+from softflow import paper_scenes as ps
+from softflow import waveforms as wf
+from softflow.solve.newton import StepLimitError
 
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-#: examples per run of the default suite (a few seconds); the slow test runs more
-EXAMPLES = 10
-EXAMPLES_SLOW = 300
+#: examples per run of the default suite; the slow test brings the total to >= 2 000
+EXAMPLES = 300
+EXAMPLES_SLOW = 1_700
+EXAMPLES_EOS = 3
 
-log_uniform = st.floats(min_value=-1.0, max_value=1.0).map(lambda x: 10.0 ** x)
+#: short runs, bounded: fixed steps take 10 or 20 steps, adaptive ones at most this
+MAX_STEPS = 200
+
+SETTINGS = dict(deadline=None, derandomize=True, database=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+_FLUIDS = {"air": sf.air, "water": sf.water, "ethylene_glycol": sf.ethylene_glycol}
+_fluid_cache = {}
+
+
+def fluid_at(name, level):
+    """One fluid object per (name, level), shared by all examples (tables load once)."""
+    key = (name, level)
+    if key not in _fluid_cache:
+        base = _FLUIDS[name]
+        _fluid_cache[key] = base if level == "ideal" else base.with_level(level)
+    return _fluid_cache[key]
+
+
+# Draws through a few strategies built once: building a strategy per draw (st.floats(lo,
+# hi) with new bounds) costs hypothesis more than running a small network
+_UNIT = st.floats(0.0, 1.0)
+_BOOL = st.booleans()
+_INDEX = {n: st.integers(0, n - 1) for n in range(1, 17)}
+
+
+class Draws:
+    """Random values from hypothesis' ``draw``: uniform, log-uniform, choices
+    (hypothesis also tries the ends of each range)."""
+
+    def __init__(self, draw):
+        self.draw = draw
+
+    def uniform(self, lo, hi):
+        return lo + (hi - lo) * self.draw(_UNIT)
+
+    def log(self, lo, hi):
+        return lo * (hi / lo) ** self.draw(_UNIT)
+
+    def choice(self, options):
+        return options[self.draw(_INDEX[len(options)])]
+
+    def integer(self, lo, hi):
+        return lo + self.draw(_INDEX[hi - lo + 1])
+
+    def flag(self):
+        return self.draw(_BOOL)
+
+
+# -- sources -------------------------------------------------------------------------------
+SIGNALS = ("constant", "constant", "step", "ramp", "sine", "square", "trapezoid",
+           "piecewise linear", "piecewise constant")
+
+
+def signal(r, low, high, *, signed=False, duration):
+    """A constant or a waveform between ``low`` and ``high`` (or +-, ``signed``)."""
+    def value():
+        v = r.uniform(low, high)
+        return -v if signed and r.flag() else v
+
+    kind = r.choice(SIGNALS)
+    t = lambda: r.uniform(0.0, duration)   # noqa: E731
+    if kind == "constant":
+        return value()
+    if kind == "step":
+        return wf.Step(t(), value(), value())
+    if kind == "ramp":
+        t0 = t()
+        return wf.Ramp(t0, t0 + r.uniform(1e-4, duration), value(), value())
+    if kind == "sine":
+        a, b = value(), value()
+        return wf.Sine(abs(a - b) / 2, r.log(1.0, 2e3), offset=(a + b) / 2,
+                       phase=r.uniform(0, 2 * math.pi))
+    if kind == "square":
+        return wf.Square(value(), value(), r.log(5.0, 2e3), duty=r.uniform(0.1, 0.9),
+                         start=t())
+    if kind == "trapezoid":
+        period = duration / r.choice((1, 2, 4))
+        return wf.Trapezoid(value(), value(), r.uniform(0, period / 3),
+                            r.uniform(0, period / 3), r.uniform(0, period / 3), start=t(),
+                            period=period)
+    n = r.integer(2, 5)
+    times = np.sort(np.array([0.0] + [t() for _ in range(n - 1)]))
+    if len(np.unique(times)) < len(times):
+        return value()
+    values = [value() for _ in range(n)]
+    cls = wf.PiecewiseLinear if kind == "piecewise linear" else wf.PiecewiseConstant
+    return cls(times, values)
+
+
+def pressure_source(r, label, duration):
+    if r.flag():          # gauge, -0.5 .. +2 bar
+        return sf.PressureSource(label, signal(r, -0.5e5, 2e5, duration=duration), gauge=True)
+    return sf.PressureSource(label, signal(r, 0.4e5, 3e5, duration=duration))
+
+
+def flow_source(r, label, fluid, duration):
+    if r.flag():
+        scale = 1e-5 if fluid.compressible else 1e-4     # kg/s
+        return sf.MassFlowSource(label, signal(r, scale * 1e-3, scale, signed=True,
+                                               duration=duration))
+    return sf.VolumeFlowSource(label, signal(r, 1e-8, 1e-5, signed=True, duration=duration),
+                               fluid)
+
+
+# -- volumes -------------------------------------------------------------------------------
+VOLUMES = ("container", "accumulator", "monotonic", "peak-valley", "plateau", "hysteretic")
+
+
+def volume(r, label, fluid):
+    kind = r.choice(VOLUMES)
+    if kind == "container":
+        if not fluid.compressible and r.integer(0, 7):
+            kind = "accumulator"     # a rigid liquid volume takes no flow: now and then only
+        else:
+            return sf.Container(label, fluid, volume=r.log(1e-7, 1e-3),
+                                initial_pressure=r.uniform(0.5e5, 2.5e5))
+    if kind == "accumulator":
+        v, c = r.log(1e-7, 1e-4), r.log(1e-13, 1e-9)
+        p0 = max(r.uniform(0.8e5, 2e5), sf.pressure_atmospheric - 0.5 * v / c)
+        return sf.LinearAccumulator(label, fluid, volume=v, compliance=c, initial_pressure=p0)
+    if kind == "monotonic":
+        curve = ps.curve_monotonic(r.uniform(3.0, 60.0))
+    elif kind == "peak-valley":
+        peak = r.uniform(10.0, 60.0)
+        curve = ps.curve_peak_valley(peak, peak * r.uniform(0.2, 0.9))
+    elif kind == "plateau":
+        curve = ps.curve_plateau(r.uniform(3.0, 60.0))
+    else:
+        return sf.HystereticActuator(label, fluid, *ps.loop_hysteretic())
+    return sf.Actuator(label, fluid, curve)
+
+
+# -- two-ports -----------------------------------------------------------------------------
+TWO_PORTS = ("tube", "tube", "tube", "orifice", "check valve", "tesla", "snapping")
+FRICTION = ("Haaland", "Colebrook", "Churchill", "Swamee-Jain", "laminar")
+
+
+def two_port(r, label, fluid):
+    kind = r.choice(TWO_PORTS)
+    if kind == "tube":
+        options = {"friction": r.choice(FRICTION), "inertance": r.integer(0, 3) == 0}
+        if fluid.compressible:
+            options["compressible"] = r.choice(("mean_density", "isothermal"))
+        return sf.CircularTube(label, fluid, length=r.log(5e-3, 3.0),
+                               diameter=r.log(2e-4, 5e-3), **options)
+    if kind == "orifice":
+        law = r.choice(("K", "Cd", "ISO 6358") if fluid.compressible else ("K", "Cd"))
+        if law == "K":
+            return sf.Orifice(label, fluid, r.log(2e-4, 3e-3), K=r.log(0.5, 50.0))
+        if law == "Cd":
+            return sf.Orifice(label, fluid, r.log(2e-4, 3e-3), Cd=r.uniform(0.3, 1.0))
+        return sf.Orifice(label, fluid, C=r.log(1e-10, 3e-8), b=r.uniform(0.1, 0.6),
+                          m=r.uniform(0.3, 1.0))
+    if kind == "check valve":
+        return sf.CheckValve(label, fluid, r.log(2e-4, 3e-3),
+                             cracking_pressure=r.uniform(0.0, 2e4),
+                             opening_band=r.log(1e2, 5e3),
+                             leakage=r.choice((0.0, 1e-14, 1e-12, 1e-10)))
+    if kind == "tesla":
+        return sf.TeslaValve(label, fluid, length=r.log(5e-3, 3.0), diameter=r.log(2e-4, 5e-3),
+                             diodicity=r.uniform(1.0, 10.0))
+    opening = r.uniform(1e3, 3e4)
+    return sf.SnappingValve(label, fluid, opening_pressure=opening,
+                            closing_pressure=opening - r.uniform(5e2, 3e4),
+                            closed_conductance=r.log(1e-14, 1e-11),
+                            length=r.log(5e-3, 5e-2), diameter=r.log(5e-4, 3e-3),
+                            initially_open=r.flag())
+
+
+# -- networks ------------------------------------------------------------------------------
+class Network:
+    """A drawn scene and how to run it; ``describe()`` lists it for a failure report."""
+
+    def __init__(self, system, volumes, sources, options, thermal, notes):
+        self.system, self.volumes, self.sources = system, volumes, sources
+        self.options, self.thermal, self.notes = options, thermal, notes
+
+    def describe(self):
+        lines = [f"{self.notes}; thermal={self.thermal}; {self.options}"]
+        for c in self.system.components:
+            params = {k: v for k, v in vars(c).items()
+                      if isinstance(v, (int, float, str, bool)) and not k.startswith("_")}
+            lines.append(f"  {type(c).__name__} {c.label!r} {params}")
+        return "\n".join(lines)
+
+    __repr__ = describe
+
+
+ROLES = ("volume", "volume", "junction", "source", "volume+flow")
 
 
 @st.composite
-def networks(draw):
-    fluid = draw(st.sampled_from([sf.air, sf.water]))
+def networks(draw, levels=("ideal", "ideal", "table"), max_nodes=5, adaptive=True):
+    r = Draws(draw)
+    name = r.choice(("air", "air", "water", "ethylene_glycol"))
+    level = r.choice(levels)
+    fluid = fluid_at(name, level)
+    gas = fluid.compressible
+    adaptive = adaptive and r.integer(0, 5) == 0
+    duration = r.choice((0.01, 0.02, 0.05))
+    steps = r.choice((10, 20))
+    thermal = r.choice(("isothermal", "isothermal", "adiabatic")) if gas else "isothermal"
+
+    n = r.integer(2, max_nodes)
+    # roles: node 0 holds the main source; others a volume, nothing (a junction or a
+    # closed end), another source, or a flow source beside a volume
+    roles = ["source"] + [r.choice(ROLES) for _ in range(n - 1)]
+    edges = [(r.integer(0, k - 1), k) for k in range(1, n)]              # spanning tree
+    for _ in range(r.integer(0, 2)):                                     # loops
+        i, j = r.integer(0, n - 1), r.integer(0, n - 1)
+        if i != j:
+            edges.append((i, j))
+
     s = sf.System()
-    s += sf.PressureSource("src", pressure=draw(st.floats(1.05e5, 1.8e5)))
-    volumes = []
-    # a tree: each new tube hangs off the source or off the far end of an earlier tube
-    ends = [("src", None)]
-    for k in range(draw(st.integers(1, 4))):
-        parent = draw(st.sampled_from(ends))
-        tube = f"t{k}"
-        s += sf.CircularTube(tube, fluid, length=0.3 * draw(log_uniform),
-                             diameter=1e-3 * draw(log_uniform))
-        s.connect((tube, "a"), parent if parent[1] else parent[0])
-        kind = draw(st.sampled_from(["volume", "actuator", "tube end"]))
-        if kind == "tube end" and k < 3:
-            ends.append((tube, "b"))
-            continue
-        label = f"v{k}"
-        if kind == "actuator":
-            curve = sf.PVCurve.monotonic((1e-6, 1.0e5), (3e-6, 1.3e5), (8e-6, 1.6e5))
-            s += sf.Actuator(label, fluid, curve)
-        elif fluid.compressible:
-            s += sf.Container(label, fluid, volume=1e-5 * draw(log_uniform))
-        else:
-            s += sf.LinearAccumulator(label, fluid, volume=1e-6, compliance=1e-11 *
-                                      draw(log_uniform))
-        s.connect((tube, "b"), label)
-        volumes.append(label)
-    if not volumes:                    # every tube ends somewhere: close the last one
-        s += sf.Container("cap", fluid, volume=1e-5) if fluid.compressible else \
-            sf.LinearAccumulator("cap", fluid, volume=1e-6, compliance=1e-11)
-        s.connect((ends[-1][0], "b"), "cap")
-        volumes.append("cap")
-    step = draw(st.sampled_from([None, 1e-3]))
-    return s, volumes, step
+    at = [[] for _ in range(n)]          # terminals meeting at each node
+    volumes, sources, pressure_fixed = [], [], False
+    for k, role in enumerate(roles):
+        if role == "source":
+            label = f"src{k}"
+            if r.integer(0, 2):
+                s += pressure_source(r, label, duration)
+                pressure_fixed = True
+            else:
+                s += flow_source(r, label, fluid, duration)
+            sources.append(label)
+            at[k].append((label, "a"))
+        if role.startswith("volume"):
+            label = f"v{k}"
+            s += volume(r, label, fluid)
+            volumes.append(label)
+            at[k].append((label, "a"))
+        if role == "volume+flow":
+            label = f"src{k}"
+            s += flow_source(r, label, fluid, duration)
+            sources.append(label)
+            at[k].append((label, "a"))
+    if not pressure_fixed and not volumes:
+        # flow sources only: something must take the flow
+        s += sf.Container("v_end", fluid, volume=1e-5) if gas else \
+            sf.LinearAccumulator("v_end", fluid, volume=1e-6, compliance=1e-11)
+        volumes.append("v_end")
+        at[n - 1].append(("v_end", "a"))
+    for j, (i, k) in enumerate(edges):
+        label = f"e{j}"
+        s += two_port(r, label, fluid)
+        a, b = (i, k) if r.flag() else (k, i)
+        at[a].append((label, "a"))
+        at[b].append((label, "b"))
+    for terminals in at:
+        if len(terminals) > 1:
+            s.connect(*terminals)
+
+    if adaptive:
+        options = dict(duration=duration, max_steps=MAX_STEPS)
+    else:
+        options = dict(duration=duration, step=duration / steps, max_steps=MAX_STEPS)
+    notes = f"{name} ({level}), {n} nodes, edges {edges}, roles {roles}"
+    return Network(s, volumes, sources, options, thermal, notes)
 
 
-def check(network):
-    system, volumes, step = network
+# -- the invariants ------------------------------------------------------------------------
+def _frames(err):
+    tb, names = err.__traceback__, []
+    while tb is not None:
+        names.append(tb.tb_frame.f_code.co_name)
+        tb = tb.tb_next
+    return names
+
+
+def _known(err):
+    """A violation already kept as a regression case (test_random_network_cases.py,
+    xfail until fixed): its name, or None."""
+    if isinstance(err, sf.FluidError) and "check_result" in _frames(err):
+        return "known: a validity check outside the fluid's range raises FluidError"
+    cause = err.__cause__
+    if (isinstance(err, sf.SimulationError) and isinstance(cause, sf.FluidError)
+            and "update_states" in _frames(cause)):
+        return "known: a volume's state update outside the fluid's range, unnamed"
+    if (isinstance(err, sf.SimulationError) and err.component is None
+            and "Jacobian contains NaN or inf)" in str(err) and "worst equation" not in str(err)):
+        return "known: a NaN Jacobian at a step names nothing"
+    return None
+
+
+def check(net):
+    """Run one network; return its outcome, asserting the invariants."""
+    system = net.system
+    labels = [c.label for c in system.components]
     try:
-        sim = sf.Simulation(system, duration=0.05, step=step, max_steps=20_000,
-                            allow_unconnected=True)
+        sim = sf.Simulation(system, allow_unconnected=True, thermal=net.thermal,
+                            **net.options)
     except sf.NetworkError as err:       # refused at compile time: says where
-        assert "'" in str(err)
-        return "refused"
+        assert any(label in str(err) for label in labels), str(err)
+        return "refused: " + str(err)[:60]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         try:
             res = sim.run()
         except sf.SimulationError as err:
-            assert err.component is not None and err.time is not None, str(err)
-            return "failed"
+            if isinstance(err.__cause__, StepLimitError):
+                return "max_steps"
+            known = _known(err)
+            if known is not None:
+                return known
+            # named: the component, or the node by its components' terminals
+            # ("conservation of massflow at node(src1.a, e0.a)") where a node's
+            # equation is the worst; never a wrapped foreign exception
+            assert err.__cause__ is None, (str(err), repr(err.__cause__))
+            assert err.time is not None and 0 <= err.time <= net.options["duration"], str(err)
+            assert err.component is not None or any(
+                f"{label}." in str(err) or f"'{label}'" in str(err) for label in labels), str(err)
+            assert err.result is not None and err.result.status == "failed"
+            return "failed" if err.component is not None else "failed, named in the message"
+        except Exception as err:
+            known = _known(err)
+            if known is None:
+                raise
+            return known
     assert res.status == "success"
     for column, values in res.to_dict().items():
         assert np.isfinite(values).all(), column
-    pressures = [res.get(c, "pressure") for c in volumes]
-    assert min(p.min() for p in pressures) > 0
-    stored = sum(res.get(c, "mass") - res.get(c, "mass")[0] for c in volumes)
-    supplied = -res.integral("src", "massflow")
-    scale = max(np.abs(stored).max(), sum(res.get(c, "mass")[0] for c in volumes))
-    assert np.abs(stored - supplied).max() <= 1e-12 * scale + 1e-300
+    pressures = [res[c] for c in res.columns() if c.split(".")[1].startswith("pressure")]
+    assert min(p.min() for p in pressures) > 0, "non-positive absolute pressure"
+    masses = {c: res.get(c, "mass") for c in net.volumes}
+    stored = sum((m - m[0] for m in masses.values()), np.zeros(len(res.times)))
+    delivered = [-res.integral(c, "massflow") for c in net.sources]
+    supplied = sum(delivered, np.zeros(len(res.times)))
+    # scale: the masses held and the largest masses moved (flows that cancel included)
+    # (a network without volumes moves round-off only: 1e-20 kg is the floor)
+    scale = max(np.abs(stored).max(), sum(np.abs(d).max() for d in delivered),
+                sum(abs(m[0]) for m in masses.values()), 1e-20)
+    gap = np.abs(stored - supplied).max()
+    assert gap <= 1e-12 * scale, (gap / scale, "mass not conserved")
     return "success"
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=EXAMPLES, **SETTINGS)
 @given(networks())
-def test_random_trees_succeed_conserving_mass_or_fail_naming_a_component(network):
-    check(network)
+def test_random_networks_succeed_conserving_mass_or_fail_naming_a_component(net):
+    check(net)
 
 
 @pytest.mark.slow
-@settings(max_examples=EXAMPLES_SLOW, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=EXAMPLES_SLOW, **SETTINGS)
 @given(networks())
-def test_random_trees_many(network):
-    check(network)
+def test_random_networks_many(net):
+    check(net)
+
+
+@pytest.mark.slow
+@settings(max_examples=EXAMPLES_EOS, **SETTINGS)
+@given(networks(levels=("eos",), max_nodes=3, adaptive=False))   # CoolProp itself: slow
+def test_random_networks_eos(net):
+    check(net)
