@@ -95,6 +95,8 @@ class Outcome:
     row: int | None = None
     #: a chord iteration that contracted, too slowly: x is closer than its start
     contracting: bool = False
+    #: the unknown at fault where no equation is (a node's pressure), or None
+    unknown: int | None = None
 
 
 def _network_setup(asm):
@@ -420,7 +422,7 @@ class Newton:
             return Outcome(False, out.x, out.iterations,
                            f"absolute pressure {p.min():.4g} Pa <= 0 at "
                            f"{self.asm.x_names[i]} (cavitation and vacuum are not "
-                           "modelled; check sources and volumes)")
+                           "modelled; check sources and volumes)", unknown=i)
         self.age += 1
         return None
 

@@ -453,6 +453,13 @@ class Simulation:
         if out.row is not None:
             comp, eq = self.asm.component_of_row(out.row)
             where = f"; worst equation: {self.asm.describe_row(out.row)}"
+        if comp is None and getattr(out, "unknown", None) is not None:
+            # a node's unknown: the components joined there
+            labels = [c.label for g in self.asm.groups for i, c in enumerate(g.comps)
+                      if out.unknown in g.col[i]]
+            if labels:
+                comp = labels[0]
+                where += f"; components at that node: {', '.join(map(repr, labels))}"
         msg = (f"solver failed at t = {fail.t:.6g} s (step {fail.dt:.3g} s): "
                f"{out.reason}{where}")
         return SimulationError(msg, time=fail.t, component=comp, equation=eq)
