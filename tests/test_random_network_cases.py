@@ -1,6 +1,6 @@
 """Violations found by the randomized networks (tests/test_random_networks.py, issue
 17), each kept as a plain regression case: the smallest network found that shows
-it. Each is marked xfail(strict=True) until the library is fixed, so that the fix
+it. Each was marked xfail(strict=True) until the library was fixed (all three are), so that the fix
 turns it into a passing test (and the marker must then go)."""
 import warnings
 
@@ -26,9 +26,6 @@ def _assert_named(err, labels):
     assert err.__cause__ is None, repr(err.__cause__)
 
 
-@pytest.mark.xfail(strict=True, raises=sf.FluidError,
-                   reason="the tube Mach validity check evaluates the table fluid at the "
-                          "tube's low-pressure end, outside the table; FluidError escapes run()")
 def test_validity_check_outside_the_table_range_does_not_escape_run():
     # source 0.45 bar < the air table's 0.5 bar: the tube's law (density at its mean
     # pressure, inside the table) solves; the check at its 0.45 bar end raises
@@ -46,9 +43,6 @@ def test_validity_check_outside_the_table_range_does_not_escape_run():
         assert res.status == "success"
 
 
-@pytest.mark.xfail(strict=True, reason="an adiabatic actuator's state update leaves the "
-                   "table's temperature range: SimulationError 'after t = ...: FluidError' "
-                   "with component None, the FluidError as its cause")
 def test_adiabatic_actuator_below_the_table_temperature_names_the_actuator():
     # 1.5 bar of table air expanding into a 0.6 bar source through a short tube:
     # the gas cools below 233.15 K, the table's lowest temperature, at t ~ 0.04 s
@@ -63,8 +57,6 @@ def test_adiabatic_actuator_below_the_table_temperature_names_the_actuator():
     _assert_named(info.value, {"src", "tube", "act"})
 
 
-@pytest.mark.xfail(strict=True, reason="'singular Jacobian (Jacobian contains NaN or inf)' "
-                   "at t = 0 names neither a component nor a node")
 def test_pump_against_a_check_valve_names_the_culprit():
     # a volume-flow pump draws air through a check valve that only lets air towards
     # the source: no flow can reach it (a named failure is right). Without the tube

@@ -23,7 +23,7 @@ an unbounded run.
 Examples per CI run: EXAMPLES (default suite) + EXAMPLES_SLOW (slow test,
 still run in CI) + EXAMPLES_EOS = 2 003, derandomized (the same examples every
 run). Violations found are kept as plain cases in test_random_network_cases.py
-(xfail until fixed) and recognised here by ``_known`` so that the rest still runs.
+(fixed since; ``_known`` would name any kept open so that the rest still runs).
 """
 import math
 import warnings
@@ -316,17 +316,8 @@ def _frames(err):
 
 
 def _known(err):
-    """A violation already kept as a regression case (test_random_network_cases.py,
-    xfail until fixed): its name, or None."""
-    if isinstance(err, sf.FluidError) and "check_result" in _frames(err):
-        return "known: a validity check outside the fluid's range raises FluidError"
-    cause = err.__cause__
-    if (isinstance(err, sf.SimulationError) and isinstance(cause, sf.FluidError)
-            and "update_states" in _frames(cause)):
-        return "known: a volume's state update outside the fluid's range, unnamed"
-    if (isinstance(err, sf.SimulationError) and err.component is None
-            and "Jacobian contains NaN or inf)" in str(err) and "worst equation" not in str(err)):
-        return "known: a NaN Jacobian at a step names nothing"
+    """A violation kept as a regression case (test_random_network_cases.py) and not
+    fixed yet: its name, or None. (The three found so far are fixed.)"""
     return None
 
 

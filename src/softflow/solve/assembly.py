@@ -838,7 +838,22 @@ class Assembly:
                 g.begin(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns))
 
     def update_states(self, x, S, dt):
-        """States at the end of a step, given the converged unknowns."""
+        """States at the end of a step, given the converged unknowns (a fluid-range
+        error names the group whose update met it)."""
+        try:
+            return self._update_states(x, S, dt)
+        except FluidError as err:
+            for g in self.groups:
+                if g.has_states:
+                    try:
+                        g.update(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns), dt)
+                    except FluidError:
+                        named = FluidError(f"in {_group_name(g)}: {err}")
+                        named.component = g.comps[0].label
+                        raise named from None
+            raise
+
+    def _update_states(self, x, S, dt):
         if self._one_update_row is not None:      # a single user component's 1-D rows
             update_row, col = self._one_update_row
             new = update_row(x[col], S, dt)

@@ -54,6 +54,7 @@ import math
 import numpy as np
 
 from ..constants import pressure_atmospheric
+from ..fluids.base import FluidError
 from .validity import ValidityRecord, group_values
 
 #: Mach number at the low-pressure end above which the mean-density tube law's
@@ -114,8 +115,15 @@ def tube_mach(g, result):
     _, pb = group_values(g, result, "pressure_b")
     area = np.array([math.pi * g.comps[i].diameter ** 2 / 4 for i in keep])
     p_low, p_high = np.minimum(pa, pb), np.maximum(pa, pb)
+    try:
+        rho, c = fluid.density(p_low), fluid.speed_of_sound(p_low)
+    except FluidError:
+        # a tube end below a table's range (the tube's own law takes the mean
+        # pressure, inside it): the ideal gas, exact enough at low pressure
+        ideal = fluid.with_level("ideal")
+        rho, c = ideal.density(p_low), ideal.speed_of_sound(p_low)
     with np.errstate(all="ignore"):
-        mach = np.abs(mf) / (fluid.density(p_low) * area) / fluid.speed_of_sound(p_low)
+        mach = np.abs(mf) / (rho * area) / c
         mach = np.where(np.isfinite(mach), mach, 0.0)
     peak = mach.max(axis=0)
     gamma = float(fluid.gamma(pressure_atmospheric))

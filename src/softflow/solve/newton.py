@@ -586,13 +586,21 @@ class Newton:
         factorization's own row."""
         row = err.args[1] if len(err.args) > 1 else None
         reason = f"singular Jacobian ({err.args[0]})"
-        try:
-            why, culprit = self.asm.diagnose_scale()
-        except Exception:         # a diagnosis must never hide the failure itself
-            why, culprit = None, None
-        if why is not None:
-            reason, row = f"{reason}: {why}", culprit
-        return Outcome(False, x, iterations, reason, row)
+        unknown = None
+        bad = np.flatnonzero(~np.isfinite(self.asm.raw))
+        if bad.size:            # NaN or inf entries: the first one's equation and unknown
+            row = int(self.asm.pattern_rows[bad[0]])
+            unknown = int(self.asm.pattern_cols[bad[0]])
+            reason += f" in {self.asm.describe_row(row)}, in its derivative in " \
+                      f"{self.asm.x_names[unknown]}"
+        else:
+            try:
+                why, culprit = self.asm.diagnose_scale()
+            except Exception:         # a diagnosis must never hide the failure itself
+                why, culprit = None, None
+            if why is not None:
+                reason, row = f"{reason}: {why}", culprit
+        return Outcome(False, x, iterations, reason, row, unknown=unknown)
 
     def _contracts(self, Fn, dx):
         """Deuflhard's natural monotonicity test (Newton Methods for Nonlinear

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..assess import resolve_auto
 from ..constants import pressure_atmospheric
+from ..fluids.base import FluidError
 from ..network.component import remember_result
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
@@ -395,10 +396,17 @@ class Simulation:
                 error = SimulationError(str(err), time=t if err.time is None else err.time,
                                         component=err.component)
                 error.method = err.method  # type: ignore[attr-defined]
+            elif isinstance(err, FluidError) and getattr(err, "component", None):
+                # a state update met a fluid's range: softflow's own error, named
+                error = SimulationError(f"after t = {t:.6g} s: {err}", time=t,
+                                        component=err.component)
             else:
                 error = SimulationError(f"after t = {t:.6g} s: {type(err).__name__}: {err}",
                                         time=t)
-            error.__cause__ = err.__cause__ if isinstance(err, ComponentError) else err
+            if isinstance(err, FluidError) and getattr(err, "component", None):
+                error.__cause__ = None      # the message says it all, named
+            else:
+                error.__cause__ = err.__cause__ if isinstance(err, ComponentError) else err
         t, X, S = integ.rec.arrays()
         integrals = integ.rec.integrals()
         if not len(t):     # failed at t = 0: the initial values as a 1-point result

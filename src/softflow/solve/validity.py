@@ -121,11 +121,21 @@ def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
     records: list[ValidityRecord] = []
     if len(result.times) == 0:
         return records
+    from ..fluids.base import FluidError
     for g in asm.groups:
         for cls, checks in _CHECKS.items():
             if isinstance(g.comps[0], cls):
                 for check in checks:
-                    records.extend(check(g, result))
+                    try:
+                        records.extend(check(g, result))
+                    except FluidError as err:    # a check must never fail the run it checks
+                        c = g.comps[0]
+                        records.append(ValidityRecord(
+                            component=c.label, check=check.__name__, measured=float("nan"),
+                            limit=float("nan"), unit="",
+                            suggestion="use a fluid level whose range covers the run's states",
+                            message=f"{c.describe()}: the {check.__name__} check could not "
+                                    f"be evaluated ({err}); its finding is unknown"))
     return records
 
 
