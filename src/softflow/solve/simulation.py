@@ -461,10 +461,15 @@ class Simulation:
         if out.row is not None:
             comp, eq = self.asm.component_of_row(out.row)
             where = f"; worst equation: {self.asm.describe_row(out.row)}"
+        unknowns = None
         if comp is None and getattr(out, "unknown", None) is not None:
-            # a node's unknown: the components joined there
+            unknowns = [out.unknown]           # a node's unknown (its pressure)
+        elif comp is None and out.row is not None and out.row < self.asm.n_node_rows:
+            # a node's conservation equation: the flows that meet there
+            unknowns = self.asm.through_cols[self.asm.through_rows == out.row].tolist()
+        if unknowns:
             labels = [c.label for g in self.asm.groups for i, c in enumerate(g.comps)
-                      if out.unknown in g.col[i]]
+                      if np.isin(g.col[i], unknowns).any()]
             if labels:
                 comp = labels[0]
                 where += f"; components at that node: {', '.join(map(repr, labels))}"
