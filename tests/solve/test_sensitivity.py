@@ -98,6 +98,8 @@ def test_bad_sensitivity_requests_name_the_culprit():
         sim.run(sensitivities=["act.curve"])
     with pytest.raises(KeyError, match="has no parameter 'diam'"):
         sim.run(sensitivities=["tube.diam"])
+    with pytest.raises(NetworkError, match="'tube.fluid'.*structure.*diameter"):
+        sim.run(sensitivities=["tube.fluid"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         res = sim.run(sensitivities=["tube.diameter"])

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..network.system import NetworkError
-from .params import parameter_names, rebuild
+from .params import STRUCTURAL, parameter_names, rebuild
 from .thermal import configure_like
 
 #: Relative step of the directional finite differences.
@@ -52,7 +52,9 @@ class Sensitivities:
     def __init__(self, asm, newton, names, components, thermal="isothermal"):
         self.asm, self.newton = asm, newton
         self.names = list(names)
-        self.parameters = []     # (group, index in group, kernel_p, update_p, eps)
+        # per parameter: (group, index in group, perturbed kernel, perturbed update,
+        # step, the compiled component, its perturbed twin)
+        self.parameters = []
         from .assembly import _library_group
         for key in self.names:
             if not isinstance(key, str) or "." not in key:
@@ -66,6 +68,10 @@ class Sensitivities:
             g, i = asm.where[label]
             comp = components[label]
             valid = parameter_names(comp) if getattr(comp, "vectorized", False) else []
+            if name in STRUCTURAL:
+                raise NetworkError(f"sensitivities[{key!r}]: {name} defines the network's "
+                                   "structure, not a number of the model; sensitivities are "
+                                   f"taken with respect to {', '.join(valid)}")
             if name not in valid:
                 raise KeyError(f"sensitivities[{key!r}]: {comp.describe()} has no parameter "
                                f"{name!r}; its parameters are {', '.join(valid) or 'none'}")
