@@ -399,7 +399,7 @@ class Simulation:
             elif isinstance(err, FluidError) and getattr(err, "component", None):
                 # a state update met a fluid's range: softflow's own error, named
                 error = SimulationError(f"after t = {t:.6g} s: {err}", time=t,
-                                        component=err.component)
+                                        component=getattr(err, "component", None))
             else:
                 error = SimulationError(f"after t = {t:.6g} s: {type(err).__name__}: {err}",
                                         time=t)
