@@ -6,10 +6,12 @@ or NumPy array: pint never appears in a hot loop.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pint
 
-ureg = pint.UnitRegistry()
+ureg: pint.UnitRegistry = pint.UnitRegistry()
 Q_ = ureg.Quantity
 
 #: SI unit of each physical quantity name used by Variables and results.
@@ -56,7 +58,7 @@ def describe_dimension(unit: str) -> str:
     return f"{words} [{unit}]"
 
 
-def to_si(value, unit: str, *, name: str, owner: str | None = None):
+def to_si(value: Any, unit: str, *, name: str, owner: str | None = None) -> Any:  # float | Array
     """Convert ``value`` to the SI ``unit`` and return a float or ndarray.
 
     Parameters
@@ -100,7 +102,7 @@ def to_si(value, unit: str, *, name: str, owner: str | None = None):
     return np.asarray(mag, dtype=float)
 
 
-def to_quantity(values, quantity: str):
+def to_quantity(values: Any, quantity: str) -> pint.Quantity:
     """Attach the SI unit of a quantity name (see QUANTITY_UNITS) to values."""
     unit = QUANTITY_UNITS.get(quantity)
     if unit is None:

@@ -12,18 +12,22 @@ from __future__ import annotations
 import csv
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 import pint
 
 from ..units import UnitError, ureg
 
+if TYPE_CHECKING:
+    from .._typing import Array
+
 
 class DataFileError(ValueError):
     """A data file could not be read as expected (names the file and line)."""
 
 
-def _is_number(cell):
+def _is_number(cell: str) -> bool:
     try:
         float(cell)
         return True
@@ -32,7 +36,7 @@ def _is_number(cell):
 
 
 @lru_cache(maxsize=256)
-def _parse_unit(cell):
+def _parse_unit(cell: str) -> Any:
     """The pint unit of a units-row cell (cached: pint's parser takes ~0.1 ms
     a cell, and files of one kind repeat the same few units)."""
     cell = cell.strip()
@@ -42,7 +46,7 @@ def _parse_unit(cell):
 
 
 @lru_cache(maxsize=256)
-def _factor(src, unit):
+def _factor(src: Any, unit: str) -> float | None:
     """The factor converting ``src`` to ``unit`` when the conversion is a plain
     scaling (not degC -> K), else None; cached, as pint's conversion of an
     array costs ~0.1 ms."""
@@ -64,22 +68,23 @@ class Table:
         1-based line number in the file of each data row.
     """
 
-    def __init__(self, path, names, units, data, lines):
+    def __init__(self, path: Path, names: list[str], units: list[Any] | None, data: Array,
+                 lines: Sequence[int]) -> None:
         self.path, self.names, self.units, self.data = path, names, units, data
         self.lines = np.asarray(lines, dtype=np.int64)
 
     @property
-    def first_data_line(self):
+    def first_data_line(self) -> int:
         return int(self.lines[0])
 
-    def index(self, name):
+    def index(self, name: str) -> int:
         lowered = [n.strip().lower() for n in self.names]
         key = name.strip().lower()
         if key in lowered:
             return lowered.index(key)
         raise DataFileError(f"{self.path}: no column named {name!r}; columns are {self.names}")
 
-    def column(self, name, unit, *, default_unit=None):
+    def column(self, name: str, unit: str, *, default_unit: str | None = None) -> Array:
         """Column ``name`` converted to ``unit`` (an SI unit string).
 
         If the file has no units row, ``default_unit`` says what the numbers are in;
@@ -105,7 +110,7 @@ class Table:
                 f"converted to {unit}") from None
 
 
-def read_table(path) -> Table:
+def read_table(path: str | Path) -> Table:
     """Read a CSV file with optional title lines, a names row and an optional units row."""
     path = Path(path)
     if not path.is_file():
@@ -129,10 +134,9 @@ def read_table(path) -> Table:
     units = None
     names_row = header[-1]
     if len(header) >= 2 and len(header[-1][1]) == ncol:
-        parsed = []
+        parsed: list[Any] | None
         try:
-            for cell in header[-1][1]:
-                parsed.append(_parse_unit(cell))
+            parsed = [_parse_unit(cell) for cell in header[-1][1]]
         except (pint.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
                 AttributeError, TypeError):
             parsed = None
@@ -159,12 +163,12 @@ def read_table(path) -> Table:
     return Table(path, names, units, data, [lineno for lineno, _ in body])
 
 
-def _mostly_numeric(cells):
+def _mostly_numeric(cells: list[str]) -> bool:
     filled = [c for c in cells if c != ""]
     return bool(filled) and 2 * sum(_is_number(c) for c in filled) > len(filled)
 
 
-def _unit_ok(cell):
+def _unit_ok(cell: str) -> bool:
     try:
         _parse_unit(cell)
         return True
@@ -172,6 +176,6 @@ def _unit_ok(cell):
         return False
 
 
-def _looks_like_names(cells):
+def _looks_like_names(cells: list[str]) -> bool:
     """A row of words none of which is a unit is taken as names, not units."""
     return not any(_unit_ok(c) for c in cells)

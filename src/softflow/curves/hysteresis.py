@@ -22,7 +22,7 @@ where the actuator changes branch, the pressure is continuous at a switch.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
 
@@ -32,6 +32,8 @@ from .pvcurve import PVCurve, _key_points
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+
+    from .._typing import Array, ArrayLike, BoolArray, PVPoint, Scalar
 
 #: Default mismatch allowed where the branches meet, as a fraction of the
 #: larger pressure range of the two branches.
@@ -61,8 +63,8 @@ class HysteresisLoop:
     ``HystereticActuator('a', fluid, *loop)`` works.
     """
 
-    def __init__(self, inflation_curve, deflation_curve, *, meet_tolerance=None,
-                 owner="HysteresisLoop"):
+    def __init__(self, inflation_curve: PVCurve, deflation_curve: PVCurve, *,
+                 meet_tolerance: Scalar | None = None, owner: str = "HysteresisLoop") -> None:
         for name, c in (("inflation_curve", inflation_curve),
                         ("deflation_curve", deflation_curve)):
             if not isinstance(c, PVCurve):
@@ -94,17 +96,18 @@ class HysteresisLoop:
                     f"inflation_curve gives {pi:.6g} Pa, deflation_curve {pd:.6g} Pa "
                     f"(meet_tolerance {self.meet_tolerance:.3g} Pa)")
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[PVCurve]:
         return iter((self.inflation, self.deflation))
 
-    def on_inflation_curve(self, volume, inflating):
+    def on_inflation_curve(self, volume: float | Array, inflating: bool | ArrayLike) -> BoolArray:
         """Where the inflation curve applies: below V_hi while inflating, at or below
         V_lo while deflating. Past the end of its own branch an actuator is
         already on the other one (they meet there), which is also the branch it
         takes after the step: see :meth:`next_inflating`."""
         return np.where(inflating, volume < self.volume_high, volume <= self.volume_low)
 
-    def fdf_volume(self, volume, inflating):
+    def fdf_volume(self, volume: float | Array, inflating: bool | ArrayLike
+                   ) -> tuple[Array, Array]:
         """Absolute pressure [Pa] and dp/dV [Pa/m^3] at ``volume`` [m^3] (array) of an
         actuator on the inflation branch where ``inflating`` (bool array), on the
         deflation branch elsewhere. Continuous in volume on either branch (to within
@@ -114,7 +117,7 @@ class HysteresisLoop:
         use = self.on_inflation_curve(volume, inflating)
         return np.where(use, pi, pd), np.where(use, di, dd)
 
-    def next_inflating(self, volume, inflating):
+    def next_inflating(self, volume: float | Array, inflating: bool | ArrayLike) -> BoolArray:
         """Branch after a step that ended at ``volume`` (True: inflation)."""
         return self.on_inflation_curve(volume, inflating)
 
@@ -124,11 +127,12 @@ class HysteresisLoop:
         ax = self.inflation.plot(ax, label="inflation", **kwargs)
         return self.deflation.plot(ax, label="deflation", **kwargs)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (f"<HysteresisLoop V {self.volume_low:.3g}..{self.volume_high:.3g} m^3>")
 
     @classmethod
-    def snapping(cls, start, peak, valley, end, *, snap_volume, gauge=False):
+    def snapping(cls, start: PVPoint, peak: PVPoint, valley: PVPoint, end: PVPoint, *,
+                 snap_volume: Scalar, gauge: bool = False) -> HysteresisLoop:
         """A synthetic loop with a snap on inflation and a snap back on deflation.
 
         Inflation rises from ``start`` to ``peak``, then falls within
@@ -176,7 +180,7 @@ class HysteresisLoop:
         vm2, pm2 = 0.5 * (vv + ve), 0.5 * (pv + pe)
         vm1, pm1 = 0.5 * (vs + vp), 0.5 * (ps + pp)
 
-        def deflation(p_lo):
+        def deflation(p_lo: float) -> PVCurve:
             return PVCurve(volume=[v_lo, vv, vm2, ve], pressure=[p_lo, pv, pm2, pe])
 
         p_hi = float(deflation(pp)(v_hi))

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import bisect
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 
@@ -14,6 +14,8 @@ from .csvdata import DataFileError, read_table
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+
+    from .._typing import Array, ArrayLike, PVPoint
 
 #: Fewest samples a smoothing spline accepts (scipy's make_smoothing_spline).
 MIN_POINTS_SMOOTHING = 5
@@ -99,10 +101,12 @@ class PVCurve:
         dp/dV at ``volume``.
     """
 
-    def __init__(self, source=None, volume=None, pressure=None, *, gauge=None,
-                 volume_column="Volume", pressure_column="Pressure",
-                 volume_unit=None, pressure_unit=None, smoothing=None, filter_window=None,
-                 filter_order=2, extrapolate="linear"):
+    def __init__(self, source: str | Path | None = None, volume: ArrayLike | None = None,
+                 pressure: ArrayLike | None = None, *, gauge: bool | None = None,
+                 volume_column: str = "Volume", pressure_column: str = "Pressure",
+                 volume_unit: str | None = None, pressure_unit: str | None = None,
+                 smoothing: float | str | None = None, filter_window: int | None = None,
+                 filter_order: int = 2, extrapolate: str = "linear") -> None:
         if not (isinstance(extrapolate, str) and extrapolate in EXTRAPOLATE):
             raise ValueError(f"PVCurve: extrapolate must be one of "
                              f"{', '.join(map(repr, EXTRAPOLATE))}, got {extrapolate!r}")
@@ -155,7 +159,7 @@ class PVCurve:
         self._build_tables()
 
     # -- evaluation ------------------------------------------------------------------------
-    def _build_tables(self):
+    def _build_tables(self) -> None:
         """Cubic pieces in monomial form around each piece's left end, plus the two
         linear extrapolations: piece k = searchsorted(volume, V, 'right') holds
         p = c0 + x (c1 + x (c2 + x c3)) with x = V - base[k]."""
@@ -178,11 +182,12 @@ class PVCurve:
         self._tl = list(zip(self._base.tolist(), self._c0.tolist(), self._c1.tolist(),
                             self._c2.tolist(), self._c3.tolist()))
 
-    def __call__(self, volume):
+    def __call__(self, volume: float | ArrayLike) -> float | Array:
         """Absolute pressure [Pa] at ``volume`` [m^3]."""
         return self.fdf_volume(volume)[0]
 
-    def fdf_volume(self, volume):
+    def fdf_volume(self, volume: float | ArrayLike
+                   ) -> tuple[float, float] | tuple[Array, Array]:
         """Absolute pressure [Pa] and its derivative dp/dV [Pa/m^3] at ``volume`` [m^3]
         (a float, an array of any shape or a pint Quantity)."""
         if isinstance(volume, float):
@@ -194,9 +199,9 @@ class PVCurve:
         volume = to_si(volume, "m**3", name="volume", owner="PVCurve.fdf_volume")
         if isinstance(volume, float):
             return self._scalar(volume)
-        return self._array(volume)
+        return self._array(volume)  # type: ignore[arg-type]  # a float64 ndarray
 
-    def _beyond(self, x):
+    def _beyond(self, x: float | Array) -> NoReturn:
         lo, hi = self._lo, self._hi
         bad = x if np.ndim(x) == 0 else (np.min(x) if np.min(x) < lo else np.max(x))
         raise CurveRangeError(
@@ -204,14 +209,14 @@ class PVCurve:
             f"{lo:.9g} ... {hi:.9g} m^3 (extrapolate='error'; 'linear' or 'clamp' continue "
             "the curve there)")
 
-    def _scalar(self, x):
+    def _scalar(self, x: float) -> tuple[float, float]:
         if self._refuse and not self._lo <= x <= self._hi:
             self._beyond(x)
         b, c0, c1, c2, c3 = self._tl[bisect.bisect_right(self._vl, x)]
         x -= b
         return c0 + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
 
-    def _array(self, x):
+    def _array(self, x: Array) -> tuple[Array, Array]:
         if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
             self._beyond(x)
         k = np.searchsorted(self.volume, x, side="right")
@@ -220,7 +225,7 @@ class PVCurve:
         c1 = self._c1[k]
         return self._c0[k] + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         policy = "" if self.extrapolate == "linear" else f", extrapolate={self.extrapolate!r}"
         return (f"<PVCurve {self.origin}: {len(self.volume)} points, "
                 f"V {self.volume[0]:.3g}..{self.volume[-1]:.3g} m^3{policy}>")
@@ -258,7 +263,7 @@ class PVCurve:
         v = np.unique(np.concatenate([np.linspace(v0 - pad, v1 + pad, 400), self.volume]))
         offset = pressure_atmospheric if gauge else 0.0
 
-        def shown(values, si, unit, what):
+        def shown(values: Any, si: str, unit: str, what: str) -> Any:
             try:
                 return Q_(values, si).to(unit).magnitude
             except Exception as err:           # pint: undefined unit or wrong dimension
@@ -283,7 +288,8 @@ class PVCurve:
 
     # -- synthetic curves (the shapes of the paper's Figs. 3-5) -----------------------------
     @classmethod
-    def monotonic(cls, start, knee, end, *, gauge=False, extrapolate="linear"):
+    def monotonic(cls, start: PVPoint, knee: PVPoint, end: PVPoint, *, gauge: bool = False,
+                  extrapolate: str = "linear") -> PVCurve:
         """Stiff rise up to ``knee``, softer rise to ``end``: a soft bending actuator.
 
         Each point is a (volume [m^3], pressure [Pa]) pair (floats or Quantities);
@@ -301,7 +307,8 @@ class PVCurve:
         return _from_points(pts, gauge, "monotonic", extrapolate)
 
     @classmethod
-    def plateau(cls, start, knee, plateau_end, end, *, gauge=False, extrapolate="linear"):
+    def plateau(cls, start: PVPoint, knee: PVPoint, plateau_end: PVPoint, end: PVPoint, *,
+                gauge: bool = False, extrapolate: str = "linear") -> PVCurve:
         """Stiff rise to ``knee``, a (nearly) flat plateau to ``plateau_end``, then
         stiffening to ``end`` (the paper's Fig. 4 actuators).
 
@@ -317,7 +324,8 @@ class PVCurve:
         return _from_points(pts, gauge, "plateau", extrapolate)
 
     @classmethod
-    def peak_valley(cls, start, peak, valley, end, *, gauge=False, extrapolate="linear"):
+    def peak_valley(cls, start: PVPoint, peak: PVPoint, valley: PVPoint, end: PVPoint, *,
+                    gauge: bool = False, extrapolate: str = "linear") -> PVCurve:
         """Rise to ``peak``, fall to ``valley``, rise again to ``end`` (a latex
         balloon; the paper's Figs. 3 and 5).
 
@@ -335,7 +343,7 @@ class PVCurve:
 
 
 # -- helpers ------------------------------------------------------------------------------
-def _savgol(p, window, order, where):
+def _savgol(p: Array, window: int, order: int, where: str) -> Array:
     if (isinstance(window, bool) or not isinstance(window, (int, np.integer))
             or window < 3 or window % 2 == 0 or window > len(p)):
         raise ValueError(f"{where}: filter_window must be an odd integer >= 3 and <= the "
@@ -348,7 +356,8 @@ def _savgol(p, window, order, where):
     return savgol_filter(p, int(window), int(order), mode="interp")
 
 
-def _smoothing_spline(v, p, smoothing, where):
+def _smoothing_spline(v: Array, p: Array, smoothing: float | str, where: str
+                      ) -> tuple[Array, Array]:
     """(values, slopes) at the samples of a cubic smoothing spline through (v, p).
 
     Its knots are the samples, so cubic Hermite interpolation of these values
@@ -375,7 +384,7 @@ def _smoothing_spline(v, p, smoothing, where):
     return spl(x) * span_p + mean_p, spl(x, 1) * (span_p / span_v)
 
 
-def _key_points(where, *named):
+def _key_points(where: str, *named: tuple[str, Any]) -> dict[str, tuple[float, float]]:
     out = {}
     for name, pt in named:
         try:
@@ -397,14 +406,15 @@ def _key_points(where, *named):
     return out
 
 
-def _require(pts, a, op, b, where):
+def _require(pts: dict[str, tuple[float, float]], a: str, op: str, b: str, where: str) -> None:
     pa, pb = pts[a][1], pts[b][1]
     if not (pa < pb if op == "<" else pa <= pb):
         raise ValueError(f"{where}: the pressure at {a} ({pa:.6g} Pa) must be {op} the "
                          f"pressure at {b} ({pb:.6g} Pa)")
 
 
-def _from_points(pts, gauge, kind, extrapolate="linear"):
+def _from_points(pts: dict[str, tuple[float, float]], gauge: bool, kind: str,
+                 extrapolate: str = "linear") -> PVCurve:
     vols, pres = zip(*pts.values())
     curve = PVCurve(volume=np.array(vols), pressure=np.array(pres), gauge=gauge,
                     extrapolate=extrapolate)
