@@ -21,17 +21,22 @@ from __future__ import annotations
 
 import bisect
 import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pint
 
 from ..units import UnitError, describe_dimension, to_si, ureg
 
+if TYPE_CHECKING:
+    from .._typing import Array, ArrayLike, Scalar
+
 
 # ---------------------------------------------------------------------------------------
 # unit helpers (run at construction only)
 # ---------------------------------------------------------------------------------------
-def _magnitude(value, name, owner):
+def _magnitude(value: Any, name: str, owner: str) -> tuple[Array, Any]:
     """Value(s) in SI base units and their pint unit (None for plain numbers)."""
     if isinstance(value, pint.Quantity):
         q = value.to_base_units()
@@ -55,7 +60,7 @@ def _magnitude(value, name, owner):
     return mag, unit
 
 
-def _common_unit(named_units, owner):
+def _common_unit(named_units: list[tuple[str, Any]], owner: str) -> Any:
     """The one unit shared by several parameters (None if all were plain numbers)."""
     found = [(n, u) for n, u in named_units if u is not None]
     for n, u in found[1:]:
@@ -65,14 +70,15 @@ def _common_unit(named_units, owner):
     return found[0][1] if found else None
 
 
-def _scalar_value(value, name, owner):
+def _scalar_value(value: Any, name: str, owner: str) -> tuple[float, Any]:
     mag, unit = _magnitude(value, name, owner)
     if mag.ndim != 0:
         raise ValueError(f"{owner}: {name} must be a scalar, got shape {mag.shape}")
     return float(mag), unit
 
 
-def _time(value, name, owner, *, positive=False, nonnegative=False):
+def _time(value: Any, name: str, owner: str, *, positive: bool = False,
+          nonnegative: bool = False) -> float | Array:
     if isinstance(value, (list, tuple)) and any(isinstance(v, pint.Quantity) for v in value):
         t = np.array([to_si(v, "s", name=f"{name}[{i}]", owner=owner)
                       for i, v in enumerate(value)], dtype=float)
@@ -97,25 +103,30 @@ class Waveform:
     and set ``unit`` (pint Unit in SI base units, or None) and ``_breaks``.
     """
 
-    unit = None
-    period = None
-    _breaks: tuple = ()
+    unit: Any = None                    # a pint Unit in SI base units, or None
+    period: float | None = None
+    _breaks: tuple[float, ...] = ()
 
-    def __call__(self, t):
+    if TYPE_CHECKING:                   # what subclasses implement
+        def _scalar(self, t: float) -> float: ...
+
+        def _array(self, t: Array) -> Array: ...
+
+    def __call__(self, t: float | ArrayLike) -> float | Array:
         if isinstance(t, float) or np.ndim(t) == 0:
-            return self._scalar(float(t))
+            return self._scalar(float(t))  # type: ignore[arg-type]  # a 0-d value
         return self._array(np.asarray(t, dtype=float))
 
     @property
-    def breakpoints(self):
+    def breakpoints(self) -> tuple[float, ...]:
         """Times [s] at which the value or its slope jumps (first period if periodic)."""
         return self._breaks
 
-    def breakpoints_until(self, until):
+    def breakpoints_until(self, until: float) -> tuple[float, ...]:
         """All breakpoints in [0, until] [s], periodic repetitions included."""
         if self.period is None:
             return tuple(b for b in self._breaks if 0.0 <= b <= until)
-        out = []
+        out: list[float] = []
         start = getattr(self, "start", 0.0)
         k0 = max(0, math.floor((0.0 - start) / self.period))
         k = k0
@@ -127,7 +138,7 @@ class Waveform:
             k += 1
         return tuple(sorted(b for b in set(out) if 0.0 <= b <= until))
 
-    def factor_to(self, unit, *, name, owner):
+    def factor_to(self, unit: str, *, name: str, owner: str) -> float:
         """Factor turning this waveform's values into ``unit`` (an SI unit string);
         raises UnitError if the dimensions differ. Plain-number waveforms: 1."""
         if self.unit is None:
@@ -138,7 +149,7 @@ class Waveform:
                             f"{type(self).__name__} in {self.unit:~P}")
         return float(ureg.Quantity(1.0, self.unit).to(target).magnitude)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         unit = f" [{self.unit:~P}]" if self.unit is not None else ""
         return f"<{type(self).__name__}{unit}>"
 
@@ -151,13 +162,13 @@ class Constant(Waveform):
     value : float [SI of the source] or Quantity
     """
 
-    def __init__(self, value):
+    def __init__(self, value: Scalar) -> None:
         self.value, self.unit = _scalar_value(value, "value", "Constant")
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         return self.value
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         return np.full(t.shape, self.value)
 
 
@@ -170,7 +181,7 @@ class Step(Waveform):
     before, after : float [SI of the source] or Quantity
     """
 
-    def __init__(self, time, before, after):
+    def __init__(self, time: Scalar, before: Scalar, after: Scalar) -> None:
         owner = "Step"
         self.time = float(_time(time, "time", owner))
         self.before, ub = _scalar_value(before, "before", owner)
@@ -178,10 +189,10 @@ class Step(Waveform):
         self.unit = _common_unit([("before", ub), ("after", ua)], owner)
         self._breaks = (self.time,)
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         return self.after if t >= self.time else self.before
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         return np.where(t >= self.time, self.after, self.before)
 
 
@@ -195,7 +206,7 @@ class Ramp(Waveform):
     v0, v1 : float [SI of the source] or Quantity
     """
 
-    def __init__(self, t0, t1, v0, v1):
+    def __init__(self, t0: Scalar, t1: Scalar, v0: Scalar, v1: Scalar) -> None:
         owner = "Ramp"
         self.t0 = float(_time(t0, "t0", owner))
         self.t1 = float(_time(t1, "t1", owner))
@@ -207,18 +218,19 @@ class Ramp(Waveform):
         self._slope = (self.v1 - self.v0) / (self.t1 - self.t0)
         self._breaks = (self.t0, self.t1)
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         if t <= self.t0:
             return self.v0
         if t >= self.t1:
             return self.v1
         return self.v0 + self._slope * (t - self.t0)
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         return np.interp(t, [self.t0, self.t1], [self.v0, self.v1])
 
 
-def _checked_table(times, values, owner):
+def _checked_table(times: ArrayLike, values: ArrayLike, owner: str
+                   ) -> tuple[Array, Array, Any]:
     t = np.atleast_1d(_time(times, "times", owner)).astype(float)
     v, unit = _magnitude(values, "values", owner)
     v = np.atleast_1d(v).astype(float)
@@ -238,13 +250,13 @@ def _checked_table(times, values, owner):
 class _Tabulated(Waveform):
     """A waveform given by a table of strictly increasing times and values."""
 
-    def __init__(self, times, values):
+    def __init__(self, times: ArrayLike, values: ArrayLike) -> None:
         self.times, self.values, self.unit = _checked_table(times, values, type(self).__name__)
         self._t = self.times.tolist()
         self._v = self.values.tolist()
         self._breaks = self._table_breaks()
 
-    def _table_breaks(self):
+    def _table_breaks(self) -> tuple[float, ...]:
         return tuple(self._t)
 
 
@@ -258,7 +270,7 @@ class PiecewiseLinear(_Tabulated):
     values : array [SI of the source] or Quantity array
     """
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         ts, vs = self._t, self._v
         i = bisect.bisect_right(ts, t)
         if i == 0:
@@ -268,7 +280,7 @@ class PiecewiseLinear(_Tabulated):
         t0, t1 = ts[i - 1], ts[i]
         return vs[i - 1] + (vs[i] - vs[i - 1]) * (t - t0) / (t1 - t0)
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         return np.interp(t, self.times, self.values)
 
 
@@ -286,13 +298,13 @@ class PiecewiseConstant(_Tabulated):
     values : array [SI of the source] or Quantity array
     """
 
-    def _table_breaks(self):
+    def _table_breaks(self) -> tuple[float, ...]:
         return tuple(self._t[1:])   # values[0] holds before times[0]: no jump there
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         return self._v[max(bisect.bisect_right(self._t, t) - 1, 0)]
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         i = np.maximum(np.searchsorted(self.times, t, side="right") - 1, 0)
         return self.values[i]
 
@@ -311,7 +323,8 @@ class Trapezoid(Waveform):
         At least rise + hold + fall.
     """
 
-    def __init__(self, low, high, rise, hold, fall, start=0.0, period=None):
+    def __init__(self, low: Scalar, high: Scalar, rise: Scalar, hold: Scalar, fall: Scalar,
+                 start: Scalar = 0.0, period: Scalar | None = None) -> None:
         owner = "Trapezoid"
         self.low, ul = _scalar_value(low, "low", owner)
         self.high, uh = _scalar_value(high, "high", owner)
@@ -331,7 +344,7 @@ class Trapezoid(Waveform):
         self._breaks = tuple(sorted({self.start + x for x in
                                      (0.0, self._t_hold, self._t_fall, self._t_low)}))
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         tau = t - self.start
         if tau < 0.0:
             return self.low
@@ -345,7 +358,7 @@ class Trapezoid(Waveform):
             return self.high - (self.high - self.low) * (tau - self._t_fall) / self.fall
         return self.low
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         tau = t - self.start
         if self.period is not None:
             tau = np.where(tau < 0.0, tau, tau - np.floor(tau / self.period) * self.period)
@@ -368,7 +381,8 @@ class Sine(Waveform):
     phase : float [rad] or Quantity (e.g. degrees), default 0
     """
 
-    def __init__(self, amplitude, frequency, offset=0.0, phase=0.0):
+    def __init__(self, amplitude: Scalar, frequency: Scalar, offset: Scalar = 0.0,
+                 phase: Scalar = 0.0) -> None:
         owner = "Sine"
         self.amplitude, ua = _scalar_value(amplitude, "amplitude", owner)
         self.offset, uo = _scalar_value(offset, "offset", owner)
@@ -379,10 +393,10 @@ class Sine(Waveform):
         self.phase = float(to_si(phase, "rad", name="phase", owner=owner))
         self._omega = 2.0 * math.pi * self.frequency
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         return self.offset + self.amplitude * math.sin(self._omega * t + self.phase)
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         return self.offset + self.amplitude * np.sin(self._omega * t + self.phase)
 
 
@@ -398,7 +412,10 @@ class Square(Waveform):
     start : float [s], default 0
     """
 
-    def __init__(self, low, high, frequency, duty=0.5, start=0.0):
+    period: float                       # always set (1 / frequency)
+
+    def __init__(self, low: Scalar, high: Scalar, frequency: Scalar, duty: Scalar = 0.5,
+                 start: Scalar = 0.0) -> None:
         owner = "Square"
         self.low, ul = _scalar_value(low, "low", owner)
         self.high, uh = _scalar_value(high, "high", owner)
@@ -415,21 +432,22 @@ class Square(Waveform):
         self._t_off = self.duty * self.period
         self._breaks = (self.start, self.start + self._t_off)
 
-    def _scalar(self, t):
+    def _scalar(self, t: float) -> float:
         tau = t - self.start
         if tau < 0.0:
             return self.low
         tau -= math.floor(tau / self.period) * self.period
         return self.high if tau < self._t_off else self.low
 
-    def _array(self, t):
+    def _array(self, t: Array) -> Array:
         tau = t - self.start
         phase = tau - np.floor(tau / self.period) * self.period
         return np.where((tau >= 0) & (phase < self._t_off), self.high, self.low)
 
 
-def from_csv(path, time_column=None, value_column=None, unit=None, *, time_unit="s",
-             kind="linear"):
+def from_csv(path: str | Path, time_column: str | None = None, value_column: str | None = None,
+             unit: str | None = None, *, time_unit: str = "s",
+             kind: str = "linear") -> PiecewiseLinear | PiecewiseConstant:
     """A waveform from two columns of a CSV file (see :func:`read_table`).
 
     Parameters
