@@ -19,6 +19,8 @@ from .curves.waveforms import Waveform
 Array = npt.NDArray[np.float64]
 #: A bool array (a mask, e.g. which actuators are on a branch).
 BoolArray = npt.NDArray[np.bool_]
+#: Plain numbers or arrays in SI units (no Quantity), as the fluid properties take them.
+SIArrayLike = npt.ArrayLike
 #: A parameter: a pint Quantity or a plain number taken to be in SI units.
 Scalar = Union[float, Quantity]
 #: Values that may be arrays: array-likes in SI units, or a Quantity holding them.
@@ -33,4 +35,4 @@ Curve = Union[PVCurve, Callable[[Any], Any]]
 HeatTransfer = Union[float, Quantity, FreeConvection]
 
 __all__ = ["Array", "ArrayLike", "BoolArray", "Curve", "HeatTransfer", "Input", "PVPoint",
-           "Quantity", "Scalar"]
+           "Quantity", "SIArrayLike", "Scalar"]

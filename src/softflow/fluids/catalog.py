@@ -13,6 +13,8 @@ import difflib
 import re
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 from pint import Quantity
@@ -20,6 +22,10 @@ from pint import Quantity
 from ..constants import temperature_standard
 from ..units import UnitError, to_si
 from .base import LEVELS, FluidError, check_temperature
+
+if TYPE_CHECKING:
+    from .._typing import Scalar
+    from .base import Fluid
 
 #: Default mass fraction of ethylene glycol in water: CoolProp's INCOMP::MEG maximum.
 GLYCOL_FRACTION = 0.6
@@ -80,7 +86,7 @@ _ALIASES = {
 }
 
 
-def resolve(name: str) -> FluidSpec:
+def resolve(name: str | FluidSpec) -> FluidSpec:
     """The FluidSpec a name stands for; unknown names raise with close matches."""
     if isinstance(name, FluidSpec):
         return name
@@ -107,7 +113,7 @@ def resolve(name: str) -> FluidSpec:
     return FluidSpec(canonical, "HEOS", canonical, liquid=None)
 
 
-def check_fraction(spec: FluidSpec, value) -> float:
+def check_fraction(spec: FluidSpec, value: Scalar) -> float:
     """Validated solute mass fraction [-] for a CoolProp solution."""
     owner = f"fluid {spec.name!r}"
     if isinstance(value, Quantity) and not value.dimensionless:
@@ -136,8 +142,9 @@ def fraction_range(solution: str) -> tuple[float, float]:
     return CP.PropsSI("fraction_min", fid), CP.PropsSI("fraction_max", fid)
 
 
-def make_fluid(name, level: str = "eos", temperature=temperature_standard, fraction=None,
-               out_of_range: str = "raise", tables_dir=None):
+def make_fluid(name: str | FluidSpec, level: str = "eos",
+               temperature: Scalar = temperature_standard, fraction: Scalar | None = None,
+               out_of_range: str = "raise", tables_dir: str | Path | None = None) -> Fluid:
     """Build a fluid at a fidelity level (what ``sf.Fluid(...)`` calls).
 
     Parameters
@@ -184,7 +191,7 @@ def make_fluid(name, level: str = "eos", temperature=temperature_standard, fract
 # without importing it, so names and fractions are validated in milliseconds and
 # CoolProp is loaded only for a fluid that exists.
 @lru_cache(maxsize=None)
-def _snapshot():
+def _snapshot() -> tuple[dict[str, str], frozenset[str], dict[str, tuple[float, float]]] | None:
     """(names {lower: canonical}, incompressibles, {solution: (min, max)}) from the
     lists below, or None where another CoolProp version is installed."""
     from importlib import metadata
@@ -208,7 +215,7 @@ def _snapshot():
 
 
 @lru_cache(maxsize=None)
-def _coolprop_names() -> dict:
+def _coolprop_names() -> dict[str, str]:
     """lower-case name or alias -> CoolProp's canonical fluid name."""
     snap = _snapshot()
     if snap is not None:
@@ -216,7 +223,7 @@ def _coolprop_names() -> dict:
     return _coolprop_names_live()
 
 
-def _coolprop_names_live() -> dict:
+def _coolprop_names_live() -> dict[str, str]:
     import CoolProp.CoolProp as CP
     names = {}
     for fluid in CP.get_global_param_string("FluidsList").split(","):
@@ -228,7 +235,7 @@ def _coolprop_names_live() -> dict:
 
 
 @lru_cache(maxsize=None)
-def _incompressible_solutions() -> frozenset:
+def _incompressible_solutions() -> frozenset[str]:
     snap = _snapshot()
     if snap is not None:
         return frozenset(snap[2])
@@ -237,7 +244,7 @@ def _incompressible_solutions() -> frozenset:
 
 
 @lru_cache(maxsize=None)
-def _incompressibles() -> frozenset:
+def _incompressibles() -> frozenset[str]:
     snap = _snapshot()
     if snap is not None:
         return snap[1]
@@ -246,7 +253,7 @@ def _incompressibles() -> frozenset:
     return frozenset(pure) | _incompressible_solutions()
 
 
-def _unknown(name):
+def _unknown(name: str) -> NoReturn:
     choices = {}
     for key in list(BUILTIN) + list(_ALIASES):
         choices[key] = _ALIASES.get(key, key)

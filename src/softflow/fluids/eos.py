@@ -17,6 +17,7 @@ boiling or cavitation.
 from __future__ import annotations
 
 from functools import lru_cache, partial
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,11 +25,14 @@ from ..constants import pressure_atmospheric
 from .base import Fluid, FluidError, broadcast_state
 from .catalog import FluidSpec
 
+if TYPE_CHECKING:
+    from .._typing import Array, SIArrayLike
+
 GAS_CONSTANT = 8.314462618
 
 
 @lru_cache(maxsize=None)
-def abstract_state(spec: FluidSpec, liquid: bool):
+def abstract_state(spec: FluidSpec, liquid: bool) -> Any:
     """A cached CoolProp AbstractState for the fluid (liquid phase imposed if ``liquid``)."""
     import CoolProp.CoolProp as CP
     from CoolProp import AbstractState
@@ -56,7 +60,7 @@ def is_liquid(spec: FluidSpec, temperature: float) -> bool:
 
 
 @lru_cache(maxsize=None)
-def valid_range(spec: FluidSpec, liquid: bool):
+def valid_range(spec: FluidSpec, liquid: bool) -> tuple[tuple[float, float], float]:
     """((T_min, T_max) [K], p_max [Pa]) that CoolProp accepts for this fluid."""
     import CoolProp.CoolProp as CP
     state = abstract_state(spec, liquid)
@@ -68,13 +72,14 @@ def valid_range(spec: FluidSpec, liquid: bool):
     return (T_lo, T_hi), state.pmax()
 
 
-def _distinct(value, *bounds):
+def _distinct(value: float, *bounds: float) -> str:
     """value formatted short, or with more digits where short would equal a bound."""
     short = f"{value:g}"
     return f"{value:.12g}" if short in (f"{b:g}" for b in bounds) else short
 
 
-def check_state_range(owner, p, T, T_range, p_range, what):
+def check_state_range(owner: str, p: Array, T: Array, T_range: tuple[float, float],
+                      p_range: tuple[float, float], what: str) -> None:
     """Raise a FluidError naming the first bad quantity, its value and the valid range."""
     p_lo, p_hi = p_range
     T_lo, T_hi = T_range
@@ -112,13 +117,14 @@ class EosFluid(Fluid):
     """
 
     level = "eos"
+    spec: FluidSpec                     # type: ignore[assignment]  # Fluid.spec = None
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type[EosFluid], tuple[FluidSpec, float]]:
         # CoolProp's AbstractState does not pickle: a copy is made again from
         # its definition (and the state cache of the process that loads it)
         return (type(self), (self.spec, self.temperature))
 
-    def __init__(self, spec: FluidSpec, temperature: float):
+    def __init__(self, spec: FluidSpec, temperature: float) -> None:
         import CoolProp.CoolProp as CP
         self.spec, self.name, self.temperature = spec, spec.name, float(temperature)
         self.liquid = is_liquid(spec, self.temperature)
@@ -147,7 +153,7 @@ class EosFluid(Fluid):
                                  internal_energy_dp=partial(d, CP.iUmass, CP.iP, CP.iT),
                                  internal_energy_dT=partial(d, CP.iUmass, CP.iT, CP.iP))
 
-    def _eval(self, prop, p, T):
+    def _eval(self, prop: str, p: Any, T: Any) -> Any:   # p, T: SIArrayLike
         getter = self._getters[prop]
         p, T, scalar = broadcast_state(self, p, T)
         check_state_range(repr(self), p, T, self.T_range, self.p_range, "CoolProp")
@@ -164,34 +170,34 @@ class EosFluid(Fluid):
                              f"T = {Tl[k]:g} K: {err}") from None
         return float(flat[0]) if scalar else out
 
-    def density(self, p, T=None):
+    def density(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("density", p, T)
 
-    def density_dp(self, p, T=None):
+    def density_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("density_dp", p, T)
 
-    def density_dT(self, p, T=None):
+    def density_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("density_dT", p, T)
 
-    def viscosity(self, p, T=None):
+    def viscosity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("viscosity", p, T)
 
-    def conductivity(self, p, T=None):
+    def conductivity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("conductivity", p, T)
 
-    def cp(self, p, T=None):
+    def cp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("cp", p, T)
 
-    def cv(self, p, T=None):
+    def cv(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("cv", p, T)
 
-    def enthalpy(self, p, T=None):
+    def enthalpy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("enthalpy", p, T)
 
-    def enthalpy_dp(self, p, T=None):
+    def enthalpy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._eval("enthalpy_dp", p, T)
 
-    def enthalpy_dT(self, p, T=None):
+    def enthalpy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if self.spec.backend != "INCOMP":
             return self._eval("enthalpy_dT", p, T)
         # CoolProp's INCOMP partial derivative returns cp, but its h carries a pressure
@@ -199,35 +205,35 @@ class EosFluid(Fluid):
         # differentiate the h this level returns instead (h is a polynomial in T)
         p, T, scalar = broadcast_state(self, p, T)
         lo, hi = self.T_range
-        T_up, T_dn = np.minimum(T + 1e-3, hi), np.maximum(T - 1e-3, lo)
+        T_up, T_dn = np.minimum(T + 1e-3, hi), np.maximum(T - 1e-3, lo)  # type: ignore[operator]
         out = (self.enthalpy(p, T_up) - self.enthalpy(p, T_dn)) / (T_up - T_dn)
-        return float(out) if scalar else out
+        return float(out) if scalar else out  # type: ignore[return-value]  # float if scalar
 
-    def internal_energy(self, p, T=None):
+    def internal_energy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if "internal_energy" in self._getters:
             return self._eval("internal_energy", p, T)
         return self.enthalpy(p, T) - np.asarray(p) / self.density(p, T)
 
-    def internal_energy_dp(self, p, T=None):
+    def internal_energy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if "internal_energy_dp" in self._getters:
             return self._eval("internal_energy_dp", p, T)
         # u = h - p/rho
         rho = self.density(p, T)
-        return self.enthalpy_dp(p, T) - 1.0 / rho + p * self.density_dp(p, T) / rho ** 2
+        return self.enthalpy_dp(p, T) - 1.0 / rho + p * self.density_dp(p, T) / rho ** 2  # type: ignore[operator, return-value]
 
-    def internal_energy_dT(self, p, T=None):
+    def internal_energy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if "internal_energy_dT" in self._getters:
             return self._eval("internal_energy_dT", p, T)
         rho = self.density(p, T)
-        return self.enthalpy_dT(p, T) + p * self.density_dT(p, T) / rho ** 2
+        return self.enthalpy_dT(p, T) + p * self.density_dT(p, T) / rho ** 2  # type: ignore[operator, return-value]
 
-    def speed_of_sound(self, p, T=None):
+    def speed_of_sound(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if self.spec.backend == "INCOMP":
             raise NotImplementedError(f"{self!r}: CoolProp's INCOMP backend has no speed "
                                       f"of sound")
         return self._eval("speed_of_sound", p, T)
 
-    def compressibility(self, p, T=None):
+    def compressibility(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if self.spec.backend == "INCOMP":
             raise NotImplementedError(f"{self!r}: CoolProp's INCOMP backend has no molar "
                                       f"mass, so no compressibility factor")

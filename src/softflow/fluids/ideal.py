@@ -9,6 +9,8 @@ below so that importing softflow does not import CoolProp; a test checks them).
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
 from ..constants import gas_constant, pressure_atmospheric, temperature_standard
@@ -16,9 +18,14 @@ from ..units import to_si
 from .base import Fluid, FluidError, check_temperature
 from .catalog import BUILTIN
 
+if TYPE_CHECKING:
+    from .._typing import Array, Scalar, SIArrayLike
+    from .catalog import FluidSpec
 
-def _const(value, p, T=None):
-    """value broadcast to the shape of (p, T): a float for scalar input."""
+
+def _const(value: float, p: SIArrayLike, T: SIArrayLike | None = None) -> Any:
+    """value broadcast to the shape of (p, T): a float for scalar input (float | Array:
+    Any, as the Fluid protocol's methods that return it declare Array)."""
     shape = np.shape(p)
     if T is not None:
         shape_T = np.shape(T)
@@ -31,7 +38,7 @@ def _const(value, p, T=None):
     return out
 
 
-def _T(fluid, p, T):
+def _T(fluid: Fluid, p: SIArrayLike, T: SIArrayLike | None) -> Any:
     # T=None: the fluid's temperature, broadcast to p's shape
     return _const(fluid.temperature, p) if T is None else np.asarray(T, dtype=float)
 
@@ -63,11 +70,12 @@ class IdealGas(Fluid):
     compressible = True
     level = "ideal"
 
-    def __init__(self, name, molar_mass, viscosity, temperature=temperature_standard,
-                 gamma=None, *, cp=None, enthalpy_reference=None, conductivity=None,
-                 spec=None):
+    def __init__(self, name: str, molar_mass: Scalar, viscosity: Scalar,
+                 temperature: Scalar = temperature_standard, gamma: Scalar | None = None, *,
+                 cp: Scalar | None = None, enthalpy_reference: Scalar | None = None,
+                 conductivity: Scalar | None = None, spec: FluidSpec | None = None) -> None:
         owner = f"IdealGas {name!r}"
-        self.name, self.spec = name, spec
+        self.name, self.spec = name, spec  # type: ignore[assignment]  # Fluid.spec = None
         self.k = _optional_positive(conductivity, "W/m/K", "conductivity", owner)
         self.molar_mass = to_si(molar_mass, "kg/mol", name="molar_mass", owner=owner)
         self.mu = to_si(viscosity, "Pa*s", name="viscosity", owner=owner)
@@ -94,65 +102,68 @@ class IdealGas(Fluid):
                       to_si(enthalpy_reference, "J/kg", name="enthalpy_reference", owner=owner))
         self._RT = self.R * self.temperature
 
-    def density(self, p, T=None):
+    def density(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         RT = self._RT if T is None else self.R * np.asarray(T)
         return p / RT
 
-    def density_dp(self, p, T=None):
+    def density_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if T is None:
             return _const(1.0 / self._RT, p)
         return _const(1.0, p) / (self.R * np.asarray(T, dtype=float))
 
-    def density_dT(self, p, T=None):
+    def density_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         T = _T(self, p, T)
-        return -p / (self.R * T * T)
+        return -p / (self.R * T * T)  # type: ignore[operator]  # p: a float or an ndarray
 
-    def viscosity(self, p, T=None):
+    def viscosity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self.mu, p, T)
 
-    def conductivity(self, p, T=None):
+    def conductivity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(_conductivity(self), p, T)
 
-    def cp(self, p, T=None):
+    def cp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self.cp0, p, T)
 
-    def cv(self, p, T=None):
+    def cv(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self.cv0, p, T)
 
-    def gamma(self, p, T=None):
+    def gamma(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self.gamma0, p, T)
 
-    def enthalpy(self, p, T=None):
+    def enthalpy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.h_ref + self.cp0 * (_T(self, p, T) - self.temperature) + _const(0.0, p, T)
 
-    def enthalpy_dp(self, p, T=None):
+    def enthalpy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(0.0, p, T)
 
-    def enthalpy_dT(self, p, T=None):
+    def enthalpy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.cp(p, T)
 
-    def internal_energy(self, p, T=None):
+    def internal_energy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         T = _T(self, p, T)
-        return self.h_ref + self.cp0 * (T - self.temperature) - self.R * T + _const(0.0, p)
+        return (self.h_ref + self.cp0 * (T - self.temperature)  # type: ignore[operator]
+                - self.R * T + _const(0.0, p))                   # (T: a float or an ndarray)
 
-    def internal_energy_dp(self, p, T=None):
+    def internal_energy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.enthalpy_dp(p, T)
 
-    def internal_energy_dT(self, p, T=None):
+    def internal_energy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.cv(p, T)
 
     # -- private fast paths for the thermal kernels: value and derivatives in one
     # call, arrays p and T of one shape in, constant derivatives as plain floats
     # (they broadcast); the public methods above stay array in -> array out.
-    def _enthalpy_linear(self):
+    def _enthalpy_linear(self) -> tuple[float, float]:
         """(cp, c) with h(p, T) = cp T + c for every p [J/(kg K), J/kg]."""
         return self.cp0, self.h_ref - self.cp0 * self.temperature
 
-    def _internal_energy_parts(self, p, T, jac):
+    def _internal_energy_parts(self, p: Array, T: Array, jac: bool
+                               ) -> tuple[Array, float, float]:
         """(u, du/dp, du/dT) [J/kg, J/(kg Pa), J/(kg K)]."""
         return self.cv0 * T + (self.h_ref - self.cp0 * self.temperature), 0.0, self.cv0
 
-    def _density_parts(self, p, T, jac):
+    def _density_parts(self, p: Array, T: Array, jac: bool
+                       ) -> tuple[Array, Array | None, Array | None]:
         """(rho, drho/dp, drho/dT) [kg/m^3, kg/(m^3 Pa), kg/(m^3 K)]; derivatives only with jac."""
         RT = self.R * T
         rho = p / RT
@@ -160,13 +171,14 @@ class IdealGas(Fluid):
             return rho, None, None
         return rho, 1.0 / RT, -rho / T
 
-    def speed_of_sound(self, p, T=None):
+    def speed_of_sound(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return np.sqrt(self.gamma0 * self.R * _T(self, p, T)) + _const(0.0, p)
 
-    def compressibility(self, p, T=None):
+    def compressibility(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(1.0, p, T)
 
-    def at(self, temperature=None, *, fraction=None):
+    def at(self, temperature: Scalar | None = None, *,
+           fraction: float | None = None) -> Fluid:
         if self.spec is not None:
             return super().at(temperature, fraction=fraction)
         T = self.temperature if temperature is None else _kelvin(temperature, self)
@@ -201,10 +213,12 @@ class ConstantLiquid(Fluid):
     compressible = False
     level = "ideal"
 
-    def __init__(self, name, density, viscosity, temperature=temperature_standard, *,
-                 cp=None, enthalpy_reference=None, conductivity=None, spec=None):
+    def __init__(self, name: str, density: Scalar, viscosity: Scalar,
+                 temperature: Scalar = temperature_standard, *, cp: Scalar | None = None,
+                 enthalpy_reference: Scalar | None = None, conductivity: Scalar | None = None,
+                 spec: FluidSpec | None = None) -> None:
         owner = f"ConstantLiquid {name!r}"
-        self.name, self.spec = name, spec
+        self.name, self.spec = name, spec  # type: ignore[assignment]  # Fluid.spec = None
         self.k = _optional_positive(conductivity, "W/m/K", "conductivity", owner)
         self.rho0 = to_si(density, "kg/m**3", name="density", owner=owner)
         self.mu = to_si(viscosity, "Pa*s", name="viscosity", owner=owner)
@@ -221,64 +235,65 @@ class ConstantLiquid(Fluid):
                           to_si(enthalpy_reference, "J/kg", name="enthalpy_reference",
                                 owner=owner))
 
-    def density(self, p, T=None):
+    def density(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self.rho0, p, T)
 
-    def density_dp(self, p, T=None):
+    def density_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(0.0, p, T)
 
-    def density_dT(self, p, T=None):
+    def density_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(0.0, p, T)
 
-    def viscosity(self, p, T=None):
+    def viscosity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self.mu, p, T)
 
-    def conductivity(self, p, T=None):
+    def conductivity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(_conductivity(self), p, T)
 
     @property
-    def rho(self):
+    def rho(self) -> float:
         return self.rho0
 
-    def _heat_capacity(self):
+    def _heat_capacity(self) -> float:
         if self.c is None:
             raise NotImplementedError(f"{self!r} was made without cp; give cp=... for "
                                       f"thermal properties")
         return self.c
 
-    def cp(self, p, T=None):
+    def cp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(self._heat_capacity(), p, T)
 
     cv = cp
 
-    def gamma(self, p, T=None):
+    def gamma(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(1.0, p, T)
 
-    def internal_energy(self, p, T=None):
+    def internal_energy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         c = self._heat_capacity()
         u_ref = self.h_ref - pressure_atmospheric / self.rho0
         return u_ref + c * (_T(self, p, T) - self.temperature) + _const(0.0, p)
 
-    def enthalpy(self, p, T=None):
+    def enthalpy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.internal_energy(p, T) + p / self.rho0
 
-    def enthalpy_dp(self, p, T=None):
+    def enthalpy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(1.0 / self.rho0, p, T)
 
-    def enthalpy_dT(self, p, T=None):
+    def enthalpy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.cp(p, T)
 
-    def internal_energy_dp(self, p, T=None):
+    def internal_energy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return _const(0.0, p, T)
 
-    def internal_energy_dT(self, p, T=None):
+    def internal_energy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self.cp(p, T)
 
-    def speed_of_sound(self, p, T=None):
+    def speed_of_sound(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         """Infinite: the liquid is incompressible at this level."""
         return _const(np.inf, p, T)
 
-    def at(self, temperature=None, *, fraction=None):
+    def at(self, temperature: Scalar | None = None, *,
+           fraction: float | None = None) -> Fluid:
         if self.spec is not None:
             return super().at(temperature, fraction=fraction)
         T = self.temperature if temperature is None else _kelvin(temperature, self)
@@ -287,7 +302,7 @@ class ConstantLiquid(Fluid):
                               conductivity=self.k)
 
 
-def _optional_positive(value, unit, name, owner):
+def _optional_positive(value: Scalar | None, unit: str, name: str, owner: str) -> float | None:
     if value is None:
         return None
     v = to_si(value, unit, name=name, owner=owner)
@@ -296,7 +311,7 @@ def _optional_positive(value, unit, name, owner):
     return v
 
 
-def _conductivity(fluid):
+def _conductivity(fluid: IdealGas | ConstantLiquid) -> float:
     if fluid.k is None:
         raise NotImplementedError(f"{fluid!r} was made without a thermal conductivity; give "
                                   "conductivity=... [W/(m K)] (heat-transfer correlations "
@@ -304,25 +319,28 @@ def _conductivity(fluid):
     return fluid.k
 
 
-def _kelvin(temperature, fluid):
+def _kelvin(temperature: Scalar, fluid: Fluid) -> float:
     return to_si(temperature, "K", name="temperature", owner=repr(fluid))
 
 
-def ideal_from_coolprop(spec, temperature: float) -> Fluid:
+def ideal_from_coolprop(spec: FluidSpec, temperature: float) -> Fluid:
     """The ideal-level fluid with constants from CoolProp at 1 atm and ``temperature`` [K]."""
     from .eos import EosFluid
     ref = EosFluid(spec, temperature)
     p = pressure_atmospheric
+    # (float(): the properties are floats already at a scalar p; the protocol says Array)
+    k: float | None
     try:
-        k = ref.conductivity(p)
+        k = float(ref.conductivity(p))
     except FluidError:    # CoolProp has no conductivity model for some fluids
         k = None
     if ref.liquid:
-        return ConstantLiquid(spec.name, ref.density(p), ref.viscosity(p), temperature,
-                              cp=ref.cp(p), enthalpy_reference=ref.enthalpy(p),
-                              conductivity=k, spec=spec)
-    return IdealGas(spec.name, ref.molar_mass, ref.viscosity(p), temperature,
-                    cp=ref.cp(p), enthalpy_reference=ref.enthalpy(p),
+        return ConstantLiquid(spec.name, float(ref.density(p)), float(ref.viscosity(p)),
+                              temperature, cp=float(ref.cp(p)),
+                              enthalpy_reference=float(ref.enthalpy(p)), conductivity=k,
+                              spec=spec)
+    return IdealGas(spec.name, ref.molar_mass, float(ref.viscosity(p)), temperature,
+                    cp=float(ref.cp(p)), enthalpy_reference=float(ref.enthalpy(p)),
                     conductivity=k, spec=spec)
 
 

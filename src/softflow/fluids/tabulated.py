@@ -13,12 +13,19 @@ handed to CoolProp (``out_of_range='eos'``); it is never extrapolated.
 from __future__ import annotations
 
 import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from .base import Fluid, FluidError, broadcast_state
 from .eos import EosFluid, check_state_range
 from .tables import load_table, table_files, tables_directory
+
+if TYPE_CHECKING:
+    from .._typing import Array, SIArrayLike
+    from .catalog import FluidSpec
+
 
 OUT_OF_RANGE = ("raise", "eos")
 
@@ -38,13 +45,15 @@ class TableFluid(Fluid):
     """
 
     level = "table"
+    spec: FluidSpec                     # type: ignore[assignment]  # Fluid.spec = None
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type[TableFluid], tuple[Any, ...]]:
         # rebuilt from its definition: the tables are read (and cached) where it
         # is loaded instead of travelling with every pickled scene
         return (type(self), (self.spec, self.temperature, self.out_of_range, self.tables_dir))
 
-    def __init__(self, spec, temperature: float, out_of_range: str = "raise", tables_dir=None):
+    def __init__(self, spec: FluidSpec, temperature: float, out_of_range: str = "raise",
+                 tables_dir: str | Path | None = None) -> None:
         self.spec, self.name, self.temperature = spec, spec.name, float(temperature)
         if out_of_range not in OUT_OF_RANGE:
             raise FluidError(f"fluid {spec.name!r}: out_of_range must be 'raise' or 'eos', "
@@ -62,9 +71,9 @@ class TableFluid(Fluid):
         self.molar_mass = meta["molar_mass"]
         self.R = meta["specific_gas_constant"]     # CoolProp's, so that Z matches it
         self._check_temperature(self.T_range)
-        self._eos = None
+        self._eos: EosFluid | None = None
 
-    def _check_temperature(self, T_range):
+    def _check_temperature(self, T_range: tuple[float, float] | None) -> None:
         if T_range is None:
             return
         T_lo, T_hi = T_range
@@ -73,7 +82,7 @@ class TableFluid(Fluid):
                              f"table range {T_lo:g} ... {T_hi:g} K (use out-of-table "
                              f"temperatures at level 'eos')")
 
-    def _level_options(self):
+    def _level_options(self) -> dict[str, Any]:
         return {"out_of_range": self.out_of_range, "tables_dir": self.tables_dir}
 
     @property
@@ -84,7 +93,8 @@ class TableFluid(Fluid):
         return self._eos
 
     # -- evaluation -------------------------------------------------------------------
-    def _evaluate(self, prop, compute, p, T):
+    def _evaluate(self, prop: str, compute: Callable[[Any, Any], Any], p: Any,
+                  T: Any) -> Any:    # p, T: SIArrayLike (Any: rebound to arrays below)
         """compute(p, T) on the table; out-of-range states raise or go to CoolProp."""
         if T is None:
             pa = np.asarray(p, dtype=float)
@@ -108,14 +118,14 @@ class TableFluid(Fluid):
                 out[~inside] = getattr(self.eos, prop)(p[~inside], T[~inside])
         return float(out) if scalar else out
 
-    def _get(self, key, p, T, grad=False):
+    def _get(self, key: str, p: float | Array, T: float | Array | None, grad: bool = False) -> Any:
         if key not in self.table.values:
             raise NotImplementedError(self._missing(key))
         if T is None:
             return self.table.slice(key, self.temperature)(p, grad=grad)
         return self.table.interpolant(key)(p, T, grad=grad)
 
-    def _grad2(self, key, p, T):
+    def _grad2(self, key: str, p: float | Array, T: float | Array | None) -> Any:
         # value, d/dp, d/dT of a tabulated property (2-D even when T is the fluid's own)
         if T is None:
             T = np.full(np.shape(p), self.temperature)
@@ -123,80 +133,80 @@ class TableFluid(Fluid):
             raise NotImplementedError(self._missing(key))
         return self.table.interpolant(key)(p, T, grad=True)
 
-    def _Tv(self, T):
+    def _Tv(self, T: float | Array | None) -> float | Array:
         return self.temperature if T is None else T
 
     # density: rho = p / (Z R T) for gases
-    def _density(self, p, T):
+    def _density(self, p: float | Array, T: float | Array | None) -> float | Array:
         if self.liquid:
             return self._get("density", p, T)
         return p / (self._get("Z", p, T) * self.R * self._Tv(T))
 
-    def _density_dp(self, p, T):
+    def _density_dp(self, p: float | Array, T: float | Array | None) -> float | Array:
         if self.liquid:
             return self._get("density", p, T, grad=True)[1]
         Z, Zp = self._get("Z", p, T, grad=True)[:2]
         return (1.0 - p * Zp / Z) / (Z * self.R * self._Tv(T))
 
-    def _density_dT(self, p, T):
+    def _density_dT(self, p: float | Array, T: float | Array | None) -> float | Array:
         if self.liquid:
             return self._grad2("density", p, T)[2]
         Z, _, ZT = self._grad2("Z", p, T)
         Tv = self._Tv(T)
         return -p / (Z * self.R * Tv) * (1.0 / Tv + ZT / Z)
 
-    def density(self, p, T=None):
+    def density(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("density", self._density, p, T)
 
-    def density_dp(self, p, T=None):
+    def density_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("density_dp", self._density_dp, p, T)
 
-    def density_dT(self, p, T=None):
+    def density_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("density_dT", self._density_dT, p, T)
 
-    def viscosity(self, p, T=None):
+    def viscosity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("viscosity", lambda p, T: self._get("viscosity", p, T), p, T)
 
-    def conductivity(self, p, T=None):
+    def conductivity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         """Thermal conductivity [W/(m K)], from CoolProp (not tabulated: heat-transfer
         correlations ask for it once per step, not per Newton iteration)."""
         return self.eos.conductivity(p, T)
 
-    def cp(self, p, T=None):
+    def cp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("cp", lambda p, T: self._get("cp", p, T), p, T)
 
-    def cv(self, p, T=None):
+    def cv(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("cv", lambda p, T: self._get("cv", p, T), p, T)
 
-    def enthalpy(self, p, T=None):
+    def enthalpy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("enthalpy", lambda p, T: self._get("enthalpy", p, T), p, T)
 
-    def enthalpy_dp(self, p, T=None):
+    def enthalpy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("enthalpy_dp",
                               lambda p, T: self._get("enthalpy", p, T, grad=True)[1], p, T)
 
-    def enthalpy_dT(self, p, T=None):
+    def enthalpy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("enthalpy_dT", lambda p, T: self._grad2("enthalpy", p, T)[2],
                               p, T)
 
-    def internal_energy(self, p, T=None):
+    def internal_energy(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("internal_energy",
                               lambda p, T: self._get("internal_energy", p, T), p, T)
 
-    def internal_energy_dp(self, p, T=None):
+    def internal_energy_dp(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("internal_energy_dp",
                               lambda p, T: self._get("internal_energy", p, T, grad=True)[1],
                               p, T)
 
-    def internal_energy_dT(self, p, T=None):
+    def internal_energy_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("internal_energy_dT",
                               lambda p, T: self._grad2("internal_energy", p, T)[2], p, T)
 
-    def speed_of_sound(self, p, T=None):
+    def speed_of_sound(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("speed_of_sound",
                               lambda p, T: self._get("speed_of_sound", p, T), p, T)
 
-    def compressibility(self, p, T=None):
+    def compressibility(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         if self.liquid:
             if self.R is None:
                 raise NotImplementedError(f"{self!r}: no molar mass (CoolProp INCOMP), so no "
@@ -206,7 +216,7 @@ class TableFluid(Fluid):
         return self._evaluate("compressibility", lambda p, T: self._get("Z", p, T), p, T)
 
 
-def _metadata_range(spec, tables_dir):
+def _metadata_range(spec: FluidSpec, tables_dir: str | Path | None) -> tuple[float, float] | None:
     """The temperature range [K] a table's metadata records, or None where it cannot be
     read (load_table then says why)."""
     try:
