@@ -65,9 +65,13 @@ import sys
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .network.system import System
+    from .solve.simulation import Simulation
 
 FORMAT = 1
 #: the component classes a scene may name
@@ -100,11 +104,11 @@ class SceneError(ValueError):
 class Scene:
     """A scene file read: the System, the [simulation] keywords (SI values or
     strings as Simulation takes them) and the file it came from."""
-    system: Any
+    system: System
     simulation: dict = field(default_factory=dict)
     path: Path | None = None
 
-    def simulate(self, **overrides: Any) -> Any:
+    def simulate(self, **overrides: Any) -> Simulation:
         """``Simulation(system, **simulation, **overrides)``."""
         from .solve import Simulation
         kw = {**self.simulation, **overrides}
@@ -121,7 +125,7 @@ def _toml_loads(text: str) -> dict:
 
 
 class _Reader:
-    def __init__(self, text: str, where: str, base: Path):
+    def __init__(self, text: str, where: str, base: Path) -> None:
         self.text, self.where, self.base = text, where, base
         self.lines = text.splitlines()
 
@@ -260,7 +264,7 @@ def _fluid_table(table: dict, reader: _Reader, key: str) -> Any:
     if "out_of_range" in table:
         kw["out_of_range"] = table["out_of_range"]
     try:
-        return sf.Fluid(table["name"], **kw)
+        return sf.Fluid(table["name"], **kw)  # type: ignore[call-arg]  # its metaclass builds it
     except Exception as err:
         raise reader.error(key, f"{type(err).__name__}: {err}") from None
 
@@ -337,6 +341,7 @@ def _component(label: str, table: dict, fluids: dict, reader: _Reader,
     cls = getattr(sf, kind)
     params = inspect.signature(cls.__init__).parameters
     kw: dict[str, Any] = {}
+    unit: str | None
     for name, value in table.items():
         if name == "type":
             continue
@@ -473,13 +478,13 @@ def read(path: str | Path) -> Scene:
     return scene
 
 
-def load(path: str | Path) -> Any:
+def load(path: str | Path) -> System:
     """The System in a TOML scene file."""
     return read(path).system
 
 
 # -- writing ---------------------------------------------------------------------------------
-def _fmt(value: float, unit: str) -> Any:
+def _fmt(value: float | np.floating[Any], unit: str) -> Any:
     """'0.3 m': the shortest text that reads back as the same float."""
     if unit == "":
         return float(value)
@@ -692,7 +697,7 @@ def _moved(table: Any, origin: Path, base: Path) -> Any:
     return {**table, key: Path(rel).as_posix()}
 
 
-def to_dict(system: Any, simulation: dict | None = None, *,
+def to_dict(system: System, simulation: dict | None = None, *,
             base: str | Path | None = None) -> dict:
     """The scene of ``system`` as the dict its TOML file holds; file paths of
     curves are written relative to ``base`` (the new file's folder; default
@@ -713,11 +718,13 @@ def to_dict(system: Any, simulation: dict | None = None, *,
                 fluids[name] = spec
             table["fluid"] = name
         comps[comp.label] = table
-    nodes = [[f"{t.component.label}.{t.label}" for t in node.terminals]
+    nodes = [[f"{t.component.label}.{t.label}"  # type: ignore[union-attr]  # connected
+              for t in node.terminals]
              for node in system.nodes() if len(node.terminals) > 1]
     doc: dict[str, Any] = {"format": FORMAT, "connections": nodes}
     if simulation:
-        doc["simulation"] = {k: (_fmt(_si(v, SIMULATION_KEYS.get(k)), SIMULATION_KEYS[k])
+        doc["simulation"] = {k: (_fmt(_si(v, SIMULATION_KEYS.get(k)),
+                                      SIMULATION_KEYS[k])  # type: ignore[arg-type]  # not None
                                  if SIMULATION_KEYS.get(k) and not isinstance(v, (str, list))
                                  else v) for k, v in simulation.items()}
         unknown = set(simulation) - set(SIMULATION_KEYS)
@@ -739,7 +746,7 @@ def _loaded_fluids(system: Any) -> dict:
         written = _WRITTEN.get(comp)
         fluid = written[0].get("fluid") if written else None
         if isinstance(fluid, str) and fluid not in BUILTIN_FLUIDS:
-            out[fluid] = written[2] if written[2] is not None else _write_fluid(
+            out[fluid] = written[2] if written[2] is not None else _write_fluid(  # type: ignore[index]
                 comp.fluid, comp.describe())
     return out
 
@@ -749,7 +756,7 @@ def _si(value: Any, unit: str | None) -> float:
     return to_si(value, unit, name="simulation", owner="save") if unit else value
 
 
-def dumps(system: Any, simulation: dict | None = None, *,
+def dumps(system: System, simulation: dict | None = None, *,
           base: str | Path | None = None) -> str:
     """The TOML text of ``system`` (and the Simulation keywords ``simulation``)."""
     import tomli_w
@@ -769,7 +776,7 @@ def _nodes_lines(doc: dict) -> list[str]:
     return ["[" + ", ".join(f'"{t}"' for t in node) + "]" for node in doc["connections"]]
 
 
-def save(system: Any, path: str | Path, *, simulation: dict | None = None) -> Path:
+def save(system: System, path: str | Path, *, simulation: dict | None = None) -> Path:
     """Write ``system`` (and the Simulation keywords ``simulation``, e.g.
     ``{"duration": "2 s"}``) to a TOML scene file; returns the path.
 
