@@ -11,15 +11,24 @@ relative to their starting values, so that a diameter [m] and a volume
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Optional, Tuple
 
 import numpy as np
 
 from .units import quantity_unit, to_si
 
+if TYPE_CHECKING:
+    from ._typing import Array, ArrayLike, Scalar
+    from .solve.result import Result
+    from .solve.simulation import Simulation
 
-def _si(value):
+    #: ``{"label.argument": (lower, upper)}``, None for no bound
+    Bounds = Mapping[str, Tuple[Optional[Scalar], Optional[Scalar]]]
+
+
+def _si(value: Any) -> float:
     """A number in SI: a Quantity in base units, or the number itself."""
     if hasattr(value, "to_base_units"):
         return float(value.to_base_units().magnitude)
@@ -48,16 +57,17 @@ class FitResult:
         scipy's own result (``OptimizeResult``).
     """
 
-    params: dict
+    params: dict[str, float]
     success: bool
     message: str
     cost: float
     runs: int
-    result: Any = None
+    result: Result | None = None
     optimizer: Any = field(default=None, repr=False)
 
 
-def _start(sim, params, x0):
+def _start(sim: Simulation, params: Sequence[str], x0: Mapping[str, Scalar] | None
+           ) -> tuple[list[str], Array]:
     names = list(params)
     if not names:
         raise ValueError("fit: name at least one parameter to adjust, e.g. params="
@@ -79,7 +89,7 @@ def _start(sim, params, x0):
     return names, np.array([start[n] for n in names])
 
 
-def _quantity_of(sim, label, var, key):
+def _quantity_of(sim: Simulation, label: str, var: str, key: str) -> str:
     """The quantity of a component's variable or output, by its entry in a
     result of ``sim`` (a clear KeyError naming what exists otherwise)."""
     from .solve.result import Result
@@ -94,7 +104,7 @@ def _quantity_of(sim, label, var, key):
     return entry[1]
 
 
-def _bounds(names, theta0, bounds):
+def _bounds(names: list[str], theta0: Array, bounds: Bounds | None) -> tuple[Array, Array]:
     lo = np.full(len(names), -np.inf)
     hi = np.full(len(names), np.inf)
     for k, name in enumerate(names):
@@ -108,7 +118,10 @@ def _bounds(names, theta0, bounds):
     return lo / theta0, hi / theta0     # relative, theta0 > 0 assumed below
 
 
-def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -> FitResult:
+def fit(sim: Simulation, measured: Mapping[str, tuple[ArrayLike, ArrayLike]],
+        params: Sequence[str], *, bounds: Bounds | None = None,
+        x0: Mapping[str, Scalar] | None = None, scale: Mapping[str, float] | None = None,
+        **options: Any) -> FitResult:
     """Fit run-time parameters of ``sim`` to measured traces.
 
     Parameters
@@ -149,7 +162,7 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
         if unit is not None:       # Quantities converted (and checked) to the output's unit
             values = to_si(values, unit, name="values", owner=f"fit[{key!r}]")
         elif hasattr(values, "magnitude"):
-            values = values.to_base_units().magnitude
+            values = values.to_base_units().magnitude  # type: ignore[union-attr]  # a Quantity
         values = np.asarray(values, dtype=float)
         if times.size and (times.min() < 0 or times.max() > sim.duration * (1 + 1e-12)):
             raise ValueError(f"fit[{key!r}]: measured times {times.min():.6g} ... "
@@ -161,9 +174,9 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
         size = (scale or {}).get(key) or float(np.ptp(values)) or float(np.abs(values).max()) or 1.0
         traces.append((label, var, times, values, size))
     lo, hi = _bounds(names, theta0, bounds)
-    cache = {"u": None, "runs": 0}
+    cache: dict[str, Any] = {"u": None, "runs": 0}
 
-    def run(u):
+    def run(u: Array) -> Result:
         if cache["u"] is not None and np.array_equal(u, cache["u"]):
             return cache["res"]
         theta = u * theta0
@@ -173,7 +186,7 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
         cache["runs"] += 1
         return res
 
-    def residuals(u):
+    def residuals(u: Array) -> Array:
         res = run(u)
         if not res.success:
             return np.full(sum(tr[2].size for tr in traces), 1e6)
@@ -181,7 +194,7 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
                for label, var, times, values, size in traces]
         return np.concatenate(out)
 
-    def jacobian(u):
+    def jacobian(u: Array) -> Array:
         res = run(u)
         cols = []
         for k, name in enumerate(names):
@@ -202,8 +215,9 @@ def fit(sim, measured, params, *, bounds=None, x0=None, scale=None, **options) -
                      runs=cache["runs"] + 1, result=final, optimizer=opt)
 
 
-def design(sim, objective: Callable[[Any], float], params, *, bounds=None, x0=None,
-           method=None, **options) -> FitResult:
+def design(sim: Simulation, objective: Callable[[Result], float], params: Sequence[str], *,
+           bounds: Bounds | None = None, x0: Mapping[str, Scalar] | None = None,
+           method: str | None = None, **options: Any) -> FitResult:
     """Minimize ``objective(result)`` over run-time parameters of ``sim`` with
     ``scipy.optimize.minimize`` (``method`` and ``options`` passed on; the
     default, L-BFGS-B with bounds or BFGS without, takes finite-difference
@@ -216,7 +230,7 @@ def design(sim, objective: Callable[[Any], float], params, *, bounds=None, x0=No
     lo, hi = _bounds(names, theta0, bounds)
     runs = {"n": 0}
 
-    def f(u):
+    def f(u: Array) -> float:
         runs["n"] += 1
         res = sim.run(params=dict(zip(names, u * theta0)), raise_on_failure=False)
         if not res.success:
