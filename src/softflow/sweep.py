@@ -63,10 +63,21 @@ import time
 import types
 import uuid
 import warnings
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, List, Tuple
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import pandas
+    import xarray
+
+    from ._typing import Array, ArrayLike
+    from .solve.result import Result
+    from .solve.simulation import Simulation
+
+    #: (status, message, values (n_outputs, n_times), warnings) of one run
+    Outcome = Tuple[str, str, Array, List[str]]
 
 ENGINES = ("serial", "processes", "dask", "batched")
 
@@ -111,8 +122,11 @@ class SweepResult:
         Wall time of the sweep (checks, runs and sampling).
     """
 
-    def __init__(self, variants, grid, outputs, units, times, data, status, messages,
-                 warnings_, engine, wall_time, coords, names):
+    def __init__(self, variants: list[dict[str, Any]], grid: dict[str, Any] | None,
+                 outputs: list[str], units: dict[str, str], times: Array, data: Array,
+                 status: list[str], messages: list[str], warnings_: list[list[str]],
+                 engine: str, wall_time: float, coords: dict[str, tuple[Any, str | None]],
+                 names: dict[str, str]) -> None:
         self.variants = variants
         self.grid = grid
         self.outputs = outputs
@@ -153,7 +167,7 @@ class SweepResult:
         return self.data[:, k, :]
 
     # -- exports --------------------------------------------------------------------------
-    def to_xarray(self):
+    def to_xarray(self) -> xarray.Dataset:
         """An xarray Dataset: for a grid, one dimension per swept parameter (its
         coordinate in SI units, ``units`` in its attributes) and ``time``; for an
         explicit list of variants, dimensions ``variant`` and ``time``, each
@@ -167,6 +181,7 @@ class SweepResult:
         except ImportError:
             raise ImportError("SweepResult.to_xarray needs xarray, an optional dependency: "
                               "pip install 'softflow[xarray]' (or pip install xarray)") from None
+        coords: dict[str, tuple[Any, ...]]
         if self.grid is not None:
             dims = [self.coordinate_names[key] for key in self.grid]
             shape = tuple(len(v) for v in self.grid.values())
@@ -193,7 +208,7 @@ class SweepResult:
                  "failed": len(self.failed)}
         return xr.Dataset(data, coords=coords, attrs=attrs)
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pandas.DataFrame:
         """A pandas DataFrame in tidy (long) form: one row per variant and time,
         columns ``variant``, one per swept parameter (SI numbers, or labels),
         ``status``, ``message``, ``time`` and one per output; SI units in
@@ -221,15 +236,17 @@ class SweepResult:
         df.attrs["engine"] = self.engine
         return df
 
-    def _unit_attrs(self, key):
+    def _unit_attrs(self, key: str) -> dict[str, str]:
         unit = self._coords[key][1]
         return {"parameter": key, **({"units": unit} if unit else {})}
 
 
 # ----------------------------------------------------------------------------------------
 # sweep
-def sweep(sim, params, outputs=None, engine="serial", times=None, progress=None,
-          client=None, workers=None):
+def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any]],
+          outputs: str | Sequence[str] | None = None, engine: str = "serial",
+          times: ArrayLike | None = None, progress: bool | None = None, client: Any = None,
+          workers: int | None = None) -> SweepResult:
     """Run ``sim`` once per parameter variant and collect the outputs.
 
     Parameters
@@ -289,7 +306,7 @@ def sweep(sim, params, outputs=None, engine="serial", times=None, progress=None,
             raise ValueError(f"sweep: workers must be an integer >= 1, got {workers!r}")
     if engine == "dask":
         _import_distributed()
-    batched = _batched_runner() if engine == "batched" else None
+    batched: Any = _batched_runner() if engine == "batched" else None
 
     variants, grid_values = _variants(params)
     columns, units = _columns(sim)
@@ -344,12 +361,13 @@ def sweep(sim, params, outputs=None, engine="serial", times=None, progress=None,
 
 # ----------------------------------------------------------------------------------------
 # input
-def _listing(names, most=30):
+def _listing(names: Iterable[str], most: int = 30) -> str:
     names = list(names)
     return ", ".join(map(repr, names[:most])) + (", ..." if len(names) > most else "")
 
 
-def _variants(params):
+def _variants(params: Any) -> tuple[list[dict[str, Any]],
+                                   dict[str, tuple[list[Any], list[Any] | None]] | None]:
     """(variants, grid) from a grid dict or a list of dicts; grid is
     {key: (values, coordinate labels or None)} or None."""
     if isinstance(params, Mapping):
@@ -392,26 +410,26 @@ def _variants(params):
     return [dict(v) for v in variants], None
 
 
-def _is_sequence(values):
+def _is_sequence(values: Any) -> bool:
     if isinstance(values, Sequence) or isinstance(values, np.ndarray):
         return True
     # a pint Quantity holding an array
     return hasattr(values, "magnitude") and np.ndim(values.magnitude) == 1
 
 
-def _describe_variant(i, n, variant):
+def _describe_variant(i: int, n: int, variant: Mapping[str, Any]) -> str:
     shown = ", ".join(f"{k}={_short(v)}" for k, v in variant.items())
     return f"variant {i} of {n} ({shown})"
 
 
-def _short(value):
+def _short(value: Any) -> str:
     if hasattr(value, "magnitude") and hasattr(value, "units"):
         return f"{value:~P}"
     text = repr(value) if isinstance(value, str) else str(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _check_variants(sim, variants):
+def _check_variants(sim: Simulation, variants: list[dict[str, Any]]) -> None:
     """Put each variant's parameters in force once, as a run would (keys, units,
     ranges and structure checked by :mod:`softflow.solve.params` and
     ``Assembly.replace``: ~0.2 ms a variant), then the compiled values back.
@@ -425,11 +443,11 @@ def _check_variants(sim, variants):
                             f"{_message(err)}") from err
 
 
-def _message(err):
+def _message(err: BaseException) -> str:
     return err.args[0] if isinstance(err, KeyError) and err.args else str(err)
 
 
-def _renamed(err, message):
+def _renamed(err: BaseException, message: str) -> BaseException:
     """An exception of ``err``'s type with ``message`` (ValueError where the type
     takes other arguments)."""
     try:
@@ -439,7 +457,7 @@ def _renamed(err, message):
     return new
 
 
-def _columns(sim):
+def _columns(sim: Simulation) -> tuple[list[str], dict[str, str]]:
     """The Result columns of ``sim``'s runs and their units, without running."""
     from .solve.result import Result
     asm = sim.asm
@@ -452,7 +470,7 @@ def _columns(sim):
     return probe.columns(), units
 
 
-def _outputs(outputs, columns):
+def _outputs(outputs: str | Sequence[str] | None, columns: Sequence[str]) -> list[str]:
     if outputs is None:
         return list(columns)
     if isinstance(outputs, str):
@@ -469,14 +487,14 @@ def _outputs(outputs, columns):
     return outputs
 
 
-def _times(sim, times):
+def _times(sim: Simulation, times: ArrayLike | None) -> Array:
     from .units import to_si
     T = sim.duration
     if times is None:
         if not sim.adaptive:
             # the fixed-step integrator's grid t_k = k * step, ending on the duration
             n = max(1, int(math.ceil(T / sim.step - 1e-9)))
-            grid = np.minimum(np.arange(n + 1) * sim.step, T)
+            grid = np.minimum(np.arange(n + 1) * sim.step, T)  # type: ignore[operator]  # step: fixed
             grid[-1] = T
             return grid
         return np.linspace(0.0, T, DEFAULT_POINTS)
@@ -492,7 +510,7 @@ def _times(sim, times):
     return grid.astype(float)
 
 
-def _is_number(value):
+def _is_number(value: Any) -> bool:
     if isinstance(value, bool):
         return False
     if hasattr(value, "magnitude") and hasattr(value, "units"):
@@ -501,7 +519,7 @@ def _is_number(value):
     return isinstance(value, (int, float, np.integer, np.floating))
 
 
-def _si_unit(sim, key):
+def _si_unit(sim: Simulation, key: str) -> str | None:
     """The SI unit the constructor expects for parameter ``key``, or None: asked
     of the constructor itself with a value of a dimension no parameter has."""
     from .solve.params import rebuild, split
@@ -516,14 +534,14 @@ def _si_unit(sim, key):
     return None
 
 
-def _to_si(value, unit):
+def _to_si(value: Any, unit: str | None) -> float:
     if hasattr(value, "magnitude") and hasattr(value, "units"):
         return float(value.to(unit).magnitude) if unit else float(
             value.to_base_units().magnitude)
     return float(value)
 
 
-def _labels(values):
+def _labels(values: Sequence[Any]) -> list[str]:
     """Coordinate labels for values that are not numbers: their text, made unique."""
     text = [_short(v) for v in values]
     if len(set(text)) == len(text):
@@ -531,8 +549,11 @@ def _labels(values):
     return [f"{t} #{i}" for i, t in enumerate(text)]
 
 
-def _coordinates(sim, variants, grid):
+def _coordinates(sim: Simulation, variants: list[dict[str, Any]],
+                 grid: dict[str, tuple[list[Any], list[Any] | None]] | None
+                 ) -> tuple[dict[str, tuple[Any, str | None]], dict[str, Any] | None]:
     """{key: (value per variant, SI unit or None)} and, for a grid, {key: axis}."""
+    labels: Any         # a grid axis' coordinate labels; below, an iterator of text labels
     if grid is not None:
         coords, axes = {}, {}
         shape = tuple(len(values) for values, _ in grid.values())
@@ -563,7 +584,7 @@ def _coordinates(sim, variants, grid):
     return coords, None
 
 
-def _bar(n, progress, engine):
+def _bar(n: int, progress: bool | None, engine: str) -> Any:
     if progress is None:
         isatty = getattr(sys.stderr, "isatty", None)
         progress = bool(isatty and isatty())
@@ -575,7 +596,7 @@ def _bar(n, progress, engine):
 
 # ----------------------------------------------------------------------------------------
 # running one variant (in this process or a worker)
-def _outcome(result, outputs, times):
+def _outcome(result: Result, outputs: list[str], times: Array) -> Outcome:
     """(status, message, values (n_outputs, n_times), warnings) of one run."""
     values = np.full((len(outputs), len(times)), np.nan)
     t = result.times
@@ -589,7 +610,8 @@ def _outcome(result, outputs, times):
             [str(w) for w in getattr(result, "warnings", [])])
 
 
-def _run_variant(sim, variant, outputs, times):
+def _run_variant(sim: Simulation, variant: dict[str, Any], outputs: list[str],
+                 times: Array) -> Outcome:
     from .solve.validity import ModelWarning
     try:
         with warnings.catch_warnings():
@@ -603,17 +625,20 @@ def _run_variant(sim, variant, outputs, times):
                 np.full((len(outputs), len(times)), np.nan), [])
 
 
-def _run_chunk(sim, chunk, outputs, times):
+def _run_chunk(sim: Simulation, chunk: list[tuple[int, dict[str, Any]]], outputs: list[str],
+               times: Array) -> list[tuple[int, Outcome]]:
     return [(i, _run_variant(sim, variant, outputs, times)) for i, variant in chunk]
 
 
-def _chunks(variants, workers):
+def _chunks(variants: list[dict[str, Any]], workers: int
+            ) -> list[list[tuple[int, dict[str, Any]]]]:
     size = max(1, min(64, math.ceil(len(variants) / (4 * workers))))
     indexed = list(enumerate(variants))
     return [indexed[k:k + size] for k in range(0, len(indexed), size)]
 
 
-def _serial(sim, variants, outputs, times, bar):
+def _serial(sim: Simulation, variants: list[dict[str, Any]], outputs: list[str],
+            times: Array, bar: Any) -> list[Outcome]:
     out = []
     try:
         for variant in variants:
@@ -625,7 +650,8 @@ def _serial(sim, variants, outputs, times, bar):
     return out
 
 
-def _lost(chunk, err, outputs, times):
+def _lost(chunk: list[tuple[int, dict[str, Any]]], err: BaseException, outputs: list[str],
+          times: Array) -> list[tuple[int, Outcome]]:
     """Outcomes of a chunk whose worker failed (not the run: the process)."""
     message = f"worker failed: {type(err).__name__}: {err}"
     return [(i, ("failed", message, np.full((len(outputs), len(times)), np.nan), []))
@@ -633,19 +659,20 @@ def _lost(chunk, err, outputs, times):
 
 
 # -- processes ------------------------------------------------------------------------------
-_WORKER_SIM = None
+_WORKER_SIM: Any = None         # the Simulation, once _init_worker has run
 
 
-def _init_worker(blob):
+def _init_worker(blob: bytes) -> None:
     global _WORKER_SIM
     _WORKER_SIM = pickle.loads(blob)
 
 
-def _worker_chunk(chunk, outputs, times):
+def _worker_chunk(chunk: list[tuple[int, dict[str, Any]]], outputs: list[str],
+                  times: Array) -> list[tuple[int, Outcome]]:
     return _run_chunk(_WORKER_SIM, chunk, outputs, times)
 
 
-def _pickled(sim, engine):
+def _pickled(sim: Simulation, engine: str) -> bytes:
     """The Simulation as it travels to workers (its definition, recompiled there)."""
     try:
         return pickle.dumps(sim.without_result())
@@ -656,10 +683,11 @@ def _pickled(sim, engine):
                         "engine='serial'") from err
 
 
-def _processes(sim, variants, outputs, times, bar, workers):
+def _processes(sim: Simulation, variants: list[dict[str, Any]], outputs: list[str],
+               times: Array, bar: Any, workers: int) -> list[Outcome]:
     blob = _pickled(sim, "processes")
     chunks = _chunks(variants, workers)
-    out = [None] * len(variants)
+    out: list[Any] = [None] * len(variants)
     with concurrent.futures.ProcessPoolExecutor(
             max_workers=min(workers, len(chunks)), initializer=_init_worker,
             initargs=(blob,)) as pool:
@@ -679,7 +707,7 @@ def _processes(sim, variants, outputs, times, bar, workers):
 
 
 # -- dask ---------------------------------------------------------------------------------
-def _import_distributed():
+def _import_distributed() -> Any:
     try:
         import distributed
     except ImportError as err:
@@ -693,17 +721,19 @@ def _import_distributed():
 _LOCAL = threading.local()
 
 
-def _dask_chunk(chunk, blob, token, outputs, times):
+def _dask_chunk(chunk: list[tuple[int, dict[str, Any]]], blob: Any, token: str,
+                outputs: list[str], times: Array) -> list[tuple[int, Outcome]]:
     held = getattr(_LOCAL, "sim", None)
     if held is None or held[0] != token:
         _LOCAL.sim = held = (token, pickle.loads(blob))
     return _run_chunk(held[1], chunk, outputs, times)
 
 
-def _dask(sim, variants, outputs, times, bar, client, workers):
+def _dask(sim: Simulation, variants: list[dict[str, Any]], outputs: list[str], times: Array,
+          bar: Any, client: Any, workers: int) -> list[Outcome]:
     distributed = _import_distributed()
     own = client is None
-    cluster = None
+    cluster: Any = None
     if own:
         import logging
         with warnings.catch_warnings():
@@ -721,7 +751,7 @@ def _dask(sim, variants, outputs, times, bar, client, workers):
         futures = client.map(_dask_chunk, chunks, blob=blob, token=token, outputs=outputs,
                              times=times, pure=False)
         which = {f.key: chunk for f, chunk in zip(futures, chunks)}
-        out = [None] * len(variants)
+        out: list[Any] = [None] * len(variants)
         for future in distributed.as_completed(futures):
             chunk = which[future.key]
             try:
@@ -740,7 +770,7 @@ def _dask(sim, variants, outputs, times, bar, client, workers):
 
 
 # -- batched ------------------------------------------------------------------------------
-def _batched_runner():
+def _batched_runner() -> Callable[..., Any]:
     import importlib
     import importlib.util
     if importlib.util.find_spec("softflow.solve.batched") is None:
@@ -760,7 +790,7 @@ def _batched_runner():
 # (the import system sets it), where ``sf.sweep`` is otherwise the function: the module
 # is callable as the function, so ``sf.sweep(sim, params)`` works either way.
 class _CallableModule(types.ModuleType):
-    def __call__(self, *args, **kwargs):
+    def __call__(self, *args: Any, **kwargs: Any) -> SweepResult:
         return sweep(*args, **kwargs)
 
 
