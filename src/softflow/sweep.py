@@ -693,17 +693,25 @@ def _processes(sim: Simulation, variants: list[dict[str, Any]], outputs: list[st
             initargs=(blob,)) as pool:
         futures = {pool.submit(_worker_chunk, chunk, outputs, times): chunk
                    for chunk in chunks}
-        for future in concurrent.futures.as_completed(futures):
-            chunk = futures[future]
-            try:
-                done = future.result()
-            except Exception as err:
-                done = _lost(chunk, err, outputs, times)
-            for i, outcome in done:
-                out[i] = outcome
-            if bar is not None:
-                bar.update(len(chunk))
+        _gather(concurrent.futures.as_completed(futures), lambda f: futures[f], out,
+                outputs, times, bar)
     return out
+
+
+def _gather(completed: Any, chunk_of: Any, out: list[Any], outputs: list[str],
+            times: Array, bar: Any) -> None:
+    """Put the outcomes of finished chunks (futures of either engine, as they
+    complete) in their places; a chunk whose worker failed is recorded as lost."""
+    for future in completed:
+        chunk = chunk_of(future)
+        try:
+            done = future.result()
+        except Exception as err:
+            done = _lost(chunk, err, outputs, times)
+        for i, outcome in done:
+            out[i] = outcome
+        if bar is not None:
+            bar.update(len(chunk))
 
 
 # -- dask ---------------------------------------------------------------------------------
@@ -752,16 +760,8 @@ def _dask(sim: Simulation, variants: list[dict[str, Any]], outputs: list[str], t
                              times=times, pure=False)
         which = {f.key: chunk for f, chunk in zip(futures, chunks)}
         out: list[Any] = [None] * len(variants)
-        for future in distributed.as_completed(futures):
-            chunk = which[future.key]
-            try:
-                done = future.result()
-            except Exception as err:
-                done = _lost(chunk, err, outputs, times)
-            for i, outcome in done:
-                out[i] = outcome
-            if bar is not None:
-                bar.update(len(chunk))
+        _gather(distributed.as_completed(futures), lambda f: which[f.key], out, outputs,
+                times, bar)
         return out
     finally:
         if own:
