@@ -28,3 +28,21 @@ def assert_balance(res, stored_change, label, name="massflow", terminal=None, *,
     supplied = sign * res.integral(label, name, terminal)
     gap = np.abs(stored_change - supplied).max()
     assert gap < rel * scale, (gap / scale, rel)
+
+
+def tank_and_actuator(D=1e-3, V=1e-5):
+    """Air at 1.3 bar through a tube (diameter D) into a tank (volume V), and on
+    through a tighter tube into a 20 kPa plateau actuator: smooth, nonlinear,
+    with states in two volumes (sensitivity and fitting tests)."""
+    from softflow.paper_scenes import curve_plateau
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", sf.air, 0.5, D)
+    s += sf.Container("tank", sf.air, V)
+    s += sf.CircularTube("r", sf.air, 0.3, 0.8e-3)
+    s += sf.Actuator("act", sf.air, curve_plateau(20.0))
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    s.connect("tank", "r")
+    s.connect("r", "act")
+    return s

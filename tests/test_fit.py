@@ -6,22 +6,11 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import tank_and_actuator
 from softflow import design, fit
-from softflow.paper_scenes import curve_plateau
 
 
-def scene(D=1e-3, V=1e-5):
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", sf.air, 0.5, D)
-    s += sf.Container("tank", sf.air, V)
-    s += sf.CircularTube("r", sf.air, 0.3, 0.8e-3)
-    s += sf.Actuator("act", sf.air, curve_plateau(20.0))
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    s.connect("tank", "r")
-    s.connect("r", "act")
-    return s
+scene = tank_and_actuator
 
 
 @pytest.fixture(autouse=True)

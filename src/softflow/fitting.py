@@ -92,9 +92,7 @@ def _start(sim: Simulation, params: Sequence[str], x0: Mapping[str, Scalar] | No
 def _quantity_of(sim: Simulation, label: str, var: str, key: str) -> str:
     """The quantity of a component's variable or output, by its entry in a
     result of ``sim`` (a clear KeyError naming what exists otherwise)."""
-    from .solve.result import Result
-    asm = sim.asm
-    probe = Result(asm, np.zeros(1), asm.x0[None, :], asm.S0[None, :])
+    probe = sim.probe()
     try:
         entry = probe._entry(label, var, None)
     except KeyError as err:

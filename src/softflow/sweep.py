@@ -459,12 +459,7 @@ def _renamed(err: BaseException, message: str) -> BaseException:
 
 def _columns(sim: Simulation) -> tuple[list[str], dict[str, str]]:
     """The Result columns of ``sim``'s runs and their units, without running."""
-    from .solve.result import Result
-    asm = sim.asm
-    record = sim.record
-    x0 = asm.x0 if record is None else asm.x0[record[0]]
-    s0 = asm.S0 if record is None else asm.S0[record[1]]
-    probe = Result(asm, np.zeros(1), x0[None, :], s0[None, :], recorded=record)
+    probe = sim.probe()
     units = probe.units()
     units.pop("time")
     return probe.columns(), units

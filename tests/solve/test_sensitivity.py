@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from helpers import rc_circuit
+from helpers import rc_circuit, tank_and_actuator
 from softflow.network.system import NetworkError
-from softflow.paper_scenes import curve_plateau
 
 P0 = sf.pressure_atmospheric
 DP, TAU, D, L = 1e4, 0.1, 0.5e-3, 1.0
@@ -47,20 +46,6 @@ def test_sensitivities_at_run_time_parameter_values():
     assert np.max(np.abs(s - exact)) / np.max(np.abs(exact)) < 2e-4
 
 
-def _air_scene():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5)
-    s += sf.CircularTube("r", sf.air, 0.3, 0.8e-3)
-    s += sf.Actuator("act", sf.air, curve_plateau(20.0))
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    s.connect("tank", "r")
-    s.connect("r", "act")
-    return s
-
-
 @pytest.mark.parametrize("parameter, value", [("tube.diameter", 1e-3), ("tank.volume", 1e-5)])
 def test_sensitivities_are_those_of_the_discrete_solution(parameter, value):
     """Air through a tank into a plateau actuator at fixed 1 ms steps: against
@@ -68,7 +53,7 @@ def test_sensitivities_are_those_of_the_discrete_solution(parameter, value):
     for unknowns, states and the derived volume (measured: <= 5e-5)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(_air_scene(), duration=0.3, step=1e-3, newton_rtol=1e-12)
+        sim = sf.Simulation(tank_and_actuator(), duration=0.3, step=1e-3, newton_rtol=1e-12)
         res = sim.run(sensitivities=[parameter])
         h = 1e-4 * value
         up, down = sim.run(params={parameter: value + h}), sim.run(params={parameter: value - h})
@@ -82,7 +67,7 @@ def test_sensitivities_are_those_of_the_discrete_solution(parameter, value):
 def test_initial_states_and_explicit_parameters():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        res = sf.Simulation(_air_scene(), duration=0.05).run(sensitivities=["tank.volume"])
+        res = sf.Simulation(tank_and_actuator(), duration=0.05).run(sensitivities=["tank.volume"])
     # the tank's initial mass is rho(p0) V: d/dV = rho(p0); its volume output is V itself
     assert res.sensitivity("tank", "mass", "tank.volume")[0] == pytest.approx(
         float(sf.air.density(P0)), rel=1e-6)
@@ -91,7 +76,7 @@ def test_initial_states_and_explicit_parameters():
 
 
 def test_bad_sensitivity_requests_name_the_culprit():
-    sim = sf.Simulation(_air_scene(), duration=0.05)
+    sim = sf.Simulation(tank_and_actuator(), duration=0.05)
     with pytest.raises(KeyError, match="no component 'tub'"):
         sim.run(sensitivities=["tub.diameter"])
     with pytest.raises(NetworkError, match="'act.curve'.*not a number"):
@@ -112,7 +97,7 @@ def test_thermal_scene_sensitivities_are_those_of_the_discrete_solution():
     central differences of whole runs (Newton held to 1e-12)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(_air_scene(), duration=0.2, step=1e-3, newton_rtol=1e-12,
+        sim = sf.Simulation(tank_and_actuator(), duration=0.2, step=1e-3, newton_rtol=1e-12,
                             thermal="adiabatic")
         res = sim.run(sensitivities=["tube.diameter"])
         h = 1e-4 * 1e-3

@@ -108,11 +108,11 @@ class Sensitivities:
                                                  c)).ravel()
         return new
 
-    def _solve(self, p, x, psi, s_psi, t, c, s_x, fresh=False):
-        """s_x of parameter p at the converged point (x, psi, t, c)."""
+    def _solve(self, p, x, psi, s_psi, t, c, s_x, F0, fresh=False):
+        """s_x of parameter p at the converged point (x, psi, t, c), where the
+        residual is F0."""
         asm, newton = self.asm, self.newton
         eps = self.parameters[p][4]
-        F0 = asm.residual(x, psi, t, c)
 
         def residual_of(s):
             Fp = asm.residual(x + eps * s, psi + eps * s_psi, t, c)
@@ -144,10 +144,11 @@ class Sensitivities:
         s_x = np.zeros((self.n_p, asm.n))
         s_S = np.zeros((self.n_p, len(asm.S0)))
         S_new = asm.update_states(x, psi, c)
+        F0 = asm.residual(x, psi, t, c)       # the same point for every parameter
         last = self.records_x[-1] if self.records_x else None
         for p in range(self.n_p):
             start = last[p] if last is not None else np.zeros(asm.n)
-            s_x[p] = self._solve(p, x, psi, s_psi[p], t, c, start)
+            s_x[p] = self._solve(p, x, psi, s_psi[p], t, c, start, F0)
             eps = self.parameters[p][4]
             moved = self._perturbed_update(p, x + eps * s_x[p], psi + eps * s_psi[p], c)
             s_S[p] = (moved - S_new) / eps
@@ -167,8 +168,9 @@ class Sensitivities:
                 b = np.array(twin.initial_state_values(), dtype=float)
                 s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = (b - a) / eps
         s_x0 = np.zeros((self.n_p, len(x0)))
+        F0 = self.asm.residual(x0, S0, t0, 0.0)
         for p in range(self.n_p):
-            s_x0[p] = self._solve(p, x0, S0, s_S0[p], t0, 0.0, np.zeros(len(x0)),
+            s_x0[p] = self._solve(p, x0, S0, s_S0[p], t0, 0.0, np.zeros(len(x0)), F0,
                                   fresh=p == 0)
         self.record(s_x0, s_S0)
         return s_x0, s_S0

@@ -291,6 +291,15 @@ class Simulation:
         finally:
             self._set_parameters(None)
 
+    def probe(self):
+        """A one-point Result at the initial values, recorded as the runs are:
+        its columns, units and variable index (``get`` names, outputs) without
+        running."""
+        asm, record = self.asm, self.record
+        x0 = asm.x0 if record is None else asm.x0[record[0]]
+        s0 = asm.S0 if record is None else asm.S0[record[1]]
+        return Result(asm, np.zeros(1), x0[None, :], s0[None, :], recorded=record)
+
     def without_result(self):
         """A shallow copy that pickles without the last run's Result (what a
         Simulation sent to workers needs: its definition)."""
