@@ -85,3 +85,14 @@ def test_fit_checks_units_and_the_time_span():
         fit(sim, {"act.pressure": (t + 1.0, t)}, ["tube.diameter"])
     with pytest.raises(KeyError, match="'act.pres'.*has no variable 'pres'"):
         fit(sim, {"act.pres": (t, t)}, ["tube.diameter"])
+
+
+def test_fit_starting_values_and_bounds_of_the_wrong_dimension_are_refused():
+    sim = sf.Simulation(scene(), duration=0.1)
+    t = np.linspace(0, 0.1, 5)
+    with pytest.raises(sf.UnitError, match="'tube.diameter'.*length"):
+        fit(sim, {"act.pressure": (t, t)}, ["tube.diameter"],
+            x0={"tube.diameter": sf.Q_(1, "bar")})
+    with pytest.raises(sf.UnitError, match="'tube.diameter'.*length"):
+        fit(sim, {"act.pressure": (t, t)}, ["tube.diameter"],
+            bounds={"tube.diameter": (sf.Q_(0.1, "s"), None)})

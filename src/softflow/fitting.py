@@ -75,6 +75,8 @@ def _start(sim: Simulation, params: Sequence[str], x0: Mapping[str, Scalar] | No
     start = {}
     for name in names:
         if x0 is not None and name in x0:
+            if hasattr(x0[name], "to_base_units"):     # its dimension and range checked
+                sim.check_params({name: x0[name]})
             start[name] = _si(x0[name])
             continue
         label, arg = name.rsplit(".", 1) if "." in name else (name, "")
@@ -102,12 +104,20 @@ def _quantity_of(sim: Simulation, label: str, var: str, key: str) -> str:
     return entry[1]
 
 
-def _bounds(names: list[str], theta0: Array, bounds: Bounds | None) -> tuple[Array, Array]:
+def _bounds(sim: Simulation, names: list[str], theta0: Array, bounds: Bounds | None
+            ) -> tuple[Array, Array]:
     lo = np.full(len(names), -np.inf)
     hi = np.full(len(names), np.inf)
     for k, name in enumerate(names):
         if bounds and name in bounds:
             a, b = bounds[name]
+            for bound in (a, b):
+                to_base = getattr(bound, "to_base_units", None)
+                if to_base is not None:
+                    # the bound's dimension, checked by the component's constructor
+                    # on the starting value expressed in the bound's base units
+                    base = to_base()
+                    sim.check_params({name: type(base)(float(theta0[k]), base.units)})
             lo[k] = -np.inf if a is None else _si(a)
             hi[k] = np.inf if b is None else _si(b)
             if not lo[k] < hi[k]:
@@ -171,7 +181,7 @@ def fit(sim: Simulation, measured: Mapping[str, tuple[ArrayLike, ArrayLike]],
                              f"length, got {times.shape} and {values.shape}")
         size = (scale or {}).get(key) or float(np.ptp(values)) or float(np.abs(values).max()) or 1.0
         traces.append((label, var, times, values, size))
-    lo, hi = _bounds(names, theta0, bounds)
+    lo, hi = _bounds(sim, names, theta0, bounds)
     cache: dict[str, Any] = {"u": None, "runs": 0}
 
     def run(u: Array) -> Result:
@@ -225,7 +235,7 @@ def design(sim: Simulation, objective: Callable[[Result], float], params: Sequen
     starting values."""
     from scipy.optimize import minimize
     names, theta0 = _start(sim, params, x0)
-    lo, hi = _bounds(names, theta0, bounds)
+    lo, hi = _bounds(sim, names, theta0, bounds)
     runs = {"n": 0}
 
     def f(u: Array) -> float:
