@@ -30,7 +30,7 @@ from dataclasses import replace
 from ..network.system import System
 from .params import rebuild
 from .params import split as split_params
-from .validity import ModelWarning
+from .validity import ModelWarning, beyond
 
 #: Label prefix of variant k's copy of a component.
 PREFIX = "v{}/"
@@ -46,9 +46,10 @@ class VariantResult:
         self.status, self.message = result.status, result.message
         self.stats = dict(result.stats, batched=True)
         n = len(prefix)
-        self.warnings = [replace(w, component=w.component[n:])
-                         for w in getattr(result, "warnings", [])
+        self.validity = [replace(w, component=w.component[n:])
+                         for w in getattr(result, "validity", [])
                          if str(w.component).startswith(prefix)]
+        self.warnings = beyond(self.validity)
 
     @property
     def success(self):

@@ -7,12 +7,20 @@ recorded solution of one compiled group (a few array reductions) and returns
 the run stops there (:class:`softflow.solve.simulation.SimulationError`,
 status 'failed', the result cut before it) instead of returning it.
 
+Each check grades its figure by ``fraction``, the figure relative to its limit
+in the check's direction (the ratio figure / limit, or limit / figure for a
+time scale that must not be too short): past 1 a warning (status 'beyond'),
+from :data:`~softflow.solve.validity.NEAR_FRACTION` (0.5) a near miss
+(status 'near', kept in ``result.validity``, not warned). The fraction of each
+check is named below.
+
 Checks
 ------
 ``tube_reynolds``
     A tube with ``friction='laminar'`` whose Reynolds number passed its
     ``Re_laminar`` (2 300): Hagen–Poiseuille under-predicts the pressure drop
-    of transitional and turbulent flow.
+    of transitional and turbulent flow. Fraction: Re / Re_laminar (below it
+    the laminar law and the default blend are the same law).
 ``tube_mach`` / ``tube_choked``
     Gas tubes: the Mach number at the tube's low-pressure end, v/c with
     v = |mdot| / (rho(p_low) A). Both tube laws stop being valid where
@@ -23,15 +31,20 @@ Checks
     wrong answer. That is fatal (``tube_choked``). Below it, the default
     ``compressible='mean_density'`` law neglects the gas's acceleration, which
     matters from about Mach 0.3 (``tube_mach``; use ``compressible='isothermal'``).
+    Fractions: Mach / 0.3 for the mean-density law (``tube_mach``), Mach / the
+    choking Mach for the isothermal law (``tube_choked``; near it, a record
+    with status 'near').
 ``orifice_choked``
     An orifice given by K or Cd (an incompressible law) with a gas, at a
     pressure ratio below the critical ratio (2/(gamma+1))^(gamma/(gamma-1))
     (0.528 for air): the real flow is choked there; the ISO 6358 model
-    (``C``, ``b``) describes it.
+    (``C``, ``b``) describes it. Fraction: the relative pressure drop
+    1 - p_low/p_high against the critical one, 1 - 0.528.
 ``gas_compressibility``
     A gas at the ``ideal`` level whose compressibility factor Z (from CoolProp
     at the pressures and temperatures the run visited) differs from 1 by more
     than ``max(10 rtol, 1e-3)``: the ideal-gas density is off by that much.
+    Fraction: ``|Z - 1|`` / that limit.
 ``tube_inertia``
     A liquid tube without inertance whose column's inertial pressure, l/A
     times the fastest change of its mass flow (steps where the flow jumped by
@@ -39,13 +52,15 @@ Checks
     is more than ``max(10 rtol, 1e-2)`` of the pressures it works between (its
     ends' gauge pressures): the inertia changes the result by about that
     fraction (a water RC circuit: 5 % estimated, 3.9 % measured with
-    ``inertance=True``); use ``inertance=True``.
+    ``inertance=True``); use ``inertance=True``. Fraction: the inertial
+    pressure's share / ``max(10 rtol, 1e-2)``.
 ``thermal_time_scale``
     An isothermal gas volume that filled or emptied much faster than its wall
     can exchange heat: the time scale m / |mdot| against the thermal time
     constant m cv / (h A) with h from free convection (a sphere of the
     volume's size, 10 K difference: an estimate). Faster than a tenth of it,
-    the gas is closer to adiabatic than to isothermal.
+    the gas is closer to adiabatic than to isothermal. Fraction: a tenth of
+    the thermal time constant / the fill time.
 """
 from __future__ import annotations
 
@@ -55,11 +70,14 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
-from .validity import ValidityRecord, group_values
+from .validity import NEAR_FRACTION, ValidityRecord, grade, group_values
 
 #: Mach number at the low-pressure end above which the mean-density tube law's
 #: neglect of the gas's acceleration is no longer small (~5 % of the drop).
 MACH_INCOMPRESSIBLE = 0.3
+#: Below this Mach number no tube is near either limit (the mean-density law's
+#: or choking), whatever its law.
+NEAR_MACH = NEAR_FRACTION * MACH_INCOMPRESSIBLE
 #: A volume's fill time below this fraction of its thermal time constant is
 #: reported as not isothermal.
 THERMAL_FRACTION = 0.1
@@ -68,11 +86,23 @@ THERMAL_FRACTION = 0.1
 THERMAL_DT = 10.0
 
 
-def _record(comp, check, measured, limit, unit, suggestion, message, **details):
+def _record(comp, check, measured, limit, unit, fraction, suggestion, message, **details):
+    """A record graded by ``fraction`` (see the module doc): a near miss's
+    message says how near, and that nothing needs changing yet."""
+    status = grade(fraction)
+    if status == "near":
+        message += " A near miss (status 'near'), not a warning."
+        suggestion = f"if the scene is pushed further: {suggestion}"
     return ValidityRecord(component=comp.label, check=check, measured=float(measured),
                           limit=float(limit), unit=unit, suggestion=suggestion,
                           message=f"{comp.describe()}: {message} Suggestion: {suggestion}",
-                          details=details)
+                          details=details, status=status or "beyond",
+                          fraction=float(fraction))
+
+
+def _past(fraction, limit_text):
+    """'past <limit>' or '<fraction> of <limit>' for a message."""
+    return f"past {limit_text}" if fraction > 1.0 else f"at {fraction:.0%} of {limit_text}"
 
 
 def _rtol(result):
@@ -92,14 +122,17 @@ def tube_reynolds(g, result):
         mu = float(c.fluid.viscosity(pressure_atmospheric))
         re = np.abs(mf[:, j]) * c.diameter / (mu * area)
         k = int(np.argmax(re))
-        if re[k] > c.Re_laminar:
+        fraction = float(re[k]) / c.Re_laminar
+        if grade(fraction):
             out.append(_record(
-                c, "tube_reynolds", re[k], c.Re_laminar, "",
+                c, "tube_reynolds", re[k], c.Re_laminar, "", fraction,
                 "use a turbulent correlation (friction='Haaland', the default, blends "
                 "laminar and turbulent flow)",
-                f"Reynolds number reached {re[k]:.4g} at t = {result.times[k]:.6g} s, past "
-                f"Re_laminar = {c.Re_laminar:g} of its friction='laminar' law, which then "
-                "under-predicts the pressure drop.", time=float(result.times[k])))
+                f"Reynolds number reached {re[k]:.4g} at t = {result.times[k]:.6g} s, "
+                f"{_past(fraction, f'Re_laminar = {c.Re_laminar:g}')} of its "
+                "friction='laminar' law" + (", which then under-predicts the pressure drop."
+                                            if fraction > 1 else "."),
+                time=float(result.times[k])))
     return out
 
 
@@ -129,15 +162,16 @@ def tube_mach(g, result):
     gamma = float(fluid.gamma(pressure_atmospheric))
     choke = 1.0 / math.sqrt(gamma)
     out = []
-    for j in np.flatnonzero(peak > MACH_INCOMPRESSIBLE):
+    for j in np.flatnonzero(peak >= NEAR_MACH):
         c = g.comps[keep[j]]
         k = int(np.argmax(mach[:, j]))
         t = float(result.times[k])
         ratio = float(p_low[k, j] / p_high[k, j])
+        mean_density = getattr(c, "compressible", None) == "mean_density"
         if peak[j] >= choke:
             first = int(np.argmax(mach[:, j] >= choke))
             out.append(_record(
-                c, "tube_choked", peak[j], choke, "",
+                c, "tube_choked", peak[j], choke, "", max(peak[j] / choke, 1.0 + 1e-12),
                 "choked tube flow is not modelled: lower the pressure ratio, shorten or "
                 "widen the tube, or model the restriction as an Orifice with the ISO 6358 "
                 "law (C, b), which chokes",
@@ -147,14 +181,24 @@ def tube_mach(g, result):
                 "gives no more flow; the tube law has left its range.",
                 fatal=True, first_time=float(result.times[first]), pressure_ratio=ratio,
                 time=t))
-        elif getattr(c, "compressible", None) == "mean_density":
+        elif mean_density:
+            fraction = peak[j] / MACH_INCOMPRESSIBLE
             out.append(_record(
-                c, "tube_mach", peak[j], MACH_INCOMPRESSIBLE, "",
+                c, "tube_mach", peak[j], MACH_INCOMPRESSIBLE, "", fraction,
                 "use CircularTube(..., compressible='isothermal'), which adds the gas's "
                 "acceleration",
                 f"Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
-                f"{ratio:.3g}): the mean-density law neglects the gas's acceleration, which is "
-                f"no longer small past Mach {MACH_INCOMPRESSIBLE}.", time=t))
+                f"{ratio:.3g}), {_past(fraction, f'Mach {MACH_INCOMPRESSIBLE}')}"
+                + (": " if fraction > 1 else f", past which ") + "the gas's acceleration, "
+                "which the mean-density law neglects, is no longer small.", time=t))
+        elif grade(peak[j] / choke):
+            out.append(_record(
+                c, "tube_choked", peak[j], choke, "", peak[j] / choke,
+                "keep the pressure ratio below the choking one, or model the restriction as "
+                "an Orifice with the ISO 6358 law (C, b), which chokes",
+                f"Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
+                f"{ratio:.3g}), {_past(peak[j] / choke, f'the choking Mach {choke:.3g}')}.",
+                time=t))
     return out
 
 
@@ -174,14 +218,18 @@ def orifice_choked(g, result):
         c = g.comps[i]
         ratio = np.minimum(pa[:, j], pb[:, j]) / np.maximum(pa[:, j], pb[:, j])
         k = int(np.argmin(ratio))
-        if ratio[k] < critical:
+        fraction = (1.0 - float(ratio[k])) / (1.0 - critical)
+        if grade(fraction):
             out.append(_record(
-                c, "orifice_choked", ratio[k], critical, "",
+                c, "orifice_choked", ratio[k], critical, "", fraction,
                 "give the orifice by its ISO 6358 sonic conductance and critical ratio "
                 "(Orifice(..., C=..., b=...)), which chokes",
                 f"pressure ratio p_low/p_high reached {ratio[k]:.3g} at t = "
-                f"{result.times[k]:.6g} s, below the critical ratio {critical:.3g}: the real "
-                "flow is choked there, and the incompressible K/Cd law over-predicts it.",
+                f"{result.times[k]:.6g} s, " + (
+                    f"below the critical ratio {critical:.3g}: the real flow is choked "
+                    "there, and the incompressible K/Cd law over-predicts it."
+                    if fraction > 1 else f"a pressure drop {fraction:.0%} of the critical "
+                    f"one (ratio {critical:.3g}), where the gas's expansion starts to matter."),
                 time=float(result.times[k])))
     return out
 
@@ -209,7 +257,7 @@ def gas_compressibility(g, result):
     limit = max(10 * _rtol(result), 1e-3)
     # Z - 1 = B p / (R T) to first order; |B| < 1.5e-4 m^3/mol for common gases
     # (CO2: 1.2e-4 at 20 C), so below this pressure CoolProp need not be asked
-    if float(p_max[j]) * 1.5e-4 / (8.314 * min(T)) <= limit:
+    if float(p_max[j]) * 1.5e-4 / (8.314 * min(T)) <= NEAR_FRACTION * limit:
         return []
     try:
         from ..fluids.base import Fluid
@@ -219,14 +267,17 @@ def gas_compressibility(g, result):
     except Exception:        # a fluid CoolProp does not know, or a state outside it
         return []
     dz = max(z, key=lambda v: abs(v - 1.0)) - 1.0
-    if abs(dz) <= limit:
+    fraction = abs(dz) / limit
+    if not grade(fraction):
         return []
     return [_record(
-        c, "gas_compressibility", dz, limit, "",
+        c, "gas_compressibility", dz, limit, "", fraction,
         f"use the fluid's 'table' or 'eos' level (sf.{fluid.name}.with_level('table'))",
         f"the ideal-gas density of {fluid.name} is off by Z - 1 = {dz:+.3g} at the pressures "
         f"the run reached (up to {pressures[1] / 1e5:.4g} bar) and {', '.join(f'{x:.4g}' for x in T)} "
-        f"K, more than {limit:.3g} (10 x rtol).", pressure=float(pressures[1]))]
+        f"K, " + (f"more than {limit:.3g} (10 x rtol)." if fraction > 1
+                  else f"{fraction:.0%} of the limit {limit:.3g} (10 x rtol)."),
+        pressure=float(pressures[1]))]
 
 
 # -- thermal -------------------------------------------------------------------------
@@ -258,19 +309,23 @@ def thermal_time_scale(g, result):
         except Exception:      # a fluid without conductivity: no estimate
             return []
         t_thermal = m * fluid.cv(pk) / (h * np.pi * length ** 2)
+        fraction = THERMAL_FRACTION * t_thermal / t_fill
     out = []
-    for j in np.flatnonzero(t_fill < THERMAL_FRACTION * t_thermal):
+    for j in np.flatnonzero(fraction >= NEAR_FRACTION):
         c = g.comps[keep[j]]
         out.append(_record(
             c, "thermal_time_scale", t_fill[j], THERMAL_FRACTION * t_thermal[j], "s",
+            fraction[j],
             "run the scene with thermal='adiabatic' (or 'heat_transfer' with the "
             "volume's area and a heat-transfer coefficient)",
             f"its gas filled or emptied on a time scale m/|mdot| = {t_fill[j]:.3g} s at "
-            f"t = {result.times[k[j]]:.6g} s, much faster than its wall exchanges heat "
-            f"(thermal time constant ~{t_thermal[j]:.3g} s, free convection estimate): the gas "
-            "is closer to adiabatic than to the isothermal model, and its pressure swings "
-            "are larger than computed.", thermal_time_constant=float(t_thermal[j]),
-            time=float(result.times[k[j]])))
+            f"t = {result.times[k[j]]:.6g} s, against a thermal time constant "
+            f"~{t_thermal[j]:.3g} s of its wall (free convection estimate), "
+            + ("much faster than the wall exchanges heat: the gas is closer to adiabatic "
+               "than to the isothermal model, and its pressure swings are larger than "
+               "computed." if fraction[j] > 1 else
+               f"{fraction[j]:.0%} of the way to the limit (a tenth of that constant)."),
+            thermal_time_constant=float(t_thermal[j]), time=float(result.times[k[j]])))
     return out
 
 
@@ -306,14 +361,16 @@ def tube_inertia(g, result):
         k = int(np.nanargmax(np.where(resolved, rate[:, j], -1.0)))
         inertial = c.length / (math.pi * c.diameter ** 2 / 4) * float(rate[k, j])
         ratio = inertial / float(scale[j])
-        if ratio > limit:
+        if grade(ratio / limit):
             out.append(_record(
-                c, "tube_inertia", ratio, limit, "",
+                c, "tube_inertia", ratio, limit, "", ratio / limit,
                 "build the tube with CircularTube(..., inertance=True)",
                 f"its liquid column's inertia, which the tube leaves out, would add "
                 f"{inertial:.3g} Pa (l/A times the flow's fastest change, at t = "
                 f"{t[k + 1]:.6g} s), {ratio:.3g} of the pressures it works between "
-                f"({scale[j]:.3g} Pa), more than {limit:.3g} (10 x rtol).",
+                f"({scale[j]:.3g} Pa), " + (f"more than {limit:.3g} (10 x rtol)."
+                                            if ratio > limit else
+                                            f"against a limit of {limit:.3g} (10 x rtol)."),
                 inertial_pressure=inertial, time=float(t[k + 1])))
     return out
 

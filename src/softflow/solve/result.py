@@ -56,6 +56,11 @@ class Result:
         What the run's validity checks found (:mod:`softflow.solve.validity`): each
         with ``component``, ``check``, ``measured``, ``limit``, ``unit``,
         ``suggestion`` and ``message``; also warned as :class:`softflow.ModelWarning`.
+    validity : list of ValidityRecord
+        Every finding of the checks: those in ``warnings`` (status 'beyond') and
+        the near misses (status 'near': a figure at half its limit or more, not
+        past it; not warned). ``softflow.solve.validity.table(result.validity)``
+        is a DataFrame of them.
     """
 
     def __init__(self, asm: Any, times: Array, X: Array, S: Array, status: str = "success",
@@ -71,6 +76,7 @@ class Result:
         self.message = message
         self.stats = dict(stats or {})
         self.warnings: list[Any] = []     # ValidityRecords, set by Simulation.run
+        self.validity: list[Any] = []     # the same and the near misses
         # where each component lives; its variable index is built on first access
         self._where = asm.where
         self._entries: dict[str, list[Entry]] = {}

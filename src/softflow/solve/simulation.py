@@ -21,7 +21,7 @@ from .newton import Newton, Stats
 from .params import rebuild
 from .params import split as split_params
 from .result import Result
-from .validity import ComponentError, check_result, issue
+from .validity import ComponentError, beyond, check_result, issue
 from .thermal import check_model, configure_like, configure_thermal
 
 if TYPE_CHECKING:
@@ -438,7 +438,8 @@ class Simulation:
         if sens is not None:
             xs, ss = ((slice(None), slice(None)) if self.record is None else self.record[:2])
             result._set_sensitivities(sens, xs, ss, len(t))
-        result.warnings = check_result(asm, result)     # model validity (validity.py)
+        records = check_result(asm, result)     # model validity (validity.py)
+        result.validity, result.warnings = records, beyond(records)
         fatal = [w for w in result.warnings if w.details.get("fatal")]
         if fatal and error is None and self.beyond_limits == "error":
             # past a model's own maximum (a choked tube): no result from there on
@@ -447,11 +448,10 @@ class Simulation:
             error = SimulationError(f"stopped at t = {first.details['first_time']:.6g} s: "
                                     f"{first.message}", time=first.details["first_time"],
                                     component=first.component)
-            records = result.warnings
             result = Result(asm, t[:cut], X[:cut], S[:cut], status="failed",
                             message=str(error), stats=info, recorded=self.record,
                             integrals=None if integrals is None else integrals[:cut])
-            result.warnings = records
+            result.validity, result.warnings = records, beyond(records)
             if sens is not None:
                 result._set_sensitivities(sens, xs, ss, cut)
         issue(result.warnings)

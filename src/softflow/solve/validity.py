@@ -10,6 +10,19 @@ which component, which check, the figure measured, the limit it crossed and
 what to do about it. :func:`check_result` runs every registered check and
 :func:`issue` warns once per record.
 
+Near misses
+-----------
+A check also reports a figure that came within reach of its limit without
+crossing it: at :data:`NEAR_FRACTION` of the way or more (``fraction``, the
+measured figure relative to the limit in the check's own direction, is
+>= 0.5 and < 1). Such a record has ``status='near'``; it is not a warning
+(nothing is wrong with the run) and is not warned, but it says which
+modelling choices are close to mattering. A run keeps every record in
+``result.validity`` (a list; :func:`table` makes a DataFrame of it) and the
+ones past their limit (``status='beyond'``) in ``result.warnings``.
+``sf.assess`` runs one model level up on the axes whose check is near or
+beyond its limit, and only on those.
+
 Checks are registered per component class with :func:`register` (the first
 one: PV curves beyond their data). A check is ``check(group, result) ->
 [ValidityRecord]`` for one group of components compiled together (same class,
@@ -56,6 +69,13 @@ class ValidityRecord:
         The whole finding in one sentence, as warned.
     details : dict
         Check-specific figures (e.g. the time it first crossed the limit).
+    status : {'beyond', 'near'}
+        'beyond': the limit was crossed (a warning, in ``result.warnings``);
+        'near': the figure came within :data:`NEAR_FRACTION` of the limit but
+        did not cross it (in ``result.validity`` only).
+    fraction : float
+        How far the figure went towards the limit, in the check's own
+        direction: 1 at the limit, > 1 beyond it (nan where not defined).
     """
 
     component: str
@@ -66,6 +86,8 @@ class ValidityRecord:
     suggestion: str
     message: str
     details: dict = field(default_factory=dict, compare=False)
+    status: str = "beyond"
+    fraction: float = float("nan")
 
     def __str__(self) -> str:
         return self.message
@@ -95,6 +117,34 @@ def user_code_error(err: BaseException, describe: str, label: str, method: str,
     return out
 
 
+#: A figure at this fraction of its limit or more (but not past it) is
+#: reported as a near miss (status 'near').
+NEAR_FRACTION = 0.5
+
+
+def grade(fraction: float) -> str | None:
+    """'beyond' (at or past the limit), 'near' (at :data:`NEAR_FRACTION` of it
+    or more) or None, for a figure ``fraction`` of the way to its limit."""
+    if not fraction >= NEAR_FRACTION:       # nan too
+        return None
+    return "beyond" if fraction > 1.0 else "near"
+
+
+def beyond(records: list[ValidityRecord]) -> list[ValidityRecord]:
+    """The records whose limit was crossed (the warnings)."""
+    return [r for r in records if r.status == "beyond"]
+
+
+def table(records: list[ValidityRecord]) -> Any:
+    """``records`` (e.g. ``result.validity``) as a pandas DataFrame: one row
+    each, columns component, check, status, measured, limit, unit, fraction,
+    suggestion."""
+    import pandas as pd
+    cols = ["component", "check", "status", "measured", "limit", "unit", "fraction",
+            "suggestion"]
+    return pd.DataFrame([[getattr(r, c) for c in cols] for r in records], columns=cols)
+
+
 #: component class -> checks, each check(group, result) -> [ValidityRecord]
 _CHECKS: dict[type, list[Callable[[Any, Any], list[ValidityRecord]]]] = {}
 
@@ -116,7 +166,8 @@ def _register_library_checks() -> None:
 
 
 def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
-    """Every registered check on every group of the run's network."""
+    """Every registered check on every group of the run's network: the records
+    past their limit and the near misses (see :func:`beyond`)."""
     _register_library_checks()
     records: list[ValidityRecord] = []
     if len(result.times) == 0:
@@ -140,8 +191,9 @@ def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
 
 
 def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
-    """Warn once per record (category :class:`ModelWarning`)."""
-    for r in records:
+    """Warn once per record past its limit (category :class:`ModelWarning`);
+    near misses are not warned."""
+    for r in beyond(records):
         warnings.warn(r.message, ModelWarning, stacklevel=stacklevel)
 
 

@@ -1,0 +1,116 @@
+"""Near misses of the validity checks (softflow.solve.validity.NEAR_FRACTION):
+each check on three sides of its limit, far (no record), near (a record with
+status 'near' in result.validity, not warned, not in result.warnings) and
+beyond (a warning)."""
+import warnings
+
+import pytest
+
+import softflow as sf
+from softflow.solve.validity import NEAR_FRACTION, table
+
+P0 = sf.pressure_atmospheric
+
+
+def _between(a, b, make, fluid=sf.air):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=a)
+    s += make(fluid)
+    s += sf.PressureSource("out", pressure=b)
+    s.connect("src", s.components[1].label)
+    s.connect(s.components[1].label, "out")
+    return s
+
+
+def _into(p, make, volume):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=p)
+    s += make
+    s += volume
+    s.connect("src", make.label)
+    s.connect(make.label, volume.label)
+    return s
+
+
+def laminar_water(dp):
+    return _between(P0 + dp, P0, lambda f: sf.CircularTube("tube", f, 1.0, 2e-3,
+                                                           friction="laminar"), sf.water)
+
+
+def short_air_tube(p1):
+    return _between(p1, P0, lambda f: sf.CircularTube("tube", f, 0.2, 4e-3))
+
+
+def isothermal_law_tube(p2):
+    return _between(3e5, p2, lambda f: sf.CircularTube("tube", f, 1.0, 4e-3,
+                                                       compressible="isothermal"))
+
+
+def k_orifice(p1):
+    return _between(p1, 1e5, lambda f: sf.Orifice("o", f, diameter=1e-3, K=2.0))
+
+
+def dense_air(bar):
+    return _into(bar * 1e5, sf.CircularTube("tube", sf.air, 0.5, 1e-3),
+                 sf.Container("tank", sf.air, 1e-4, initial_pressure=bar * 1e5))
+
+
+def valve_fill(C):
+    return _into(4e5, sf.Orifice("valve", sf.air, C=C, b=0.3), sf.Container("tank", sf.air, 1e-3))
+
+
+def water_rc(compliance):
+    return _into(P0 + 1e4, sf.CircularTube("tube", sf.water, 1.0, 2e-3),
+                 sf.LinearAccumulator("acc", sf.water, 1e-6, compliance))
+
+
+CASES = [  # (check, scene, figures giving no record / near / beyond, duration)
+    ("tube_reynolds", laminar_water, (3e3, 6e3, 2e4), 0.01),           # Re 750 / 1500 / 5000
+    ("tube_mach", short_air_tube, (1.03e5, 1.08e5, 1.25e5), 0.01),
+    ("tube_choked", isothermal_law_tube, (2.25e5, 1.8e5, None), 0.01),   # beyond: fatal, elsewhere
+    ("orifice_choked", k_orifice, (1.3e5, 1.6e5, 3e5), 0.01),
+    ("gas_compressibility", dense_air, (5.0, 25.0, 60.0), 0.01),
+    ("thermal_time_scale", valve_fill, (1e-9, 5e-9, 1e-8), 1.0),
+    ("tube_inertia", water_rc, (3e-8, 7e-9, 1e-9), 5.0),
+]
+
+
+def _run(system, duration):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", sf.ModelWarning)
+        res = sf.Simulation(system, duration=duration).run(raise_on_failure=False)
+    return res, [str(w.message) for w in caught if issubclass(w.category, sf.ModelWarning)]
+
+
+@pytest.mark.parametrize("check, scene, figures, duration", CASES,
+                         ids=[c[0] for c in CASES])
+@pytest.mark.parametrize("side", [0, 1, 2], ids=["far", "near", "beyond"])
+def test_each_check_on_three_sides_of_its_limit(check, scene, figures, duration, side):
+    if figures[side] is None:
+        pytest.skip("past its limit this check stops the run (test_model_checks.py)")
+    res, warned = _run(scene(figures[side]), duration)
+    mine = [r for r in res.validity if r.check == check]
+    if side == 0:
+        assert mine == []
+        return
+    (rec,) = mine
+    if side == 1:
+        assert rec.status == "near"
+        assert NEAR_FRACTION <= rec.fraction < 1
+        assert rec not in res.warnings
+        assert not any(rec.message == m for m in warned)      # not warned
+        assert "near miss" in rec.message and rec.component in rec.message
+        assert rec.suggestion.startswith("if the scene is pushed further")
+    else:
+        assert rec.status == "beyond" and rec.fraction > 1
+        assert rec in res.warnings and rec.message in warned
+
+
+def test_validity_table_lists_warnings_and_near_misses():
+    res, _ = _run(valve_fill(5e-9), 1.0)
+    df = table(res.validity)
+    assert list(df.columns) == ["component", "check", "status", "measured", "limit", "unit",
+                                "fraction", "suggestion"]
+    row = df.set_index("check").loc["thermal_time_scale"]
+    assert row["status"] == "near" and row["component"] == "tank"
+    assert len(table(res.warnings)) == len(res.warnings) == 0
