@@ -220,6 +220,18 @@ class Actuator(LibraryComponent):
         return pc, dpc
 
     @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) of F = p - (p_atm + s·(curve(V) - p_atm)) for the
+        pressure_scale s; initial_volume and initial_pressure set the initial mass
+        only (0); None for others (the curve is not a number)."""
+        if name in ("initial_volume", "initial_pressure"):
+            return np.zeros((P.n, 1)), np.zeros((P.n, 1))
+        if name != "pressure_scale":
+            return None
+        vol = _volume(P, V, S)[2]
+        return (pressure_atmospheric - P.curve.value(vol))[:, None], np.zeros((P.n, 1))
+
+    @classmethod
     def rates(cls, P, V, S, jac):
         return mass_rates(P, V, jac)
 
@@ -396,6 +408,14 @@ class HystereticActuator(LibraryComponent):
         P = Params(components)
         P.loop = components[0].loop
         return P
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta): initial_volume and meet_tolerance do not enter
+        the equations (0); None for others."""
+        if name in ("initial_volume", "meet_tolerance"):
+            return np.zeros((P.n, 1)), np.zeros((P.n, 1))
+        return None
 
     @classmethod
     def rates(cls, P, V, S, jac):

@@ -24,6 +24,19 @@ def mass_rates(P, V, jac):
     return V[:, 1:2], ((1.0,) if jac else None)
 
 
+def _volume_law_jacobian(P, V, name, dvolume, rigid_liquid=False):
+    """(dF/d theta, dr/d theta) of a volume's law F = rho(p)·V_fluid - m, given
+    d V_fluid/d theta per parameter name (``dvolume``); initial_pressure only
+    sets the initial mass (0 here); None for other names. A rigid chamber of
+    liquid (F = mdot) has none."""
+    if name == "initial_pressure" or rigid_liquid and name in dvolume:
+        return np.zeros((P.n, 1)), np.zeros((P.n, 1))
+    if name not in dvolume:
+        return None
+    dF = P.fluid.density(V[:, 0]) * dvolume[name]
+    return np.broadcast_to(dF, (P.n,))[:, None], np.zeros((P.n, 1))
+
+
 class Container(LibraryComponent):
     """Rigid chamber with one terminal ``a``.
 
@@ -70,6 +83,22 @@ class Container(LibraryComponent):
     def outputs(self):
         vol = self.volume
         return {"volume": ("volume", lambda get: np.full(np.shape(get("mass")), vol))}
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) for volume (F = rho(p)·volume - m) and
+        initial_pressure (0: it sets the initial mass only); None for others."""
+        return _volume_law_jacobian(P, V, name, {"volume": 1.0},
+                                    rigid_liquid=not P.fluid.compressible)
+
+    def initial_state_jacobian(self, name):
+        """d(initial mass)/d theta of m0 = rho(p0)·volume, or None."""
+        p0 = self.initial_pressure
+        if name == "volume":
+            return [float(self.fluid.density(p0))]
+        if name == "initial_pressure":
+            return [float(self.fluid.density_dp(p0)) * self.volume]
+        return None
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -147,6 +176,27 @@ class LinearAccumulator(LibraryComponent):
     def initial_states(self):
         p = self.initial_pressure
         return [float(self.fluid.density(p)) * self._fluid_volume(p)]
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) of F = rho(p)·(volume + compliance (p - p_ref)) - m
+        for volume, compliance and reference_pressure, and initial_pressure (0);
+        None for others."""
+        dp = V[:, 0] - P.reference_pressure
+        return _volume_law_jacobian(P, V, name, {"volume": 1.0, "compliance": dp,
+                                                 "reference_pressure": -P.compliance})
+
+    def initial_state_jacobian(self, name):
+        """d(initial mass)/d theta of m0 = rho(p0)·V(p0) for volume and compliance
+        (p0 is the reference pressure when not given, so that one is left to
+        finite differences), or None."""
+        p0 = self.initial_pressure
+        rho = float(self.fluid.density(p0))
+        if name == "volume":
+            return [rho]
+        if name == "compliance":
+            return [rho * (p0 - self.reference_pressure)]
+        return None
 
     @classmethod
     def rates(cls, P, V, S, jac):

@@ -136,6 +136,14 @@ class _SourceParams(Params):
         return self._values
 
 
+def _value_jacobian(P, name, dF):
+    """(dF/d theta, dr/d theta) of a source for its value ``name`` (constant
+    values only: a waveform is no number), or None for other parameters."""
+    if name != P.components[0].signal.name:
+        return None
+    return np.broadcast_to(dF, (P.n,))[:, None].copy(), np.zeros((P.n, 0))
+
+
 class _Source(LibraryComponent):
     terminal_spec = (("a", FLUID_PORT),)
     temperature = None
@@ -202,6 +210,11 @@ class PressureSource(_Source):
         return F, J
 
     @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """dF/d pressure = -1 (F = p - pressure)."""
+        return _value_jacobian(P, name, -1.0)
+
+    @classmethod
     def affine(cls, P):
         # F = p - value(t), V = [p, mf]; only for this kernel, not for subclasses'
         if cls.residual.__func__ is not PressureSource.residual.__func__:
@@ -235,6 +248,11 @@ class MassFlowSource(_Source):
         F = V[:, 1:2] + P.column(t)
         J = np.ones((P.n, 1)) if jac else None
         return F, J
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """dF/d massflow = 1 (F = mf + massflow)."""
+        return _value_jacobian(P, name, 1.0)
 
     @classmethod
     def affine(cls, P):
@@ -287,3 +305,8 @@ class VolumeFlowSource(_Source):
         J[:, 0] = P.fluid.density_dp(p) * q
         J[:, 1] = 1.0
         return F, J
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """dF/d volumeflow = rho(p) (F = mf + rho(p)·volumeflow)."""
+        return _value_jacobian(P, name, P.fluid.density(V[:, 0]))

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
-                                     resolve_friction)
+                                     friction_Haaland, resolve_friction, smoothstep)
 from .base import FLUID_PORT, Affine, LibraryComponent
 
 if TYPE_CHECKING:
@@ -48,6 +48,38 @@ def set_tube_coefficients(P):
     P.re_per_mf = P.diameter / (P.mu * P.area)
     P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)
 
+
+
+#: Parameters of the tube law whose derivatives :func:`tube_law_derivative` states.
+TUBE_GEOMETRY = ("length", "diameter", "roughness")
+
+
+def friction_roughness_derivative(P, Re):
+    """d(f·Re)/d(roughness/diameter) of the group's blended friction law at Re:
+    zero where laminar, w(Re)·Re·df/d(eD) of the turbulent correlation above
+    Re_laminar (df/d(eD) by a central difference of the correlation, a pure
+    function of (Re, eD); relative step 1e-4, one-sided at eD = 0)."""
+    turbulent = P.turbulent if hasattr(P, "turbulent") else friction_Haaland
+    if turbulent is None or Re.max(initial=0.0) <= P.Re_lo:
+        return np.zeros_like(Re)
+    w, _ = smoothstep(Re, P.Re_lo, P.Re_hi)
+    Ret = np.maximum(Re, P.Re_lo)
+    h = 1e-4 * np.maximum(P.eD, 1e-6)
+    lo = np.maximum(P.eD - h, 0.0)
+    df = (turbulent(Ret, P.eD + h)[0] - turbulent(Ret, lo)[0]) / (P.eD + h - lo)
+    return w * Ret * df
+
+
+def tube_law_derivative(P, name, dp, mf_d_mf, d_eD):
+    """d(dp)/d theta of a friction pressure drop dp = c(L, D)·phi(Re, eD)·mdot with
+    c ∝ L/D^4, Re ∝ 1/D and eD = roughness/D, for theta in :data:`TUBE_GEOMETRY`,
+    from dp, mdot·d(dp)/d(mdot) and d(dp)/d(eD) at fixed geometry:
+    dp/L; -(3 dp + mdot·d(dp)/d(mdot) + eD·d(dp)/d(eD))/D; d(dp)/d(eD)/D."""
+    if name == "length":
+        return dp / P.length
+    if name == "diameter":
+        return -(3.0 * dp + mf_d_mf + P.eD * d_eD) / P.diameter
+    return d_eD / P.diameter
 
 class CircularTube(LibraryComponent):
     """Straight circular tube between terminals ``a`` and ``b``.
@@ -286,6 +318,40 @@ class CircularTube(LibraryComponent):
         return F, J
 
 
+    @classmethod
+    def drop_parameter_derivative(cls, P, V, name):
+        """d(p_a - p_b required)/d theta of the group's pressure-drop law for a
+        parameter of :data:`TUBE_GEOMETRY`; None for others (the blend bounds, which
+        group tubes) and for a tabulated friction correlation (made for the roughness)."""
+        if name not in TUBE_GEOMETRY or isinstance(P.turbulent, FrictionTable):
+            return None
+        pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
+        dp, _, d_mf, _ = cls.pressure_drop(P, pa, mf, pb, True)
+        pm = 0.5 * (pa + pb)
+        rho = P.fluid.density(pm) if P.compressible else P.fluid.rho
+        re_per_mf, c_mu = P.re_per_mf, P.c_mu
+        if P.variable_mu:
+            mu_ratio = P.fluid.viscosity(pm) / P.mu
+            re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
+        # the gas's acceleration (isothermal model) scales as 1/A^2 and has no L
+        acc = (np.log(pa / pb) * mf * mf / (P.area * P.area * rho) if P.isothermal
+               else np.zeros(P.n))
+        d_eD = c_mu / rho * mf * friction_roughness_derivative(P, np.abs(mf) * re_per_mf)
+        # mdot d(dp)/d(mdot) of the friction part: the acceleration's is 2 acc
+        friction = tube_law_derivative(P, name, dp - acc, mf * d_mf - 2.0 * acc, d_eD)
+        return friction - (4.0 * acc / P.diameter if name == "diameter" else 0.0)
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta (n, 2), dr/d theta (n, 0)) for length, diameter, roughness;
+        None for other parameters (see :func:`softflow.solve.discretize.param_step_derivative`)."""
+        d = cls.drop_parameter_derivative(P, V, name)
+        if d is None:
+            return None
+        dF = np.zeros((P.n, 2))
+        dF[:, 1] = -d
+        return dF, np.zeros((P.n, 0))
+
 class InertialCircularTube(CircularTube):
     """A :class:`CircularTube` with the inertia of its fluid column:
 
@@ -327,3 +393,16 @@ class InertialCircularTube(CircularTube):
         J[:, :3] = 1.0
         J[:, 3] = -1.0
         return F, J
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta (n, 2) = 0, dr/d theta (n, 1)) of the flow's rate
+        dq/dt = A/L (p_a - p_b - dp_friction) for length, diameter, roughness."""
+        d = cls.drop_parameter_derivative(P, V, name)
+        if d is None:
+            return None
+        k = 1.0 / P.length_per_area
+        R = cls.rates(P, V, S, False)[0][:, 0]
+        # A/L: d/dL = -(A/L)/L, d/dD = 2 (A/L)/D
+        dk = {"length": -1.0 / P.length, "diameter": 2.0 / P.diameter}.get(name, 0.0)
+        return np.zeros((P.n, 2)), (dk * R - k * d)[:, None]

@@ -16,7 +16,8 @@ from ..correlations.friction import fRe_blended, smoothstep
 from ..correlations.orifice import (dp_at_reynolds, loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient)
 from .base import FLUID_PORT, LibraryComponent
-from .tubes import set_tube_coefficients, set_tube_geometry
+from .tubes import (TUBE_GEOMETRY, friction_roughness_derivative, set_tube_coefficients,
+                    set_tube_geometry, tube_law_derivative)
 
 if TYPE_CHECKING:
     from .._typing import Scalar
@@ -43,6 +44,42 @@ def _tube_fRe(P, mf):
     phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi)
     return Re, phi, dphi
 
+
+
+def _flow_law_jacobian(P, dq):
+    """(dF/d theta, dr/d theta) of a two-port whose flow law is F[:, 1] = mf_a - q,
+    given dq/d theta (n,); None passes through."""
+    if dq is None:
+        return None
+    dF = np.zeros((P.n, 2))
+    dF[:, 1] = -dq
+    return dF, np.zeros((P.n, 0))
+
+
+def _loss_law_derivative(P, dp, rho, q, name):
+    """dq/d theta of the loss-coefficient law q = A sqrt(2 rho/K) r(dp, dp_small)
+    (:func:`massflow_loss_coefficient`) for theta = diameter (A ∝ D^2 and, at
+    fixed Reynolds number, dp_small ∝ 1/D^2) or K (dp_small ∝ K); None else."""
+    if name not in ("diameter", "K"):
+        return None
+    xs = P.dp_small
+    u = dp / xs
+    # d r/d dp_small of the odd cubic inside the band (the square root outside has none)
+    dr_dxs = np.where(np.abs(dp) < xs, -0.625 * dp * xs ** -1.5 * (1.0 - u * u), 0.0)
+    g = P.area * np.sqrt(2.0 * rho / P.K) * dr_dxs * xs
+    if name == "diameter":
+        return (2.0 * q - 2.0 * g) / np.sqrt(4.0 * P.area / np.pi)
+    return (g - 0.5 * q) / P.K
+
+
+def _tube_drop_derivative(P, name, c, mf):
+    """d(c·phi(Re)·mf)/d theta at fixed c-scaling for theta in TUBE_GEOMETRY (the
+    forward tube law of the Tesla and snapping valves, c = c_mu/rho), with
+    phi and its parts; returns (derivative, dp)."""
+    Re, phi, dphi = _tube_fRe(P, mf)
+    dp = c * phi * mf
+    d_eD = c * mf * friction_roughness_derivative(P, Re)
+    return tube_law_derivative(P, name, dp, c * (phi + Re * dphi) * mf, d_eD), dp
 
 class _TubeLike(LibraryComponent):
     """Shared checks of the tube-geometry parameters (length, diameter, roughness, blend)."""
@@ -206,6 +243,22 @@ class Orifice(LibraryComponent):
         return F, J
 
 
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) for diameter and K (loss-coefficient model) or C
+        (ISO 6358, where the flow is proportional to it); None for others."""
+        pa, pb = V[:, 0], V[:, 2]
+        if P.model == "ISO 6358":
+            if name != "C":
+                return None
+            q = massflow_ISO_6358(pa, pb, P.T, P.C, P.b, P.subsonic_index, P.pr_laminar)[0]
+            return _flow_law_jacobian(P, q / P.C)
+        fl = P.fluid
+        rho = fl.density(np.where(pa >= pb, pa, pb)) if fl.compressible else fl.rho
+        q = massflow_loss_coefficient(pa - pb, rho, P.K, P.area, P.dp_small)[0]
+        return _flow_law_jacobian(P, _loss_law_derivative(P, pa - pb, rho, q, name))
+
+
 # ---------------------------------------------------------------------------------------
 class CheckValve(LibraryComponent):
     """Spring-loaded check valve: flow from ``a`` to ``b`` once dp = p_a - p_b
@@ -290,6 +343,29 @@ class CheckValve(LibraryComponent):
         J[:, 3] = 1.0
         J[:, 4] = -(-d_dp + d_rho)
         return F, J
+
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) for diameter, cracking_pressure, opening_band and
+        leakage; None for others."""
+        pa, pb = V[:, 0], V[:, 2]
+        fl = P.fluid
+        dp = pa - pb
+        rho_a = fl.density(pa) if fl.compressible else fl.rho
+        q_open = massflow_loss_coefficient(dp, rho_a, P.K, P.area, P.dp_small)[0]
+        w, dw = smoothstep(dp, P.cracking_pressure, P.cracking_pressure + P.opening_band)
+        if name == "cracking_pressure":
+            dq = -dw * q_open
+        elif name == "opening_band":
+            dq = -dw * (dp - P.cracking_pressure) / P.opening_band * q_open
+        elif name == "leakage":
+            dq = _mean_density(fl, pa, pb)[0] * dp
+        elif name == "diameter":
+            dq = w * _loss_law_derivative(P, dp, rho_a, q_open, name)
+        else:
+            return None
+        return _flow_law_jacobian(P, dq)
 
 
 # ---------------------------------------------------------------------------------------
@@ -377,6 +453,31 @@ class TeslaValve(_TubeLike):
         J[:, 3] = -c * dlaw
         J[:, 4] = -1.0 + g
         return F, J
+
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) for length, diameter, roughness, diodicity and
+        Re_blend (the blend's width scales the flow mf_blend ∝ Re_blend·D);
+        None for the laminar-turbulent bounds, which group valves."""
+        pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
+        c = P.c_mu / _mean_density(P.fluid, pa, pb)[0]
+        w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
+        extra = P.diodicity - 1.0
+        mult = 1.0 + extra * (1.0 - w)
+        geometry = name in TUBE_GEOMETRY
+        d_tube, dp = _tube_drop_derivative(P, name if geometry else "length", c, mfa)
+        # d mult / d(mf_blend) · mf_blend: mult moves with the blend's width
+        d_blend = dp * extra * mfa * dw
+        if geometry:
+            d = mult * d_tube + (d_blend / P.diameter if name == "diameter" else 0.0)
+        elif name == "diodicity":
+            d = dp * (1.0 - w)
+        elif name == "Re_blend":
+            d = d_blend / P.Re_blend
+        else:
+            return None
+        return _flow_law_jacobian(P, d)
 
 
 # ---------------------------------------------------------------------------------------
@@ -487,3 +588,22 @@ class SnappingValve(_TubeLike):
         J[:, 3] = -dx / rho
         J[:, 4] = -1.0 + g
         return F, J
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) for the open passage's length, diameter and
+        roughness, the closed_conductance, and the opening and closing pressures
+        (0: they act only in :meth:`switch`, whose time the sensitivities hold);
+        None for the laminar-turbulent bounds."""
+        pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
+        is_open = S[:, 0] > 0.5
+        rho = _mean_density(P.fluid, pa, pb)[0]
+        if name in TUBE_GEOMETRY:
+            d = np.where(is_open, _tube_drop_derivative(P, name, P.c_mu / rho, mfa)[0], 0.0)
+        elif name == "closed_conductance":
+            d = np.where(is_open, 0.0, -mfa / (P.closed_conductance ** 2 * rho))
+        elif name in ("opening_pressure", "closing_pressure"):
+            d = np.zeros(P.n)
+        else:
+            return None
+        return _flow_law_jacobian(P, d)

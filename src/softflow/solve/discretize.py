@@ -155,3 +155,64 @@ def step_kernel(cls, P, V, S, t, dt, jac):
 def step_update(cls, P, V, S, dt):
     """States at the end of one step (see :func:`step_kernel`)."""
     return step_functions(cls, P)[1](V, S, dt)
+
+
+# -- derivatives for the sensitivity equations (softflow.solve.sensitivity) -------------
+def linearizable(cls):
+    """True where a class's step equations are those of its rates and residual
+    (the rule; not a class that writes its own ``kernel``, such as a thermal
+    deforming volume): :func:`step_linearization` then states their
+    derivatives analytically."""
+    from ..components.base import LibraryComponent
+    return cls.kernel.__func__ is LibraryComponent.kernel.__func__
+
+
+def step_linearization(cls, P, V, S, t, dt):
+    """The derivatives of one step's equations that the sensitivity equations
+    need besides the step Jacobian, at the point (V, S = psi, dt = c):
+
+    X (n, n_states)
+        the states at the end of the step, S + dt·r(V) (modes unchanged);
+    FX (n, n_eq, n_continuous)
+        dF/dX of ``residual`` at X (= d step equations / d psi);
+    RV (n, n_continuous, n_vars)
+        dr/dV of ``rates`` (the states' update moves by dt·RV per unit V).
+    """
+    plan = step_plan(cls)
+    X = S.copy()
+    ncont = plan.cont.size
+    RV = np.zeros((P.n, ncont, V.shape[1]))
+    if not ncont:       # nothing moves with psi or through the states' update
+        return X, np.zeros((P.n, P.components[0].n_equations, 0)), RV
+    R, dR = cls.rates(P, V, S, True)
+    X[:, plan.cont] += dt * R
+    for k, (s, v) in enumerate(cls.rate_pattern):
+        RV[:, s, v] = dR[k]
+    F, Jr = cls.residual(P, V, X, t, True)
+    FX = np.zeros((P.n, F.shape[1], ncont))
+    n_res = len(cls.residual_pattern)
+    for k, (e, s) in enumerate(cls.state_jac_pattern):
+        FX[:, e, s] = Jr[:, n_res + k]
+    return X, FX, RV
+
+
+def param_step_derivative(cls, P, V, X, FX, t, dt, name):
+    """d(step equations)/d theta and d(end states)/d theta of the group P for
+    its parameter ``name``, from the class's own ``param_jacobian``, or None
+    where the class (not a parent: a thermal variant or a subclass with another
+    law must not inherit it) states none for ``name``:
+
+        dG/dtheta = dF/dtheta + dF/dX · dt · dr/dtheta,   dX/dtheta = dt · dr/dtheta
+
+    (X, FX from :func:`step_linearization`). Returns ((n, n_eq), (n, n_continuous))."""
+    if "param_jacobian" not in cls.__dict__:
+        return None
+    out = cls.param_jacobian(P, V, X, t, name)
+    if out is None:
+        return None
+    dF, dr = out
+    dX = dt * np.asarray(dr, dtype=float).reshape(P.n, FX.shape[2])
+    dF = np.asarray(dF, dtype=float).reshape(P.n, FX.shape[1])
+    if dX.size:
+        dF = dF + np.einsum("nes,ns->ne", FX, dX)
+    return dF, dX

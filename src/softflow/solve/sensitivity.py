@@ -12,18 +12,34 @@ differentiated along the parameter, the unknowns' sensitivity s_x solves
 
     J s_x = -(dF/dpsi s_psi + dF/dtheta)
 
-with J the stepper's own iteration matrix (its LU factors, already made:
-a few corrections, each one residual evaluation, converge the stale-factor
-solve; fresh factors at the point where they do not), and the states'
-sensitivity follows from the step's update, s_S = s_psi + c (dr/dx s_x +
-dr/dtheta). s_psi is formed from the states' sensitivities exactly as psi is
-from the states (the same difference table for BDF, the last step's for
-backward Euler), so the sensitivities are those of the discrete solution the
-stepper computed. The products of dF/dpsi, dr/dx and the parameter derivatives
-with the sensitivity vectors are directional finite differences (relative
-step 1e-6) of the compiled equations, one residual and one update
-evaluation each: every library component and user component is covered
-without a hand-written parameter Jacobian.
+with J the stepper's own iteration matrix: its LU factors, already made, solve
+all parameters' right-hand sides at once (one multi-column solve); where
+Newton reuses factors from an earlier step, a few corrections with products
+of the exact J at the converged point (one Jacobian evaluation per step, shared
+by all parameters) converge the stale-factor solve, and fresh factors are made
+where they do not. The states' sensitivity follows from the step's update,
+s_S = s_psi + c (dr/dx s_x + dr/dtheta). s_psi is formed from the states'
+sensitivities exactly as psi is from the states (the same difference table for
+BDF, the last step's for backward Euler), so the sensitivities are those of the
+discrete solution the stepper computed.
+
+Every derivative is analytic where the component states it. dF/dpsi (= dF/dX
+at the step's end states) and dr/dx come from the rate-form contract's own
+Jacobians (:func:`softflow.solve.discretize.step_linearization`). The
+parameter derivatives come from an optional classmethod of a library class,
+``param_jacobian(P, V, S, t, name)`` -> (dF/dtheta (n, n_eq) of its
+``residual``, dr/dtheta (n, n_continuous) of its ``rates``) for parameter
+``name`` of every instance of the group, or None for a parameter it does not
+cover; the step's dF/dtheta + dF/dX · c · dr/dtheta is composed once, in
+:func:`softflow.solve.discretize.param_step_derivative`. Only the class that
+defines ``param_jacobian`` uses it: a thermal variant or a subclass with
+another law falls back. The fallback, for such parameters, user components
+and classes that write their own step (thermal volumes), is a finite
+difference (relative step 1e-6) of a twin component rebuilt with the
+parameter moved, and directional differences of the group's step kernel and
+update along the sensitivity vectors. Initial states: a component's
+``initial_state_jacobian(name)`` where it states one (a Container's mass
+rho(p0)·volume), else the twin's difference.
 
 At t = 0 the initial states' sensitivity is that of the component's initial
 states (e.g. a Container's mass to its volume), and the unknowns' follows from
@@ -37,13 +53,32 @@ from __future__ import annotations
 import numpy as np
 
 from ..network.system import NetworkError
+from .discretize import linearizable, param_step_derivative, step_linearization, step_plan
+from .linalg import DENSE_MAX
 from .params import STRUCTURAL, parameter_names, rebuild
 from .thermal import configure_like
 
-#: Relative step of the directional finite differences.
+#: Relative step of the finite differences (parameters without an analytic
+#: derivative, groups whose step equations are not stated in rate form).
 REL_STEP = 1e-6
-#: Corrections of a stale-factor solve before fresh factors are made.
-MAX_CORRECTIONS = 6
+#: Stale-factor corrections of the sensitivity solve before fresh factors are made.
+MAX_CORRECTIONS = 4
+#: The corrections stop when the last one is below this fraction of the solution
+#: (per unknown, in Newton's tolerance units).
+CORRECTION_RTOL = 1e-8
+#: Take parameter derivatives from the classes' ``param_jacobian`` where they
+#: give one (False: finite differences everywhere; for tests and benchmarks).
+ANALYTIC = True
+
+
+def _numeric_value(comp, name):
+    """The SI number behind a component's parameter: its attribute, or a
+    source's constant value (None for a waveform or a function of time)."""
+    value = getattr(comp, name, None)
+    signal = getattr(comp, "signal", None)
+    if value is None and signal is not None and signal.name == name:
+        value = signal.const
+    return value
 
 
 class Sensitivities:
@@ -75,7 +110,7 @@ class Sensitivities:
             if name not in valid:
                 raise KeyError(f"sensitivities[{key!r}]: {comp.describe()} has no parameter "
                                f"{name!r}; its parameters are {', '.join(valid) or 'none'}")
-            value = getattr(comp, name, None)
+            value = _numeric_value(comp, name)
             if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float)):
                 raise NetworkError(
                     f"sensitivities[{key!r}]: {comp.describe()}'s {name!r} is not a number "
@@ -89,69 +124,161 @@ class Sensitivities:
             self.parameters.append((g, i, fresh.kernel, fresh.update, eps, comp, twin))
         self.n_p = len(self.parameters)
         self.records_x, self.records_s = [], []
+        self._setup_groups()
+
+    def _setup_groups(self):
+        """How each group's part of the equations is differentiated: analytically
+        (rate form, see :func:`softflow.solve.discretize.step_linearization`) or
+        by directional finite differences of its step kernel and update (user
+        components, classes that write their own step, per-step coefficients)."""
+        self._params_of = {}      # id(group) -> (group, class, Params, continuous states)
+        self._analytic, self._fd = [], []
+        wanted = {id(g): g for g in self.asm.groups if g.ns}
+        wanted.update((id(g), g) for g, *_ in self.parameters)
+        for g in wanted.values():
+            cls = g.comps[0].kernel_class() if getattr(g.comps[0], "vectorized", False) \
+                else None
+            if cls is not None and g.row is None and g.begin is None and linearizable(cls):
+                self._params_of[id(g)] = (g, cls, cls.make_params(g.comps), step_plan(cls).cont)
+                if g.ns:
+                    self._analytic.append(g)
+            elif g.ns:
+                self._fd.append(g)
+        # per parameter: an analytic derivative (None: not yet known, then True/False)
+        self._exact = [None if ANALYTIC and id(g) in self._params_of else False
+                       for g, *_ in self.parameters]
+        self._dense = self.asm.n <= DENSE_MAX
+        if self._dense:
+            self._flat = self.asm.pattern_rows * self.asm.n + self.asm.pattern_cols
 
     # -- the equations ----------------------------------------------------------------
-    def _perturbed_residual(self, p, x, S, t, c, F):
-        """F with the rows of parameter p's group from its perturbed kernel."""
-        g, i, kernel_p = self.parameters[p][:3]
-        Sg = S[g.s0:g.s1].reshape(g.n, g.ns)
-        Fg, _ = kernel_p(x[g.col], Sg, t, c, False)
-        F = F.copy()
-        F[g.r0:g.r1] = Fg.ravel()
-        return F
+    def _jacobian(self):
+        """The step Jacobian of the last ``residual(..., jac=True)``, for products."""
+        asm = self.asm
+        if self._dense:
+            n = asm.n
+            return np.bincount(self._flat, weights=asm.raw, minlength=n * n).reshape(n, n)
+        return asm.jacobian_csc()
 
-    def _perturbed_update(self, p, x, S, c):
-        g, i, _, update_p = self.parameters[p][:4]
-        new = self.asm.update_states(x, S, c).copy()
-        if g.ns:
-            new[g.s0:g.s1] = np.asarray(update_p(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns),
-                                                 c)).ravel()
-        return new
+    def _linearize(self, x, psi, t, c):
+        """Per rate-form group: (V, psi, X, FX, RV) at the converged point."""
+        lin = {}
+        for key, (g, cls, P, _) in self._params_of.items():
+            V = x[g.col]
+            Sg = psi[g.s0:g.s1].reshape(g.n, g.ns)
+            lin[key] = (V, Sg) + step_linearization(cls, P, V, Sg, t, c)
+        return lin
 
-    def _solve(self, p, x, psi, s_psi, t, c, s_x, F0, fresh=False):
-        """s_x of parameter p at the converged point (x, psi, t, c), where the
-        residual is F0."""
-        asm, newton = self.asm, self.newton
-        eps = self.parameters[p][4]
+    def _parameter_terms(self, p, lin, x, psi, t, c):
+        """(dG/dtheta of the rows of parameter p's component (neq,), and dX/dtheta
+        of its states (ns,)): analytic where its class states it, else a finite
+        difference of the perturbed twin's step kernel and update."""
+        g, i, kernel_p, update_p, eps, comp, twin = self.parameters[p]
+        if self._exact[p] is not False:
+            _, cls, P, cont = self._params_of[id(g)]
+            V, Sg, X, FX, _ = lin[id(g)]
+            name = self.names[p].rsplit(".", 1)[1]
+            out = param_step_derivative(cls, P, V, X, FX, t, c, name)
+            self._exact[p] = out is not None
+            if out is not None:
+                dS = np.zeros(g.ns)
+                dS[cont] = out[1][i]
+                return out[0][i], dS
+        V = x[g.col]
+        Sg = psi[g.s0:g.s1].reshape(g.n, g.ns)
+        F0, _ = g.kernel(V, Sg, t, c, False)
+        Fp, _ = kernel_p(V, Sg, t, c, False)
+        dG = (Fp[i] - F0[i]) / eps
+        if not g.ns:
+            return dG, np.zeros(0)
+        return dG, (np.asarray(update_p(V, Sg, c))[i] - np.asarray(g.update(V, Sg, c))[i]) / eps
 
-        def residual_of(s):
-            Fp = asm.residual(x + eps * s, psi + eps * s_psi, t, c)
-            Fp = self._perturbed_residual(p, x + eps * s, psi + eps * s_psi, t, c, Fp)
-            return (Fp - F0) / eps
+    def _eps(self):
+        return np.array([prm[4] for prm in self.parameters])
 
-        fresh = fresh or getattr(newton, "stale", False) or newton.lu_dt is None
-        for attempt in range(2):
-            if fresh:
-                asm.residual(x, psi, t, c, jac=True)
-                newton._factor(c)
-            # factors made at this point (this step's c, no step since): one
-            # correction solves the linear sensitivity equations exactly
-            exact = newton.lu_dt == c and newton.age == 0 and not getattr(newton, "stale",
-                                                                        False)
-            s = s_x.copy()
+    def _unknowns(self, x, psi, s_psi, t, c, start, fresh=False):
+        """s_x (n_p x n) at the converged point (x, psi, t, c), with the
+        linearization and parameter terms the states' update reuses."""
+        asm, n_p = self.asm, self.n_p
+        asm.residual(x, psi, t, c, jac=True)
+        lin = self._linearize(x, psi, t, c)
+        rhs = np.zeros((asm.n, n_p))
+        for g in self._analytic:
+            _, _, _, FX, _ = lin[id(g)]
+            cont = self._params_of[id(g)][3]
+            sp = s_psi[:, g.s0:g.s1].reshape(n_p, g.n, g.ns)[:, :, cont]
+            rhs[g.r0:g.r1] -= np.einsum("ies,pis->iep", FX, sp).reshape(g.r1 - g.r0, n_p)
+        if self._fd:
+            eps = self._eps()
+            for g in self._fd:
+                V = x[g.col]
+                Sg = psi[g.s0:g.s1].reshape(g.n, g.ns)
+                F0, _ = g.kernel(V, Sg, t, c, False)
+                for p in range(n_p):
+                    moved = Sg + eps[p] * s_psi[p, g.s0:g.s1].reshape(g.n, g.ns)
+                    Fp, _ = g.kernel(V, moved, t, c, False)
+                    rhs[g.r0:g.r1, p] -= (Fp - F0).ravel() / eps[p]
+        terms = []
+        for p in range(n_p):
+            g, i = self.parameters[p][:2]
+            dG, dS = self._parameter_terms(p, lin, x, psi, t, c)
+            r0 = g.r0 + i * g.neq
+            rhs[r0:r0 + g.neq, p] -= dG
+            terms.append(dS)
+        s_x = self._solve(rhs, start, c, fresh)
+        return s_x.T, lin, terms
+
+    def _solve(self, rhs, start, c, fresh):
+        """J s = rhs (n x n_p, every parameter at once) on the stepper's factors:
+        made at this point (or of the same matrix: a linear network at a fixed
+        step) they solve it at once; older ones (Newton reuses factors over
+        steps) are corrected with products of the exact J until the correction is
+        below CORRECTION_RTOL of s, or replaced by fresh factors (which the next
+        steps' Newton solves then use) where MAX_CORRECTIONS do not get there."""
+        newton = self.newton
+        lin = newton.lin
+        if not (fresh or getattr(newton, "stale", False) or newton.lu_dt is None):
+            J = self._jacobian()
+            if self._dense and np.array_equal(J, getattr(lin, "_J", None)):
+                return lin.solve(rhs)
+            scale = 1.0 / newton.tol[:, None]
+            s = start.T.copy()
             for _ in range(MAX_CORRECTIONS):
-                ds = newton.lin.solve(-residual_of(s))
-                s = s + ds
-                if exact or (newton._norm(ds * eps)
-                             <= 1e-3 * max(newton._norm(s * eps), 1e-12) + 1e-6):
+                ds = lin.solve(rhs - J @ s)
+                s += ds
+                if np.max(np.abs(ds) * scale) <= CORRECTION_RTOL * np.max(np.abs(s) * scale):
                     return s
-            fresh = True
-        return s
+        newton._factor(c)     # the Jacobian of the residual(jac=True) at this point
+        return lin.solve(rhs)
 
     def step(self, x, psi, s_psi, t, c):
         """(s_x, s_S) (n_p x n, n_p x n_s) after a step converged to x from psi."""
-        asm = self.asm
-        s_x = np.zeros((self.n_p, asm.n))
-        s_S = np.zeros((self.n_p, len(asm.S0)))
-        S_new = asm.update_states(x, psi, c)
-        F0 = asm.residual(x, psi, t, c)       # the same point for every parameter
-        last = self.records_x[-1] if self.records_x else None
-        for p in range(self.n_p):
-            start = last[p] if last is not None else np.zeros(asm.n)
-            s_x[p] = self._solve(p, x, psi, s_psi[p], t, c, start, F0)
-            eps = self.parameters[p][4]
-            moved = self._perturbed_update(p, x + eps * s_x[p], psi + eps * s_psi[p], c)
-            s_S[p] = (moved - S_new) / eps
+        asm, n_p = self.asm, self.n_p
+        start = self.records_x[-1] if self.records_x else np.zeros((n_p, asm.n))
+        s_x, lin, terms = self._unknowns(x, psi, s_psi, t, c, start)
+        s_S = np.zeros((n_p, len(asm.S0)))
+        for g in self._analytic:
+            cont = self._params_of[id(g)][3]
+            _, _, _, _, RV = lin[id(g)]
+            sp = s_psi[:, g.s0:g.s1].reshape(n_p, g.n, g.ns)
+            out = np.zeros_like(sp)
+            # s_X = s_psi + c (dr/dV s_V): the update X = psi + c r(V)
+            out[:, :, cont] = sp[:, :, cont] + c * np.einsum("isv,piv->pis", RV, s_x[:, g.col])
+            s_S[:, g.s0:g.s1] = out.reshape(n_p, -1)
+        if self._fd:
+            eps = self._eps()
+            for g in self._fd:
+                V = x[g.col]
+                Sg = psi[g.s0:g.s1].reshape(g.n, g.ns)
+                base = np.asarray(g.update(V, Sg, c), dtype=float)
+                for p in range(n_p):
+                    moved = g.update(V + eps[p] * s_x[p][g.col],
+                                     Sg + eps[p] * s_psi[p, g.s0:g.s1].reshape(g.n, g.ns), c)
+                    s_S[p, g.s0:g.s1] = ((np.asarray(moved) - base) / eps[p]).ravel()
+        for p, dS in enumerate(terms):
+            g, i = self.parameters[p][:2]
+            if g.ns:
+                s_S[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] += dS
         if asm.has_discrete:
             s_S[:, asm.s_discrete] = 0.0
         self.record(s_x, s_S)
@@ -161,19 +288,27 @@ class Sensitivities:
         """Sensitivities at the consistent initial point: the initial states' from
         the components' own, the unknowns' from the t = 0 equations (c = 0)."""
         s_S0 = np.zeros((self.n_p, len(S0)))
-        for p, (g, i, *_rest) in enumerate(self.parameters):
-            comp, twin, eps = self.parameters[p][5], self.parameters[p][6], self.parameters[p][4]
+        for p, (g, i, _, _, eps, comp, twin) in enumerate(self.parameters):
             if g.ns:
-                a = np.array(comp.initial_state_values(), dtype=float)
-                b = np.array(twin.initial_state_values(), dtype=float)
-                s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = (b - a) / eps
-        s_x0 = np.zeros((self.n_p, len(x0)))
-        F0 = self.asm.residual(x0, S0, t0, 0.0)
-        for p in range(self.n_p):
-            s_x0[p] = self._solve(p, x0, S0, s_S0[p], t0, 0.0, np.zeros(len(x0)), F0,
-                                  fresh=p == 0)
+                s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = self._initial_states(
+                    comp, twin, eps, self.names[p].rsplit(".", 1)[1])
+        s_x0 = self._unknowns(x0, S0, s_S0, t0, 0.0, np.zeros((self.n_p, len(x0))),
+                              fresh=True)[0]
         self.record(s_x0, s_S0)
         return s_x0, s_S0
+
+    @staticmethod
+    def _initial_states(comp, twin, eps, name):
+        """d(initial states)/d theta: the component's own, where it states them
+        (isothermal scenes), else a finite difference of its twin's."""
+        exact = getattr(comp, "initial_state_jacobian", None)
+        if exact is not None and comp._thermal is None and ANALYTIC:
+            out = exact(name)
+            if out is not None:
+                return np.asarray(out, dtype=float)
+        a = np.array(comp.initial_state_values(), dtype=float)
+        b = np.array(twin.initial_state_values(), dtype=float)
+        return (b - a) / eps
 
     def record(self, s_x, s_S):
         self.records_x.append(s_x)
