@@ -1,18 +1,23 @@
 """sf.assess against an exhaustive search (issue 15's targets).
 
-Six scenes spanning README's "Choosing a model level" table. For each:
-an exhaustive search over the axes assess decides (thermal: isothermal or the
-scene's thermal model, adiabatic or heat transfer where the volumes have walls;
-fluid level ideal or table; the laminar tubes' friction as given or Haaland;
-gas tubes' law as given or compressible='isothermal'; rtol 1e-2, 1e-3, 1e-4)
-finds the cheapest configuration within the tolerance (1 %) of a converged
-fine reference (every axis at its finest, table fluids, rtol 1e-7); then
+Nine scenes (benchmarks/assess_scenes.py) spanning README's "Choosing a
+model level" table. For each: an exhaustive search over the axes assess
+decides (thermal: isothermal or the scene's thermal model, adiabatic or heat
+transfer where the volumes have walls, and per volume: wall-less volumes held
+isothermal while the others are not; fluid level ideal or table; the laminar
+tubes' friction as given or Haaland; gas tubes' law as given or
+compressible='isothermal'; liquid tubes without or with inertance; rtol 1e-2,
+1e-3, 1e-4) finds the cheapest configuration within the tolerance (1 %) of a
+converged fine reference (every axis at its finest, table fluids, rtol 1e-7;
+a wall-less volume that fills slowly exchanges heat by free convection
+there); then
 sf.assess's recommendation, its error against the reference, its cost against
 the cheapest adequate one (target <= 1.5x), and assess's own cost against one
 run of the cheapest adequate configuration (target <= 3x). Error: largest
 difference of each output over the run's own time points, relative to the
 output's range in the reference. Costs: CPU time (time.process_time) of
-building and running a Simulation, best of --repeats.
+building and running a Simulation, medians of --repeats (assess's with
+their range: the machine is shared).
 
     python benchmarks/bench_assess.py [--repeats 3] [--scene NAME ...]
 """
@@ -20,116 +25,61 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import statistics
+import sys
 import time
 import warnings
+from pathlib import Path
 
 import softflow as sf
 from softflow.assess import Config, difference, variant_system, _gas_volumes, _has_wall
 
-P = sf.pressure_atmospheric
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from assess_scenes import SCENES, reference_overrides  # noqa: E402
+
 TOLERANCE = 0.01
 RTOLS = (1e-2, 1e-3, 1e-4)
 REFERENCE_RTOL = 1e-7
 
 
-def syringe():
-    """Slow syringe fill (0.5 mL/s for 10 s) of an air actuator through a thin
-    tube; the actuator's wall hA = 0.5 W/K."""
-    s = sf.System()
-    pump = sf.waveforms.PiecewiseConstant(sf.Q_([0, 10], "s"), sf.Q_([0.5, 0], "mL/s"))
-    s += sf.VolumeFlowSource("pump", volumeflow=pump, fluid=sf.air)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
-    curve = sf.PVCurve.monotonic((5e-6, P), (8e-6, P + 0.2e5), (20e-6, P + 0.4e5))
-    s += sf.Actuator("act", sf.air, curve, initial_pressure=P, hA=0.5)
-    s.connect("pump", "tube")
-    s.connect("tube", "act")
-    return s, 12.0, [("act", "volume")]
-
-
-def fast_fill():
-    """A 1 L tank filled from 4 bar through an ISO 6358 valve in ~0.5 s (no wall)."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=sf.Q_(4, "bar"))
-    s += sf.Orifice("valve", sf.air, C=2e-8, b=0.3)
-    s += sf.Container("tank", sf.air, volume=1e-3)
-    s.connect("supply", "valve")
-    s.connect("valve", "tank")
-    return s, 1.0, [("tank", "pressure")]
-
-
-def bottle():
-    """A 1 L air bottle (wall hA 0.5 W/K) filled from 12 to 18 MPa through 2 m of 1 mm tube."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=18e6)
-    s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3)
-    s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=12e6, hA=0.5)
-    s.connect("supply", "tube")
-    s.connect("tube", "bottle")
-    return s, 20.0, [("bottle", "pressure")]
-
-
-def laminar_water():
-    """Water at 2 bar into an accumulator through 1 m of 2 mm tube given
-    friction='laminar' (Re reaches ~25 000)."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=sf.Q_(2, "bar"))
-    s += sf.CircularTube("tube", sf.water, length=1.0, diameter=2e-3, friction="laminar")
-    s += sf.LinearAccumulator("acc", sf.water, volume=1e-5, compliance=1e-11)
-    s.connect("supply", "tube")
-    s.connect("tube", "acc")
-    return s, 0.5, [("tube", "massflow", "a"), ("acc", "pressure")]
-
-
-def turbulent_air():
-    """Air at 1.5 bar fills a 50 mL container (wall hA 0.05 W/K) through 0.5 m
-    of 2 mm tube given friction='laminar' (Re reaches ~10 000)."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=sf.Q_(1.5, "bar"))
-    s += sf.CircularTube("tube", sf.air, length=0.5, diameter=2e-3, friction="laminar")
-    s += sf.Container("tank", sf.air, volume=50e-6, hA=0.05)
-    s.connect("supply", "tube")
-    s.connect("tube", "tank")
-    return s, 2.0, [("tank", "pressure")]
-
-
-def near_choking():
-    """Air at 2.2 bar into a 1 L container (wall hA 0.3 W/K) through 1 m of 2 mm
-    tube: Mach ~0.7 at the tube's low-pressure end at first, short of the
-    isothermal choking limit (0.845), which would stop the run."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=sf.Q_(2.2, "bar"))
-    s += sf.CircularTube("tube", sf.air, length=1.0, diameter=2e-3)
-    s += sf.Container("tank", sf.air, volume=1e-3, hA=0.3)
-    s.connect("supply", "tube")
-    s.connect("tube", "tank")
-    return s, 10.0, [("tank", "pressure")]
-
-
-SCENES = {f.__name__: f for f in (syringe, fast_fill, bottle, laminar_water, turbulent_air,
-                                  near_choking)}
+def _merge(*parts):
+    merged = {}
+    for part in parts:
+        for lab, args in part.items():
+            merged.setdefault(lab, {}).update(args)
+    return merged
 
 
 def axes(system):
-    """The levels of each axis for this scene: (thermal, fluid, override sets)."""
+    """The levels of each axis for this scene: thermal (model, per-volume
+    overrides) pairs, fluid levels, and override sets (friction, tube law,
+    inertance), each list from the cheapest level to the finest."""
     volumes = _gas_volumes(system)
-    thermal = ["isothermal"]
+    thermal = [("isothermal", {})]
     if volumes:
-        thermal.append("heat_transfer" if all(_has_wall(c) for c in volumes) else "adiabatic")
+        walled = all(_has_wall(c) for c in volumes)
+        up = "heat_transfer" if walled else "adiabatic"
+        bare = [c.label for c in volumes if not _has_wall(c)]
+        # per volume: wall-less volumes held isothermal, some other volume not
+        for k in range(1, len(bare) + (len(bare) < len(volumes))):
+            for held in itertools.combinations(bare, k):
+                lifted = [c for c in volumes if c.label not in held]
+                model = "heat_transfer" if all(_has_wall(c) for c in lifted) else "adiabatic"
+                thermal.append((model, {lab: {"thermal": "isothermal"} for lab in held}))
+        thermal.append((up, {}))
     gases = any(getattr(c, "fluid", None) is not None and c.fluid.compressible
                 for c in system.components)
     fluid = ["ideal", "table"] if gases else ["ideal"]
     laminar = [c.label for c in system.components if getattr(c, "friction", None) == "laminar"]
-    tubes = [c.label for c in system.components if type(c).__name__ == "CircularTube"
-             and c.fluid.compressible]
+    tubes = [c for c in system.components if type(c).__name__ == "CircularTube"]
+    gas_tubes = [c.label for c in tubes if c.fluid.compressible]
+    liquid_tubes = [c.label for c in tubes if not c.fluid.compressible]
     friction = [{}] + ([{lab: {"friction": "Haaland"} for lab in laminar}] if laminar else [])
-    law = [{}] + ([{lab: {"compressible": "isothermal"} for lab in tubes}] if tubes else [])
-    overrides = []
-    for f, g in itertools.product(friction, law):
-        merged = {}
-        for part in (f, g):
-            for lab, args in part.items():
-                merged.setdefault(lab, {}).update(args)
-        overrides.append(merged)
+    law = [{}] + ([{lab: {"compressible": "isothermal"} for lab in gas_tubes}]
+                  if gas_tubes else [])
+    inertance = [{}] + ([{lab: {"inertance": True} for lab in liquid_tubes}]
+                        if liquid_tubes else [])
+    overrides = [_merge(f, g, h) for f, g, h in itertools.product(friction, law, inertance)]
     return thermal, fluid, overrides
 
 
@@ -141,24 +91,28 @@ def simulate(system, duration, config):
     return result, time.process_time() - t0
 
 
-def best_cost(system, duration, config, repeats):
+def median_cost(system, duration, config, repeats):
     costs, result = [], None
     for _ in range(repeats):
         result, cpu = simulate(system, duration, config)
         costs.append(cpu)
-    return result, min(costs)
+    return result, statistics.median(costs)
 
 
 def bench(name, repeats):
     system, duration, outputs = SCENES[name]()
     thermal, fluid, overrides = axes(system)
-    finest = Config(thermal[-1], fluid[-1], REFERENCE_RTOL).with_overrides(overrides[-1])
-    reference, _ = simulate(system, duration, finest)
+    reference_system = variant_system(system, None, reference_overrides(name, system))
+    volumes = _gas_volumes(reference_system)
+    finest_thermal = (("heat_transfer" if all(_has_wall(c) for c in volumes) else "adiabatic")
+                      if volumes else "isothermal")
+    finest = Config(finest_thermal, fluid[-1], REFERENCE_RTOL).with_overrides(overrides[-1])
+    reference, _ = simulate(reference_system, duration, finest)
     assert reference.status == "success", reference.message
     rows = []
-    for th, fl, ov, rtol in itertools.product(thermal, fluid, overrides, RTOLS):
-        cfg = Config(th, fl, rtol).with_overrides(ov)
-        result, cpu = best_cost(system, duration, cfg, repeats)
+    for (th, th_over), fl, ov, rtol in itertools.product(thermal, fluid, overrides, RTOLS):
+        cfg = Config(th, fl, rtol).with_overrides(_merge(th_over, ov))
+        result, cpu = median_cost(system, duration, cfg, repeats)
         err = (difference(result, reference, outputs) if result.status == "success"
                else float("inf"))
         rows.append((cfg, err, cpu))
@@ -168,20 +122,26 @@ def bench(name, repeats):
     for _ in range(repeats):
         a = sf.assess(system, duration, tolerance=TOLERANCE, outputs=outputs)
         costs.append(a.cost)
-    rec, rec_cpu = best_cost(system, duration, a.config, repeats)
+    rec, rec_cpu = median_cost(system, duration, a.config, repeats)
     rec_err = difference(rec, reference, outputs)
     return dict(scene=name, cheapest=cheapest, recommended=a.config, rec_err=rec_err,
-                rec_cpu=rec_cpu, assess_cpu=min(costs), n_configs=len(rows), assessment=a)
+                rec_cpu=rec_cpu, assess_cpu=statistics.median(costs),
+                assess_range=(min(costs), max(costs)), n_configs=len(rows), assessment=a)
 
 
 def short(cfg):
     parts = [cfg.thermal.replace("heat_transfer", "heat tr."), cfg.fluid_level,
              f"rtol {cfg.rtol:.0e}"]
     ov = cfg.overrides_dict()
+    held = sorted(lab for lab, args in ov.items() if args.get("thermal") == "isothermal")
+    if held:
+        parts[0] += f" ({', '.join(held)} isothermal)"
     if any(args.get("friction") for args in ov.values()):
         parts.append("Haaland")
     if any(args.get("compressible") for args in ov.values()):
         parts.append("isoth. tube")
+    if any(args.get("inertance") for args in ov.values()):
+        parts.append("inertance")
     return ", ".join(parts)
 
 
@@ -192,8 +152,9 @@ def main(argv=None):
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore", sf.ModelWarning)
     sf.assess(*SCENES["fast_fill"]()[:2])          # imports and table loading out of the way
-    simulate(*bottle()[:2], Config("isothermal", "table", 1e-3))
-    print(f"tolerance {TOLERANCE:.0%}; CPU ms, best of {args.repeats}\n")
+    simulate(*SCENES["bottle"]()[:2], Config("isothermal", "table", 1e-3))
+    print(f"tolerance {TOLERANCE:.0%}; CPU ms, medians of {args.repeats} "
+          f"(assess: median [min-max])\n")
     print("| scene | configs | cheapest adequate | ms | recommended | error | ms | "
           "cost / cheapest | assess ms | assess / cheapest |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -212,7 +173,8 @@ def main(argv=None):
         met["assess"] += assess_ratio <= 3
         print(f"| {name} | {r['n_configs']} | {short(c[0])} ({c[1]:.2%}) | {1e3 * c[2]:.1f} | "
               f"{short(r['recommended'])} | {r['rec_err']:.2%} | {1e3 * r['rec_cpu']:.1f} | "
-              f"{ratio:.2f}x | {1e3 * r['assess_cpu']:.1f} | {assess_ratio:.2f}x |")
+              f"{ratio:.2f}x | {1e3 * r['assess_cpu']:.1f} [{1e3 * r['assess_range'][0]:.0f}-"
+              f"{1e3 * r['assess_range'][1]:.0f}] | {assess_ratio:.2f}x |")
     n = len(args.scene)
     print(f"\nrecommended within {TOLERANCE:.0%} of the reference: {met['within']}/{n}; "
           f"cost <= 1.5x the cheapest adequate: {met['cost']}/{n}; assess <= 3x one run of "

@@ -1,64 +1,36 @@
 """sf.assess and Simulation(model='auto'): the recommendation on small scenes where
-one axis matters, its error against a fine reference, the user's System left
-unchanged, and bad input."""
-import copy
+one axis matters (the scenes of benchmarks/assess_scenes.py), its error against
+a fine reference, the user's System left unchanged, and bad input."""
 import pickle
+import sys
 import warnings
+from pathlib import Path
 
 import pytest
 
 import softflow as sf
 from softflow.assess import AssessmentError, difference, variant_system
 
-P = sf.pressure_atmospheric
 TOL = 0.01
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import assess_scenes as scenes  # noqa: E402  (shared with benchmarks/bench_assess.py)
 
 
 def syringe():
-    """A slow syringe-like fill (0.5 mL/s for 10 s) of an air actuator through a
-    thin tube; its wall is given (hA), so heat transfer is the reference."""
-    s = sf.System()
-    pump = sf.waveforms.PiecewiseConstant(sf.Q_([0, 10], "s"), sf.Q_([0.5, 0], "mL/s"))
-    s += sf.VolumeFlowSource("pump", volumeflow=pump, fluid=sf.air)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
-    curve = sf.PVCurve.monotonic((5e-6, P), (8e-6, P + 0.2e5), (20e-6, P + 0.4e5))
-    s += sf.Actuator("act", sf.air, curve, initial_pressure=P, hA=0.5)
-    s.connect("pump", "tube")
-    s.connect("tube", "act")
-    return s
+    return scenes.syringe()[0]
 
 
 def fast_fill():
-    """A 1 L tank filled from 4 bar through an ISO 6358 valve in ~0.5 s."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=sf.Q_(4, "bar"))
-    s += sf.Orifice("valve", sf.air, C=2e-8, b=0.3)
-    s += sf.Container("tank", sf.air, volume=1e-3)
-    s.connect("supply", "valve")
-    s.connect("valve", "tank")
-    return s
+    return scenes.fast_fill()[0]
 
 
 def bottle():
-    """A 1 L air bottle (wall hA 0.5 W/K) filled from 12 to 18 MPa."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=18e6)
-    s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3)
-    s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=12e6, hA=0.5)
-    s.connect("supply", "tube")
-    s.connect("tube", "bottle")
-    return s
+    return scenes.bottle()[0]
 
 
 def laminar_water():
-    """Water through a friction='laminar' tube at Re ~ 25 000."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=sf.Q_(2, "bar"))
-    s += sf.CircularTube("tube", sf.water, length=1.0, diameter=2e-3, friction="laminar")
-    s += sf.LinearAccumulator("acc", sf.water, volume=1e-5, compliance=1e-11)
-    s.connect("supply", "tube")
-    s.connect("tube", "acc")
-    return s
+    return scenes.laminar_water()[0]
 
 
 def reference(system, duration, thermal, fluid_level, overrides=None):
@@ -113,16 +85,102 @@ def test_high_pressure_bottle_recommends_table():
     assert difference(base.result, ref, a.outputs) > TOL
 
 
-def test_laminar_tube_at_high_reynolds_recommends_haaland():
+def test_laminar_tube_at_high_reynolds_recommends_haaland_and_inertance():
     s = laminar_water()
     a = sf.assess(s, 0.5, tolerance=TOL, outputs=[("tube", "massflow", "a")])
     assert a.recommended["friction"] == "Haaland"
-    assert a.recommended["overrides"] == {"tube": {"friction": "Haaland"}}
+    assert a.recommended["inertance"] == "as given, True where overridden"
+    # the column rings against the stiff accumulator: its inertia is needed too
+    assert a.recommended["overrides"] == {"tube": {"friction": "Haaland", "inertance": True}}
     sim = a.simulation()
-    assert sim.system.get("tube").friction != "laminar"
-    ref = reference(s, 0.5, "isothermal", "ideal", {"tube": {"friction": "Haaland"}})
+    assert sim.system.get("tube").friction != "laminar" and sim.system.get("tube").inertance
+    ref = reference(s, 0.5, "isothermal", "ideal",
+                    {"tube": {"friction": "Haaland", "inertance": True}})
     assert difference(recommended_run(a), ref, a.outputs) < TOL
     assert s.get("tube").friction == "laminar"         # the user's tube is not touched
+    assert not s.get("tube").inertance
+
+
+def _axis(a, axis):
+    rows = a.table[a.table["axis"] == axis]
+    assert len(rows) == 1, a.table
+    return rows.iloc[0]
+
+
+def test_inertance_axis_where_it_matters():
+    s, duration, outputs = scenes.water_hammer()
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    assert any(r.check == "tube_inertia" for r in a.warnings)
+    row = _axis(a, "inertance")
+    assert row["level tried"] == "line: inertance=True"
+    assert row["effect"] > TOL and row["verdict"].startswith("adopted")
+    assert a.recommended["overrides"]["line"] == {"inertance": True}
+    ref = reference(s, duration, "isothermal", "ideal", {"line": {"inertance": True}})
+    assert difference(recommended_run(a), ref, a.outputs) < TOL
+    plain = reference(s, duration, "isothermal", "ideal")
+    assert difference(plain, ref, a.outputs) > TOL         # without it: off
+
+
+def test_inertance_axis_where_it_does_not_matter_costs_no_run():
+    s, duration, outputs = scenes.slow_water()
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    assert not any(r.check == "tube_inertia" for r in a.validity)
+    row = _axis(a, "inertance")
+    assert row["verdict"].startswith("kept") and row["cost [s]"] == 0
+    assert a.recommended["overrides"] == {}
+    assert all(not r.config.overrides for r in a.runs)
+    ref = reference(s, duration, "isothermal", "ideal", {"line": {"inertance": True}})
+    assert difference(recommended_run(a), ref, a.outputs) < TOL
+
+
+def test_a_near_miss_is_measured_one_level_up():
+    """A 1 mm line into a 1e-10 m^3/Pa accumulator: the inertia check is near
+    its limit, not past it (no warning); assess measures inertance=True."""
+    s = scenes._water_line(1e-3, 1e-10)
+    a = sf.assess(s, 10.0, tolerance=TOL, outputs=[("acc", "pressure")])
+    near = [r for r in a.validity if r.check == "tube_inertia"]
+    assert [r.status for r in near] == ["near"] and a.warnings == []
+    row = _axis(a, "inertance")
+    assert row["level tried"] == "line: inertance=True" and row["effect"] > 0
+    assert any(r.config.overrides_dict().get("line") == {"inertance": True} for r in a.runs)
+
+
+def test_per_volume_thermal_override():
+    """The tank fills fast (its wall is given), the wall-less vessel slowly:
+    heat transfer in the tank, the vessel held isothermal, by an override that
+    simulation() applies to a copy."""
+    s, duration, outputs = scenes.two_volumes()
+    before = pickle.dumps(s)
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    assert a.recommended["thermal"] == "heat_transfer"
+    assert a.recommended["overrides"] == {"vessel": {"thermal": "isothermal"}}
+    assert "held isothermal: vessel" in _axis(a, "thermal")["level tried"]
+    sim = a.simulation()
+    assert sim.thermal == "heat_transfer"
+    assert sim.system.get("vessel").thermal == "isothermal"
+    assert s.get("vessel").thermal is None and pickle.dumps(s) == before
+    res = recommended_run(a)
+    assert res.get("vessel", "temperature") == pytest.approx(293.15, abs=1e-6)
+    ref_system = variant_system(s, None, scenes.reference_overrides("two_volumes", s))
+    ref = reference(ref_system, duration, "heat_transfer", "ideal")
+    assert difference(res, ref, a.outputs) < TOL
+    # the whole scene one level up (the vessel adiabatic) is far off
+    adiabatic = reference(s, duration, "adiabatic", "ideal")
+    assert difference(adiabatic, ref, a.outputs) > 10 * TOL
+
+
+def test_failed_base_goes_up_first_on_the_axis_its_checks_name():
+    """A laminar tube at Re ~10 000 chokes in the base run: the fallback tries
+    Haaland on that tube before a finer rtol or another model."""
+    s, duration, outputs = scenes.turbulent_air()
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    assert not a.runs[0].ok and "chokes" in a.runs[0].error
+    assert a.runs[0].result is not None          # its validity records were read
+    assert a.runs[1].ok
+    assert a.runs[1].config.overrides_dict() == {"tube": {"friction": "Haaland"}}
+    base = _axis(a, "base")
+    assert "failed" in base["verdict"] and "friction='Haaland'" in base["level tried"]
+    assert "friction" not in set(a.table["axis"])       # decided by the fallback
 
 
 def test_the_users_system_is_unchanged():

@@ -2,42 +2,60 @@
 
 ``sf.assess(system, duration, tolerance=0.01, outputs=[("act1", "volume")])`` runs
 the scene in its cheapest configuration (isothermal, ideal fluids, the
-components' own friction and tube laws, ``rtol = tolerance / 10``), reads the
-validity checks of that run (:mod:`softflow.solve.model_checks`) and, on each
-axis where a check fires or is near its limit, runs the scene one level up and
-measures what that changes in the outputs: the largest difference over time,
-relative to each output's range. An axis whose effect is a noticeable part of
-the tolerance gets the level up; the others stay cheap.
+components' own friction and tube laws, no inertance, ``rtol = tolerance /
+10``) and reads the validity records of that run
+(:mod:`softflow.solve.model_checks`): on each axis whose check is near its
+limit (a figure at half the limit or more, status 'near') or past it, it runs
+the scene one level up, on top of the levels adopted so far, and measures
+what that changes in the outputs: the largest difference over time, relative
+to each output's range. An axis whose effect is a noticeable part of the
+tolerance gets the level up; the others stay cheap, and cost no run where
+their check is quiet.
 
-Axes and their levels
----------------------
-time tolerance
-    ``rtol0 = tolerance / 10`` -> ``rtol0 / 10``, always, on the models chosen
-    on the other axes (their time errors differ: a friction law's transition,
-    a thermal scene's slow modes): where the two differ by more than
-    ``LOOSE_FRACTION`` of the tolerance, the tighter one is recommended.
-thermal
-    ``'isothermal'`` -> ``'adiabatic'`` (``'heat_transfer'`` where every gas
-    volume has a wall: ``hA``, or a coefficient and an area), when a volume
-    fills faster than its wall exchanges heat (check ``thermal_time_scale``,
-    a free-convection estimate), or when the user gave a volume a wall (its
-    heat transfer is then measured instead of estimated).
-fluid level
-    ``'ideal'`` -> ``'table'`` (-> ``'eos'`` where a state leaves the tables),
-    when a gas's compressibility factor is off by more than NEAR_FRACTION of the
-    tolerance (check ``gas_compressibility``, its limit tightened to that).
+Axes and their levels, in the order they are tried
+--------------------------------------------------
 friction
     the tubes given ``friction='laminar'`` whose Reynolds number passed their
     ``Re_laminar`` -> ``'Haaland'`` (check ``tube_reynolds``): an override of
-    those tubes only (below ``Re_laminar`` the two laws are the same).
+    those tubes only (below ``Re_laminar`` the two laws are the same, so a
+    near miss is not run).
 tube law
-    gas tubes past Mach 0.3 with the mean-density law ->
+    gas tubes near or past Mach 0.3 with the mean-density law ->
     ``compressible='isothermal'`` (check ``tube_mach``), those tubes only.
+inertance
+    liquid tubes whose column's inertia is near or past its limit (check
+    ``tube_inertia``) -> ``inertance=True``, those tubes only.
+fluid level
+    ``'ideal'`` -> ``'table'`` (-> ``'eos'`` where a state leaves the tables),
+    when a gas's ``|Z - 1|`` is near or past its limit (check
+    ``gas_compressibility``; at rtol0 the limit is the tolerance).
+thermal
+    ``'isothermal'`` -> per volume: a volume given a wall (``hA``, or a
+    coefficient and an area) its heat transfer, a wall-less volume whose fill
+    time is near or past its limit (check ``thermal_time_scale``) adiabatic,
+    the other wall-less volumes held isothermal (``thermal='isothermal'``
+    overrides in a thermal scene). Tried when a check is near or past its
+    limit, or a volume has a wall (the check's limit, a tenth of the thermal
+    time constant, is coarse for a 1 % tolerance; a wall the user gave is the
+    scene's physics and is measured).
+time tolerance
+    on the models chosen (their time errors differ: a friction law's
+    transition, a thermal scene's slow modes): a run at ``10 rtol0``, cheaper,
+    against ``rtol0``: within what the neglected axes leave of
+    ``LOOSE_FRACTION`` of the tolerance, ``10 rtol0`` is recommended; within
+    twice that, ``rtol0`` is kept (errors shrink at least 3x per decade of
+    rtol); else ``rtol0`` against ``rtol0 / 10``, the tighter recommended
+    where they differ by more than ``LOOSE_FRACTION``.
+
+Where the cheapest configuration fails (a laminar tube at high Reynolds
+number chokes), the levels up are tried one at a time, those whose check
+the failed run found near or past its limit first; the first that runs is
+the base.
 
 Variants are built from a copy of the System (components rebuilt from their
-recorded constructor arguments); the user's System is never changed.
-Costs are CPU times (``time.process_time``) of building and running each
-Simulation.
+recorded constructor arguments, with the overrides); the user's System is
+never changed. Costs are CPU times (``time.process_time``) of building and
+running each Simulation.
 """
 from __future__ import annotations
 
@@ -57,18 +75,18 @@ import numpy as np
 #: tolerance is given its level up (the neglected effects of several axes and
 #: the time error add up: see BUDGET_FRACTION).
 ADOPT_FRACTION = 0.5
-#: A check counts as near its limit (and its axis is tried one level up) past
-#: this fraction of the tolerance (the gas compressibility check: |Z - 1|).
-NEAR_FRACTION = 0.25
 #: The neglected effects together may use this much of the tolerance (the time
 #: error up to LOOSE_FRACTION more); past it, the largest neglected axis is
 #: given its level up too.
 BUDGET_FRACTION = 0.5
-#: rtol0 is kept where it differs from a run at rtol0 / 10 by at most this
-#: fraction of the tolerance (else rtol0 / 10 is recommended).
+#: The time error allowed: 10 rtol0 is recommended where it differs from rtol0
+#: by at most this fraction of the tolerance less the neglected effects;
+#: rtol0 is kept where it differs from 10 rtol0 by at most twice this, or
+#: from rtol0 / 10 by at most this (else rtol0 / 10 is recommended).
 LOOSE_FRACTION = 0.4
 
 _THERMAL_CHECK = "thermal_time_scale"
+_INERTIA_CHECK = "tube_inertia"
 _FLUID_CHECK = "gas_compressibility"
 _FRICTION_CHECK = "tube_reynolds"
 _MACH_CHECK = "tube_mach"
@@ -122,8 +140,9 @@ def _freeze(overrides):
 
 @dataclasses.dataclass
 class Run:
-    """One run of the assessment: its configuration, its Result (or the
-    error that stopped it) and its CPU time [s]."""
+    """One run of the assessment: its configuration, its Result (a failed
+    run's too, None where the Simulation could not be built), the error that
+    stopped it (None for a run that succeeded) and its CPU time [s]."""
 
     config: Config
     result: Any
@@ -190,7 +209,8 @@ def _gas_volumes(system):
 
 
 def _has_wall(comp):
-    return getattr(comp, "hA", None) is not None or getattr(comp, "h_correlation", None) is not None
+    from .solve.model_checks import has_wall      # (softflow.solve imports this module)
+    return has_wall(comp)
 
 
 def _catalogued_gases(system):
@@ -256,10 +276,13 @@ class Assessment:
     Attributes
     ----------
     recommended : dict
-        ``thermal``, ``fluid_level``, ``friction`` ('as given' or 'Haaland' for
-        the tubes named in ``overrides``), ``tube_law``, ``rtol``, and
-        ``overrides`` ``{label: {argument: value}}`` for the components that
-        need a level of their own.
+        ``thermal`` (the scene's model), ``fluid_level``, ``friction`` ('as
+        given' or 'Haaland' for the tubes named in ``overrides``),
+        ``tube_law``, ``inertance``, ``rtol``, and ``overrides`` ``{label:
+        {argument: value}}`` for the components that need a level of their
+        own: ``{'thermal': 'isothermal'}`` for a volume held at its wall
+        temperature where others fill fast, ``{'friction': 'Haaland'}``,
+        ``{'compressible': 'isothermal'}``, ``{'inertance': True}`` for tubes.
     table : pandas.DataFrame
         One row per axis: axis, level tried, effect (largest output
         difference relative to its range), cost (CPU s of that run, and as a
@@ -267,17 +290,21 @@ class Assessment:
     runs : list of Run
         Every run made (configuration, Result or error, CPU time).
     warnings : list of ValidityRecord
-        The base run's validity findings.
+        The base run's validity warnings (checks past their limit).
+    validity : list of ValidityRecord
+        All the base run's validity records, the near misses too (they decide
+        which axes are run one level up).
     cost : float
         CPU time of the whole assessment [s].
     """
 
     def __init__(self, system, duration, tolerance, outputs, options, rows, recommended,
-                 config, runs, warnings_, cost):
+                 config, runs, warnings_, cost, validity=()):
         self.system, self.duration, self.tolerance = system, duration, tolerance
         self.outputs, self.options = outputs, options
         self.rows, self.recommended, self.config = rows, recommended, config
         self.runs, self.warnings, self.cost = runs, warnings_, cost
+        self.validity = list(validity)
 
     @property
     def table(self):
@@ -336,8 +363,7 @@ class _Assessor:
                 error = result.message
         except Exception as err:       # a variant that cannot be built: reported, not fatal
             error = f"{type(err).__name__}: {err}"
-        done = Run(config, result if error is None else None, error,
-                   time.process_time() - t0)
+        done = Run(config, result, error, time.process_time() - t0)
         self.runs.append(done)
         return done
 
@@ -389,185 +415,255 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
     duration = to_si(duration, "s", name="duration", owner="assess")
     t_start = time.process_time()
     a = _Assessor(system, duration, tolerance, outputs, simulation_options)
-    rows = []
     rtol0 = tolerance / 10
-    gases = _catalogued_gases(system)
-    volumes = _gas_volumes(system)
-    walls = bool(volumes) and all(_has_wall(c) for c in volumes)
-    thermal_up = "heat_transfer" if walls else "adiabatic"
-    laminar = [c.label for c in system.components if getattr(c, "friction", None) == "laminar"]
+    scene = _Scene(system)
 
-    base_cfg = Config("isothermal", "ideal", rtol0)
-    base = a.run(base_cfg)
+    base = a.run(Config("isothermal", "ideal", rtol0))
+    verdict = "run"
     if not base.ok:
-        base = _fallback(a, base_cfg, thermal_up, gases, laminar)
-    base_cfg = base.config
+        failed = base
+        base = _fallback(a, base, scene)
+        why = failed.error if len(failed.error) <= 160 else failed.error[:160] + "..."
+        verdict = (f"the cheapest configuration ({failed.config.describe()}) failed: "
+                   f"{why}; this is the first one up that ran")
     for output in outputs:
         try:
             _series(base.result, output)
         except KeyError as err:
             raise KeyError(f"assess: output {output[:2] if output[2] is None else output}: "
                            f"{err.args[0]}") from None
-    records = base.result.warnings
-    rows.append(("base", base_cfg.describe(), math.nan, base.cpu, 1.0, "run"))
+    records = base.result.validity
+    rows = [("base", base.config.describe(), math.nan, base.cpu, 1.0, verdict)]
 
     def cost_row(axis, tried, effect, run, verdict):
         rows.append((axis, tried, effect, run.cpu, run.cpu / base.cpu if base.cpu else math.nan,
                      verdict))
 
-    config = base_cfg
-    neglected = {}
-    lower = base
-    # model axes, each compared at the chosen rtol against the same-rtol base
-    fired = {r.check: [] for r in records}
-    for r in records:
-        fired[r.check].append(r)
-    fluid_near = _fluid_near(base.result, records)
-    candidates = []            # (axis, tried, config up, reason)
-    if base_cfg.thermal == "isothermal":
-        if _THERMAL_CHECK in fired or any(_has_wall(c) for c in volumes):
-            # the check estimates a wall by free convection; a wall the user gave
-            # is the scene's own physics, measured directly
-            candidates.append(("thermal", f"isothermal -> {thermal_up}",
-                               lower.config.replace(thermal=thermal_up), _THERMAL_CHECK))
-        else:
-            rows.append(("thermal", "isothermal", math.nan, 0.0, 0.0,
-                         "kept: no volume fills faster than a tenth of its thermal time "
-                         "constant" if volumes else "kept: no gas volume"))
-    if base_cfg.fluid_level == "ideal" and gases:
-        if _FLUID_CHECK in fired or fluid_near:
-            candidates.append(("fluid level", "ideal -> table",
-                               lower.config.replace(fluid_level="table"),
-                               "compressibility factor Z - 1 near or past the tolerance"))
-        else:
-            rows.append(("fluid level", "ideal", math.nan, 0.0, 0.0,
-                         f"kept: |Z - 1| below {NEAR_FRACTION:g} x tolerance"))
-    for check, axis, arg, value in ((_FRICTION_CHECK, "friction", "friction", "Haaland"),
-                                    (_MACH_CHECK, "tube law", "compressible", "isothermal")):
-        if check in fired:
-            labels = sorted({r.component for r in fired[check]})
-            candidates.append((axis, f"{', '.join(labels)}: {arg}={value!r}",
-                               lower.config.with_overrides({lab: {arg: value} for lab in labels}),
-                               check))
-        elif axis == "friction" and laminar:
-            rows.append((axis, "laminar", math.nan, 0.0, 0.0,
-                         "kept: every laminar tube stays below its Re_laminar"))
-
-    adopted = {}
-    for axis, tried, up_cfg, _reason in candidates:
-        up = a.run(up_cfg)
+    # each axis near or past its limit, one level up on top of the levels adopted
+    # so far (the last adopted run is then the recommended configuration's)
+    current, neglected = base, {}
+    for axis, tried, lift, reason in scene.probes(base.config, records, rows):
+        up = a.run(lift(current.config))
         if not up.ok and axis == "fluid level":
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}")
-            up_cfg, tried = up_cfg.replace(fluid_level="eos"), "ideal -> eos"
-            up = a.run(up_cfg)
+            lift, tried = _fluid_lift("eos"), "ideal -> eos"
+            up = a.run(lift(current.config))
         if not up.ok:
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}; kept the lower level")
             continue
-        effect = difference(lower.result, up.result, outputs)
+        effect = difference(current.result, up.result, outputs)
         if effect > ADOPT_FRACTION * tolerance:
-            adopted[axis] = up_cfg
-            cost_row(axis, tried, effect, up, f"adopted: changes the outputs by {effect:.2%}")
+            current = up
+            cost_row(axis, tried, effect, up, f"adopted ({reason}): changes the outputs by "
+                                              f"{effect:.2%}")
         else:
-            neglected[axis] = (effect, up_cfg, len(rows))
-            cost_row(axis, tried, effect, up, f"kept the lower level: {effect:.2%}")
+            neglected[axis] = (effect, lift, len(rows))
+            cost_row(axis, tried, effect, up, f"kept the lower level ({reason}): {effect:.2%}")
+    config = current.config
     # the errors left add up: keep them within the budget (the time error is
     # measured below, on the configuration chosen)
     while neglected and (sum(e for e, _, _ in neglected.values())
                          > BUDGET_FRACTION * tolerance):
         axis = max(neglected, key=lambda k: neglected[k][0])
-        effect, up_cfg, row = neglected.pop(axis)
-        adopted[axis] = up_cfg
+        effect, lift, row = neglected.pop(axis)
+        config = lift(config)
         rows[row] = rows[row][:5] + (f"adopted: {effect:.2%}, and the neglected effects "
                                      f"together pass {BUDGET_FRACTION:g} x tolerance",)
-    for axis, up_cfg in adopted.items():
-        if axis == "thermal":
-            config = config.replace(thermal=up_cfg.thermal)
-        elif axis == "fluid level":
-            config = config.replace(fluid_level=up_cfg.fluid_level)
-        else:
-            config = config.with_overrides(up_cfg.overrides_dict())
-
-    # time tolerance, on the models chosen (their time errors differ: a friction
-    # law's transition, a thermal scene's slower modes): rtol0 against rtol0 / 10
-    chosen = a.run(config)
-    if chosen.ok:
-        tight = a.run(config.replace(rtol=rtol0 / 10))
-        tried = f"rtol {rtol0:.0e} -> {rtol0 / 10:.0e}"
-        if tight.ok:
-            d = difference(chosen.result, tight.result, outputs)
-            if d > LOOSE_FRACTION * tolerance:
-                config = tight.config
-                verdict = f"adopted: rtol {rtol0:.0e} is {d:.2%} off"
-            else:
-                verdict = f"kept rtol {rtol0:.0e}: {d:.2%} from rtol {rtol0 / 10:.0e}"
-            cost_row("time tolerance", tried, d, tight, verdict)
-        else:
-            cost_row("time tolerance", tried, math.nan, tight, f"failed: {tight.error}")
-    else:
-        cost_row("models chosen", config.describe(), math.nan, chosen,
-                 f"failed together: {chosen.error}; kept the base configuration")
-        config = base_cfg
-    recommended = _recommendation(config, laminar)
+    config = _time_tolerance(a, config, base_config=base.config, spare=(
+        LOOSE_FRACTION * tolerance - sum(e for e, _, _ in neglected.values())),
+        cost_row=cost_row)
+    recommended = _recommendation(config, scene.laminar)
     cost = time.process_time() - t_start
     return Assessment(system, duration, tolerance, outputs, simulation_options, rows,
-                      recommended, config, a.runs, records, cost)
+                      recommended, config, a.runs, base.result.warnings, cost,
+                      validity=records)
+
+
+def _time_tolerance(a, config, base_config, spare, cost_row):
+    """The rtol of the models chosen (their time errors differ: a friction
+    law's transition, a thermal scene's slower modes). A run at 10 rtol0,
+    cheaper than rtol0, is compared with rtol0: where it is within what the
+    neglected axes left of LOOSE_FRACTION of the tolerance, 10 rtol0 is
+    recommended; within twice LOOSE_FRACTION, rtol0 is kept (the error of a run
+    shrinks at least 3x per decade of rtol, so rtol0's is at most half that
+    difference); past it, rtol0 is compared with rtol0 / 10 and the tighter is
+    recommended where they differ by more than LOOSE_FRACTION."""
+    tol = a.tolerance
+    chosen = a.run(config)
+    if not chosen.ok:
+        cost_row("models chosen", config.describe(), math.nan, chosen,
+                 f"failed together: {chosen.error}; kept the base configuration")
+        return base_config
+    rtol0 = config.rtol
+    loose = a.run(config.replace(rtol=rtol0 * 10))
+    tried = f"rtol {rtol0:.0e} -> {rtol0 * 10:.0e}"
+    d = difference(loose.result, chosen.result, a.outputs) if loose.ok else math.inf
+    if d <= spare:
+        cost_row("time tolerance", tried, d, loose,
+                 f"adopted rtol {rtol0 * 10:.0e}: {d:.2%} from rtol {rtol0:.0e}")
+        return loose.config
+    if d <= 2 * LOOSE_FRACTION * tol:
+        cost_row("time tolerance", tried, d, loose,
+                 f"kept rtol {rtol0:.0e}: rtol {rtol0 * 10:.0e} is {d:.2%} from it"
+                 if loose.ok else f"kept rtol {rtol0:.0e}: {loose.error}")
+        return config
+    cost_row("time tolerance", tried, d, loose,
+             f"rtol {rtol0 * 10:.0e} is {d:.2%} from rtol {rtol0:.0e}" if loose.ok
+             else f"failed: {loose.error}")
+    tight = a.run(config.replace(rtol=rtol0 / 10))
+    tried = f"rtol {rtol0:.0e} -> {rtol0 / 10:.0e}"
+    if not tight.ok:
+        cost_row("time tolerance", tried, math.nan, tight, f"failed: {tight.error}")
+        return config
+    d = difference(chosen.result, tight.result, a.outputs)
+    if d > LOOSE_FRACTION * tol:
+        cost_row("time tolerance", tried, d, tight, f"adopted: rtol {rtol0:.0e} is {d:.2%} off")
+        return tight.config
+    cost_row("time tolerance", tried, d, tight,
+             f"kept rtol {rtol0:.0e}: {d:.2%} from rtol {rtol0 / 10:.0e}")
+    return config
+
+
+class _Scene:
+    """What a System offers each axis: its gas volumes (and which have walls),
+    catalogued gases, tubes given friction='laminar', liquid tubes."""
+
+    def __init__(self, system):
+        self.volumes = _gas_volumes(system)
+        self.gases = _catalogued_gases(system)
+        self.laminar = [c.label for c in system.components
+                        if getattr(c, "friction", None) == "laminar"]
+        self.liquid_tubes = [c.label for c in system.components
+                             if hasattr(c, "inertance") and getattr(c, "fluid", None) is not None
+                             and not c.fluid.compressible and not c.inertance]
+
+    def thermal_lift(self, records):
+        """Config -> config one thermal level up: the volumes whose
+        thermal_time_scale check is near or past its limit adiabatic, those
+        with a wall their heat transfer, the others held isothermal (a
+        per-volume override, where some volumes fill fast and others do not)."""
+        hot = {r.component for r in records if r.check == _THERMAL_CHECK}
+        held = [c.label for c in self.volumes if c.label not in hot and not _has_wall(c)]
+        lifted = [c for c in self.volumes if c.label not in held]
+        model = "heat_transfer" if all(_has_wall(c) for c in lifted) else "adiabatic"
+
+        def lift(cfg):
+            return cfg.replace(thermal=model).with_overrides(
+                {lab: {"thermal": "isothermal"} for lab in held})
+        tried = f"isothermal -> {model}"
+        if held:
+            tried += f" in {', '.join(c.label for c in lifted)} (held isothermal: " \
+                     f"{', '.join(held)})"
+        return tried, lift
+
+    def probes(self, base_cfg, records, rows):
+        """(axis, level tried, lift: config -> config, reason) for each axis a
+        check finds near or past its limit, in the order they are run (the
+        cheap ones first, the thermal model last); a row for each axis kept
+        without a run."""
+        from .solve.validity import NEAR_FRACTION
+        by_check = {}
+        for r in records:
+            by_check.setdefault(r.check, []).append(r)
+        out = []
+
+        def per_tube(check, arg, value, status=("near", "beyond")):
+            labels = sorted({r.component for r in by_check.get(check, ())
+                             if r.status in status})
+
+            def lift(cfg):
+                return cfg.with_overrides({lab: {arg: value} for lab in labels})
+            return labels, lift
+
+        labels, lift = per_tube(_FRICTION_CHECK, "friction", "Haaland", ("beyond",))
+        if labels:
+            out.append(("friction", f"{', '.join(labels)}: friction='Haaland'", lift,
+                        "Re past Re_laminar"))
+        elif [lab for lab in self.laminar
+              if "friction" not in base_cfg.overrides_dict().get(lab, {})]:
+            rows.append(("friction", "laminar", math.nan, 0.0, 0.0,
+                         "kept: every laminar tube stays below its Re_laminar, where the "
+                         "laminar law and the default blend are the same"))
+        labels, lift = per_tube(_MACH_CHECK, "compressible", "isothermal")
+        if labels:
+            out.append(("tube law", f"{', '.join(labels)}: compressible='isothermal'", lift,
+                        "Mach near or past 0.3"))
+        labels, lift = per_tube(_INERTIA_CHECK, "inertance", True)
+        if labels:
+            out.append(("inertance", f"{', '.join(labels)}: inertance=True", lift,
+                        "the liquid column's inertia near or past its limit"))
+        elif self.liquid_tubes:
+            rows.append(("inertance", "none", math.nan, 0.0, 0.0,
+                         f"kept: the liquid columns' inertia below {NEAR_FRACTION:g} x "
+                         "its limit"))
+        if base_cfg.fluid_level == "ideal" and self.gases:
+            if _FLUID_CHECK in by_check:
+                out.append(("fluid level", "ideal -> table", _fluid_lift("table"),
+                            "|Z - 1| near or past the tolerance"))
+            else:
+                rows.append(("fluid level", "ideal", math.nan, 0.0, 0.0,
+                             f"kept: |Z - 1| below {NEAR_FRACTION:g} x tolerance"))
+        if base_cfg.thermal == "isothermal":
+            walls = [c.label for c in self.volumes if _has_wall(c)]
+            if _THERMAL_CHECK in by_check or walls:
+                # a wall the user gave is the scene's own physics: measured even
+                # where the check (a fill time against a tenth of the thermal
+                # time constant, a coarse limit for a 1 % tolerance) is quiet
+                tried, lift = self.thermal_lift(records)
+                hot = sorted({r.component for r in by_check.get(_THERMAL_CHECK, ())})
+                out.append(("thermal", tried, lift,
+                            f"fill time near or past its limit in {', '.join(hot)}" if hot
+                            else f"the walls given to {', '.join(walls)}"))
+            else:
+                rows.append(("thermal", "isothermal", math.nan, 0.0, 0.0,
+                             "kept: no volume fills near a tenth of its thermal time "
+                             "constant" if self.volumes else "kept: no gas volume"))
+        return out
+
+
+def _fluid_lift(level):
+    def lift(cfg):
+        return cfg.replace(fluid_level=level)
+    return lift
 
 
 def _recommendation(config, laminar):
     overrides = config.overrides_dict()
-    haaland = [lab for lab, args in overrides.items() if args.get("friction") == "Haaland"]
-    isothermal = [lab for lab, args in overrides.items()
-                  if args.get("compressible") == "isothermal"]
+
+    def named(arg, value):
+        return [lab for lab, args in overrides.items() if args.get(arg) == value]
+    haaland = named("friction", "Haaland")
     return {"thermal": config.thermal, "fluid_level": config.fluid_level,
             "friction": ("Haaland" if laminar and sorted(haaland) == sorted(laminar)
                          else "as given, Haaland where overridden" if haaland else "as given"),
-            "tube_law": ("as given, isothermal where overridden" if isothermal
-                         else "as given"),
+            "tube_law": ("as given, isothermal where overridden"
+                         if named("compressible", "isothermal") else "as given"),
+            "inertance": ("as given, True where overridden" if named("inertance", True)
+                          else "as given"),
             "rtol": config.rtol, "overrides": overrides}
 
 
-class _StrictRtol:
-    """A base run's result seen with rtol times NEAR_FRACTION: the
-    compressibility check's limit, max(10 rtol, 1e-3), is then NEAR_FRACTION
-    of the tolerance (rtol0 = tolerance / 10), and finds what is near it."""
-
-    def __init__(self, result):
-        self._result = result
-        self.stats = {**result.stats,
-                      "rtol": result.stats.get("rtol", 1e-3) * NEAR_FRACTION}
-
-    def __getattr__(self, name):
-        return getattr(self._result, name)
-
-
-def _fluid_near(result, records):
-    """Whether the ideal-gas level is near its limit: the compressibility check
-    evaluated with its limit at NEAR_FRACTION of the tolerance."""
-    if any(r.check == _FLUID_CHECK for r in records):
-        return True
-    from .components.thermal import VOLUME_CLASSES
-    from .solve.model_checks import gas_compressibility
-    groups = {id(g): g for g, _ in result._where.values()}.values()
-    view = _StrictRtol(result)
-    return any(gas_compressibility(g, view) for g in groups
-               if isinstance(g.comps[0], VOLUME_CLASSES))
-
-
-def _fallback(a, base_cfg, thermal_up, gases, laminar):
-    """The base configuration failed: try one level up on each axis, then all
-    at once; the first that runs becomes the base. None runs: AssessmentError."""
-    tries = [base_cfg.replace(rtol=base_cfg.rtol / 10)]
-    tries.append(base_cfg.replace(thermal=thermal_up))
-    if gases:
-        tries += [base_cfg.replace(fluid_level="table"), base_cfg.replace(fluid_level="eos")]
-    if laminar:
-        tries.append(base_cfg.with_overrides({lab: {"friction": "Haaland"} for lab in laminar}))
-    every = base_cfg.replace(thermal=thermal_up, fluid_level="eos" if gases else "ideal",
-                             rtol=base_cfg.rtol / 10)
-    if laminar:
-        every = every.with_overrides({lab: {"friction": "Haaland"} for lab in laminar})
-    tries.append(every)
-    for cfg in tries:
+def _fallback(a, failed, scene):
+    """The base configuration failed: try one level up on each axis, those
+    whose check the failed run found near or past its limit first (a laminar
+    tube past Re_laminar chokes: Haaland, not a finer rtol), then all at once;
+    the first that runs becomes the base. None runs: AssessmentError."""
+    base_cfg = failed.config
+    records = failed.result.validity if failed.result is not None else []
+    flagged = {r.check for r in records}
+    thermal_up = "heat_transfer" if scene.volumes and all(
+        _has_wall(c) for c in scene.volumes) else "adiabatic"
+    haaland = {lab: {"friction": "Haaland"} for lab in scene.laminar}
+    first, then = [], [base_cfg.replace(rtol=base_cfg.rtol / 10)]
+    (first if _FRICTION_CHECK in flagged else then).extend(
+        [base_cfg.with_overrides(haaland)] if haaland else [])
+    (first if _THERMAL_CHECK in flagged else then).append(base_cfg.replace(thermal=thermal_up))
+    if scene.gases:
+        (first if _FLUID_CHECK in flagged else then).extend(
+            [base_cfg.replace(fluid_level="table"), base_cfg.replace(fluid_level="eos")])
+    every = base_cfg.replace(thermal=thermal_up, fluid_level="eos" if scene.gases else "ideal",
+                             rtol=base_cfg.rtol / 10).with_overrides(haaland)
+    for cfg in first + then + [every]:
         done = a.run(cfg)
         if done.ok:
             return done

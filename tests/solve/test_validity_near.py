@@ -114,3 +114,21 @@ def test_validity_table_lists_warnings_and_near_misses():
     row = df.set_index("check").loc["thermal_time_scale"]
     assert row["status"] == "near" and row["component"] == "tank"
     assert len(table(res.warnings)) == len(res.warnings) == 0
+
+
+def test_thermal_check_takes_the_wall_the_volume_was_given():
+    """The fill that is past the limit with the free-convection estimate of a
+    bare tank is quiet where the tank was given a strong wall, and past it
+    with a weak one."""
+    def fill(**wall):
+        return _into(4e5, sf.Orifice("valve", sf.air, C=1e-8, b=0.3),
+                     sf.Container("tank", sf.air, 1e-3, **wall))
+    fractions = {}
+    for name, wall in (("bare", {}), ("strong", {"hA": 10.0}), ("weak", {"hA": 0.01})):
+        res, _ = _run(fill(**wall), 1.0)
+        rec = [r for r in res.validity if r.check == "thermal_time_scale"]
+        fractions[name] = rec[0].fraction if rec else 0.0
+        if rec:
+            assert ("its own h A" in rec[0].message) is bool(wall)
+    assert fractions["bare"] > 1 and fractions["strong"] == 0.0
+    assert fractions["weak"] > fractions["bare"]

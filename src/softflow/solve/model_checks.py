@@ -57,8 +57,9 @@ Checks
 ``thermal_time_scale``
     An isothermal gas volume that filled or emptied much faster than its wall
     can exchange heat: the time scale m / |mdot| against the thermal time
-    constant m cv / (h A) with h from free convection (a sphere of the
-    volume's size, 10 K difference: an estimate). Faster than a tenth of it,
+    constant m cv / (h A) of the volume's own wall where it was given one
+    (``hA``, or a coefficient and an area), else with h from free convection
+    (a sphere of the volume's size, 10 K difference: an estimate). Faster than a tenth of it,
     the gas is closer to adiabatic than to isothermal. Fraction: a tenth of
     the thermal time constant / the fill time.
 """
@@ -308,7 +309,10 @@ def thermal_time_scale(g, result):
             h = sphere.coefficient(fluid, pk, T + THERMAL_DT, T, length)
         except Exception:      # a fluid without conductivity: no estimate
             return []
-        t_thermal = m * fluid.cv(pk) / (h * np.pi * length ** 2)
+        hA = h * np.pi * length ** 2
+        for j, i in enumerate(keep):      # a wall the user gave is the scene's own
+            hA[j] = _wall_hA(g.comps[i], fluid, pk[j], T, m[j], hA[j])
+        t_thermal = m * fluid.cv(pk) / hA
         fraction = THERMAL_FRACTION * t_thermal / t_fill
     out = []
     for j in np.flatnonzero(fraction >= NEAR_FRACTION):
@@ -320,13 +324,32 @@ def thermal_time_scale(g, result):
             "volume's area and a heat-transfer coefficient)",
             f"its gas filled or emptied on a time scale m/|mdot| = {t_fill[j]:.3g} s at "
             f"t = {result.times[k[j]]:.6g} s, against a thermal time constant "
-            f"~{t_thermal[j]:.3g} s of its wall (free convection estimate), "
+            f"~{t_thermal[j]:.3g} s of its wall ("
+            + ("its own h A" if has_wall(c) else "free convection estimate") + "), "
             + ("much faster than the wall exchanges heat: the gas is closer to adiabatic "
                "than to the isothermal model, and its pressure swings are larger than "
                "computed." if fraction[j] > 1 else
                f"{fraction[j]:.0%} of the way to the limit (a tenth of that constant)."),
             thermal_time_constant=float(t_thermal[j]), time=float(result.times[k[j]])))
     return out
+
+
+def has_wall(comp):
+    """Whether a volume was given a wall (hA, or a coefficient and an area)."""
+    return (getattr(comp, "hA", None) is not None
+            or getattr(comp, "h_correlation", None) is not None)
+
+
+def _wall_hA(comp, fluid, p, T, m, estimate):
+    """h A of a volume's wall [W/K]: its own hA, or its correlation's h at the
+    state (a THERMAL_DT difference) times its area, else ``estimate``."""
+    if not has_wall(comp):
+        return estimate
+    if comp.hA is not None:
+        return comp.hA
+    corr = comp.h_correlation
+    length = corr.characteristic_length(m / fluid.density(p))
+    return float(corr.coefficient(fluid, p, T + THERMAL_DT, T, length)) * comp.area
 
 
 def tube_inertia(g, result):
