@@ -53,10 +53,12 @@ def test_slow_syringe_fill_stays_isothermal():
     assert a.recommended["thermal"] == "isothermal"
     assert a.recommended["fluid_level"] == "ideal"
     assert a.recommended["overrides"] == {}
-    # the wall the user gave was measured, and found small
+    # the wall the user gave is strong for a few mL: the isothermal error is
+    # estimated at 0.04 %, and not measured
     row = a.table.set_index("axis").loc["thermal"]
-    assert row["level tried"] == "isothermal -> heat_transfer"
-    assert row["effect"] < TOL / 2
+    assert row["verdict"].startswith("kept") and row["cost [s]"] == 0
+    assert "estimated at most 0.0" in row["verdict"]
+    assert all(r.config.thermal == "isothermal" for r in a.runs)
     ref = reference(s, 12.0, "heat_transfer", "table")
     assert difference(recommended_run(a), ref, a.outputs) < TOL
 

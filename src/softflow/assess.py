@@ -30,14 +30,15 @@ fluid level
     when a gas's ``|Z - 1|`` is near or past its limit (check
     ``gas_compressibility``; at rtol0 the limit is the tolerance).
 thermal
-    ``'isothermal'`` -> per volume: a volume given a wall (``hA``, or a
-    coefficient and an area) its heat transfer, a wall-less volume whose fill
-    time is near or past its limit (check ``thermal_time_scale``) adiabatic,
-    the other wall-less volumes held isothermal (``thermal='isothermal'``
-    overrides in a thermal scene). Tried when a check is near or past its
-    limit, or a volume has a wall (the check's limit, a tenth of the thermal
-    time constant, is coarse for a 1 % tolerance; a wall the user gave is the
-    scene's physics and is measured).
+    ``'isothermal'`` -> per volume, in the volumes whose fill time is near or
+    past its limit (check ``thermal_time_scale``) and the volumes with a wall
+    (``hA``, or a coefficient and an area) whose isothermal error is estimated
+    past NEAR_FRACTION of the tolerance
+    (:func:`~softflow.solve.model_checks.isothermal_error`, (gamma - 1) times
+    the thermal time constant over the fill time: the check's limit, "closer
+    to adiabatic", is coarse for a 1 % tolerance): their heat transfer where
+    they have a wall, else adiabatic; the other volumes held isothermal
+    (``thermal='isothermal'`` overrides in a thermal scene).
 time tolerance
     on the models chosen (their time errors differ: a friction law's
     transition, a thermal scene's slow modes): a run at ``10 rtol0``, cheaper,
@@ -442,7 +443,10 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
     # each axis near or past its limit, one level up on top of the levels adopted
     # so far (the last adopted run is then the recommended configuration's)
     current, neglected = base, {}
-    for axis, tried, lift, reason in scene.probes(base.config, records, rows):
+    from .solve.model_checks import isothermal_error
+    errors = isothermal_error(base.result)
+    for axis, tried, lift, reason in scene.probes(base.config, records, rows, errors,
+                                                  tolerance):
         up = a.run(lift(current.config))
         if not up.ok and axis == "fluid level":
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}")
@@ -537,14 +541,24 @@ class _Scene:
                              if hasattr(c, "inertance") and getattr(c, "fluid", None) is not None
                              and not c.fluid.compressible and not c.inertance]
 
-    def thermal_lift(self, records):
-        """Config -> config one thermal level up: the volumes whose
-        thermal_time_scale check is near or past its limit adiabatic, those
-        with a wall their heat transfer, the others held isothermal (a
-        per-volume override, where some volumes fill fast and others do not)."""
+    def lifted_volumes(self, records, errors, tolerance):
+        """The volumes one thermal level up would lift: those whose
+        thermal_time_scale check is near or past its limit, and those with a
+        wall whose isothermal error is estimated past NEAR_FRACTION of the
+        tolerance (:func:`softflow.solve.model_checks.isothermal_error`; a
+        wall-less volume's level up is adiabatic, which only a fill near or
+        past the check's limit is closer to)."""
+        from .solve.validity import NEAR_FRACTION
         hot = {r.component for r in records if r.check == _THERMAL_CHECK}
-        held = [c.label for c in self.volumes if c.label not in hot and not _has_wall(c)]
-        lifted = [c for c in self.volumes if c.label not in held]
+        return [c for c in self.volumes if c.label in hot or (
+            _has_wall(c) and errors.get(c.label, math.inf) > NEAR_FRACTION * tolerance)]
+
+    def thermal_lift(self, lifted):
+        """Config -> config one thermal level up in the volumes ``lifted``:
+        those with a wall their heat transfer, the others adiabatic; the
+        other volumes held isothermal (a per-volume override, where some
+        volumes fill fast and others do not)."""
+        held = [c.label for c in self.volumes if c not in lifted]
         model = "heat_transfer" if all(_has_wall(c) for c in lifted) else "adiabatic"
 
         def lift(cfg):
@@ -556,7 +570,7 @@ class _Scene:
                      f"{', '.join(held)})"
         return tried, lift
 
-    def probes(self, base_cfg, records, rows):
+    def probes(self, base_cfg, records, rows, errors, tolerance):
         """(axis, level tried, lift: config -> config, reason) for each axis a
         check finds near or past its limit, in the order they are run (the
         cheap ones first, the thermal model last); a row for each axis kept
@@ -604,20 +618,25 @@ class _Scene:
                 rows.append(("fluid level", "ideal", math.nan, 0.0, 0.0,
                              f"kept: |Z - 1| below {NEAR_FRACTION:g} x tolerance"))
         if base_cfg.thermal == "isothermal":
-            walls = [c.label for c in self.volumes if _has_wall(c)]
-            if _THERMAL_CHECK in by_check or walls:
-                # a wall the user gave is the scene's own physics: measured even
-                # where the check (a fill time against a tenth of the thermal
-                # time constant, a coarse limit for a 1 % tolerance) is quiet
-                tried, lift = self.thermal_lift(records)
+            # a volume with a wall is measured where its isothermal error is
+            # estimated near the tolerance even if the check (a fill time
+            # against a tenth of the thermal time constant: "closer to
+            # adiabatic", coarse for a 1 % tolerance) is quiet
+            lifted = self.lifted_volumes(records, errors, tolerance)
+            if lifted:
+                tried, lift = self.thermal_lift(lifted)
                 hot = sorted({r.component for r in by_check.get(_THERMAL_CHECK, ())})
-                out.append(("thermal", tried, lift,
-                            f"fill time near or past its limit in {', '.join(hot)}" if hot
-                            else f"the walls given to {', '.join(walls)}"))
+                warm = sorted(c.label for c in lifted if c.label not in hot)
+                out.append(("thermal", tried, lift, "; ".join(
+                    ([f"fill time near or past its limit in {', '.join(hot)}"] if hot else [])
+                    + ([f"isothermal error estimated {max(errors[x] for x in warm):.2%} in "
+                        f"{', '.join(warm)}"] if warm else []))))
             else:
-                rows.append(("thermal", "isothermal", math.nan, 0.0, 0.0,
-                             "kept: no volume fills near a tenth of its thermal time "
-                             "constant" if self.volumes else "kept: no gas volume"))
+                rows.append(("thermal", "isothermal", math.nan, 0.0, 0.0, (
+                    f"kept: no volume fills near a tenth of its thermal time constant, the "
+                    f"isothermal error estimated at most "
+                    f"{max(errors.values(), default=0.0):.2%}")
+                    if self.volumes else "kept: no gas volume"))
         return out
 
 

@@ -282,14 +282,17 @@ def gas_compressibility(g, result):
 
 
 # -- thermal -------------------------------------------------------------------------
-def thermal_time_scale(g, result):
+def fill_and_thermal_times(g, result):
+    """For the isothermal gas volumes of group ``g``: (indices in the group,
+    fill time scale m/|mdot| at the peak flow [s], thermal time constant
+    m cv / (h A) there [s], the time index of the peak), or None."""
     comp0 = g.comps[0]
     fluid = comp0.fluid
     if fluid is None or not fluid.compressible or getattr(comp0, "_thermal", None) is not None:
-        return []
+        return None
     keep, mass = group_values(g, result, "mass")
     if not keep:
-        return []
+        return None
     _, mf = group_values(g, result, "massflow")
     _, p = group_values(g, result, "pressure")
     flow = np.abs(mf)
@@ -298,7 +301,7 @@ def thermal_time_scale(g, result):
     peak, m, pk = flow[k, cols], mass[k, cols], p[k, cols]
     moving = peak > 0
     if not moving.any():
-        return []
+        return None
     from ..correlations.heat_transfer import FreeConvection
     sphere = FreeConvection("sphere")
     T = float(fluid.temperature)
@@ -308,11 +311,44 @@ def thermal_time_scale(g, result):
         try:
             h = sphere.coefficient(fluid, pk, T + THERMAL_DT, T, length)
         except Exception:      # a fluid without conductivity: no estimate
-            return []
+            return None
         hA = h * np.pi * length ** 2
         for j, i in enumerate(keep):      # a wall the user gave is the scene's own
             hA[j] = _wall_hA(g.comps[i], fluid, pk[j], T, m[j], hA[j])
         t_thermal = m * fluid.cv(pk) / hA
+    return keep, t_fill, t_thermal, k
+
+
+def isothermal_error(result):
+    """{label: estimated error of the isothermal model} for the gas volumes of
+    an isothermal run: (gamma - 1) t_thermal / t_fill, the relative
+    temperature rise of gas filled at the peak rate whose wall removes heat
+    with the time constant t_thermal (capped at gamma - 1, the adiabatic
+    limit). An order-of-magnitude estimate (the near-choking scene of
+    benchmarks/assess_scenes.py: 0.3 estimated, 13 % measured)."""
+    from ..components.thermal import VOLUME_CLASSES
+    out = {}
+    for g in {id(g): g for g, _ in result._where.values()}.values():
+        if not isinstance(g.comps[0], VOLUME_CLASSES):
+            continue
+        times = fill_and_thermal_times(g, result)
+        if times is None:
+            continue
+        keep, t_fill, t_thermal, _ = times
+        gamma1 = float(g.comps[0].fluid.gamma(pressure_atmospheric)) - 1.0
+        with np.errstate(all="ignore"):
+            err = np.minimum(gamma1 * t_thermal / t_fill, gamma1)
+        for j, i in enumerate(keep):
+            out[g.comps[i].label] = float(err[j])
+    return out
+
+
+def thermal_time_scale(g, result):
+    times = fill_and_thermal_times(g, result)
+    if times is None:
+        return []
+    keep, t_fill, t_thermal, k = times
+    with np.errstate(all="ignore"):
         fraction = THERMAL_FRACTION * t_thermal / t_fill
     out = []
     for j in np.flatnonzero(fraction >= NEAR_FRACTION):
