@@ -19,7 +19,9 @@ exp(-t/RC)) and, for the others, the difference from the fixed-step
 sensitivities at 0.1 ms (itself first-order accurate). Error: the largest
 |sensitivity - reference| over the variables named, relative to the largest
 |reference|. Cost: CPU time of a run with p parameters over the plain run's
-(medians of --repeat).
+(median of --repeat, and in brackets the range of the single runs over the
+plain run's median); the last column is p = 2 with the parameter derivatives
+taken by finite differences (``softflow.solve.sensitivity.ANALYTIC = False``).
 """
 from __future__ import annotations
 
@@ -38,6 +40,7 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 import softflow as sf  # noqa: E402
+import softflow.solve.sensitivity as sensitivity  # noqa: E402
 from helpers import rc_circuit  # noqa: E402
 from scenes import chain  # noqa: E402
 
@@ -113,17 +116,26 @@ def accuracy_bdf(scene, build, kw, duration, params, outputs):
 
 
 def cost(build, kw, duration, params, stepping, repeat):
+    """{p: (median ratio, lowest, highest)} for p = 1, 2 and 'fd' (p = 2, finite
+    differences for the parameter derivatives), and the plain run's median [s]."""
     sim = sf.Simulation(build(), duration=duration, **kw, **stepping)
-    out = {}
-    for p in range(len(params) + 1):
-        names = list(params)[:p]
-        times = []
+    times = {}
+    for p in (0, 1, 2, "fd"):
+        names = list(params)[:2 if p == "fd" else p]
+        sensitivity.ANALYTIC = p != "fd"
+        times[p] = []
         for _ in range(repeat):
             t0 = time.process_time()
             sim.run(sensitivities=names or None)
-            times.append(time.process_time() - t0)
-        out[p] = statistics.median(times)
-    return {p: out[p] / out[0] for p in out}, out[0]
+            times[p].append(time.process_time() - t0)
+    sensitivity.ANALYTIC = True
+    plain = statistics.median(times[0])
+    return {p: (statistics.median(ts) / plain, min(ts) / plain, max(ts) / plain)
+            for p, ts in times.items() if p != 0}, plain
+
+
+def _ratio(r):
+    return f"{r[0]:.2f}x ({r[1]:.2f}-{r[2]:.2f})"
 
 
 def main():
@@ -133,17 +145,19 @@ def main():
     args = ap.parse_args()
     warnings.simplefilter("ignore", sf.ModelWarning)
     print("| scene | stepping | error (reference) | plain run | cost, p = 1 | "
-          "cost, p = 2 | target (1 + 0.5 p) |")
-    print("|---|---|---|---|---|---|---|")
+          "cost, p = 2 | target (1 + 0.5 p) | p = 2, FD parameter derivatives |")
+    print("|---|---|---|---|---|---|---|---|")
     for scene, (build, kw, duration, params, outputs) in SCENES.items():
         err = accuracy_fixed(build, kw, duration, params, outputs)
         ratios, plain = cost(build, kw, duration, params, {"step": 1e-3}, args.repeat)
         print(f"| {scene} | fixed 1 ms | {err:.1e} (whole runs, same steps) | "
-              f"{plain * 1e3:.1f} ms | {ratios[1]:.2f}x | {ratios[2]:.2f}x | 1.5x / 2.0x |")
+              f"{plain * 1e3:.1f} ms | {_ratio(ratios[1])} | {_ratio(ratios[2])} | "
+              f"1.5x / 2.0x | {_ratio(ratios['fd'])} |")
         err, against = accuracy_bdf(scene, build, kw, duration, params, outputs)
         ratios, plain = cost(build, kw, duration, params, {"rtol": 1e-6}, args.repeat)
         print(f"| {scene} | BDF rtol 1e-6 | {err:.1e} ({against}) | {plain * 1e3:.1f} ms | "
-              f"{ratios[1]:.2f}x | {ratios[2]:.2f}x | 1.5x / 2.0x |")
+              f"{_ratio(ratios[1])} | {_ratio(ratios[2])} | 1.5x / 2.0x | "
+              f"{_ratio(ratios['fd'])} |")
 
 
 if __name__ == "__main__":
