@@ -3,10 +3,11 @@
 #
 # `sf.assess(system, duration, tolerance, outputs)` runs the cheapest
 # configuration (isothermal, ideal fluids, the components' own friction laws,
-# rtol = tolerance/10), reads the validity checks of that run, goes one level up
-# on each axis a check flags, keeps a level where it changes the outputs by more
-# than half the tolerance, and recommends a configuration. Here, three scenes
-# that need different models:
+# no inertance, rtol = tolerance/10), reads the validity records of that run,
+# goes one level up on each axis whose check is near its limit (half of it or
+# more) or past it, keeps a level where it changes the outputs by more than
+# half the tolerance, and recommends a configuration, per component where
+# parts of the network differ. Here, three scenes that need different models:
 #
 # 1. a slow syringe-like fill of an air actuator: isothermal is adequate;
 # 2. a fast fill of a 1 L tank through a valve: the gas heats up, adiabatic is needed;
@@ -80,6 +81,20 @@ for name, (build, duration, outputs, _) in scenes.items():
 for name, a in assessments.items():
     print(f"--- {name}")
     print(a.table.to_string(index=False))
+
+# %% [markdown]
+# The validity records of each base run decide which axes are run one level
+# up: 'beyond' records are warnings (also `sf.ModelWarning`), 'near' ones are
+# figures at half their limit or more (here the bottle's fill time against its
+# wall's thermal time constant), not warned but measured.
+
+# %%
+from softflow.solve.validity import table
+
+for name, a in assessments.items():
+    print(f"--- {name}")
+    print(table(a.validity)[["component", "check", "status", "fraction"]].to_string(index=False)
+          if a.validity else "no record")
 
 # %% [markdown]
 # ## Against a fine reference
