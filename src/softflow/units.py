@@ -27,6 +27,7 @@ QUANTITY_UNITS = {
     "density": "kg/m**3",
     "energy": "J",
     "energyflow": "W",
+    "heatflow": "W",
 }
 
 _DIMENSION_WORDS = {

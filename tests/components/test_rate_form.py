@@ -17,6 +17,7 @@ REL_STEP = 1e-6
 RTOL, ATOL_ROW = 1e-5, 1e-8
 #: typical size of each quantity: finite-difference steps and tolerance floors
 SCALE = {"pressure": 1e5, "massflow": 1e-4, "temperature": 300.0, "energyflow": 30.0,
+         "heatflow": 30.0,
          "mass": 1e-5, "energy": 10.0, "volume": 1e-5, "dimensionless": 1.0}
 
 
@@ -83,6 +84,39 @@ def _thermal_instances():
     return out
 
 
+def _thermal_volume_instances():
+    """Thermal volumes in rate form: free (adiabatic, heat transfer) and held at
+    their wall temperature, at the ideal and the eos level."""
+    air, eos = sf.air, sf.Fluid("air", level="eos")
+    pv = curve_peak_valley()
+    loop = loop_hysteretic()
+    makers = {
+        "Container": lambda i, fl, kw: sf.Container(f"k{i}", fl, 1e-4 * (i + 1), 2e5, **kw),
+        "LinearAccumulator": lambda i, fl, kw: sf.LinearAccumulator(
+            f"a{i}", fl, 1e-5, 1e-11 * (i + 1), initial_pressure=1.5e5, **kw),
+        "Actuator": lambda i, fl, kw: sf.Actuator(f"act{i}", fl, pv, **kw),
+        "Actuator-scaled": lambda i, fl, kw: sf.Actuator(f"act{i}", fl, pv,
+                                                         pressure_scale=0.8 + 0.3 * i, **kw),
+        "Actuator-callable": lambda i, fl, kw: sf.Actuator(
+            f"act{i}", fl, lambda v: P0 + 1e10 * v + 3e14 * v * v, initial_volume=1e-6,
+            **kw),
+        "HystereticActuator": lambda i, fl, kw: sf.HystereticActuator(f"h{i}", fl, *loop,
+                                                                      **kw),
+    }
+    modes = {"adiabatic": {}, "heat_transfer": {"hA": 0.3},
+             "held": {"thermal": "isothermal", "wall_temperature": 310.0}}
+    out = []
+    for name, make in makers.items():
+        for mode, kw in modes.items():
+            for fl in ((air, eos) if name == "Container" else (air,)):
+                comps = [make(i, fl, kw) for i in range(3)]
+                s = sf.System()
+                s.add(*comps)
+                configure_thermal(s, "adiabatic")
+                out.append((f"thermal-{name}-{mode}-{fl.level}", comps))
+    return out
+
+
 class Case:
     def __init__(self, comps, seed):
         rng = np.random.default_rng(seed)
@@ -112,7 +146,7 @@ class Case:
 
 
 CASES = {name: Case(comps, k) for k, (name, comps) in
-         enumerate(_instances() + _thermal_instances())}
+         enumerate(_instances() + _thermal_instances() + _thermal_volume_instances())}
 
 
 def _check(name, got_cols, pattern, D, scale, what):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from softflow.components.thermal import THERMAL_CLASSES, UPWIND_BAND
+from softflow.components.thermal import HELD_CLASSES, THERMAL_CLASSES, UPWIND_BAND
 from softflow.components.tubes import InertialCircularTube
 from softflow.paper_scenes import loop_hysteretic
 from softflow.solve.thermal import configure_thermal
@@ -35,7 +35,7 @@ class Case:
         self.P = self.cls.make_params(comps)
         self.V = np.asarray(V, dtype=float)
         self.S = np.asarray(S, dtype=float).reshape(len(comps), len(self.cls.state_spec))
-        self.scale = np.asarray(scale, dtype=float)
+        self.scale = np.asarray(scale, dtype=float)[:self.V.shape[1]]
         self.dt, self.t = dt, t
 
     def eval(self, V, jac):
@@ -107,9 +107,12 @@ def _cases():
                                     temperature=320.0) for i in range(n)]
         cases[f"VolumeFlowSource{'+' if sign > 0 else '-'}"] = Case(
             _configure(srcs), V, np.zeros((n, 0)), scale)
-    # volumes
+    # volumes: free ones (adiabatic, heat transfer) carry their wall heat as a local
+    # unknown, V = [p, mf, T, E, Q], states (mass, stored_energy); held ones V = [p,
+    # mf, T, E], state mass
     Vv = np.column_stack([rng.uniform(1e5, 4e5, n), rng.uniform(-1e-4, 1e-4, n),
-                          rng.uniform(250, 400, n), rng.uniform(-30, 30, n)])
+                          rng.uniform(250, 400, n), rng.uniform(-30, 30, n),
+                          rng.uniform(-5, 5, n)])
     for fluid in (sf.air, AIR_EOS):
         for model, kw in (("adiabatic", {}), ("heat_transfer", {"hA": 0.3}),
                           ("isothermal", {"wall_temperature": 310.0})):
@@ -117,39 +120,54 @@ def _cases():
                                   wall_temperature=kw.get("wall_temperature"),
                                   thermal=model, initial_pressure=2e5) for i in range(n)]
             _configure(tanks)
+            held = model == "isothermal"
             S = np.column_stack([[2e-3, 5e-3, 7e-3], [500.0, 1500.0, 2000.0]])
-            cases[f"Container-{fluid.level}-{model}"] = Case(tanks, Vv, S,
-                                                              [1e5, 1e-4, 300, 10])
+            cases[f"Container-{fluid.level}-{model}"] = Case(
+                tanks, Vv[:, :4] if held else Vv, S[:, :1] if held else S,
+                [1e5, 1e-4, 300, 10, 10])
     accs = [sf.LinearAccumulator(f"a{i}", sf.air, volume=1e-4, compliance=1e-10 * (i + 1),
                                  hA=0.2) for i in range(n)]
     _configure(accs, "heat_transfer")
-    S = np.column_stack([[1e-4, 2e-4, 3e-4], [30.0, 60.0, 90.0], [1e-4, 1.1e-4, 1.2e-4]])
-    cases["LinearAccumulator"] = Case(accs, Vv, S, [1e5, 1e-4, 300, 10])
+    S = np.column_stack([[1e-4, 2e-4, 3e-4], [30.0, 60.0, 90.0]])
+    cases["LinearAccumulator"] = Case(accs, Vv, S, [1e5, 1e-4, 300, 10, 10])
+    accs = [sf.LinearAccumulator(f"a{i}", sf.air, volume=1e-4, compliance=1e-10 * (i + 1),
+                                 thermal="isothermal") for i in range(n)]
+    _configure(accs, "heat_transfer")
+    cases["LinearAccumulator-held"] = Case(accs, Vv[:, :4], S[:, :1], [1e5, 1e-4, 300, 10])
     curve = sf.PVCurve.monotonic((1e-5, P0), (3e-5, 1.5e5), (6e-5, 1.8e5))
-    acts = [sf.Actuator(f"act{i}", sf.air, curve) for i in range(n)]
-    _configure(acts)
     Va = Vv.copy()
     Va[:, 0] = [1.2e5, 1.6e5, 1.9e5]
-    S = np.column_stack([[3e-5, 5e-5, 8e-5], [10.0, 20.0, 30.0], [2e-5, 4e-5, 7e-5]])
-    cases["Actuator"] = Case(acts, Va, S, [1e5, 1e-5, 300, 10])
+    S = np.column_stack([[3e-5, 5e-5, 8e-5], [10.0, 20.0, 30.0]])
+    acts = [sf.Actuator(f"act{i}", sf.air, curve) for i in range(n)]
+    _configure(acts)
+    cases["Actuator"] = Case(acts, Va, S, [1e5, 1e-5, 300, 10, 10])
+    acts = [sf.Actuator(f"act{i}", sf.air, curve, thermal="isothermal") for i in range(n)]
+    _configure(acts)
+    cases["Actuator-held"] = Case(acts, Va[:, :4], S[:, :1], [1e5, 1e-5, 300, 10])
     # hysteretic actuator (the paper's snapping loop, V_lo 3.7 mL, V_hi 6.3 mL) on each
     # branch; end-of-step volumes away from the loop ends, one inside each snap
     loop = loop_hysteretic()
     for branch, vols, model, kw in ((1.0, [2e-6, 5e-6, 6.15e-6], "adiabatic", {}),
-                                    (0.0, [3.8e-6, 5e-6, 9e-6], "heat_transfer", {"hA": 0.1})):
+                                    (0.0, [3.8e-6, 5e-6, 9e-6], "heat_transfer", {"hA": 0.1}),
+                                    (1.0, [2e-6, 5e-6, 6.15e-6], "held",
+                                     {"thermal": "isothermal"})):
         hyst = [sf.HystereticActuator(f"h{i}", sf.air, *loop, **kw) for i in range(n)]
-        _configure(hyst, model)
+        _configure(hyst, "adiabatic" if model == "held" else model)
         Vh = Vv.copy()
         Vh[:, 0] = [1.1e5, 1.25e5, 1.3e5]
         dt = 1e-3
         mass = sf.air.density(Vh[:, 0], Vh[:, 2]) * np.array(vols) - dt * Vh[:, 1]
-        S = np.column_stack([mass, [10.0, 20.0, 30.0], np.array(vols) * 0.98, [branch] * n])
-        case = Case(hyst, Vh, S, [1e5, 1e-5, 300, 10], dt=dt)
+        if model == "held":
+            Vh = Vh[:, :4]
+            S = np.column_stack([mass, [branch] * n])
+        else:
+            S = np.column_stack([mass, [10.0, 20.0, 30.0], [branch] * n, [0.1, 0.2, 0.3]])
+        case = Case(hyst, Vh, S, [1e5, 1e-5, 300, 10, 10], dt=dt)
         # the kernel sees the intended branch and end-of-step volumes
-        vol, _ = case.cls._vol(case.P, case.V, case.S, dt)
+        vol = (case.S[:, 0] + dt * case.V[:, 1]) / sf.air.density(case.V[:, 0], case.V[:, 2])
         np.testing.assert_allclose(vol, vols, rtol=1e-12)
         assert (loop.on_inflation_curve(vol, branch > 0.5) == (branch > 0.5)).all()
-        cases[f"HystereticActuator-{'inflation' if branch else 'deflation'}"] = case
+        cases[f"HystereticActuator-{model}-{'inflation' if branch else 'deflation'}"] = case
     return cases
 
 
@@ -157,7 +175,8 @@ CASES = _cases()
 
 
 def test_every_thermal_class_is_covered():
-    assert {c.cls for c in CASES.values()} == set(THERMAL_CLASSES.values())
+    assert {c.cls for c in CASES.values()} == (set(THERMAL_CLASSES.values())
+                                               | set(HELD_CLASSES.values()))
 
 
 @pytest.mark.parametrize("name", list(CASES))

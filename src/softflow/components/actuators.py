@@ -18,6 +18,7 @@ a tube-fed actuator 800 Pa away from its source, which this form solves.
 """
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -57,12 +58,16 @@ class _CurveFunction:
             self.fdf = curve.fdf_volume
             self.value = lambda v: curve.fdf_volume(v)[0]
             self.user = None
+            self.work = getattr(curve, "work", self._quadrature)
+            self.v_ref = volume_scale
             return
         if derivative is not None and not callable(derivative):
             raise TypeError(f"{owner}: curve_derivative must be a callable V [m^3] -> dp/dV "
                             f"[Pa/m^3], got {derivative!r}")
         self.user = curve      # a user's function: its failures name the actuator
         self.h_floor = FD_STEP * volume_scale
+        self.work = self._quadrature
+        self.v_ref = volume_scale
         self.value = _vectorized(curve, volume_scale, owner, "curve")
         if derivative is not None:
             d = _vectorized(derivative, volume_scale, owner, "curve_derivative")
@@ -77,9 +82,27 @@ class _CurveFunction:
     def __setstate__(self, args):
         self.__init__(*args)
 
+    def _quadrature(self, v):
+        """Integral of p(V) from the initial volume to ``v`` [J]: Gauss-Legendre
+        with :data:`WORK_NODES` points (exact for polynomial curves of degree up to
+        2 WORK_NODES - 1), for curves that do not integrate themselves."""
+        x, w = _gauss_legendre()
+        half = (np.asarray(v, dtype=float) - self.v_ref) / 2
+        nodes = (self.v_ref + half)[:, None] + half[:, None] * x
+        return half * (self.value(nodes.ravel()).reshape(nodes.shape) @ w)
+
     def _central_differences(self, v):
         h = np.maximum(FD_STEP * np.abs(v), self.h_floor)
         return self.value(v), (self.value(v + h) - self.value(v - h)) / (2 * h)
+
+
+#: Gauss-Legendre points of the work integral of a curve given as a function.
+WORK_NODES = 16
+
+
+@functools.lru_cache(maxsize=1)
+def _gauss_legendre():
+    return np.polynomial.legendre.leggauss(WORK_NODES)
 
 
 def _vectorized(func, v0, owner, name):
@@ -139,7 +162,7 @@ class Actuator(LibraryComponent):
     param_names = ("pressure_scale",)
     state_spec: tuple = (("mass", "mass"),)
     jac_pattern: tuple = ACTUATOR_PATTERN
-    residual_pattern = ACTUATOR_RESIDUAL_PATTERN
+    residual_pattern: tuple | None = ACTUATOR_RESIDUAL_PATTERN
     state_jac_pattern = ACTUATOR_STATE_PATTERN
     rate_pattern = MASS_RATE_PATTERN
 
@@ -251,6 +274,9 @@ class Actuator(LibraryComponent):
         return _residual(P, p, rho, vol, pc, dpc)
 
     def outputs(self):
+        if self._thermal is not None:      # gas temperature, internal energy, work
+            from .thermal import volume_outputs
+            return volume_outputs(self)
         return _volume_output(self.fluid)
 
 
@@ -353,7 +379,7 @@ class HystereticActuator(LibraryComponent):
     state_spec: tuple = (("mass", "mass"), ("branch", "dimensionless"))
     discrete_states = ("branch",)
     jac_pattern: tuple = ACTUATOR_PATTERN
-    residual_pattern = ACTUATOR_RESIDUAL_PATTERN
+    residual_pattern: tuple | None = ACTUATOR_RESIDUAL_PATTERN
     state_jac_pattern = ACTUATOR_STATE_PATTERN
     rate_pattern = MASS_RATE_PATTERN
 
@@ -435,6 +461,9 @@ class HystereticActuator(LibraryComponent):
         return _residual(P, p, rho, vol, pc, dpc)
 
     def outputs(self):
+        if self._thermal is not None:      # gas temperature, internal energy, work
+            from .thermal import volume_outputs
+            return volume_outputs(self)
         return _volume_output(self.fluid)
 
 

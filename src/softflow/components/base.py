@@ -175,7 +175,7 @@ class LibraryComponent(Component):
         if self._thermal is None:
             return type(self)
         from .thermal import thermal_class
-        return thermal_class(type(self))
+        return thermal_class(type(self), held=self._thermal == "isothermal")
 
     def initial_state_values(self) -> list[float]:
         """Initial states of the compiled model (thermal variants add internal energy)."""

@@ -81,6 +81,9 @@ class Container(LibraryComponent):
         return [float(self.fluid.density(self.initial_pressure)) * self.volume]
 
     def outputs(self):
+        if self._thermal is not None:      # gas temperature, internal energy, work
+            from .thermal import volume_outputs
+            return volume_outputs(self)
         vol = self.volume
         return {"volume": ("volume", lambda get: np.full(np.shape(get("mass")), vol))}
 
@@ -144,7 +147,7 @@ class LinearAccumulator(LibraryComponent):
     state_spec: tuple = (("mass", "mass"),)
     param_names = ("volume", "compliance", "reference_pressure")
     jac_pattern: tuple = ((0, 0), (0, 1))
-    residual_pattern = ((0, 0),)
+    residual_pattern: tuple | None = ((0, 0),)
     state_jac_pattern = ((0, 0),)
     rate_pattern = MASS_RATE_PATTERN
 
@@ -216,6 +219,9 @@ class LinearAccumulator(LibraryComponent):
         return F, J
 
     def outputs(self):
+        if self._thermal is not None:      # gas temperature, internal energy, work
+            from .thermal import volume_outputs
+            return volume_outputs(self)
         fl = self.fluid
         return {"volume": ("volume", lambda get: get("mass") / fl.density(get("pressure")))}
 

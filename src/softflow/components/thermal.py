@@ -31,7 +31,7 @@ Energy model
   flow law (their energy transport is still upwind).
 * **Energy reference**: energies are counted from one reference enthalpy per
   scene, h0 = h(1 atm, T) of the first gas found (its own temperature): a
-  volume's state ``internal_energy`` is U = m·(u - h0) and energy flows are
+  volume's internal energy is U = m·(u - h0) and energy flows are
   mdot·(h - h0). Since mass is conserved at every node and through every
   element, this is the same energy balance as with absolute enthalpies; it
   keeps the energy rows of the Jacobian of the size of the temperature
@@ -40,28 +40,44 @@ Energy model
 * **Nodes** have no volume: the energy row of a node mixes the enthalpy flows
   of its inflows, so the outflows leave with the mass-weighted mixed enthalpy.
 * **Volumes** (Container, LinearAccumulator, Actuator, HystereticActuator)
-  store mass m and internal energy U (states, backward Euler); their terminal
-  temperature is the gas temperature (a well-mixed volume: what leaves has its
-  state):
+  are in rate form like every other component. A volume whose gas is free
+  (adiabatic, or with wall heat transfer) integrates its mass m and its
+  *stored energy* E_s, the gas's internal energy plus the work W it has done
+  on the wall since t = 0, and carries its wall heat Q [W] as a local unknown
+  ``wall_heat``:
 
-      rho(p, T) · Vol = m + dt·mdot
-      (m + dt·mdot) · u(p, T) = U + dt·(E + hA·(T_wall - T)) - p·(Vol - Vol_old)
+      dm/dt = mdot,     dE_s/dt = E + Q
+      0 = wall law:     rho(p, T) Vol = m (Vol = volume, or volume +
+                        compliance (p - p_ref)), or p = curve(m / rho(p, T))
+      0 = m (u(p, T) - h0) + W(Vol) - E_s
+      0 = Q - hA (T_wall - T)
 
   with u(p, T), h(p, T) from the fluid (constant cv/cp for ideal gases, real
-  properties at the ``table`` and ``eos`` levels). hA = 0 is adiabatic; an hA
-  from a correlation (FreeConvection) is set at the start of each step; a volume
-  with ``thermal='isothermal'`` in a thermal scene holds T = T_wall instead.
-  A HystereticActuator keeps its discrete state ``branch``: the step uses the
-  branch it started on, which switches between steps from the converged volume.
+  properties at the ``table`` and ``eos`` levels). W(Vol) is the integral of
+  the wall's pressure over volume (dW/dVol = the wall's pressure): exact for
+  an accumulator and a PVCurve's cubic pieces, Gauss-Legendre for a curve
+  given as a function (:meth:`softflow.curves.PVCurve.work`). For a
+  quasi-static wall p·dVol/dt = dW/dt, so the energy equation
+  dU/dt = E + Q - p dVol/dt needs no rate of the volume: only first
+  derivatives of the fluid's properties enter, and the rates are linear in
+  the unknowns, so a closed adiabatic network keeps its total stored energy
+  to round-off under every stepper and order. The terminal temperature is the
+  gas temperature (a well-mixed volume: what leaves has its state). hA = 0 is
+  adiabatic; an hA from a correlation (FreeConvection) is set at the start of
+  each step. Results: ``mass``, ``stored_energy``, ``wall_heat`` and the
+  derived ``volume``, ``internal_energy`` = m (u - h0) and ``wall_work``.
 
-  These volumes are the one place where components still write their step
-  equations themselves (``kernel``/``update`` with the step dt, read by BDF
-  as psi and c like every state update): the work term p·dVol/dt needs the
-  rate of the gas volume, which is not a function of the unknowns (it is the
-  derivative of m/rho(p, T) or of the wall's V(p)), and a volume held at its
-  wall temperature (``thermal='isothermal'``) takes its internal energy from
-  its state instead of integrating it. Flow elements and sources here are in
-  rate form, around the isothermal classes' own laws.
+  A volume with ``thermal='isothermal'`` in a thermal scene is *held* at its
+  wall temperature: it integrates its mass only, with residuals the wall law
+  and T = T_wall; the heat that holds it there is whatever the energy the flows
+  carry requires (:func:`softflow.solve.thermal.energy_balance` closes its
+  balance with it).
+
+  A HystereticActuator keeps its discrete state ``branch``: the step uses the
+  branch it started on, which switches between steps from the converged
+  volume. Its work is counted along the loop (:meth:`HysteresisLoop.work`);
+  at a change of branch the discrete state ``work_offset`` moves the count so
+  that E_s does not jump (the loop's area is work the wall dissipates).
 * **Sources** are reservoirs at their ``temperature``: a PressureSource fixes its
   node's temperature; flow sources deliver h(p, T_source) and take in the
   node's enthalpy when the flow reverses.
@@ -72,7 +88,7 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from .actuators import Actuator, HystereticActuator
-from .chambers import Container, LinearAccumulator
+from .chambers import MASS_RATE_PATTERN, Container, LinearAccumulator, mass_rates
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
 from .tubes import CircularTube, InertialCircularTube
 from .valves import CheckValve, Orifice, SnappingValve, TeslaValve
@@ -447,21 +463,35 @@ class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
 
 
 # ---------------------------------------------------------------------------------------
-# volumes: V = [p, mf, T, E]; states (mass, internal_energy[, volume])
+# volumes (see the module docstring). A free volume (adiabatic or heat transfer):
+# V = [p, mf, T, E, wall_heat], continuous states (mass, stored_energy); a volume
+# held at its wall temperature: V = [p, mf, T, E], continuous state mass.
 # ---------------------------------------------------------------------------------------
-_VOLUME_PATTERN = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (1, 3))
+#: dm/dt = mf (V column 1), d(stored energy)/dt = E + Q (columns 3 and 4)
+_FREE_RATE_PATTERN = ((0, 1), (1, 3), (1, 4))
+#: rows: 0 the wall's law (mass), 1 the stored energy, 2 the wall heat
+_FREE_RESIDUAL_PATTERN = ((0, 0), (0, 2), (1, 0), (1, 2), (2, 2), (2, 4))
+_FREE_STATE_PATTERN = ((0, 0), (1, 0), (1, 1))
+_FREE_PATTERN = _FREE_RESIDUAL_PATTERN + ((0, 1), (1, 1), (1, 3), (1, 4))
+#: rows: 0 the wall's law (mass), 1 T = T_wall
+_HELD_RESIDUAL_PATTERN = ((0, 0), (0, 2), (1, 2))
+_HELD_PATTERN = _HELD_RESIDUAL_PATTERN + ((0, 1),)
+#: the locals a free volume adds after its terminal variables: (label, quantity)
+FREE_LOCALS = (("wall_heat", "heatflow"),)
 
 
 class _ThermalVolume:
-    """Shared parameters and the energy equation of thermal volumes."""
+    """Shared parameters of thermal volumes: wall temperature, h·A (constant or
+    from a correlation, frozen over each step), the scene's energy reference."""
+
+    #: the locals (label, quantity) the volume adds in a thermal scene
+    local_spec: tuple = ()
 
     @classmethod
     def make_params(cls, components):
         P = super().make_params(components)
         P.hA = np.array([c._hA for c in components], dtype=float)
         P.T_wall = np.array([c._T_wall for c in components], dtype=float)
-        P.fixed = np.array([c._thermal == "isothermal" for c in components])
-        P.any_fixed = bool(P.fixed.any())
         # volumes whose h comes from a correlation (FreeConvection): h·A is set at
         # the start of every step by begin_step
         corr = [i for i, c in enumerate(components) if c._h_corr is not None]
@@ -476,18 +506,11 @@ class _ThermalVolume:
                                  f"{err}") from None
             P.corr = [c._h_corr for c in cs]
             P.corr_area = np.array([c.area for c in cs])
-            for c in cs:     # kept on the component for energy_balance
-                c._h_length = c._h_corr.characteristic_length(cls._initial_volume(c))
-            P.corr_length = np.array([c._h_length for c in cs])
+            P.corr_length = np.array([c._h_corr.characteristic_length(initial_fluid_volume(c))
+                                      for c in cs])
         P.any_heat = bool(P.hA.any()) or bool(corr)   # adiabatic volumes skip the wall terms
         P.h0 = components[0]._h0
         return P
-
-    @classmethod
-    def _initial_volume(cls, comp):
-        """Gas volume at t = 0 [m^3] (the default length scale of correlations)."""
-        states = cls.thermal_initial_states(comp)
-        return states[2] if len(states) > 2 else comp.volume
 
     @classmethod
     def wants_begin_step(cls, P):
@@ -501,225 +524,310 @@ class _ThermalVolume:
                           V[i, 0], V[i, 2], P.T_wall[i])
 
     @classmethod
-    def energy(cls, P, V, S, dt, vol, dvol, jac, m_new=None):
-        """Energy residual m_new u(p,T) - [U + dt (E + Q) - p (vol - vol_old)] and its
-        derivatives (p, mf, T, E); vol_old is S[:, 2] when the volume deforms
-        (dvol = (dvol/dp, dvol/dmf, dvol/dT)), else None. ``m_new`` = S[:, 0] + dt mf
-        when the caller has it already."""
-        p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        if m_new is None:
-            m_new = S[:, 0] + dt * mf
-        u, u_p, u_T = _parts(P.fluid, "internal_energy", p, T, jac)
-        u = u - P.h0
-        if P.any_heat:
-            F = m_new * u - (S[:, 1] + dt * (E + P.hA * (P.T_wall - T)))
-        else:
-            F = m_new * u - (S[:, 1] + dt * E)
-        if vol is not None:
-            F = F + p * (vol - S[:, 2])
-        if P.any_fixed:
-            F = np.where(P.fixed, T - P.T_wall, F)
-        if not jac:
-            return F, None
-        d_p = 0.0 if type(u_p) is float and u_p == 0.0 else m_new * u_p   # ideal gas: 0
-        d_mf = dt * u
-        d_T = m_new * u_T + dt * P.hA if P.any_heat else m_new * u_T
-        d_E = -dt
-        if vol is not None:
-            d_p = d_p + (vol - S[:, 2]) + p * dvol[0]
-            d_mf = d_mf + p * dvol[1]
-            d_T = d_T + p * dvol[2]
-        if P.any_fixed:
-            d_p, d_mf, d_E = (np.where(P.fixed, 0.0, d) for d in (d_p, d_mf, d_E))
-            d_T = np.where(P.fixed, 1.0, d_T)
-        return F, (d_p, d_mf, d_T, d_E)
-
-    @classmethod
-    def energy_update(cls, P, V, S, dt, vol):
-        """(m_new, U_new) at the end of the step."""
-        p, mf, T, E = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        m_new = S[:, 0] + dt * mf
-        if P.any_heat:
-            U_new = S[:, 1] + dt * (E + P.hA * (P.T_wall - T))
-        else:
-            U_new = S[:, 1] + dt * E
-        if vol is not None:
-            U_new = U_new - p * (vol - S[:, 2])
-        if P.any_fixed:
-            U_new = np.where(P.fixed, m_new * (P.fluid.internal_energy(p, T) - P.h0), U_new)
-        return m_new, U_new
-
-    @classmethod
-    def _initial_mass_energy(cls, comp, volume):
+    def _initial_mass_energy(cls, comp):
         fl, p0, T0 = comp.fluid, comp.initial_pressure, comp._T_initial
-        m0 = float(fl.density(p0, T0)) * volume
+        m0 = float(fl.density(p0, T0)) * initial_fluid_volume(comp)
         # u as the kernels evaluate it (an equilibrium volume starts at rest exactly)
         u0 = _parts(fl, "internal_energy", np.array([p0]), np.array([T0]), False)[0]
         return m0, m0 * (float(u0[0]) - comp._h0)
 
 
-class ThermalContainer(_ThermalVolume, Container):
-    """Container in a thermal scene (rigid: no work)."""
+class _Free(_ThermalVolume):
+    """Rate form of a volume whose gas temperature is free (adiabatic, or with wall
+    heat transfer): rates dm/dt = mdot, dE_s/dt = E + Q; residuals: the wall's
+    law (:meth:`_wall`), E_s = m (u(p, T) - h0) + W, Q = hA (T_wall - T)."""
 
-    state_spec = (("mass", "mass"), ("internal_energy", "energy"))
-    jac_pattern = _VOLUME_PATTERN
-
-    @classmethod
-    def thermal_initial_states(cls, comp):
-        return list(cls._initial_mass_energy(comp, comp.volume))
-
-    @classmethod
-    def update(cls, P, V, S, dt):
-        out = np.empty((P.n, 2))
-        out[:, 0], out[:, 1] = cls.energy_update(P, V, S, dt, None)
-        return out
-
-    @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        p, mf, T = V[:, 0], V[:, 1], V[:, 2]
-        rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
-        m_new = S[:, 0] + dt * mf
-        F = np.empty((P.n, 2))
-        np.subtract(rho * P.volume, m_new, out=F[:, 0])
-        F[:, 1], dE = cls.energy(P, V, S, dt, None, None, jac, m_new)
-        if not jac:
-            return F, None
-        J = np.empty((P.n, 7))
-        J[:, 0] = rho_p * P.volume
-        J[:, 1] = -dt
-        J[:, 2] = rho_T * P.volume
-        _put(J, 3, dE)
-        return F, J
-
-
-class ThermalLinearAccumulator(_ThermalVolume, LinearAccumulator):
-    """LinearAccumulator in a thermal scene: the gas does work p·dV on the wall."""
-
-    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))
-    jac_pattern = _VOLUME_PATTERN
+    local_spec: tuple = FREE_LOCALS
+    jac_pattern: tuple = _FREE_PATTERN
+    residual_pattern: tuple | None = _FREE_RESIDUAL_PATTERN
+    state_jac_pattern: tuple = _FREE_STATE_PATTERN
+    rate_pattern: tuple = _FREE_RATE_PATTERN
 
     @classmethod
     def thermal_initial_states(cls, comp):
-        vol = comp._fluid_volume(comp.initial_pressure)
-        return [*cls._initial_mass_energy(comp, vol), vol]
+        return list(cls._initial_mass_energy(comp))
 
     @classmethod
-    def _vol(cls, P, p):
-        return P.volume + P.compliance * (p - P.reference_pressure)
+    def rates(cls, P, V, S, jac):
+        R = np.empty((P.n, 2))
+        R[:, 0] = V[:, 1]
+        np.add(V[:, 3], V[:, 4], out=R[:, 1])
+        return R, ((1.0, 1.0, 1.0) if jac else None)
 
     @classmethod
-    def update(cls, P, V, S, dt):
-        vol = cls._vol(P, V[:, 0])
-        return np.column_stack([*cls.energy_update(P, V, S, dt, vol), vol])
-
-    @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
-        p, mf, T = V[:, 0], V[:, 1], V[:, 2]
-        fl = P.fluid
-        vol = cls._vol(P, p)
-        rho = fl.density(p, T)
-        z = np.zeros(P.n)
-        F = np.empty((P.n, 2))
-        F[:, 0] = rho * vol - (S[:, 0] + dt * mf)
-        F[:, 1], dE = cls.energy(P, V, S, dt, vol, (P.compliance, z, z), jac)
-        if not jac:
-            return F, None
-        J = np.empty((P.n, 7))
-        J[:, 0] = fl.density_dp(p, T) * vol + rho * P.compliance
-        J[:, 1] = -dt
-        J[:, 2] = fl.density_dT(p, T) * vol
-        _put(J, 3, dE)
-        return F, J
-
-
-class _ThermalCurveVolume(_ThermalVolume):
-    """Shared kernel of the thermal actuators: V = m_new / rho(p, T), p = curve(V),
-    work p·dV. Subclasses give the curve (:meth:`_curve`) and any extra states
-    after (mass, internal_energy, volume) (:meth:`_extra_states`)."""
-
-    jac_pattern = _VOLUME_PATTERN
-
-    @classmethod
-    def _curve(cls, P, vol, S, jac):
-        """(p_curve, dp/dV or None) at the end-of-step volumes."""
-        raise NotImplementedError
-
-    @classmethod
-    def _extra_states(cls, P, vol, S):
-        return []
-
-    @classmethod
-    def _vol(cls, P, V, S, dt):
-        p, mf, T = V[:, 0], V[:, 1], V[:, 2]
-        rho = P.fluid.density(p, T)
-        return (S[:, 0] + dt * mf) / rho, rho
-
-    @classmethod
-    def update(cls, P, V, S, dt):
-        vol, _ = cls._vol(P, V, S, dt)
-        return np.column_stack([*cls.energy_update(P, V, S, dt, vol), vol,
-                                *cls._extra_states(P, vol, S)])
-
-    @classmethod
-    def kernel(cls, P, V, S, t, dt, jac):
+    def residual(cls, P, V, S, t, jac):
         p, T = V[:, 0], V[:, 2]
-        fl = P.fluid
-        vol, rho = cls._vol(P, V, S, dt)
-        F = np.empty((P.n, 2))
-        pc, dpc = cls._curve(P, vol, S, jac)
-        F[:, 0] = p - pc
+        m = S[:, 0]
+        F0, d0, dvol, W, p_wall = cls._wall(P, p, T, S, jac)
+        u, u_p, u_T = _parts(P.fluid, "internal_energy", p, T, jac)
+        u = u - P.h0
+        F = np.empty((P.n, 3))
+        F[:, 0] = F0
+        F[:, 1] = m * u + W - S[:, 1]
+        if P.any_heat:
+            F[:, 2] = V[:, 4] - P.hA * (P.T_wall - T)
+        else:
+            F[:, 2] = V[:, 4]
         if not jac:
-            F[:, 1], _ = cls.energy(P, V, S, dt, vol, None, False)
             return F, None
-        dvol = (-vol * fl.density_dp(p, T) / rho, dt / rho, -vol * fl.density_dT(p, T) / rho)
-        F[:, 1], dE = cls.energy(P, V, S, dt, vol, dvol, True)
-        J = np.empty((P.n, 7))
-        J[:, 0] = 1.0 - dpc * dvol[0]
-        J[:, 1] = -dpc * dvol[1]
-        J[:, 2] = -dpc * dvol[2]
-        _put(J, 3, dE)
+        J = np.empty((P.n, 9))
+        J[:, 0], J[:, 1] = d0[0], d0[1]
+        J[:, 2] = m * u_p + p_wall * dvol[0]
+        J[:, 3] = m * u_T + p_wall * dvol[1]
+        J[:, 4] = P.hA
+        J[:, 5] = 1.0
+        J[:, 6] = d0[2]
+        J[:, 7] = u + p_wall * dvol[2]
+        J[:, 8] = -1.0
         return F, J
 
 
-# _initial_volume: the thermal volumes' classmethod (comp) and Actuator's constructor
-# helper share a name (a thermal class is a kernel class, never constructed)
-class ThermalActuator(_ThermalCurveVolume, Actuator):  # type: ignore[misc]
-    """Actuator in a thermal scene: V = m_new / rho(p, T), p = curve(V), work p·dV."""
+class _Held(_ThermalVolume):
+    """Rate form of a volume held at its wall temperature (``thermal='isothermal'``
+    in a thermal scene): dm/dt = mdot; residuals: the wall's law, T = T_wall.
+    The energy the flows carry in or out is whatever arrives: the wall takes up
+    the difference as heat."""
 
-    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"))
+    jac_pattern: tuple = _HELD_PATTERN
+    residual_pattern: tuple | None = _HELD_RESIDUAL_PATTERN
+    state_jac_pattern: tuple = ((0, 0),)
+    rate_pattern: tuple = MASS_RATE_PATTERN
 
     @classmethod
     def thermal_initial_states(cls, comp):
-        vol = comp.initial_volume
-        return [*cls._initial_mass_energy(comp, vol), vol]
+        return [cls._initial_mass_energy(comp)[0]]
+
+    @classmethod
+    def rates(cls, P, V, S, jac):
+        return mass_rates(P, V, jac)
+
+    @classmethod
+    def residual(cls, P, V, S, t, jac):
+        p, T = V[:, 0], V[:, 2]
+        F0, d0, _, _, _ = cls._wall(P, p, T, S, jac, work=False)
+        F = np.empty((P.n, 2))
+        F[:, 0] = F0
+        F[:, 1] = T - P.T_wall
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 4))
+        J[:, 0], J[:, 1], J[:, 2], J[:, 3] = d0[0], d0[1], 1.0, d0[2]
+        return F, J
+
+
+# The walls: _wall(P, p, T, S, jac, work=True) -> (F0, (dF0/dp, dF0/dT, dF0/dm), (dvol/dp,
+# dvol/dT, dvol/dm), W, p_wall): the residual of the wall's law at the stored mass
+# m = S[:, 0], the work W the gas has done on the wall since t = 0 and the wall's
+# pressure p_wall = dW/dvol (derivatives None without jac; W, p_wall 0 for a rigid
+# wall or without work).
+class _RigidWall:
+    @classmethod
+    def _wall(cls, P, p, T, S, jac, work=True):
+        rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
+        F0 = rho * P.volume - S[:, 0]
+        if not jac:
+            return F0, None, None, 0.0, 0.0
+        return F0, (rho_p * P.volume, rho_T * P.volume, -1.0), (0.0, 0.0, 0.0), 0.0, 0.0
+
+
+class _LinearWall:
+    """vol = volume + compliance (p - p_ref); the wall's pressure is p itself, so
+    W = compliance ((p - p_ref)^2 - (p_0 - p_ref)^2) / 2 + p_ref (vol - vol_0)."""
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.p_initial = np.array([c.initial_pressure for c in components], dtype=float)
+        return P
+
+    @classmethod
+    def _wall(cls, P, p, T, S, jac, work=True):
+        rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
+        C, p_ref = P.compliance, P.reference_pressure
+        vol = P.volume + C * (p - p_ref)
+        F0 = rho * vol - S[:, 0]
+        W = 0.0
+        if work:
+            g, g0 = p - p_ref, P.p_initial - p_ref
+            W = C * (0.5 * (g * g - g0 * g0) + p_ref * (g - g0))
+        if not jac:
+            return F0, None, None, W, p
+        return F0, (rho_p * vol + rho * C, rho_T * vol, -1.0), (C, 0.0, 0.0), W, p
+
+
+class _CurveWall:
+    """vol = m / rho(p, T), p = p_curve(vol); W = the curve's work from the initial
+    volume. Subclasses give the curve (:meth:`_curve`) and its work (:meth:`_work`)."""
+
+    @classmethod
+    def _wall(cls, P, p, T, S, jac, work=True):
+        rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
+        vol = S[:, 0] / rho
+        pc, dpc = cls._curve(P, vol, S, jac)
+        F0 = p - pc
+        W = cls._work(P, vol, S) if work else 0.0
+        if not jac:
+            return F0, None, None, W, pc
+        dvol = (-vol * rho_p / rho, -vol * rho_T / rho, 1.0 / rho)
+        return F0, (1.0 - dpc * dvol[0], -dpc * dvol[1], -dpc * dvol[2]), dvol, W, pc
+
+
+class _PlainCurve(_CurveWall):
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.work0 = cls._curve_work(P, np.array([c.initial_volume for c in components]))
+        return P
 
     @classmethod
     def _curve(cls, P, vol, S, jac):
         return Actuator.curve_pressure(P, vol, jac)
 
-
-class ThermalHystereticActuator(_ThermalCurveVolume, HystereticActuator):
-    """HystereticActuator in a thermal scene: as :class:`ThermalActuator` on the
-    branch the step started on (discrete state ``branch``, 1 = inflation); the
-    branch switches between steps from the converged volume, as in the
-    isothermal kernel."""
-
-    state_spec = (("mass", "mass"), ("internal_energy", "energy"), ("volume", "volume"),
-                  ("branch", "dimensionless"))
+    @classmethod
+    def _curve_work(cls, P, vol):
+        """The integral of the (scaled) curve pressure over volume, up to a constant."""
+        w = P.curve.work(vol)
+        if P.scaled:
+            base = pressure_atmospheric * vol
+            w = base + P.pressure_scale * (w - base)
+        return w
 
     @classmethod
-    def thermal_initial_states(cls, comp):
-        vol = comp.initial_volume
-        return [*cls._initial_mass_energy(comp, vol), vol, comp.initial_branch]
+    def _work(cls, P, vol, S):
+        return cls._curve_work(P, vol) - P.work0
+
+
+class _LoopCurve(_CurveWall):
+    """A hysteresis loop: the branch the step started on (discrete state ``branch``,
+    1 = inflation; the loop hands over to the other branch past its end)."""
 
     @classmethod
     def _curve(cls, P, vol, S, jac):
-        pc, dpc = P.loop.fdf_volume(vol, S[:, 3] > 0.5)
+        pc, dpc = P.loop.fdf_volume(vol, S[:, cls._branch] > 0.5)
         return pc, (dpc if jac else None)
 
     @classmethod
-    def _extra_states(cls, P, vol, S):
-        return [P.loop.next_inflating(vol, S[:, 3] > 0.5).astype(float)]
+    def _work(cls, P, vol, S):
+        # the loop's work along the step's branch, less its value at t = 0 carried
+        # over every change of branch (the discrete state work_offset)
+        return P.loop.work(vol, S[:, 2] > 0.5) - S[:, 3]
+
+    @classmethod
+    def switch(cls, P, V, S):
+        rho = P.fluid.density(V[:, 0], V[:, 2])
+        vol = S[:, 0] / rho
+        old = S[:, cls._branch] > 0.5
+        new = P.loop.next_inflating(vol, old)
+        if cls._branch == 1:                  # held: the branch alone
+            return new[:, None].astype(float)
+        # the stored energy stays: the new branch's work is counted from where the
+        # old one ended (the loop's area goes to the wall, out of the gas's energy)
+        offset = S[:, 3] + P.loop.work(vol, new) - P.loop.work(vol, old)
+        return np.column_stack([new.astype(float), offset])
+
+
+class ThermalContainer(_Free, _RigidWall, Container):
+    """Container in a thermal scene (rigid: no work)."""
+
+    state_spec = (("mass", "mass"), ("stored_energy", "energy"))
+
+
+class HeldContainer(_Held, _RigidWall, Container):
+    """Container held at its wall temperature in a thermal scene."""
+
+    state_spec = (("mass", "mass"),)
+
+
+class ThermalLinearAccumulator(_Free, _LinearWall, LinearAccumulator):
+    """LinearAccumulator in a thermal scene: the gas does work p·dV on the wall."""
+
+    state_spec = (("mass", "mass"), ("stored_energy", "energy"))
+
+
+class HeldLinearAccumulator(_Held, _LinearWall, LinearAccumulator):
+    """LinearAccumulator held at its wall temperature in a thermal scene."""
+
+    state_spec = (("mass", "mass"),)
+
+
+class ThermalActuator(_Free, _PlainCurve, Actuator):
+    """Actuator in a thermal scene: vol = m / rho(p, T), p = curve(vol), work p·dV."""
+
+    state_spec = (("mass", "mass"), ("stored_energy", "energy"))
+
+
+class HeldActuator(_Held, _PlainCurve, Actuator):
+    """Actuator held at its wall temperature in a thermal scene."""
+
+    state_spec = (("mass", "mass"),)
+
+
+class ThermalHystereticActuator(_Free, _LoopCurve, HystereticActuator):
+    """HystereticActuator in a thermal scene: as :class:`ThermalActuator` on the
+    branch the step started on (discrete state ``branch``, 1 = inflation); the
+    branch switches between steps from the converged volume, as in the
+    isothermal kernel. The work the gas does is counted along the loop; at a
+    change of branch the discrete state ``work_offset`` moves the new branch's
+    count to where the old one ended, so the stored energy never jumps."""
+
+    state_spec = (("mass", "mass"), ("stored_energy", "energy"), ("branch", "dimensionless"),
+                  ("work_offset", "energy"))
+    discrete_states: tuple = ("branch", "work_offset")
+    _branch = 2
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        m0, U0 = cls._initial_mass_energy(comp)
+        inflating = np.array([comp.initial_branch > 0.5])
+        w0 = float(comp.loop.work(np.array([comp.initial_volume]), inflating)[0])
+        return [m0, U0, comp.initial_branch, w0]
+
+
+class HeldHystereticActuator(_Held, _LoopCurve, HystereticActuator):
+    """HystereticActuator held at its wall temperature in a thermal scene."""
+
+    state_spec = (("mass", "mass"), ("branch", "dimensionless"))
+    _branch = 1
+
+    @classmethod
+    def thermal_initial_states(cls, comp):
+        return [cls._initial_mass_energy(comp)[0], comp.initial_branch]
+
+
+def initial_fluid_volume(comp):
+    """Gas volume of a volume component at t = 0 [m^3]."""
+    if isinstance(comp, Container):
+        return comp.volume
+    if isinstance(comp, LinearAccumulator):
+        return comp._fluid_volume(comp.initial_pressure)
+    return comp.initial_volume
+
+
+def volume_outputs(comp):
+    """Derived results of a thermal volume ``comp`` (compiled in a thermal scene):
+    ``volume`` [m^3], ``internal_energy`` m (u(p, T) - h0) [J] and, for a free
+    deformable one, ``wall_work`` [J], the work its gas has done on the wall
+    since t = 0 (stored_energy - internal_energy)."""
+    fl, h0 = comp.fluid, comp._h0
+
+    def internal_energy(get):
+        return get("mass") * (fl.internal_energy(get("pressure"), get("temperature")) - h0)
+
+    if isinstance(comp, Container):
+        vol = comp.volume
+
+        def volume(get):
+            return np.full(np.shape(get("mass")), vol)
+    elif isinstance(comp, LinearAccumulator):
+        def volume(get):
+            return comp._fluid_volume(get("pressure"))
+    else:
+        def volume(get):
+            return get("mass") / fl.density(get("pressure"), get("temperature"))
+    out = {"volume": ("volume", volume), "internal_energy": ("energy", internal_energy)}
+    if comp._thermal != "isothermal" and not isinstance(comp, Container):
+        out["wall_work"] = ("energy", lambda get: get("stored_energy") - internal_energy(get))
+    return out
 
 
 # ---------------------------------------------------------------------------------------
@@ -741,13 +849,21 @@ THERMAL_CLASSES.update({
     LinearAccumulator: ThermalLinearAccumulator, Actuator: ThermalActuator,
     HystereticActuator: ThermalHystereticActuator,
 })
+#: Volumes held at their wall temperature (``thermal='isothermal'`` in a thermal scene).
+HELD_CLASSES = {
+    Container: HeldContainer, LinearAccumulator: HeldLinearAccumulator,
+    Actuator: HeldActuator, HystereticActuator: HeldHystereticActuator,
+}
 #: Classes that store gas (take initial_temperature, wall heat transfer).
 VOLUME_CLASSES = (Container, LinearAccumulator, Actuator, HystereticActuator)
 SOURCE_CLASSES = (PressureSource, MassFlowSource, VolumeFlowSource)
 
 
-def thermal_class(cls):
-    """The thermal variant of a library class (KeyError naming it if there is none)."""
+def thermal_class(cls, held=False):
+    """The thermal variant of a library class (KeyError naming it if there is none);
+    ``held``: a volume's variant held at its wall temperature."""
+    if held and cls in HELD_CLASSES:
+        return HELD_CLASSES[cls]
     try:
         return THERMAL_CLASSES[cls]
     except KeyError:

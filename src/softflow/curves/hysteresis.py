@@ -117,6 +117,27 @@ class HysteresisLoop:
         use = self.on_inflation_curve(volume, inflating)
         return np.where(use, pi, pd), np.where(use, di, dd)
 
+    def work(self, volume: Array, inflating: ArrayLike) -> Array:
+        """Work [J] done on the wall along the branch an actuator that started the
+        step on the inflation branch (``inflating``) or the deflation branch
+        follows up to ``volume``: the integral of the pressure :meth:`fdf_volume`
+        gives, continuous in volume through the handover to the other branch
+        (V_hi while inflating, V_lo while deflating). Counted from each branch's
+        own reference, so only differences along one step's branch mean anything
+        (a change of branch moves the reference: see
+        :class:`softflow.components.thermal.ThermalHystereticActuator`)."""
+        vol = np.asarray(volume, dtype=float)
+        hi, lo = np.array([self.volume_high]), np.array([self.volume_low])
+        inf, dfl = self.inflation, self.deflation
+        w_inf, w_dfl = inf.work(vol), dfl.work(vol)
+        # inflating: past V_hi on the deflation branch, continued from V_hi
+        up = np.where(vol < self.volume_high, w_inf,
+                      inf.work(hi)[0] + w_dfl - dfl.work(hi)[0])
+        # deflating: at or below V_lo on the inflation branch, continued from V_lo
+        down = np.where(vol > self.volume_low, w_dfl,
+                        dfl.work(lo)[0] + w_inf - inf.work(lo)[0])
+        return np.where(inflating, up, down)
+
     def next_inflating(self, volume: float | Array, inflating: bool | ArrayLike) -> BoolArray:
         """Branch after a step that ended at ``volume`` (True: inflation)."""
         return self.on_inflation_curve(volume, inflating)

@@ -177,6 +177,9 @@ class PVCurve:
             self._c1[0] = self._c1[-1] = 0.0
         self._lo, self._hi = float(v[0]), float(v[-1])
         self._refuse = self.extrapolate == "error"
+        # the antiderivative (work) at each piece's base, from the first volume
+        full = h * (p[:-1] + h * (d[:-1] / 2 + h * (c2 / 3 + h * c3 / 4)))
+        self._w0 = np.concatenate([[0.0, 0.0], np.cumsum(full)])
         # the scalar path (one volume per call, as in a user component) runs on lists
         self._vl = v.tolist()
         self._tl = list(zip(self._base.tolist(), self._c0.tolist(), self._c1.tolist(),
@@ -200,6 +203,19 @@ class PVCurve:
         if isinstance(volume, float):
             return self._scalar(volume)
         return self._array(volume)  # type: ignore[arg-type]  # a float64 ndarray
+
+    def work(self, volume: Array) -> Array:
+        """The integral of the absolute pressure over volume from the curve's first
+        volume to ``volume`` [J] (a float64 array): the work a gas does on the wall
+        as it follows the curve, exact for the curve's pieces and its extensions
+        (its derivative in volume is the pressure)."""
+        x = np.asarray(volume, dtype=float)
+        if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
+            self._beyond(x)
+        k = np.searchsorted(self.volume, x, side="right")
+        x = x - self._base[k]
+        return self._w0[k] + x * (self._c0[k] + x * (self._c1[k] / 2 + x * (
+            self._c2[k] / 3 + x * self._c3[k] / 4)))
 
     def _beyond(self, x: float | Array) -> NoReturn:
         lo, hi = self._lo, self._hi
