@@ -398,7 +398,7 @@ class Simulation:
             with np.errstate(all="ignore"), integ.progress:
                 integ.run()
         except StepFailure as fail:
-            error = self._describe_failure(fail)
+            error = self._describe_failure(fail, newton)
         except Exception as err:  # user code or inputs failing mid-run: keep what we have
             t = integ.rec.t[-1] if integ.rec.t else 0.0
             if isinstance(err, ComponentError):    # user code: its component, method, time
@@ -463,13 +463,15 @@ class Simulation:
                 raise error
         return result
 
-    def _describe_failure(self, fail):
+    def _describe_failure(self, fail, newton):
         out = fail.outcome
         comp = eq = None
         where = ""
         if out.row is not None:
             comp, eq = self.asm.component_of_row(out.row)
             where = f"; worst equation: {self.asm.describe_row(out.row)}"
+        if comp is None:       # a fluid's range left by one component's state
+            comp = getattr(newton.fluid_error, "component", None)
         unknowns = None
         if comp is None and getattr(out, "unknown", None) is not None:
             unknowns = [out.unknown]           # a node's unknown (its pressure)
