@@ -194,12 +194,13 @@ def _fluid_failure(g, err):
 
 def _library_group(cls, comps):
     from ..components.base import LibraryComponent
-    if cls.kernel.__func__ is not LibraryComponent.kernel.__func__:
-        raise TypeError(f"{cls.__name__} overrides kernel: library components state rates "
-                        "and residuals (softflow.components.base), and the steppers make "
-                        "their step equations (softflow.solve.discretize)")
     P = cls.make_params(comps)
-    kernel, update = step_functions(cls, P)
+    if cls.kernel.__func__ is LibraryComponent.kernel.__func__:
+        kernel, update = step_functions(cls, P)     # rates and residuals (the rule)
+    else:
+        # a LibraryComponent subclass of a user's that writes its step equations
+        # itself (kernel/update with the step, read by BDF as psi and c)
+        kernel, update = partial(cls.kernel, P), partial(cls.update, P)
     g = Group(comps, kernel=kernel, update=update,
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
