@@ -190,7 +190,7 @@ def tube_mach(g, result):
                 "acceleration",
                 f"Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
                 f"{ratio:.3g}), {_past(fraction, f'Mach {MACH_INCOMPRESSIBLE}')}"
-                + (": " if fraction > 1 else f", past which ") + "the gas's acceleration, "
+                + (": " if fraction > 1 else ", past which ") + "the gas's acceleration, "
                 "which the mean-density law neglects, is no longer small.", time=t))
         elif grade(peak[j] / choke):
             out.append(_record(
