@@ -70,9 +70,12 @@ def run_softflow(N, rtol, method="bdf", duration=DURATION):
     """softflow on ``air_chain(N)``: (cpu [s], error, steps). The timed part is
     ``sf.Simulation(system, duration, rtol, method)`` construction (compile) plus
     ``run()``; the System is built before the clock starts (a fresh one per repeat).
-    The error is taken at the result's own output times."""
+    The error is taken at the result's own output times. The chain's first tube
+    meets the 0.2 bar step at Mach ~2 by its laminar law, past isothermal choking,
+    which stops a run by default; the references solve the same equations, so the
+    run goes on with the warning (``beyond_limits='warn'``)."""
     cpu, res = timed_fresh(lambda: air_chain(N), lambda s: sf.Simulation(
-        s, duration=duration, rtol=rtol, method=method).run())
+        s, duration=duration, rtol=rtol, method=method, beyond_limits="warn").run())
     return cpu, error_of(res.times, container_pressures(res, N), duration), res.stats["steps"]
 
 

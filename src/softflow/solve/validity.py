@@ -200,31 +200,38 @@ def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
 # -- reading a group's values from a result -----------------------------------------
 def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]:
     """(indices in the group, values (times x those components)) of variable or
-    output ``name`` of the recorded components of group ``g``."""
-    keep, cols, where = [], [], None
-    for i, c in enumerate(g.comps):
-        if c.label not in result._where:          # not recorded
-            continue
-        e = result._entry(c.label, name, None)
-        if e[0] == "output":
-            keep.append(i)
-            where = "output"
-            continue
-        if e[4] < 0:
-            continue
-        keep.append(i)
-        cols.append(e[4])
-        where = e[3]
-    if not keep:
+    output ``name`` of the recorded components of group ``g``. The components of
+    a group share one interface, so the columns are found once for all of them."""
+    where = result._where
+    idx = [i for i, c in enumerate(g.comps) if c.label in where]     # recorded
+    if not idx:
         return [], np.empty((len(result.times), 0))
-    if where == "output":
-        labels = [g.comps[i].label for i in keep]
-        _, fn = g.comps[keep[0]].outputs()[name]
+    label = g.comps[idx[0]].label
+    e = result._entry(label, name, None)
+    if e[0] == "output":
+        _, fn = g.comps[idx[0]].outputs()[name]
 
         def get(n: str, term: str | None = None) -> np.ndarray:
-            return np.column_stack([result.get(lab, n, term) for lab in labels])
-        return keep, np.asarray(fn(get), dtype=float)
-    return keep, (result.X if where == "x" else result.S)[:, cols]
+            return _columns(g, result, result._entry(label, n, term), label, idx)[1]
+        return idx, np.asarray(fn(get), dtype=float)
+    keep, values = _columns(g, result, e, label, idx)
+    return keep, values
+
+
+def _columns(g: Any, result: Any, entry: Any, label: str, idx: list[int]
+             ) -> tuple[list[int], np.ndarray]:
+    """The recorded columns of ``entry`` (of component ``label`` of group ``g``) for
+    the group's components ``idx``: (those recorded, values)."""
+    k = result._component_entries(label).index(entry)
+    i = np.asarray(idx)
+    col = g.col.reshape(len(g.comps), -1)
+    n_iface = col.shape[1]
+    if k < n_iface:
+        cols, data = result._xcol[col[i, k]], result.X
+    else:
+        cols, data = result._scol[g.s0 + i * g.ns + (k - n_iface)], result.S
+    ok = cols >= 0
+    return i[ok].tolist(), data[:, cols[ok]]
 
 
 # -- the checks ---------------------------------------------------------------------
