@@ -13,6 +13,13 @@ every instance of the class in the network:
 ``switch(P, V, S)``
     the next value of each discrete state (a mode) after a converged step.
 
+``param_jacobian(P, V, S, t, name)`` (optional)
+    dF/dtheta of ``residual`` and dr/dtheta of ``rates`` for the numeric
+    parameter ``name`` of every instance, or None where the class states none
+    (then sensitivities take finite differences of a rebuilt twin). Only the
+    class that defines it uses it: subclasses with another law (the thermal
+    variants) do not inherit it (:func:`softflow.solve.discretize.param_step_derivative`).
+
 A component never sees the time step: :mod:`softflow.solve.discretize` turns
 rates and residuals into the equations of one step of whichever stepper runs
 (backward Euler, BDF 1-5). The assembly stacks the instances' parameters
