@@ -23,7 +23,7 @@ Checks
     the laminar law and the default blend are the same law).
 ``tube_mach`` / ``tube_choked``
     Gas tubes: the Mach number at the tube's low-pressure end, v/c with
-    v = |mdot| / (rho(p_low) A). Both tube laws stop being valid where
+    ``v = |mdot| / (rho(p_low) A)``. Both tube laws stop being valid where
     isothermal pipe flow chokes, at v = sqrt(R T), i.e. Mach 1/sqrt(gamma)
     (0.845 for air; Crane TP-410; ``fluids.compressible.isothermal_gas``
     finds the same limit): more pressure difference would not give more flow,
@@ -56,7 +56,7 @@ Checks
     pressure's share / ``max(10 rtol, 1e-2)``.
 ``thermal_time_scale``
     An isothermal gas volume that filled or emptied much faster than its wall
-    can exchange heat: the time scale m / |mdot| against the thermal time
+    can exchange heat: the time scale ``m / |mdot|`` against the thermal time
     constant m cv / (h A) of the volume's own wall where it was given one
     (``hA``, or a coefficient and an area), else with h from free convection
     (a sphere of the volume's size, 10 K difference: an estimate). Faster than a tenth of it,
@@ -287,7 +287,7 @@ def gas_compressibility(g, result):
 # -- thermal -------------------------------------------------------------------------
 def fill_and_thermal_times(g, result):
     """For the isothermal gas volumes of group ``g``: (indices in the group,
-    fill time scale m/|mdot| at the peak flow [s], thermal time constant
+    fill time scale ``m / |mdot|`` at the peak flow [s], thermal time constant
     m cv / (h A) there [s], the time index of the peak), or None."""
     comp0 = g.comps[0]
     fluid = comp0.fluid
