@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fluids.base import FluidError
-from .linalg import SingularJacobian
+from .linalg import DOT_MAX, SingularJacobian, all_finite  # noqa: F401 (DOT_MAX: re-exported)
 
 
 @dataclass
@@ -53,22 +53,6 @@ class Stats:
 
 #: full Newton steps the watchdog may take without residual decrease
 WATCHDOG = 6
-
-
-#: Largest array for the dot-product shortcuts below. OpenBLAS runs larger dot
-#: products on several threads, and on a loaded 2-core machine their hand-offs
-#: were measured to cost milliseconds each (chain N = 10 000: 3x slower runs).
-DOT_MAX = 1000
-
-
-def all_finite(a):
-    """True if every entry of ``a`` is finite. On small arrays a finite sum of
-    squares proves it with one dot product (0.3 us against 1 us for
-    np.isfinite(a).all(), measured); an overflowing one (entries above 1e154)
-    falls back to the exact test."""
-    if a.size <= DOT_MAX and math.isfinite(a.dot(a)):
-        return True
-    return bool(np.isfinite(a).all())
 
 
 # the ufunc methods: 0.65 us against 0.8 us for ndarray.max/min on small arrays
