@@ -171,6 +171,27 @@ def test_per_volume_thermal_override():
     assert difference(adiabatic, ref, a.outputs) > 10 * TOL
 
 
+def test_per_component_fluid_level_in_the_high_pressure_part():
+    """The bottle at 180 bar needs the table level, the tank at 1.4 bar does
+    not: the bottle and the valve at its node get it by an override, the line
+    and the tank stay ideal."""
+    s, duration, outputs = scenes.two_pressures()
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    assert {r.component for r in a.validity if r.check == "gas_compressibility"} == {"bottle"}
+    assert a.recommended["overrides"] == {"bottle": {"fluid_level": "table"},
+                                          "valve": {"fluid_level": "table"}}
+    assert a.recommended["fluid_level"] == "ideal, finer where overridden"
+    assert _axis(a, "fluid level")["level tried"] == "ideal -> table in bottle, valve"
+    sim = a.simulation()
+    levels = {c.label: c.fluid.level for c in sim.system.components}
+    assert levels == {"bottle": "table", "valve": "table", "line": "ideal", "tank": "ideal"}
+    assert {c.fluid.level for c in s.components} == {"ideal"}     # the user's: unchanged
+    ref = reference(s, duration, "isothermal", "eos")
+    res = recommended_run(a)
+    assert difference(res, ref, a.outputs) < TOL
+    assert difference(a.runs[0].result, ref, a.outputs) > 3 * TOL    # the base was not
+
+
 def test_failed_base_goes_up_first_on_the_axis_its_checks_name():
     """A laminar tube at Re ~10 000 chokes in the base run: the fallback tries
     Haaland on that tube before a finer rtol or another model."""

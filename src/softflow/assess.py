@@ -172,7 +172,10 @@ def _rebuilt(comp, changes):
 def variant_system(system, fluid_level=None, overrides=None):
     """A new System like ``system``: every catalogued fluid at ``fluid_level``
     (None keeps each one's level) and the constructor ``overrides``
-    ``{label: {argument: value}}`` applied. ``system`` is not changed."""
+    ``{label: {argument: value}}`` applied, where the argument
+    ``fluid_level`` gives that component's fluid a level of its own (the
+    high-pressure part of a network at 'table' or 'eos', the rest ideal).
+    ``system`` is not changed."""
     from .network import System
     overrides = overrides or {}
     unknown = sorted(set(overrides) - {c.label for c in system.components})
@@ -181,19 +184,20 @@ def variant_system(system, fluid_level=None, overrides=None):
     work = copy.deepcopy(system)
     fluids = {}
 
-    def level(fluid):
-        if (fluid is None or fluid_level is None or fluid.level == fluid_level
+    def level(fluid, wanted):
+        if (fluid is None or wanted is None or fluid.level == wanted
                 or getattr(fluid, "spec", None) is None):
             return fluid
-        if id(fluid) not in fluids:
-            fluids[id(fluid)] = fluid.with_level(fluid_level)
-        return fluids[id(fluid)]
+        key = (id(fluid), wanted)
+        if key not in fluids:
+            fluids[key] = fluid.with_level(wanted)
+        return fluids[key]
 
     out = System(work.label)
     for comp in work.components:
         changes = dict(overrides.get(comp.label, {}))
         fluid = comp.__dict__.get("fluid")
-        new_fluid = level(fluid)
+        new_fluid = level(fluid, changes.pop("fluid_level", fluid_level))
         if new_fluid is not fluid and "fluid" in inspect.signature(type(comp).__init__).parameters:
             changes["fluid"] = new_fluid
         out.add(_rebuilt(comp, changes) if changes else comp)
@@ -204,9 +208,12 @@ def variant_system(system, fluid_level=None, overrides=None):
 
 
 def _gas_volumes(system):
+    """The gas volumes whose thermal model assess chooses (not those the user
+    holds at their wall temperature with ``thermal='isothermal'``)."""
     from .components.thermal import VOLUME_CLASSES
     return [c for c in system.components if isinstance(c, VOLUME_CLASSES)
-            and getattr(c, "fluid", None) is not None and c.fluid.compressible]
+            and getattr(c, "fluid", None) is not None and c.fluid.compressible
+            and getattr(c, "thermal", None) != "isothermal"]
 
 
 def _has_wall(comp):
@@ -214,10 +221,15 @@ def _has_wall(comp):
     return has_wall(comp)
 
 
+def _catalogued(comp):
+    """Whether ``comp`` holds a gas of the catalogue (one that has other levels)."""
+    fluid = getattr(comp, "fluid", None)
+    return (fluid is not None and fluid.compressible
+            and getattr(fluid, "spec", None) is not None)
+
+
 def _catalogued_gases(system):
-    return [c.fluid for c in system.components
-            if getattr(c, "fluid", None) is not None and c.fluid.compressible
-            and getattr(c.fluid, "spec", None) is not None]
+    return [c.fluid for c in system.components if _catalogued(c)]
 
 
 # -- comparing runs -------------------------------------------------------------------
@@ -283,7 +295,10 @@ class Assessment:
         {argument: value}}`` for the components that need a level of their
         own: ``{'thermal': 'isothermal'}`` for a volume held at its wall
         temperature where others fill fast, ``{'friction': 'Haaland'}``,
-        ``{'compressible': 'isothermal'}``, ``{'inertance': True}`` for tubes.
+        ``{'compressible': 'isothermal'}``, ``{'inertance': True}`` for tubes,
+        ``{'fluid_level': 'table'}`` for the high-pressure part of a network
+        (the volumes whose |Z - 1| is near or past its limit and the
+        components sharing a node with them) where the rest stays ideal.
     table : pandas.DataFrame
         One row per axis: axis, level tried, effect (largest output
         difference relative to its range), cost (CPU s of that run, and as a
@@ -450,7 +465,8 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
         up = a.run(lift(current.config))
         if not up.ok and axis == "fluid level":
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}")
-            lift, tried = _fluid_lift("eos"), "ideal -> eos"
+            lift = _fluid_lift("eos", lift.part)
+            tried = _fluid_tried("eos", lift.part)
             up = a.run(lift(current.config))
         if not up.ok:
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}; kept the lower level")
@@ -533,6 +549,7 @@ class _Scene:
     catalogued gases, tubes given friction='laminar', liquid tubes."""
 
     def __init__(self, system):
+        self.system = system
         self.volumes = _gas_volumes(system)
         self.gases = _catalogued_gases(system)
         self.laminar = [c.label for c in system.components
@@ -540,6 +557,20 @@ class _Scene:
         self.liquid_tubes = [c.label for c in system.components
                              if hasattr(c, "inertance") and getattr(c, "fluid", None) is not None
                              and not c.fluid.compressible and not c.inertance]
+
+    def high_pressure_part(self, labels):
+        """The components a finer fluid level serves where the volumes
+        ``labels`` need it: those volumes and every component with a catalogued
+        gas that shares a node with one of them (the tube or orifice that fills
+        it sees its pressure). None where that is every such component (the
+        whole scene's level then)."""
+        flagged, part = set(labels), set(labels)
+        for node in self.system.nodes():
+            comps = [t.component for t in node.terminals]
+            if flagged & {c.label for c in comps}:      # a neighbour, not further
+                part |= {c.label for c in comps if _catalogued(c)}
+        gas = {c.label for c in self.system.components if _catalogued(c)}
+        return None if gas <= part else sorted(part)
 
     def lifted_volumes(self, records, errors, tolerance):
         """The volumes one thermal level up would lift: those whose
@@ -612,8 +643,10 @@ class _Scene:
                          "its limit"))
         if base_cfg.fluid_level == "ideal" and self.gases:
             if _FLUID_CHECK in by_check:
-                out.append(("fluid level", "ideal -> table", _fluid_lift("table"),
-                            "|Z - 1| near or past the tolerance"))
+                part = self.high_pressure_part(sorted({r.component
+                                                       for r in by_check[_FLUID_CHECK]}))
+                out.append(("fluid level", _fluid_tried("table", part),
+                            _fluid_lift("table", part), "|Z - 1| near or past the tolerance"))
             else:
                 rows.append(("fluid level", "ideal", math.nan, 0.0, 0.0,
                              f"kept: |Z - 1| below {NEAR_FRACTION:g} x tolerance"))
@@ -636,14 +669,24 @@ class _Scene:
                     f"kept: no volume fills near a tenth of its thermal time constant, the "
                     f"isothermal error estimated at most "
                     f"{max(errors.values(), default=0.0):.2%}")
-                    if self.volumes else "kept: no gas volume"))
+                    if self.volumes else "kept: no gas volume whose model is to choose "
+                    "(volumes given thermal='isothermal' stay held at their wall)"))
         return out
 
 
-def _fluid_lift(level):
+def _fluid_lift(level, part=None):
+    """Config -> config with the fluids at ``level``: the whole scene's, or only
+    the components ``part`` (a per-component override)."""
     def lift(cfg):
-        return cfg.replace(fluid_level=level)
+        if part is None:
+            return cfg.replace(fluid_level=level)
+        return cfg.with_overrides({lab: {"fluid_level": level} for lab in part})
+    lift.part = part
     return lift
+
+
+def _fluid_tried(level, part):
+    return f"ideal -> {level}" + ("" if part is None else f" in {', '.join(part)}")
 
 
 def _recommendation(config, laminar):
@@ -652,7 +695,10 @@ def _recommendation(config, laminar):
     def named(arg, value):
         return [lab for lab, args in overrides.items() if args.get(arg) == value]
     haaland = named("friction", "Haaland")
-    return {"thermal": config.thermal, "fluid_level": config.fluid_level,
+    fine = [lab for lab, args in overrides.items() if "fluid_level" in args]
+    return {"thermal": config.thermal,
+            "fluid_level": (f"{config.fluid_level}, finer where overridden" if fine
+                            else config.fluid_level),
             "friction": ("Haaland" if laminar and sorted(haaland) == sorted(laminar)
                          else "as given, Haaland where overridden" if haaland else "as given"),
             "tube_law": ("as given, isothermal where overridden"

@@ -237,6 +237,10 @@ def orifice_choked(g, result):
 
 # -- gases ---------------------------------------------------------------------------
 def gas_compressibility(g, result):
+    """One record per gas volume of group ``g`` whose ideal-gas density is off
+    by |Z - 1| near or past the limit over its own pressures (volumes at
+    different pressures differ: the high-pressure part of a network may need a
+    finer fluid level where the rest does not)."""
     comp0 = g.comps[0]
     fluid = comp0.fluid
     if fluid is None or not fluid.compressible or fluid.level != "ideal":
@@ -252,41 +256,48 @@ def gas_compressibility(g, result):
     except KeyError:
         pass
     with np.errstate(all="ignore"):
-        p_max = np.nanmax(p, axis=0)
-    j = int(np.nanargmax(p_max))
-    c = g.comps[keep[j]]
+        p_min, p_max = np.nanmin(p, axis=0), np.nanmax(p, axis=0)
     limit = max(10 * _rtol(result), 1e-3)
     # Z - 1 = B p / (R T) to first order; |B| < 1.5e-4 m^3/mol for common gases
     # (CO2: 1.2e-4 at 20 C), so below this pressure CoolProp need not be asked
     # (and a plain run at low pressure does not import it). The bound is
     # ~20x loose for air: a near miss of a gas whose bound stays below the
     # limit itself (CO2 at 1-1.6 bar, rtol 1e-3) goes unreported.
-    if float(p_max[j]) * 1.5e-4 / (8.314 * min(T)) <= limit:
+    asked = np.flatnonzero(p_max * 1.5e-4 / (8.314 * min(T)) > limit)
+    if not asked.size:
         return []
     try:
         from ..fluids.base import Fluid
         real = Fluid(fluid.name, level="eos", temperature=T[0])
-        pressures = np.array([float(np.nanmin(p)), float(p_max[j])])
-        z = [float(real.compressibility(pp, tt)) for pp in pressures for tt in T]
-    except Exception:        # a fluid CoolProp does not know, or a state outside it
+    except Exception:        # a fluid CoolProp does not know
         return []
-    dz = max(z, key=lambda v: abs(v - 1.0)) - 1.0
-    fraction = abs(dz) / limit
-    if not grade(fraction):
-        return []
-    return [_record(
-        c, "gas_compressibility", dz, limit, "", fraction,
-        f"use the fluid's 'table' or 'eos' level (sf.{fluid.name}.with_level('table'))",
-        f"the ideal-gas density of {fluid.name} is off by Z - 1 = {dz:+.3g} at the pressures "
-        f"the run reached (up to {pressures[1] / 1e5:.4g} bar) and {', '.join(f'{x:.4g}' for x in T)} "
-        f"K, " + (f"more than {limit:.3g} (10 x rtol)." if fraction > 1
-                  else f"{fraction:.0%} of the limit {limit:.3g} (10 x rtol)."),
-        pressure=float(pressures[1]))]
+    out = []
+    for j in asked.tolist():
+        pressures = (float(p_min[j]), float(p_max[j]))
+        try:
+            z = [float(real.compressibility(pp, tt)) for pp in pressures for tt in T]
+        except Exception:    # a state outside CoolProp's range
+            continue
+        dz = max(z, key=lambda v: abs(v - 1.0)) - 1.0
+        fraction = abs(dz) / limit
+        if not grade(fraction):
+            continue
+        out.append(_record(
+            g.comps[keep[j]], "gas_compressibility", dz, limit, "", fraction,
+            f"use the fluid's 'table' or 'eos' level (sf.{fluid.name}.with_level('table'))",
+            f"the ideal-gas density of {fluid.name} is off by Z - 1 = {dz:+.3g} at the "
+            f"pressures it reached (up to {pressures[1] / 1e5:.4g} bar) and "
+            f"{', '.join(f'{x:.4g}' for x in T)} K, "
+            + (f"more than {limit:.3g} (10 x rtol)." if fraction > 1
+               else f"{fraction:.0%} of the limit {limit:.3g} (10 x rtol)."),
+            pressure=pressures[1]))
+    return out
 
 
 # -- thermal -------------------------------------------------------------------------
 def fill_and_thermal_times(g, result):
-    """For the isothermal gas volumes of group ``g``: (indices in the group,
+    """For the isothermal gas volumes of group ``g`` (but those the user holds
+    at their wall temperature, ``thermal='isothermal'``): (indices in the group,
     fill time scale ``m / |mdot|`` at the peak flow [s], thermal time constant
     m cv / (h A) there [s], the time index of the peak), or None."""
     comp0 = g.comps[0]
@@ -294,10 +305,14 @@ def fill_and_thermal_times(g, result):
     if fluid is None or not fluid.compressible or getattr(comp0, "_thermal", None) is not None:
         return None
     keep, mass = group_values(g, result, "mass")
-    if not keep:
+    # a volume given thermal='isothermal' is held at its wall temperature by the
+    # user's own choice (a thermostatted vessel): nothing to estimate there
+    own = [j for j, i in enumerate(keep) if getattr(g.comps[i], "thermal", None) != "isothermal"]
+    if not own:
         return None
     _, mf = group_values(g, result, "massflow")
     _, p = group_values(g, result, "pressure")
+    keep, mass, mf, p = [keep[j] for j in own], mass[:, own], mf[:, own], p[:, own]
     flow = np.abs(mf)
     k = np.argmax(flow, axis=0)
     cols = np.arange(len(keep))
