@@ -297,7 +297,7 @@ class Assessment:
         temperature where others fill fast, ``{'friction': 'Haaland'}``,
         ``{'compressible': 'isothermal'}``, ``{'inertance': True}`` for tubes,
         ``{'fluid_level': 'table'}`` for the high-pressure part of a network
-        (the volumes whose |Z - 1| is near or past its limit and the
+        (the volumes whose ``|Z - 1|`` is near or past its limit and the
         components sharing a node with them) where the rest stays ideal.
     table : pandas.DataFrame
         One row per axis: axis, level tried, effect (largest output

@@ -238,7 +238,7 @@ def orifice_choked(g, result):
 # -- gases ---------------------------------------------------------------------------
 def gas_compressibility(g, result):
     """One record per gas volume of group ``g`` whose ideal-gas density is off
-    by |Z - 1| near or past the limit over its own pressures (volumes at
+    by ``|Z - 1|`` near or past the limit over its own pressures (volumes at
     different pressures differ: the high-pressure part of a network may need a
     finer fluid level where the rest does not)."""
     comp0 = g.comps[0]
