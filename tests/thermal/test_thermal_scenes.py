@@ -6,6 +6,7 @@ import pytest
 
 import softflow as sf
 from softflow.curves.waveforms import Step
+from softflow.paper_scenes import curve_monotonic
 from softflow.solve.thermal import energy_balance
 
 AIR = sf.air
@@ -325,3 +326,49 @@ def test_hysteretic_actuator_thermal_parameters():
         sf.HystereticActuator("act", AIR, *SNAP_LOOP, heat_transfer_coefficient=10.0)
     with pytest.raises(ValueError, match="HystereticActuator 'act'.*heat transfer needs"):
         sf.Simulation(_hysteretic_fill(), duration=1.0, thermal="heat_transfer")
+
+
+def _discharge(fluid):
+    """A 180 bar bottle discharging through an ISO 6358 valve and a line into a
+    1 bar tank: the first Newton iterates of the thermal start put the valve's
+    node at 590 and 780 K before coming back."""
+    s = sf.System()
+    s += sf.Container("bottle", fluid, volume=1e-3, initial_pressure=180e5)
+    s += sf.Orifice("valve", fluid, C=2e-11, b=0.3)
+    s += sf.CircularTube("line", fluid, length=0.5, diameter=4e-3)
+    s += sf.Container("tank", fluid, volume=2e-3)
+    s.connect("bottle", "valve")
+    s.connect(("valve", "b"), ("line", "a"))
+    s.connect(("line", "b"), "tank")
+    return s
+
+
+def test_newton_keeps_temperatures_inside_a_tables_range():
+    """Table air covers 233-423 K: Newton's iterates stay inside, so the start
+    that eos air runs through (its range is wider) runs with the table too, to
+    the same result."""
+    table = sf.Simulation(_discharge(sf.air.with_level("table")), duration=0.5,
+                          thermal="adiabatic").run()
+    eos = sf.Simulation(_discharge(sf.air.with_level("eos")), duration=0.5,
+                        thermal="adiabatic").run()
+    for label in ("tank", "bottle"):
+        for name in ("pressure", "temperature"):
+            assert table.get(label, name)[-1] == pytest.approx(eos.get(label, name)[-1],
+                                                               rel=1e-4)
+
+
+def test_a_solution_beyond_the_tables_range_says_so():
+    """Table air expanding below 233 K: the failure names the node temperature
+    held at the range's edge and the wider level."""
+    s = sf.System()
+    table = sf.air.with_level("table")
+    s += sf.PressureSource("src", pressure=0.6e5)
+    s += sf.CircularTube("tube", table, length=0.1, diameter=2e-3)
+    s += sf.Actuator("act", table, curve_monotonic(), initial_pressure=1.5e5)
+    s.connect("tube", "src")
+    s.connect("tube", "act")
+    res = sf.Simulation(s, duration=0.05, step=1e-3, thermal="adiabatic").run(
+        raise_on_failure=False)
+    assert res.status == "failed"
+    assert "temperature at the edge of the temperature range" in res.message
+    assert "233.15 ... 423.15 K" in res.message and "'eos'" in res.message

@@ -165,6 +165,7 @@ class Newton:
         self.eta = 1.0         # rate/(1 - rate) seen in earlier solves, for the first test
         self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
         self._solves = 0
+        self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -199,6 +200,15 @@ class Newton:
         self._dt_lo, self._dt_hi = self.dt_ratio[0] * dt, self.dt_ratio[1] * dt
         self.age = 0
         self.stale = False
+
+    def set_temperature_range(self, lo, hi):
+        """Keep the iterates' node temperatures within [lo, hi] K (the range the
+        scene's fluids cover, e.g. a property table's): a Newton update that
+        would leave it is cut at its edge instead of making a trial point where
+        the fluid cannot be evaluated. A scene that starts a sonic discharge
+        sends the first iterates' temperatures far out (a 180:1 valve: 290 ->
+        590 -> 780 K) before they come back."""
+        self._T_range = (float(lo), float(hi)) if lo > 0 or hi < math.inf else None
 
     def set_magnitude_link(self, quantity, base, factor):
         """Let the magnitude of ``quantity`` be at least ``factor`` times that of
@@ -601,7 +611,11 @@ class Newton:
         update; np.clip's dispatch costs more than the clipping, measured)."""
         i = self._T_idx
         T = x[i]
-        dx[i] = np.minimum(np.maximum(dx[i], -0.5 * T), T)
+        step = np.minimum(np.maximum(dx[i], -0.5 * T), T)
+        if self._T_range is not None:
+            lo, hi = self._T_range
+            step = np.minimum(np.maximum(T + step, lo), hi) - T
+        dx[i] = step
         return dx
 
     def _worst_row(self, F):

@@ -372,6 +372,9 @@ class Simulation:
             T = gas.temperature
             newton.set_magnitude_link("energyflow", "massflow",
                                       float(gas.cp(pressure_atmospheric, T)) * T)
+            ranges = [getattr(c.fluid, "T_range", (0.0, math.inf)) for c in components
+                      if getattr(c, "fluid", None) is not None and c.fluid.compressible]
+            newton.set_temperature_range(max(r[0] for r in ranges), min(r[1] for r in ranges))
         breaks = list(self.breakpoints)
         for c in components:
             # periodic inputs have endless breakpoints: ask for those within the run
@@ -475,6 +478,9 @@ class Simulation:
             where = f"; worst equation: {self.asm.describe_row(out.row)}"
         if comp is None:       # a fluid's range left by one component's state
             comp = getattr(newton.fluid_error, "component", None)
+        edge = _temperature_edge(out, newton)
+        if edge:
+            where += edge
         unknowns = None
         if comp is None and getattr(out, "unknown", None) is not None:
             unknowns = [out.unknown]           # a node's unknown (its pressure)
@@ -490,6 +496,24 @@ class Simulation:
         msg = (f"solver failed at t = {fail.t:.6g} s (step {fail.dt:.3g} s): "
                f"{out.reason}{where}")
         return SimulationError(msg, time=fail.t, component=comp, equation=eq)
+
+
+def _temperature_edge(out, newton):
+    """'; ...' naming the node temperatures of the failed iterate that sit at the
+    edge of the fluids' temperature range (Newton keeps its iterates inside:
+    the solution may lie beyond it), or ''."""
+    rng, i, x = newton._T_range, newton._T_idx, getattr(out, "x", None)
+    if rng is None or x is None or not i.size:
+        return ""
+    T = x[i]
+    lo, hi = rng
+    at = np.flatnonzero((np.abs(T - lo) <= 1e-9 * lo) | (np.abs(T - hi) <= 1e-9 * hi))
+    if not at.size:
+        return ""
+    names = ", ".join(newton.asm.x_names[int(i[k])] for k in at[:3])
+    return (f"; {names} at the edge of the temperature range the scene's fluids cover "
+            f"({lo:.6g} ... {hi:.6g} K): the solution may lie beyond it (the 'eos' "
+            "level covers a wider range)")
 
 
 @contextlib.contextmanager
