@@ -236,6 +236,11 @@ def orifice_choked(g, result):
 
 
 # -- gases ---------------------------------------------------------------------------
+#: Pressures at which gas_compressibility asks CoolProp for Z (geometric, over the
+#: pressures of the volumes it checks); Z - 1 between them is interpolated.
+Z_GRID = 12
+
+
 def gas_compressibility(g, result):
     """One record per gas volume of group ``g`` whose ideal-gas density is off
     by ``|Z - 1|`` near or past the limit over its own pressures (volumes at
@@ -271,14 +276,22 @@ def gas_compressibility(g, result):
         real = Fluid(fluid.name, level="eos", temperature=T[0])
     except Exception:        # a fluid CoolProp does not know
         return []
+    # Z - 1 on a grid of pressures over every volume asked (a few CoolProp calls
+    # however many volumes), read per volume over its own pressure range
+    lo, hi = float(np.nanmin(p_min[asked])), float(np.nanmax(p_max[asked]))
+    grid = np.unique(np.geomspace(lo, hi, Z_GRID) if hi > lo else np.array([hi]))
+    try:
+        dz_grid = np.array([[float(real.compressibility(pp, tt)) - 1.0 for pp in grid]
+                            for tt in T])
+    except Exception:        # a state outside CoolProp's range
+        return []
     out = []
     for j in asked.tolist():
         pressures = (float(p_min[j]), float(p_max[j]))
-        try:
-            z = [float(real.compressibility(pp, tt)) for pp in pressures for tt in T]
-        except Exception:    # a state outside CoolProp's range
-            continue
-        dz = max(z, key=lambda v: abs(v - 1.0)) - 1.0
+        inside = grid[(grid > pressures[0]) & (grid < pressures[1])]
+        at = np.concatenate([pressures, inside])
+        z = np.concatenate([np.interp(at, grid, row) for row in dz_grid])
+        dz = float(z[np.argmax(np.abs(z))])
         fraction = abs(dz) / limit
         if not grade(fraction):
             continue
