@@ -154,7 +154,9 @@ def test_hysteretic_actuator_warns_beyond_both_branches_and_refuses_error_policy
     s += sf.HystereticActuator("hyst", sf.air, *loop)
     s.connect("tube", "src")
     s.connect("tube", "hyst")
-    res, caught = _run(s, duration=0.5)
+    # the 5 bar step chokes the tube at t = 0, which stops the run there by
+    # default (before the volume leaves the data): go on with the warning
+    res, caught = _run(s, duration=0.5, beyond_limits="warn")
     assert [r.component for r in res.warnings] == ["hyst"] and len(caught) == 1
     strict = sf.PVCurve(volume=loop.inflation.volume, pressure=loop.inflation.pressure,
                         extrapolate="error")

@@ -174,3 +174,26 @@ def test_liquid_tube_without_inertance_against_its_inertial_time_constant(compli
                            - inertial.get("acc", "pressure"))) / 1e4
     assert bool(effect > 0.01) is warned
     assert "tube_inertia" not in _checks(inertial)
+
+
+def test_a_run_refused_from_its_start_stops_at_once():
+    """A tube choked at t = 0 refuses the run from its first point: the run
+    stops after the consistent start instead of computing to the end and
+    being cut back (same status and message as the full run would give)."""
+    def scene():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=5e5)
+        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+        s += sf.Container("tank", sf.air, volume=1e-5)
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        return s
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        res = sf.Simulation(scene(), duration=0.5).run(raise_on_failure=False)
+        assert res.status == "failed" and res.stats["steps"] == 0 and len(res.times) == 1
+        assert res.message.startswith("stopped at t = 0 s: CircularTube 'tube': gas flow chokes")
+        # with beyond_limits='warn' the same scene runs to its end, warned
+        warned = sf.Simulation(scene(), duration=0.5, beyond_limits="warn").run()
+    assert warned.status == "success" and warned.stats["steps"] > 10
+    assert any(w.check == "tube_choked" for w in warned.warnings)

@@ -16,6 +16,12 @@ class StepFailure(Exception):
         self.t, self.dt, self.outcome = t, dt, outcome
 
 
+class StoppedAtStart(Exception):
+    """The run ends after its consistent point at t = 0 (see
+    :attr:`Integrator.stop_at_start`): what it would compute from there on is
+    refused anyway."""
+
+
 class Recorder:
     """Accepted steps, written into preallocated arrays that grow by doubling
     (no stacking of a list of rows at the end: for large networks that copy
@@ -91,6 +97,10 @@ class Integrator:
     progress = SILENT
     #: forward sensitivities carried along (softflow.solve.sensitivity), or None
     sens = None
+    #: None, or a callable that, after the consistent point at t = 0 is recorded,
+    #: says whether the run should stop there (a model past its own maximum from
+    #: the start: Simulation.run refuses every later point anyway)
+    stop_at_start = None
 
     def _next_break(self, t, ib):
         """(index, time) of the first breakpoint after t, searching from index ib
@@ -110,6 +120,8 @@ class Integrator:
         self.rec.add(0.0, out.x, asm.S0.copy())
         if self.sens is not None:
             self.sens_S = self.sens.initial(out.x, asm.S0)[1]
+        if self.stop_at_start is not None and self.stop_at_start():
+            raise StoppedAtStart()
         return out.x, asm.S0.copy()
 
 

@@ -465,6 +465,11 @@ def tube_inertia(g, result):
     return out
 
 
+#: tube_mach's choked record refuses the run (``details['fatal']``): Simulation.run
+#: asks it alone at t = 0 to stop a run refused from its start at once
+tube_mach.can_refuse = True  # type: ignore[attr-defined]
+
+
 def register_all(register):
     from ..components.actuators import Actuator, HystereticActuator
     from ..components.chambers import Container, LinearAccumulator

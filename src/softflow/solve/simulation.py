@@ -16,14 +16,14 @@ from ..network.component import remember_result
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .bdf import BDF, MAX_ORDER
-from .integrator import ImplicitEuler, StepFailure
+from .integrator import ImplicitEuler, StepFailure, StoppedAtStart
 from .progress import Progress
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 from .params import rebuild
 from .params import split as split_params
 from .result import Result
-from .validity import ComponentError, beyond, check_result, issue
+from .validity import ComponentError, beyond, can_refuse, check_result, issue
 from .thermal import check_model, configure_like, configure_thermal
 
 if TYPE_CHECKING:
@@ -127,8 +127,10 @@ class Simulation:
     beyond_limits : {'error', 'warn'}, default 'error'
         What a run does where a model passes its own maximum (a gas tube
         choking, :mod:`softflow.solve.model_checks`): 'error' stops it there
-        (SimulationError; the result up to that point has status 'failed'),
-        'warn' returns the whole run with a ModelWarning. Validity findings
+        (SimulationError; the result up to that point has status 'failed';
+        a model past its maximum at t = 0 stops the run right after its
+        consistent start, without computing the rest), 'warn' returns the
+        whole run with a ModelWarning. Validity findings
         short of that are always warnings (``result.warnings``).
     max_steps : int, default 10**7
         Most steps a run may take (accepted and rejected). A fixed ``step``
@@ -399,10 +401,14 @@ class Simulation:
                                  {label: g.comps[i] for label, (g, i) in asm.where.items()},
                                  thermal=self.thermal)
             integ.sens = sens  # type: ignore[assignment]
+        if self.beyond_limits == "error" and can_refuse(asm):
+            integ.stop_at_start = lambda: self._fatal_at_start(integ.rec)  # type: ignore[assignment]
         error = None
         try:
             with np.errstate(all="ignore"), integ.progress:
                 integ.run()
+        except StoppedAtStart:
+            pass      # the checks below refuse the run from t = 0, with their message
         except StepFailure as fail:
             error = self._describe_failure(fail, newton)
         except Exception as err:  # user code or inputs failing mid-run: keep what we have
@@ -468,6 +474,16 @@ class Simulation:
             if raise_on_failure:
                 raise error
         return result
+
+    def _fatal_at_start(self, rec):
+        """Whether the checks that can refuse a run (a choked tube) refuse it at the
+        consistent point at t = 0: then the run stops there instead of computing
+        to the end and being cut back to t = 0 (the check is that of the whole
+        run, on its first point)."""
+        t, X, S = rec.arrays()
+        point = Result(self.asm, t, X, S, recorded=self.record)
+        return any(r.details.get("fatal") and r.status == "beyond"
+                   for r in check_result(self.asm, point, fatal_only=True))
 
     def _describe_failure(self, fail, newton):
         out = fail.outcome

@@ -165,9 +165,10 @@ def _register_library_checks() -> None:
     register_all(register)
 
 
-def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
+def check_result(asm: Any, result: Any, fatal_only: bool = False) -> list[ValidityRecord]:
     """Every registered check on every group of the run's network: the records
-    past their limit and the near misses (see :func:`beyond`)."""
+    past their limit and the near misses (see :func:`beyond`). ``fatal_only``:
+    only the checks that can refuse a run (marked ``can_refuse``)."""
     _register_library_checks()
     records: list[ValidityRecord] = []
     if len(result.times) == 0:
@@ -177,6 +178,8 @@ def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
         for cls, checks in _CHECKS.items():
             if isinstance(g.comps[0], cls):
                 for check in checks:
+                    if fatal_only and not getattr(check, "can_refuse", False):
+                        continue
                     try:
                         records.extend(check(g, result))
                     except FluidError as err:    # a check must never fail the run it checks
@@ -188,6 +191,15 @@ def check_result(asm: Any, result: Any) -> list[ValidityRecord]:
                             message=f"{c.describe()}: the {check.__name__} check could not "
                                     f"be evaluated ({err}); its finding is unknown"))
     return records
+
+
+def can_refuse(asm: Any) -> bool:
+    """Whether a check that can refuse a run (``can_refuse``) is registered for
+    a group of the network (a gas tube's choke check)."""
+    _register_library_checks()
+    return any(getattr(check, "can_refuse", False)
+               for g in asm.groups for cls, checks in _CHECKS.items()
+               if isinstance(g.comps[0], cls) for check in checks)
 
 
 def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
