@@ -208,7 +208,8 @@ class Newton:
         the fluid cannot be evaluated. A scene that starts a sonic discharge
         sends the first iterates' temperatures far out (a 180:1 valve: 290 ->
         590 -> 780 K) before they come back."""
-        self._T_range = (float(lo), float(hi)) if lo > 0 or hi < math.inf else None
+        bounded = (lo > 0 or hi < math.inf) and lo < hi    # fluids that share no range: none
+        self._T_range = (float(lo), float(hi)) if bounded else None
 
     def set_magnitude_link(self, quantity, base, factor):
         """Let the magnitude of ``quantity`` be at least ``factor`` times that of
