@@ -46,3 +46,15 @@ def tank_and_actuator(D=1e-3, V=1e-5):
     s.connect("tank", "r")
     s.connect("r", "act")
     return s
+
+
+def source_tube_tank(pressure=2e5, tank_fluid=sf.air):
+    """A PressureSource at ``pressure`` [Pa] fills a 10 mL tank of
+    ``tank_fluid`` through 0.3 m of 1 mm air tube."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=pressure)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Container("tank", tank_fluid, volume=1e-5)
+    s.connect("tube", "src")
+    s.connect("tube", "tank")
+    return s

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import source_tube_tank
 from softflow.curves.pvcurve import CurveRangeError
 from softflow.solve.validity import PV_CURVE_SLACK, ValidityRecord
 
@@ -175,12 +176,7 @@ def test_initial_pressure_beyond_the_data_is_refused_unless_linear():
 
 # -- fluids at a node ---------------------------------------------------------------------
 def test_different_fluids_at_a_node_name_the_components():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=1.5e5)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
-    s += sf.Container("tank", sf.water, volume=1e-5)
-    s.connect("tube", "src")
-    s.connect("tube", "tank")
+    s = source_tube_tank(pressure=1.5e5, tank_fluid=sf.water)
     with pytest.raises(sf.NetworkError, match=r"different fluids meet at node\(tube.b, "
                        r"tank.a\): CircularTube 'tube': 'air'; Container 'tank': 'water'"):
         sf.Simulation(s, duration=0.01)

@@ -8,6 +8,7 @@ from fluids.compressible import P_isothermal_critical_flow, isothermal_gas
 from fluids.friction import friction_factor
 
 import softflow as sf
+from helpers import source_tube_tank
 
 P0 = sf.pressure_atmospheric
 
@@ -181,13 +182,7 @@ def test_a_run_refused_from_its_start_stops_at_once():
     stops after the consistent start instead of computing to the end and
     being cut back (same status and message as the full run would give)."""
     def scene():
-        s = sf.System()
-        s += sf.PressureSource("src", pressure=5e5)
-        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
-        s += sf.Container("tank", sf.air, volume=1e-5)
-        s.connect("tube", "src")
-        s.connect("tube", "tank")
-        return s
+        return source_tube_tank(pressure=5e5)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         res = sf.Simulation(scene(), duration=0.5).run(raise_on_failure=False)

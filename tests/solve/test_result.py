@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import source_tube_tank
 
 
 @pytest.fixture(scope="module")
@@ -60,22 +61,14 @@ def test_component_get_after_run(result):
 
 
 def test_record_keeps_only_the_chosen_components():
-    def build():
-        s = sf.System()
-        s += sf.PressureSource("src", pressure=2e5)
-        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
-        s += sf.Container("tank", sf.air, volume=1e-5)
-        s.connect("tube", "src")
-        s.connect("tube", "tank")
-        return s
-    full = sf.Simulation(build(), duration=0.02, step=1e-3).run()
-    part = sf.Simulation(build(), duration=0.02, step=1e-3, record=["tank"]).run()
+    full = sf.Simulation(source_tube_tank(), duration=0.02, step=1e-3).run()
+    part = sf.Simulation(source_tube_tank(), duration=0.02, step=1e-3, record=["tank"]).run()
     np.testing.assert_array_equal(part.get("tank", "pressure"), full.get("tank", "pressure"))
     np.testing.assert_array_equal(part.get("tank", "mass"), full.get("tank", "mass"))
     assert part.X.shape[1] == 2 and part.S.shape[1] == 1
     with pytest.raises(KeyError, match="record"):
         part.get("tube", "massflow", "a")
     with pytest.raises(KeyError, match="unknown component"):
-        sf.Simulation(build(), duration=0.02, record=["nope"])
+        sf.Simulation(source_tube_tank(), duration=0.02, record=["nope"])
     assert set(part.to_dict()) == {"time", "tank.pressure", "tank.massflow", "tank.mass",
                                    "tank.volume"}
