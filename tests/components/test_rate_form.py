@@ -240,3 +240,25 @@ def test_step_equations_are_the_residual_at_the_updated_states(name):
     np.testing.assert_array_equal(F_step, c.cls.residual(c.P, c.V, X, 0.3, False)[0])
     new = c.cls.update(c.P, c.V, c.S, dt)
     np.testing.assert_array_equal(new[:, c.cont], X[:, c.cont])
+
+
+@pytest.mark.parametrize("name", [n for n, c in CASES.items()
+                                  if c.cls.discrete_states and hasattr(c.cls, "switching")])
+def test_switching_functions_cross_zero_where_switch_changes_the_mode(name):
+    """switching(P, V, S) >= 0 exactly where switch(P, V, S) changes a mode,
+    over a sweep of the interface variables that crosses the thresholds."""
+    case = CASES[name]
+    plan = step_plan(case.cls)
+    changed_any = held_any = False
+    for scale, grow in zip(np.linspace(0.5, 1.5, 41), np.geomspace(0.2, 20.0, 41)):
+        V = case.V.copy()
+        V[:, 0] *= scale                 # the first pressure: a valve's dp
+        S = case.S.copy()
+        S[:, plan.cont] *= grow          # the stored mass: a volume's size
+        g = case.cls.switching(case.P, V, S)
+        new = case.cls.switch(case.P, V, S)
+        changed = new != S[:, plan.disc]
+        np.testing.assert_array_equal(g >= 0, changed, err_msg=f"{name} at scale {scale}")
+        changed_any |= bool(changed.any())
+        held_any |= bool((~changed).any())
+    assert changed_any and held_any      # both sides of a threshold were seen

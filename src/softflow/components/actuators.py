@@ -453,6 +453,11 @@ class HystereticActuator(LibraryComponent):
         return P.loop.next_inflating(vol, S[:, 1] > 0.5)[:, None]
 
     @classmethod
+    def switching(cls, P, V, S):
+        _, _, vol = _volume(P, V, S)
+        return P.loop.switching(vol, S[:, 1] > 0.5)[:, None]
+
+    @classmethod
     def residual(cls, P, V, S, t, jac):
         p, rho, vol = _volume(P, V, S)
         pc, dpc = P.loop.fdf_volume(vol, S[:, 1] > 0.5)

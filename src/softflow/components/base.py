@@ -13,6 +13,11 @@ every instance of the class in the network:
 ``switch(P, V, S)``
     the next value of each discrete state (a mode) after a converged step.
 
+``switching(P, V, S)`` (optional, with discrete states)
+    each discrete state's switching function, (n, n_discrete): negative while
+    its mode holds at (V, S), crossing zero where :meth:`switch` changes it.
+    The adaptive stepper places the end of a step that switches a mode at the
+    crossing (a secant between the step's ends) instead of bisecting.
 ``param_jacobian(P, V, S, t, name)`` (optional)
     dF/dtheta of ``residual`` and dr/dtheta of ``rates`` for the numeric
     parameter ``name`` of every instance, or None where the class states none

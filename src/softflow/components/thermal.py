@@ -713,6 +713,14 @@ class _LoopCurve(_CurveWall):
         return P.loop.work(vol, S[:, 2] > 0.5) - S[:, 3]
 
     @classmethod
+    def switching(cls, P, V, S):
+        """The loop's switching function (:meth:`HysteresisLoop.switching`), for
+        every discrete state (the work offset changes with the branch)."""
+        vol = S[:, 0] / P.fluid.density(V[:, 0], V[:, 2])
+        g = P.loop.switching(vol, S[:, cls._branch] > 0.5)
+        return np.repeat(g[:, None], len(cls.discrete_states), axis=1)
+
+    @classmethod
     def switch(cls, P, V, S):
         rho = P.fluid.density(V[:, 0], V[:, 2])
         vol = S[:, 0] / rho

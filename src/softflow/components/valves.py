@@ -564,6 +564,13 @@ class SnappingValve(_TubeLike):
         return mode[:, None]
 
     @classmethod
+    def switching(cls, P, V, S):
+        """Closed: dp - opening_pressure; open: closing_pressure - dp."""
+        dp = V[:, 0] - V[:, 2]
+        return np.where(S[:, 0] > 0.5, P.closing_pressure - dp,
+                        dp - P.opening_pressure)[:, None]
+
+    @classmethod
     def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         is_open = S[:, 0] > 0.5

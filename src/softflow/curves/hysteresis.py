@@ -138,6 +138,13 @@ class HysteresisLoop:
                         dfl.work(lo)[0] + w_inf - inf.work(lo)[0])
         return np.where(inflating, up, down)
 
+    def switching(self, volume: Array, inflating: ArrayLike) -> Array:
+        """Where the branch changes, as a function that crosses zero there:
+        volume - V_hi while inflating, V_lo - volume while deflating (negative
+        while the branch holds; :meth:`next_inflating` changes it at >= 0)."""
+        vol = np.asarray(volume, dtype=float)
+        return np.where(inflating, vol - self.volume_high, self.volume_low - vol)
+
     def next_inflating(self, volume: float | Array, inflating: bool | ArrayLike) -> BoolArray:
         """Branch after a step that ended at ``volume`` (True: inflation)."""
         return self.on_inflation_curve(volume, inflating)

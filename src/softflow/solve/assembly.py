@@ -160,6 +160,7 @@ class Group:
         self.ns = ns
         self.has_states = has_states
         self.begin = None  # begin_step(V, S) hook, or None
+        self.switching = None  # switching(V, S): the discrete states' switching functions
         self.row = None    # a single user component's kernel (1-D calls), or None
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
@@ -205,6 +206,9 @@ def _library_group(cls, comps):
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
     g.affine = cls.affine(P)
+    sw = getattr(cls, "switching", None)
+    if sw is not None and cls.discrete_states:
+        g.switching = partial(sw, P)
     # per-step coefficients (e.g. heat-transfer correlations), frozen over each step
     wants = getattr(cls, "wants_begin_step", None)
     if wants is not None and wants(P):
@@ -844,6 +848,15 @@ class Assembly:
         for g in self.groups:
             if g.begin is not None:
                 g.begin(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns))
+
+    def switching(self, x, S):
+        """The switching functions of every group that states them, one array:
+        each negative while its mode holds and crossing zero where ``switch``
+        changes it (``S``: the modes as they were). None without any."""
+        parts = [np.asarray(g.switching(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns)),
+                            dtype=float).ravel()
+                 for g in self.groups if g.switching is not None]
+        return np.concatenate(parts) if parts else None
 
     def update_states(self, x, S, dt):
         """States at the end of a step, given the converged unknowns (a fluid-range

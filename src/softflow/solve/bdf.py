@@ -47,10 +47,15 @@ Euler probe, and chooses its first step from the first and second
 derivatives (Hairer, Norsett & Wanner I, sec. II.4): no step is taken
 without an error test. Undeclared jumps show as failed error tests and are
 located by step rejection, down to ``step_min``. A discrete state (a valve's
-or a hysteretic actuator's mode) that switches at the end of a step over
-which the solution moved by more than the tolerance (weighted norm > 1)
-rejects that step and bisects, so the switch is located to within the
-tolerance before the method restarts from the new mode.
+or a hysteretic actuator's mode) that switches at the end of a step is
+located before the method restarts from the new mode: where the class states
+a switching function (negative while the mode holds, crossing zero where it
+changes: a snapping valve's dp - opening_pressure), the step is retried to
+end just past the secant crossing of the functions between the step's ends,
+until the part of the step past the crossing moves the solution by no more
+than the tolerance (as IDA's rootfinding places a root, but by re-stepping);
+without one, a step over which the solution moved by more than the tolerance
+(weighted norm > 1) is bisected until the switching step is that short.
 """
 from __future__ import annotations
 
@@ -76,6 +81,11 @@ MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
 #: a step is only lengthened by at least this factor (each change costs a
 #: re-interpolation and, past Newton's reuse window, a factorization)
 GROW_MIN = 1.2
+#: a step that switches a mode is placed to end at most this fraction past the
+#: crossing of its switching function (less where the step moves by more than
+#: the tolerance); SECANT_TRIES placements, then bisection
+SWITCH_PAST = 1e-3
+SECANT_TRIES = 4
 #: accepted steps for which a step stays below 0.9 x the last one that failed
 #: the error test (or below the bisected step while a mode switch is located)
 FAIL_HOLD = 10
@@ -265,6 +275,23 @@ class BDF(Integrator):
             h = min(100 * h0, h1)
         return x_right, r0, xdot, max(min(h, span, self.step_max), self.step_min)
 
+    def _crossing(self, x, S, x_new, S_new):
+        """The fraction of the step at which the first switching function crosses
+        zero, by a secant between the step's ends (the end evaluated with the
+        old modes), or None where no group states one or none crosses."""
+        asm = self.asm
+        g0 = asm.switching(x, S)
+        if g0 is None:
+            return None
+        old_modes = S_new.copy()
+        old_modes[asm.s_discrete] = S[asm.s_discrete]
+        g1 = asm.switching(x_new, old_modes)
+        cross = (g0 < 0.0) & (g1 >= 0.0)
+        if not cross.any():
+            return None
+        theta = float(np.min(g0[cross] / (g0[cross] - g1[cross])))
+        return theta if 0.0 < theta <= 1.0 else None
+
     def _check_affine_updates(self, x, S):
         """A user component's ``update_state`` must be affine in dt (states + dt ·
         rate): BDF passes it psi and c in place of the states and the step. Checked
@@ -324,6 +351,7 @@ class BDF(Integrator):
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
         # fails, halves, doubles and fails again every third step
         fail_cap, fail_hold = math.inf, 0
+        secant_tries = 0       # secant placements of the current switch
         while t < t_stop:
             if next_break <= t * (1 + 1e-14) + 1e-300:
                 ib, next_break = self._next_break(t, ib)
@@ -398,18 +426,33 @@ class BDF(Integrator):
                     continue
                 self.forced_steps += 1
             switched = disc is not None and bool((S_new[disc] != S[disc]).any())
-            if (switched and h > self.step_min * 1.0000001
-                    and self._norm(S_new - S, w, out.x - x) > 1.0):
-                # a mode switched within a step over which the solution moved by more
-                # than the tolerance: bisect until the switching step is that short
-                stats.rejected_steps += 1
-                report.rejected(t_new, h, "switch")
-                factor = max(0.5, self.step_min / h)
-                self._rescale(tables, k, factor)
-                h *= factor
-                h_cap, cap_hold = h, FAIL_HOLD
-                n_equal = 0
-                continue
+            if switched and h > self.step_min * 1.0000001:
+                motion = self._norm(S_new - S, w, out.x - x)
+                theta = (self._crossing(x, S, out.x, S_new)
+                         if motion > 1.0 and secant_tries < SECANT_TRIES else None)
+                # the part of the step past the switch ran in the old mode: accepted
+                # where the motion over that part is within the tolerance
+                past = 1.0 if theta is None else 1.0 - theta
+                if motion * past > 1.0:
+                    stats.rejected_steps += 1
+                    report.rejected(t_new, h, "switch")
+                    if theta is not None:
+                        # end the step just past the crossing (a secant of the
+                        # switching functions between the step's ends), by a
+                        # part whose motion stays within half the tolerance
+                        secant_tries += 1
+                        past = min(SWITCH_PAST, 0.5 / max(motion * theta, 1.0))
+                        factor = max(theta * (1.0 + past), self.step_min / h)
+                    else:
+                        # no switching function (or the secant did not settle):
+                        # bisect until the switching step is that short
+                        factor = max(0.5, self.step_min / h)
+                        h_cap, cap_hold = h * factor, FAIL_HOLD
+                    self._rescale(tables, k, factor)
+                    h *= factor
+                    n_equal = 0
+                    continue
+            secant_tries = 0
             # accepted
             fails = 0
             if fail_hold:
