@@ -145,3 +145,25 @@ def test_check_params_and_without_result():
     light = pickle.dumps(sim.without_result())
     assert len(light) < len(pickle.dumps(sim)) and sim.result is not None
     _same(pickle.loads(light).run(), base)
+
+
+def test_params_move_a_valves_switching_threshold_as_a_fresh_build_does():
+    """A snapping valve's opening_pressure set at run time: the switches are
+    located with the new threshold (its switching function is made anew with
+    the kernel), the run equal to a fresh build's."""
+    def valve_scene(opening=2e4):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=lambda t: P0 + 1e5 * t)
+        s += sf.SnappingValve("valve", sf.air, opening_pressure=opening, closing_pressure=5e3,
+                              closed_conductance=1e-12, length=0.05, diameter=2e-3)
+        s += sf.Container("tank", sf.air, volume=1e-4)
+        s.connect("src", "valve")
+        s.connect("valve", "tank")
+        return s
+    sim = sf.Simulation(valve_scene(), duration=0.5, rtol=1e-6)
+    sim.run()
+    changed = sim.run(params={"valve.opening_pressure": 3e4})
+    fresh = sf.Simulation(valve_scene(3e4), duration=0.5, rtol=1e-6).run()
+    np.testing.assert_array_equal(changed.times, fresh.times)
+    np.testing.assert_array_equal(changed.X, fresh.X)
+    np.testing.assert_array_equal(changed.S, fresh.S)

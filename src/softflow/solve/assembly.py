@@ -193,6 +193,11 @@ def _fluid_failure(g, err):
     return out
 
 
+#: What _library_group makes of a class's Params: Assembly.replace takes all of
+#: them from a group made anew (one left behind would keep the old numbers).
+_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching")
+
+
 def _library_group(cls, comps):
     from ..components.base import LibraryComponent
     P = cls.make_params(comps)
@@ -646,8 +651,8 @@ class Assembly:
                     "of them) change the network's structure: give them all the same, or "
                     "build a new Simulation")
             fresh = _library_group(g.comps[0].kernel_class(), g.comps)
-            g.kernel, g.update, g.affine, g.begin = fresh.kernel, fresh.update, fresh.affine, \
-                fresh.begin
+            for name in _FROM_PARAMS:
+                setattr(g, name, getattr(fresh, name))
         self.x0 = self._initial_unknowns()
         self.S0 = np.array([v for g in self.groups if g.ns for c in g.comps
                             for v in _initial_states(c)], dtype=float)
