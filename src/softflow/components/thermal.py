@@ -712,18 +712,21 @@ class _LoopCurve(_CurveWall):
         # over every change of branch (the discrete state work_offset)
         return P.loop.work(vol, S[:, 2] > 0.5) - S[:, 3]
 
+    @staticmethod
+    def _gas_volume(P, V, S):
+        """The gas volume m / rho(p, T) of the stored mass S[:, 0]."""
+        return S[:, 0] / P.fluid.density(V[:, 0], V[:, 2])
+
     @classmethod
     def switching(cls, P, V, S):
         """The loop's switching function (:meth:`HysteresisLoop.switching`), for
         every discrete state (the work offset changes with the branch)."""
-        vol = S[:, 0] / P.fluid.density(V[:, 0], V[:, 2])
-        g = P.loop.switching(vol, S[:, cls._branch] > 0.5)
+        g = P.loop.switching(cls._gas_volume(P, V, S), S[:, cls._branch] > 0.5)
         return np.repeat(g[:, None], len(cls.discrete_states), axis=1)
 
     @classmethod
     def switch(cls, P, V, S):
-        rho = P.fluid.density(V[:, 0], V[:, 2])
-        vol = S[:, 0] / rho
+        vol = cls._gas_volume(P, V, S)
         old = S[:, cls._branch] > 0.5
         new = P.loop.next_inflating(vol, old)
         if cls._branch == 1:                  # held: the branch alone

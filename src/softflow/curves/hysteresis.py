@@ -87,6 +87,11 @@ class HysteresisLoop:
                 raise ValueError(f"{owner}: meet_tolerance must be a pressure >= 0 [Pa], "
                                  f"got {meet_tolerance!r}")
         self.meet_tolerance = float(meet_tolerance)
+        # the branches' work counts where one hands over to the other (work())
+        hi, lo = np.array([self.volume_high]), np.array([self.volume_low])
+        self._work_shifts = (
+            float(inflation_curve.work(hi)[0] - deflation_curve.work(hi)[0]),
+            float(deflation_curve.work(lo)[0] - inflation_curve.work(lo)[0]))
         for vol in (self.volume_low, self.volume_high):
             pi = float(inflation_curve(vol))
             pd = float(deflation_curve(vol))
@@ -127,15 +132,12 @@ class HysteresisLoop:
         (a change of branch moves the reference: see
         :class:`softflow.components.thermal.ThermalHystereticActuator`)."""
         vol = np.asarray(volume, dtype=float)
-        hi, lo = np.array([self.volume_high]), np.array([self.volume_low])
-        inf, dfl = self.inflation, self.deflation
-        w_inf, w_dfl = inf.work(vol), dfl.work(vol)
-        # inflating: past V_hi on the deflation branch, continued from V_hi
-        up = np.where(vol < self.volume_high, w_inf,
-                      inf.work(hi)[0] + w_dfl - dfl.work(hi)[0])
+        w_inf, w_dfl = self.inflation.work(vol), self.deflation.work(vol)
+        shifts = self._work_shifts
+        # inflating: past V_hi on the deflation branch, continued from V_hi;
         # deflating: at or below V_lo on the inflation branch, continued from V_lo
-        down = np.where(vol > self.volume_low, w_dfl,
-                        dfl.work(lo)[0] + w_inf - inf.work(lo)[0])
+        up = np.where(vol < self.volume_high, w_inf, w_dfl + shifts[0])
+        down = np.where(vol > self.volume_low, w_dfl, w_inf + shifts[1])
         return np.where(inflating, up, down)
 
     def switching(self, volume: Array, inflating: ArrayLike) -> Array:
