@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -165,41 +165,44 @@ def _register_library_checks() -> None:
     register_all(register)
 
 
-def check_result(asm: Any, result: Any, fatal_only: bool = False) -> list[ValidityRecord]:
-    """Every registered check on every group of the run's network: the records
-    past their limit and the near misses (see :func:`beyond`). ``fatal_only``:
-    only the checks that can refuse a run (marked ``can_refuse``)."""
+def _group_checks(asm: Any, fatal_only: bool = False) -> Iterator[tuple[Any, Any]]:
+    """(group, check) for every registered check of every group of the network;
+    ``fatal_only``: only the checks that can refuse a run (``can_refuse``)."""
     _register_library_checks()
-    records: list[ValidityRecord] = []
-    if len(result.times) == 0:
-        return records
-    from ..fluids.base import FluidError
     for g in asm.groups:
         for cls, checks in _CHECKS.items():
             if isinstance(g.comps[0], cls):
                 for check in checks:
-                    if fatal_only and not getattr(check, "can_refuse", False):
-                        continue
-                    try:
-                        records.extend(check(g, result))
-                    except FluidError as err:    # a check must never fail the run it checks
-                        c = g.comps[0]
-                        records.append(ValidityRecord(
-                            component=c.label, check=check.__name__, measured=float("nan"),
-                            limit=float("nan"), unit="",
-                            suggestion="use a fluid level whose range covers the run's states",
-                            message=f"{c.describe()}: the {check.__name__} check could not "
-                                    f"be evaluated ({err}); its finding is unknown"))
+                    if not fatal_only or getattr(check, "can_refuse", False):
+                        yield g, check
+
+
+def check_result(asm: Any, result: Any, fatal_only: bool = False) -> list[ValidityRecord]:
+    """Every registered check on every group of the run's network: the records
+    past their limit and the near misses (see :func:`beyond`). ``fatal_only``:
+    only the checks that can refuse a run (marked ``can_refuse``)."""
+    records: list[ValidityRecord] = []
+    if len(result.times) == 0:
+        return records
+    from ..fluids.base import FluidError
+    for g, check in _group_checks(asm, fatal_only):
+        try:
+            records.extend(check(g, result))
+        except FluidError as err:    # a check must never fail the run it checks
+            c = g.comps[0]
+            records.append(ValidityRecord(
+                component=c.label, check=check.__name__, measured=float("nan"),
+                limit=float("nan"), unit="",
+                suggestion="use a fluid level whose range covers the run's states",
+                message=f"{c.describe()}: the {check.__name__} check could not "
+                        f"be evaluated ({err}); its finding is unknown"))
     return records
 
 
 def can_refuse(asm: Any) -> bool:
     """Whether a check that can refuse a run (``can_refuse``) is registered for
     a group of the network (a gas tube's choke check)."""
-    _register_library_checks()
-    return any(getattr(check, "can_refuse", False)
-               for g in asm.groups for cls, checks in _CHECKS.items()
-               if isinstance(g.comps[0], cls) for check in checks)
+    return any(True for _ in _group_checks(asm, fatal_only=True))
 
 
 def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
