@@ -18,6 +18,12 @@ if TYPE_CHECKING:
 MASS_RATE_PATTERN = ((0, 1),)
 
 
+def accumulator_volume(P, p):
+    """The fluid volume of a linear accumulator at pressure p [m^3]: volume +
+    compliance (p - reference_pressure). ``P``: its Params, or the component."""
+    return P.volume + P.compliance * (p - P.reference_pressure)
+
+
 def mass_rates(P, V, jac):
     """The mass balance of a one-terminal volume, dm/dt = mdot (the mass flow
     into its terminal), and its derivative: the one law every volume shares."""
@@ -174,7 +180,7 @@ class LinearAccumulator(LibraryComponent):
                               heat_transfer_coefficient, area, hA, thermal)
 
     def _fluid_volume(self, p):
-        return self.volume + self.compliance * (p - self.reference_pressure)
+        return accumulator_volume(self, p)
 
     def initial_states(self):
         p = self.initial_pressure
@@ -208,7 +214,7 @@ class LinearAccumulator(LibraryComponent):
     @classmethod
     def residual(cls, P, V, S, t, jac):
         p = V[:, 0]
-        vol = P.volume + P.compliance * (p - P.reference_pressure)
+        vol = accumulator_volume(P, p)
         rho = P.fluid.density(p)
         F = (rho * vol - S[:, 0])[:, None]
         if not jac:

@@ -88,7 +88,8 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from .actuators import Actuator, HystereticActuator
-from .chambers import MASS_RATE_PATTERN, Container, LinearAccumulator, mass_rates
+from .chambers import (MASS_RATE_PATTERN, Container, LinearAccumulator, accumulator_volume,
+                       mass_rates)
 from .sources import MassFlowSource, PressureSource, VolumeFlowSource
 from .tubes import CircularTube, InertialCircularTube
 from .valves import CheckValve, Orifice, SnappingValve, TeslaValve
@@ -644,7 +645,7 @@ class _LinearWall:
     def _wall(cls, P, p, T, S, jac, work=True):
         rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
         C, p_ref = P.compliance, P.reference_pressure
-        vol = P.volume + C * (p - p_ref)
+        vol = accumulator_volume(P, p)
         F0 = rho * vol - S[:, 0]
         W = 0.0
         if work:
