@@ -270,11 +270,29 @@ def test_validity_warnings_are_kept_per_variant_and_warned_once():
     ("tube.diameter", TypeError, ["grid", "list of variants"]),
 ])
 def test_bad_params_are_refused_before_any_run(fixed, params, error, words):
-    with pytest.raises(error) as info:
-        sf.sweep(fixed, params)
-    message = info.value.args[0]
-    for w in words:
-        assert w in message, (w, message)
+    messages = []
+    for engine in ("serial", "batched"):    # the batched engine checks on its own
+        with pytest.raises(error) as info:
+            sf.sweep(fixed, params, engine=engine)
+        messages.append(info.value.args[0])
+        for w in words:
+            assert w in messages[-1], (engine, w, messages[-1])
+    assert messages[0] == messages[1]
+
+
+def test_batched_engine_refuses_values_that_split_a_group():
+    """Two tubes evaluated together: another fluid for one of them is refused by
+    the batched engine's check as by a run."""
+    system = fill()
+    system += sf.CircularTube("tube2", sf.air, length=0.3, diameter=1e-3)
+    system += sf.Container("tank2", sf.air, volume=1e-5)
+    system.connect("tube2", "source")
+    system.connect("tube2", "tank2")
+    sim = sf.Simulation(system, duration=0.01, step=0.005)
+    variants = [{"tube.diameter": 1e-3}, {"tube.diameter": 1e-3, "tube2.Re_laminar": 1500.0}]
+    for engine in ("serial", "batched"):
+        with pytest.raises(sf.NetworkError, match="variant 1 of 2.*evaluated together"):
+            sf.sweep(sim, variants, engine=engine)
 
 
 def test_bad_arguments(fixed):

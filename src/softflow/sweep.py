@@ -306,13 +306,15 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
             raise ValueError(f"sweep: workers must be an integer >= 1, got {workers!r}")
     if engine == "dask":
         _import_distributed()
-    batched: Any = _batched_runner() if engine == "batched" else None
+    batched, prepare = _batched_runner() if engine == "batched" else (None, None)
 
     variants, grid_values = _variants(params)
     columns, units = _columns(sim)
     outputs = _outputs(outputs, columns)
     times = _times(sim, times)
-    _check_variants(sim, variants)
+    # the batched engine checks as the others do, keeping the components it
+    # rebuilds for its batches (built once, not twice)
+    prepared = _check_variants(sim, variants, prepare)
     coords, grid = _coordinates(sim, variants, grid_values)
     names = {key: f"{key} (parameter)" if key in units else key for key in coords}
     units = {o: units[o] for o in outputs}
@@ -336,7 +338,8 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ModelWarning)
                 # one run of all the variants: its own bar, in simulated time
-                results = batched(sim, variants, progress=progress)
+                results = (batched(sim, variants, progress=progress) if prepared is None
+                           else batched(sim, variants, progress=progress, prepared=prepared))
             if len(results) != n:
                 raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
                                    f"results for {n} variants")
@@ -429,14 +432,19 @@ def _short(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _check_variants(sim: Simulation, variants: list[dict[str, Any]]) -> None:
+def _check_variants(sim: Simulation, variants: list[dict[str, Any]],
+                    check: Callable[..., Any] | None = None) -> Any:
     """Put each variant's parameters in force once, as a run would (keys, units,
     ranges and structure checked by :mod:`softflow.solve.params` and
-    ``Assembly.replace``: ~0.2 ms a variant), then the compiled values back.
-    Errors name the variant."""
+    ``Assembly.replace``: ~0.2 ms a variant), then the compiled values back;
+    or ``check(sim, variants)`` (the batched engine's, which keeps the
+    components it rebuilds) and its return value. Errors name the variant."""
     n = len(variants)
     try:
+        if check is not None:
+            return check(sim, variants)
         sim.check_params(*variants)
+        return None
     except Exception as err:
         i = getattr(err, "variant_index", 0)
         raise _renamed(err, f"sweep: {_describe_variant(i, n, variants[i])}: "
@@ -765,7 +773,9 @@ def _dask(sim: Simulation, variants: list[dict[str, Any]], outputs: list[str], t
 
 
 # -- batched ------------------------------------------------------------------------------
-def _batched_runner() -> Callable[..., Any]:
+def _batched_runner() -> tuple[Callable[..., Any], Callable[..., Any] | None]:
+    """The batched engine's ``_run_batched`` and, where it has one, its ``prepare``
+    (which checks the variants and keeps what its runs reuse)."""
     import importlib
     import importlib.util
     if importlib.util.find_spec("softflow.solve.batched") is None:
@@ -777,7 +787,7 @@ def _batched_runner() -> Callable[..., Any]:
     if runner is None:
         raise NotImplementedError("sweep: engine='batched': softflow.solve.batched has no "
                                   "_run_batched(sim, variants)")
-    return runner
+    return runner, getattr(module, "prepare", None)
 
 
 # ----------------------------------------------------------------------------------------

@@ -27,7 +27,9 @@ import copy
 import warnings
 from dataclasses import replace
 
-from ..network.system import System
+import numpy as np
+
+from ..network.system import NetworkError, System
 from .params import rebuild
 from .params import split as split_params
 from .validity import ModelWarning, beyond
@@ -40,15 +42,16 @@ class VariantResult:
     """One variant's part of a batched run, read like a :class:`Result`
     (``get``, ``times``, ``status``, ``message``, ``stats``, ``integral``)."""
 
-    def __init__(self, result, prefix):
+    def __init__(self, result, prefix, validity=None):
         self._result, self._prefix = result, prefix
         self.times = result.times
         self.status, self.message = result.status, result.message
         self.stats = dict(result.stats, batched=True)
+        if validity is None:        # this variant's records, found among all of the batch's
+            validity = [w for w in getattr(result, "validity", [])
+                        if str(w.component).startswith(prefix)]
         n = len(prefix)
-        self.validity = [replace(w, component=w.component[n:])
-                         for w in getattr(result, "validity", [])
-                         if str(w.component).startswith(prefix)]
+        self.validity = [replace(w, component=w.component[n:]) for w in validity]
         self.warnings = beyond(self.validity)
 
     @property
@@ -67,7 +70,7 @@ class VariantResult:
         return f"<VariantResult {self._prefix!r}: {len(self.times)} points, {self.status}>"
 
 
-def _copy(comp, label, changes):
+def _copy(comp, label, changes=None):
     """``comp`` under another label: rebuilt with ``changes`` (checked as its
     constructor checks them), or else a shallow copy sharing its fluid,
     curve and numbers, with its own terminals and variables."""
@@ -86,21 +89,134 @@ def _copy(comp, label, changes):
     return twin
 
 
-def build_batch(system, variants, labels):
+def build_batch(system, variants, labels, built=None):
     """A System with one relabelled copy of ``system`` per variant (a dict of
-    run-time parameters), joined as the original is."""
+    run-time parameters), joined as the original is. ``built``: for each
+    variant, its components already rebuilt with its parameters
+    (:func:`prepare`; ``{label: component}``), used in place of rebuilding."""
     batch = System(f"{system.label} x {len(variants)}")
-    nodes = [nd for nd in system.nodes() if len(nd.terminals) > 1]
+    nodes = [[(t.component.label, t.label) for t in nd.terminals]
+             for nd in system.nodes() if len(nd.terminals) > 1]
     for k, params in enumerate(variants):
         prefix = PREFIX.format(k)
-        changes = split_params(params, labels)
-        for c in system.components:
-            batch.add(_copy(c, prefix + c.label, changes.get(c.label, {})))
+        if built is None:
+            changes = split_params(params, labels)
+            for c in system.components:
+                batch.add(_copy(c, prefix + c.label, changes.get(c.label)))
+        else:
+            own = built[k]
+            for c in system.components:
+                batch.add(_copy(own.get(c.label, c), prefix + c.label))
         for nd in nodes:
-            batch.connect(*[(prefix + t.component.label, t.label) for t in nd.terminals])
+            batch.connect(*[(prefix + label, term) for label, term in nd])
     return batch
 
 
+# -- checking the variants ---------------------------------------------------------------
+def _si_template(comp):
+    """``comp`` rebuilt from SI numbers in place of its scalar Quantity arguments
+    (constructors then skip pint: ~60 us a Quantity), or ``comp`` itself where
+    that does not give the same numbers (a constructor that reads a
+    Quantity's dimension, not only its magnitude)."""
+    import pint
+    args, kwargs = comp.__dict__.get("_definition") or ((), {})
+
+    def si(v):
+        if isinstance(v, pint.Quantity) and np.ndim(v.magnitude) == 0:
+            return float(v.to_base_units().magnitude)
+        return v
+    new_args, new_kwargs = tuple(si(a) for a in args), {k: si(v) for k, v in kwargs.items()}
+    if all(a is b for a, b in zip(args, new_args)) and all(
+            new_kwargs[k] is v for k, v in kwargs.items()):
+        return comp
+    template = copy.copy(comp)
+    template._definition = (new_args, new_kwargs)
+    try:
+        probe = rebuild(template, {})
+    except Exception:
+        return comp
+    mine, theirs = vars(probe), vars(comp)
+    for key, value in theirs.items():
+        if isinstance(value, float) and not (
+                isinstance(mine.get(key), float)
+                and abs(mine[key] - value) <= 1e-12 * abs(value)):
+            return comp
+    return template
+
+
+class Prepared:
+    """Every variant checked before any runs, as ``Simulation.run(params=...)``
+    checks it (keys, units and ranges by the constructors, structure as
+    :meth:`Assembly.replace` judges it), with the components that check
+    rebuilt kept for the batch: ``built[k]`` is ``{label: component}`` of
+    variant k's changed components (labels as in the scene)."""
+
+    def __init__(self, sim, variants):
+        self.variants = [dict(v) for v in variants]
+        self.built = None
+        if sim.thermal != "isothermal":
+            # a thermal scene configures each rebuilt component in place: the
+            # checks of a run, and the batch rebuilds its own
+            sim.check_params(*self.variants)
+            return
+        asm = sim.asm
+        compiled = sim._compiled
+        templates = {}
+        built = []
+        for i, params in enumerate(self.variants):
+            try:
+                wanted = split_params(params, asm.where)
+                own = {}
+                for label, changes in wanted.items():
+                    template = templates.get(label)
+                    if template is None:
+                        template = templates[label] = _si_template(compiled[label])
+                    own[label] = _rebuilt(template, changes, compiled[label])
+                _check_groups(asm, compiled, own)
+            except Exception as err:
+                err.variant_index = i
+                raise
+            built.append(own)
+        self.built = built
+
+
+def _rebuilt(template, changes, old):
+    """``template`` (``old``, or its SI twin) rebuilt with ``changes``; refused as
+    :meth:`Assembly.replace` refuses a change of class."""
+    comp = rebuild(template, changes)
+    if type(comp) is not type(old) or comp.kernel_class() is not old.kernel_class():
+        raise NetworkError(f"{old.describe()}: becoming a {type(comp).__name__} changes "
+                           "the network's structure; build a new Simulation")
+    return comp
+
+
+def _check_groups(asm, compiled, own):
+    """What :meth:`Assembly.replace` refuses: new values that split a group of
+    the compiled model (e.g. another curve for one of two actuators)."""
+    groups = {}
+    for label in own:
+        g, _ = asm.where[label]
+        groups[id(g)] = g
+    for g in groups.values():
+        if len(g.comps) < 2:
+            continue
+        comps = [own.get(c.label, compiled[c.label]) for c in g.comps]
+        if len({c.group_key() for c in comps}) > 1:
+            labels = ", ".join(repr(c.label) for c in comps)
+            raise NetworkError(
+                f"{labels} are evaluated together (same class, fluid, curve or flow "
+                "regime bounds); new values that split them (e.g. another curve for one "
+                "of them) change the network's structure: give them all the same, or "
+                "build a new Simulation")
+
+
+def prepare(sim, variants):
+    """Check every variant (errors carry ``variant_index``) and keep what the
+    batches reuse (:class:`Prepared`)."""
+    return Prepared(sim, variants)
+
+
+# -- running ------------------------------------------------------------------------------
 #: Variants per batch: the variants are ordered by their parameter values and
 #: cut into batches of this size, so that each batch's shared step sequence
 #: serves variants of similar time scales (1 000 source-tube-tank variants,
@@ -120,21 +236,26 @@ def _order_key(params):
     return tuple(out)
 
 
-def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE):
+def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=None):
     """Results (one per variant, in order) of ``sim`` under each variant's
     run-time parameters, solved in batches of ``batch_size`` similar variants
-    (module doc)."""
-    variants = [dict(v) for v in variants]
+    (module doc). ``prepared``: the variants already checked by
+    :func:`prepare` (else they are checked here, all before any runs)."""
+    if prepared is None:
+        prepared = prepare(sim, variants)
+    variants = prepared.variants
+    built = prepared.built
     order = sorted(range(len(variants)), key=lambda k: _order_key(variants[k]))
     results = [None] * len(variants)
     for start in range(0, len(order), batch_size):
         chunk = order[start:start + batch_size]
-        for k, res in zip(chunk, _run_batch(sim, [variants[k] for k in chunk], progress)):
+        own = None if built is None else [built[k] for k in chunk]
+        for k, res in zip(chunk, _run_batch(sim, [variants[k] for k in chunk], progress, own)):
             results[k] = res
     return results
 
 
-def _run_batch(sim, variants, progress):
+def _run_batch(sim, variants, progress, built=None):
     """Results of one batch (in order), the batch run as one network."""
     from .simulation import Simulation, SimulationError
     results = [None] * len(variants)
@@ -142,7 +263,8 @@ def _run_batch(sim, variants, progress):
     labels = {c.label for c in sim.system.components}
     opts = {k: v for k, v in sim._definition.items() if k != "system"}
     while todo:
-        batch = build_batch(sim.system, [variants[k] for k in todo], labels)
+        batch = build_batch(sim.system, [variants[k] for k in todo], labels,
+                            None if built is None else [built[k] for k in todo])
         kw = dict(opts)
         if kw.get("record") is not None:
             rec = [kw["record"]] if isinstance(kw["record"], str) else list(kw["record"])
@@ -161,8 +283,11 @@ def _run_batch(sim, variants, progress):
             k = todo.pop(culprit)
             results[k] = sim.run(params=variants[k], raise_on_failure=False)
             continue
+        mine = {}
+        for w in getattr(res, "validity", []):
+            mine.setdefault(_variant_of(w.component), []).append(w)
         for j, k in enumerate(todo):
-            results[k] = VariantResult(res, PREFIX.format(j))
+            results[k] = VariantResult(res, PREFIX.format(j), mine.get(j, []))
         _summarize(res.warnings, len(todo))
         break
     return results
