@@ -194,16 +194,22 @@ def test_per_component_fluid_level_in_the_high_pressure_part():
 
 def test_failed_base_goes_up_first_on_the_axis_its_checks_name():
     """A laminar tube at Re ~10 000 chokes in the base run: the fallback tries
-    Haaland on that tube before a finer rtol or another model."""
+    Haaland on that tube before a finer rtol or another model, with the
+    isothermal compressible law (the choked flow ran past Mach 0.3): no
+    tube-law probe of its own follows."""
     s, duration, outputs = scenes.turbulent_air()
     a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
     assert not a.runs[0].ok and "chokes" in a.runs[0].error
     assert a.runs[0].result is not None          # its validity records were read
     assert a.runs[1].ok
-    assert a.runs[1].config.overrides_dict() == {"tube": {"friction": "Haaland"}}
+    assert a.runs[1].config.overrides_dict() == {
+        "tube": {"friction": "Haaland", "compressible": "isothermal"}}
     base = _axis(a, "base")
     assert "failed" in base["verdict"] and "friction='Haaland'" in base["level tried"]
     assert "friction" not in set(a.table["axis"])       # decided by the fallback
+    law = _axis(a, "tube law")
+    assert "choked" in law["verdict"] and law["cost [s]"] == 0.0
+    assert len(a.runs) == 4      # failed base, base, thermal probe, time tolerance
 
 
 def test_the_users_system_is_unchanged():

@@ -51,7 +51,9 @@ time tolerance
 Where the cheapest configuration fails (a laminar tube at high Reynolds
 number chokes), the levels up are tried one at a time, those whose check
 the failed run found near or past its limit first; the first that runs is
-the base.
+the base. A laminar tube that choked gets its friction and its tube law
+lifted together (its flow ran far past Mach 0.3: one run instead of a base
+run and a tube-law probe).
 
 Variants are built from a copy of the System (components rebuilt from their
 recorded constructor arguments, with the overrides); the user's System is
@@ -91,6 +93,7 @@ _INERTIA_CHECK = "tube_inertia"
 _FLUID_CHECK = "gas_compressibility"
 _FRICTION_CHECK = "tube_reynolds"
 _MACH_CHECK = "tube_mach"
+_CHOKED_CHECK = "tube_choked"
 
 
 class AssessmentError(RuntimeError):
@@ -450,6 +453,11 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
                            f"{err.args[0]}") from None
     records = base.result.validity
     rows = [("base", base.config.describe(), math.nan, base.cpu, 1.0, verdict)]
+    lifted = sorted(lab for lab, args in base.config.overrides if dict(args).get("compressible"))
+    if lifted:
+        rows.append(("tube law", f"{', '.join(lifted)}: compressible='isothermal'", math.nan,
+                     0.0, 0.0, "adopted with the friction law: the cheapest configuration "
+                     "choked there (the base run is this level's)"))
 
     def cost_row(axis, tried, effect, run, verdict):
         rows.append((axis, tried, effect, run.cpu, run.cpu / base.cpu if base.cpu else math.nan,
@@ -720,6 +728,15 @@ def _fallback(a, failed, scene):
         _has_wall(c) for c in scene.volumes) else "adiabatic"
     haaland = {lab: {"friction": "Haaland"} for lab in scene.laminar}
     first, then = [], [base_cfg.replace(rtol=base_cfg.rtol / 10)]
+    if haaland and _FRICTION_CHECK in flagged:
+        # a laminar tube past Re_laminar that choked (its flow far too large)
+        # ran past Mach 0.3 too: its law is lifted with its friction, and the
+        # run that gets past the choke needs no tube-law probe of its own
+        choked = {r.component for r in records if r.check == _CHOKED_CHECK
+                  and r.component in haaland and r.status == "beyond"}
+        first.append(base_cfg.with_overrides(
+            {lab: dict(args, **({"compressible": "isothermal"} if lab in choked else {}))
+             for lab, args in haaland.items()}))
     (first if _FRICTION_CHECK in flagged else then).extend(
         [base_cfg.with_overrides(haaland)] if haaland else [])
     (first if _THERMAL_CHECK in flagged else then).append(base_cfg.replace(thermal=thermal_up))
