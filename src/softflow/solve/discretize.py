@@ -167,10 +167,17 @@ def linearizable(cls):
     return cls.kernel.__func__ is LibraryComponent.kernel.__func__
 
 
-def step_linearization(cls, P, V, S, t, dt):
-    """The derivatives of one step's equations that the sensitivity equations
-    need besides the step Jacobian, at the point (V, S = psi, dt = c):
+def step_point(cls, P, V, S, t, dt, jac=True):
+    """One step's equations and, with ``jac``, every derivative the sensitivity
+    equations need, from one call of ``rates`` and one of ``residual`` at the
+    point (V, S = psi, dt = c). ``dt`` is a float or one value per row (n,):
+    the rows may be steps of different sizes (rows of several steps stacked,
+    :mod:`softflow.solve.sensitivity`). Returns
 
+    F (n, n_eq)
+        the step equations F(V, S + dt·r(V), t);
+    J (n, len(jac_pattern))
+        their Jacobian in V, as the step kernel's (None without ``jac``);
     X (n, n_states)
         the states at the end of the step, S + dt·r(V) (modes unchanged);
     FX (n, n_eq, n_continuous)
@@ -179,20 +186,46 @@ def step_linearization(cls, P, V, S, t, dt):
         dr/dV of ``rates`` (the states' update moves by dt·RV per unit V).
     """
     plan = step_plan(cls)
-    X = S.copy()
-    ncont = plan.cont.size
-    RV = np.zeros((P.n, ncont, V.shape[1]))
-    if not ncont:       # nothing moves with psi or through the states' update
-        return X, np.zeros((P.n, P.components[0].n_equations, 0)), RV
-    R, dR = cls.rates(P, V, S, True)
-    X[:, plan.cont] += dt * R
-    for k, (s, v) in enumerate(cls.rate_pattern):
-        RV[:, s, v] = dR[k]
-    F, Jr = cls.residual(P, V, X, t, True)
+    cont, ncont = plan.cont, plan.cont.size
+    dtc = dt if np.ndim(dt) == 0 else np.asarray(dt, dtype=float)[:, None]
+    if ncont:
+        R, dR = cls.rates(P, V, S, jac)
+        if plan.all_cont:
+            X = S + dtc * R
+        else:
+            X = S.copy()
+            X[:, cont] += dtc * R
+    else:
+        X, dR = S, ()
+    F, Jr = cls.residual(P, V, X, t, jac)
+    if not jac:
+        return F, None, X, None, None
+    n_res = len(plan.res_cols)
     FX = np.zeros((P.n, F.shape[1], ncont))
-    n_res = len(cls.residual_pattern)
     for k, (e, s) in enumerate(cls.state_jac_pattern):
         FX[:, e, s] = Jr[:, n_res + k]
+    RV = np.zeros((P.n, ncont, V.shape[1]))
+    for k, (s, v) in enumerate(cls.rate_pattern):
+        RV[:, s, v] = dR[k]
+    # dF/dV + dF/dX · dt · dr/dV, placed as the step kernel places it
+    # (step_functions; there on its hot path, with dt a float)
+    J = np.empty((P.n, plan.n_jac))
+    J[:, plan.res_cols] = Jr[:, :n_res]
+    dtv = dt if np.ndim(dt) == 0 else np.asarray(dt, dtype=float)
+    for col, kj, kr, add in plan.products:
+        term = (dtv * dR[kr]) * Jr[:, kj]
+        if add:
+            J[:, col] += term
+        else:
+            J[:, col] = term
+    return F, J, X, FX, RV
+
+
+def step_linearization(cls, P, V, S, t, dt):
+    """The derivatives of one step's equations that the sensitivity equations
+    need besides the step Jacobian, at the point (V, S = psi, dt = c): (X, FX,
+    RV) of :func:`step_point`."""
+    _, _, X, FX, RV = step_point(cls, P, V, S, t, dt)
     return X, FX, RV
 
 
@@ -204,14 +237,16 @@ def param_step_derivative(cls, P, V, X, FX, t, dt, name):
 
         dG/dtheta = dF/dtheta + dF/dX · dt · dr/dtheta,   dX/dtheta = dt · dr/dtheta
 
-    (X, FX from :func:`step_linearization`). Returns ((n, n_eq), (n, n_continuous))."""
+    (X, FX from :func:`step_point`; ``dt`` a float or one value per row).
+    Returns ((n, n_eq), (n, n_continuous))."""
     if "param_jacobian" not in cls.__dict__:
         return None
     out = cls.param_jacobian(P, V, X, t, name)
     if out is None:
         return None
     dF, dr = out
-    dX = dt * np.asarray(dr, dtype=float).reshape(P.n, FX.shape[2])
+    dtc = dt if np.ndim(dt) == 0 else np.asarray(dt, dtype=float)[:, None]
+    dX = dtc * np.asarray(dr, dtype=float).reshape(P.n, FX.shape[2])
     dF = np.asarray(dF, dtype=float).reshape(P.n, FX.shape[1])
     if dX.size:
         dF = dF + np.einsum("nes,ns->ne", FX, dX)

@@ -206,8 +206,8 @@ class ImplicitEuler(Integrator):
                 if at_break:
                     self.progress.switched(t_new, S, S_new, disc)
             if self.sens is not None:      # backward Euler: psi = S_n, c = h
-                self.sens_S = self.sens.step(out.x, S, self.sens_S, math.nextafter(
-                    t_new, -math.inf) if at_break and t_new in break_set else t_new, h)[1]
+                self.sens.step(out.x, S, math.nextafter(t_new, -math.inf)
+                               if at_break and t_new in break_set else t_new, h)
             x_prev, h_prev = x, h
             x, S, t = out.x, S_new, t_new
             rec_add(t, x, S)

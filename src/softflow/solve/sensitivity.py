@@ -50,10 +50,13 @@ time has, there, a derivative that this does not include.
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from ..network.system import NetworkError
-from .discretize import linearizable, param_step_derivative, step_linearization, step_plan
+from .bdf import _PRED_PSI, BDF
+from .discretize import linearizable, param_step_derivative, step_plan, step_point
 from .linalg import DENSE_MAX
 from .params import STRUCTURAL, parameter_names, rebuild
 from .thermal import configure_like
@@ -66,6 +69,11 @@ MAX_CORRECTIONS = 4
 #: The corrections stop when the last one is below this fraction of the solution
 #: (per unknown, in Newton's tolerance units).
 CORRECTION_RTOL = 1e-8
+#: Work out the sensitivities of rate-form networks of up to DEFER_MAX unknowns
+#: CHUNK steps at a time (see the module docstring); False: always step by step.
+DEFER = True
+DEFER_MAX = 64
+CHUNK = 256
 #: Take parameter derivatives from the classes' ``param_jacobian`` where they
 #: give one (False: finite differences everywhere; for tests and benchmarks).
 ANALYTIC = True
@@ -82,7 +90,12 @@ def _numeric_value(comp, name):
 
 
 class Sensitivities:
-    """The sensitivity equations of a compiled network for a list of parameters."""
+    """The sensitivity equations of a compiled network for a list of parameters.
+
+    The integrators hand over each accepted step, :meth:`step` (with the BDF
+    order whose difference table forms the step's s_psi, or 0 for backward
+    Euler: the last step's states), and the BDF its table's operations
+    (:meth:`restart`, :meth:`rescale`, :meth:`reset_order`)."""
 
     def __init__(self, asm, newton, names, components, thermal="isothermal"):
         self.asm, self.newton = asm, newton
@@ -123,19 +136,23 @@ class Sensitivities:
             fresh = _library_group(twin.kernel_class(), comps)
             self.parameters.append((g, i, fresh.kernel, fresh.update, eps, comp, twin))
         self.n_p = len(self.parameters)
-        self.records_x, self.records_s = [], []
         self._setup_groups()
+        n_s = len(asm.S0)
+        self._sS = np.zeros((self.n_p, n_s))     # the states' at the last accepted step
+        self._table = None                         # BDF: their difference table
+        self._blocks_x, self._blocks_s = [], []   # (steps, n_p, n), (steps, n_p, n_s)
+        self.deferred = self._deferrable()
+        if self.deferred:
+            self._setup_deferred()
 
     def _setup_groups(self):
         """How each group's part of the equations is differentiated: analytically
-        (rate form, see :func:`softflow.solve.discretize.step_linearization`) or
+        (rate form, see :func:`softflow.solve.discretize.step_point`) or
         by directional finite differences of its step kernel and update (user
         components, classes that write their own step, per-step coefficients)."""
         self._params_of = {}      # id(group) -> (group, class, Params, continuous states)
         self._analytic, self._fd = [], []
-        wanted = {id(g): g for g in self.asm.groups if g.ns}
-        wanted.update((id(g), g) for g, *_ in self.parameters)
-        for g in wanted.values():
+        for g in self.asm.groups:
             cls = g.comps[0].kernel_class() if getattr(g.comps[0], "vectorized", False) \
                 else None
             if cls is not None and g.row is None and g.begin is None and linearizable(cls):
@@ -151,7 +168,100 @@ class Sensitivities:
         if self._dense:
             self._flat = self.asm.pattern_rows * self.asm.n + self.asm.pattern_cols
 
-    # -- the equations ----------------------------------------------------------------
+    # -- the integrators' side ----------------------------------------------------------
+    def initial(self, x0, S0, t0=0.0):
+        """Sensitivities at the consistent initial point: the initial states' from
+        the components' own, the unknowns' from the t = 0 equations (c = 0)."""
+        s_S0 = np.zeros((self.n_p, len(S0)))
+        for p, (g, i, _, _, eps, comp, twin) in enumerate(self.parameters):
+            if g.ns:
+                s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = self._initial_states(
+                    comp, twin, eps, self.names[p].rsplit(".", 1)[1])
+        s_x0 = self._unknowns(x0, S0, s_S0, t0, 0.0, np.zeros((self.n_p, len(x0))),
+                              fresh=True)[0]
+        self._record(s_x0[None], s_S0[None])
+        self._sS = s_S0
+        return s_x0, s_S0
+
+    def step(self, x, psi, t, c, k=0):
+        """One accepted step, converged to x from psi at time t with coefficient c:
+        its states' s_psi are the last step's states' (k = 0, backward Euler) or
+        formed from the BDF difference table at order k."""
+        if self.deferred:
+            j = self._n_buf
+            self._bx[j], self._bpsi[j] = x, psi
+            self._bt[j], self._bc[j] = t, c
+            self._n_buf = j + 1
+            self._log.append(k)
+            if j + 1 == CHUNK:
+                self._flush()
+            return
+        if k:
+            pred, psi_p = _PRED_PSI[k] @ self._table[:k + 1]
+            s_psi = psi_p.reshape(self.n_p, -1)
+        else:
+            s_psi = self._sS
+        start = self._last_x if self._blocks_x else np.zeros((self.n_p, self.asm.n))
+        s_x, s_S = self._step_now(x, psi, s_psi, t, c, start)
+        if k:
+            BDF._difference_update(self._table, s_S.ravel() - pred, k)
+        self._sS = s_S
+        self._record(s_x[None], s_S[None])
+
+    def restart(self, kmax):
+        """BDF restart at order 1: the table holds the current states' alone."""
+        self._op(("restart", kmax))
+
+    def rescale(self, k, M):
+        """BDF step change: rows 1..k of the table times M (as the states')."""
+        self._op(("rescale", k, M))
+
+    def reset_order(self, k_new):
+        """BDF order drop: the differences above k_new go."""
+        self._op(("reset", k_new))
+
+    def _op(self, op):
+        if self.deferred:
+            self._log.append(op)
+        else:
+            self._apply(op)
+
+    def _apply(self, op):
+        kind = op[0]
+        if kind == "restart":
+            if self._table is None:
+                self._table = np.zeros((op[1] + 3, self._sS.size))
+            self._table[:] = 0.0
+            self._table[0] = self._sS.ravel()
+        elif kind == "rescale":
+            k = op[1]
+            self._table[1:k + 1] = op[2] @ self._table[1:k + 1]
+        else:
+            self._table[op[1] + 1:] = 0.0
+
+    # -- results ------------------------------------------------------------------------
+    def _record(self, s_x, s_S):
+        self._blocks_x.append(s_x)
+        self._blocks_s.append(s_S)
+        self._last_x = s_x[-1]
+
+    def finish(self):
+        """Work out the steps still waiting (deferred mode)."""
+        if self.deferred and self._n_buf:
+            self._flush()
+
+    def arrays(self, x_index, s_index):
+        """{parameter: (s_x over time (T x recorded unknowns), s_S (T x recorded states))}."""
+        self.finish()
+        n_x, n_s = self.asm.n, len(self.asm.S0)
+        X = (np.concatenate(self._blocks_x) if self._blocks_x
+             else np.zeros((0, self.n_p, n_x)))
+        S = (np.concatenate(self._blocks_s) if self._blocks_s
+             else np.zeros((0, self.n_p, n_s)))
+        return {name: (X[:, p][:, x_index], S[:, p][:, s_index])
+                for p, name in enumerate(self.names)}
+
+    # -- one step at a time (large or non-rate-form networks) ---------------------------
     def _jacobian(self):
         """The step Jacobian of the last ``residual(..., jac=True)``, for products."""
         asm = self.asm
@@ -166,7 +276,8 @@ class Sensitivities:
         for key, (g, cls, P, _) in self._params_of.items():
             V = x[g.col]
             Sg = psi[g.s0:g.s1].reshape(g.n, g.ns)
-            lin[key] = (V, Sg) + step_linearization(cls, P, V, Sg, t, c)
+            _, _, X, FX, RV = step_point(cls, P, V, Sg, t, c)
+            lin[key] = (V, Sg, X, FX, RV)
         return lin
 
     def _parameter_terms(self, p, lin, x, psi, t, c):
@@ -225,7 +336,10 @@ class Sensitivities:
             r0 = g.r0 + i * g.neq
             rhs[r0:r0 + g.neq, p] -= dG
             terms.append(dS)
-        s_x = self._solve(rhs, start, c, fresh)
+        if self.deferred:         # t = 0 of a deferred run: leave Newton's factors alone
+            s_x = np.linalg.solve(self._jacobian(), rhs)
+        else:
+            s_x = self._solve(rhs, start, c, fresh)
         return s_x.T, lin, terms
 
     def _solve(self, rhs, start, c, fresh):
@@ -251,10 +365,9 @@ class Sensitivities:
         newton._factor(c)     # the Jacobian of the residual(jac=True) at this point
         return lin.solve(rhs)
 
-    def step(self, x, psi, s_psi, t, c):
+    def _step_now(self, x, psi, s_psi, t, c, start):
         """(s_x, s_S) (n_p x n, n_p x n_s) after a step converged to x from psi."""
         asm, n_p = self.asm, self.n_p
-        start = self.records_x[-1] if self.records_x else np.zeros((n_p, asm.n))
         s_x, lin, terms = self._unknowns(x, psi, s_psi, t, c, start)
         s_S = np.zeros((n_p, len(asm.S0)))
         for g in self._analytic:
@@ -281,21 +394,7 @@ class Sensitivities:
                 s_S[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] += dS
         if asm.has_discrete:
             s_S[:, asm.s_discrete] = 0.0
-        self.record(s_x, s_S)
         return s_x, s_S
-
-    def initial(self, x0, S0, t0=0.0):
-        """Sensitivities at the consistent initial point: the initial states' from
-        the components' own, the unknowns' from the t = 0 equations (c = 0)."""
-        s_S0 = np.zeros((self.n_p, len(S0)))
-        for p, (g, i, _, _, eps, comp, twin) in enumerate(self.parameters):
-            if g.ns:
-                s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = self._initial_states(
-                    comp, twin, eps, self.names[p].rsplit(".", 1)[1])
-        s_x0 = self._unknowns(x0, S0, s_S0, t0, 0.0, np.zeros((self.n_p, len(x0))),
-                              fresh=True)[0]
-        self.record(s_x0, s_S0)
-        return s_x0, s_S0
 
     @staticmethod
     def _initial_states(comp, twin, eps, name):
@@ -310,14 +409,236 @@ class Sensitivities:
         b = np.array(twin.initial_state_values(), dtype=float)
         return (b - a) / eps
 
-    def record(self, s_x, s_S):
-        self.records_x.append(s_x)
-        self.records_s.append(s_S)
+    # -- deferred: steps worked out CHUNK at a time --------------------------------------
+    def _deferrable(self):
+        """Every group in rate form (no user component, no own step, no per-step
+        coefficients) and a dense system of at most DEFER_MAX unknowns."""
+        return (DEFER and self.asm.n <= DEFER_MAX and not self._fd
+                and len(self._params_of) == len(self.asm.groups))
 
-    def arrays(self, x_index, s_index):
-        """{parameter: (s_x over time (T x recorded unknowns), s_S (T x recorded states))}."""
-        n_x, n_s = self.asm.n, len(self.asm.S0)
-        X = np.array(self.records_x).reshape(-1, self.n_p, n_x)
-        S = np.array(self.records_s).reshape(-1, self.n_p, n_s)
-        return {name: (X[:, p][:, x_index], S[:, p][:, s_index])
-                for p, name in enumerate(self.names)}
+    def _setup_deferred(self):
+        asm, n, n_s = self.asm, self.asm.n, len(self.asm.S0)
+        self._n_buf, self._log = 0, []
+        self._bx, self._bpsi = np.empty((CHUNK, n)), np.empty((CHUNK, n_s))
+        self._bt, self._bc = np.empty(CHUNK), np.empty(CHUNK)
+        self._tiles = {}
+        # per group: (group, class, Params, time-free, FX's rows and columns in
+        # d(step equations)/d psi, RV's rows in the states' update)
+        self._dgroups = []
+        for key, (g, cls, P, cont) in self._params_of.items():
+            ncont = cont.size
+            inst = np.arange(g.n)[:, None, None]
+            fx_rows = (g.r0 + inst * g.neq + np.arange(g.neq)[None, :, None]
+                       + 0 * cont[None, None, :]).ravel()
+            fx_cols = (g.s0 + inst * g.ns + cont[None, None, :]
+                       + 0 * np.arange(g.neq)[None, :, None]).ravel()
+            nv = g.col.shape[1]
+            rv_rows = np.broadcast_to(g.s0 + inst * g.ns + cont[None, :, None],
+                                      (g.n, ncont, nv)).ravel()
+            rv_cols = np.broadcast_to(g.col[:, None, :], (g.n, ncont, nv)).ravel()
+            self._dgroups.append((g, cls, P, _time_free(g.comps), fx_rows, fx_cols,
+                                  rv_rows * n + rv_cols))
+        self._keep = np.ones(n_s)            # the update keeps psi's continuous states
+        if asm.has_discrete:
+            self._keep[asm.s_discrete] = 0.0
+        # per parameter: (group entry, instance, its Params, its twin's Params,
+        # rows of its equations, columns of its continuous states)
+        self._dparams = []
+        for p, (g, i, _, _, eps, comp, twin) in enumerate(self.parameters):
+            entry = next(e for e in self._dgroups if e[0] is g)
+            cls = entry[1]
+            cont = self._params_of[id(g)][3]
+            self._dparams.append((entry, i, cls.make_params([comp]),
+                                  twin.kernel_class().make_params([twin]),
+                                  slice(g.r0 + i * g.neq, g.r0 + (i + 1) * g.neq),
+                                  g.s0 + i * g.ns + cont))
+
+    def _tiled(self, key, cls, P, comps, m):
+        """P for m stacked copies of comps (one row per instance and step)."""
+        got = self._tiles.get((key, m))
+        if got is None:
+            got = self._tiles[(key, m)] = _tile_params(cls, P, comps, m)
+        return got
+
+    def _over_steps(self, fn, key, cls, P, comps, free, rows, T):
+        """fn(Params, *row arrays, t) for the stacked rows of the buffered steps:
+        one call on Params tiled over the steps where the group does not read
+        the time, else one call per step."""
+        m = len(T)
+        if free:
+            return fn(self._tiled(key, cls, P, comps, m), *rows, T[0])
+        per = rows[0].shape[0] // m
+        outs = [fn(P, *(r[j * per:(j + 1) * per] for r in rows), T[j]) for j in range(m)]
+        if outs[0] is None:
+            return None
+        return tuple(None if parts[0] is None else np.concatenate(parts)
+                     for parts in zip(*outs))
+
+    def _flush(self):
+        """The buffered steps: every derivative at once (one kernel call per group
+        on the steps stacked, one batched solve), then the states' sensitivities
+        step by step along the log (the short sequential part), then the
+        unknowns' at once."""
+        asm, n, n_s, n_p = self.asm, self.asm.n, len(self.asm.S0), self.n_p
+        m = self._n_buf
+        X, PSI, T, cv = self._bx[:m], self._bpsi[:m], self._bt[:m], self._bc[:m]
+        RAW = np.empty((m, asm.raw.size))
+        RAW[:] = asm.raw                  # the node rows' entries (constant)
+        GPSI = np.zeros((m, n, n_s + n_p))   # [d(step eqs)/d psi | d(step eqs)/d theta]
+        rv_pos, rv_w = [], []
+        at = {}
+        for key, (g, cls, P, free, fx_rows, fx_cols, rv_flat) in enumerate(self._dgroups):
+            V = X[:, g.col].reshape(m * g.n, -1)
+            Sg = PSI[:, g.s0:g.s1].reshape(m * g.n, g.ns)
+            cc = np.repeat(cv, g.n) if g.n > 1 else cv
+            F, J, Xe, FX, RV = self._over_steps(
+                lambda Q, V_, S_, c_, t_: step_point(cls, Q, V_, S_, t_, c_),
+                key, cls, P, g.comps, free, (V, Sg, cc), T)
+            RAW[:, g.j0:g.j1] = J.reshape(m, -1)
+            if FX.size:
+                GPSI[:, fx_rows, fx_cols] = FX.reshape(m, -1)
+                rv_pos.append(rv_flat)
+                rv_w.append(RV.reshape(m, -1))
+            at[id(g)] = (V, Sg, F, Xe, FX)
+        DS = np.zeros((m, n_s, n_p))
+        for p, ((g, cls, _, free, *_), i, Pi, Pt, rows, cols) in enumerate(self._dparams):
+            dG, dX = self._parameter_rows(p, g, cls, i, Pi, Pt, free, at[id(g)], T, cv)
+            GPSI[:, rows, n_s + p] = dG
+            if dX.size:
+                DS[:, cols, p] = dX
+        J = np.bincount((np.arange(m)[:, None] * (n * n) + self._flat).ravel(),
+                        weights=RAW.ravel(), minlength=m * n * n).reshape(m, n, n)
+        Z = _solve_stacked(J, GPSI)
+        A, B = Z[:, :, :n_s], Z[:, :, n_s:]
+        # s_S = keep·s_psi + c RV s_x + dS with s_x = -(A s_psi + B):
+        # s_S = M s_psi + d, M = keep - c RV A, d = dS - c RV B
+        if rv_pos:
+            pos = np.concatenate(rv_pos)
+            RVg = np.bincount((np.arange(m)[:, None] * (n_s * n) + pos).ravel(),
+                              weights=np.concatenate(rv_w, axis=1).ravel(),
+                              minlength=m * n_s * n).reshape(m, n_s, n)
+            cRV = cv[:, None, None] * RVg
+            M = -(cRV @ A)
+            d = DS - cRV @ B
+        else:
+            M, d = np.zeros((m, n_s, n_s)), DS
+        M[:, np.arange(n_s), np.arange(n_s)] += self._keep
+        Mt, dt = M.transpose(0, 2, 1).copy(), d.transpose(0, 2, 1).copy()
+        # the sequential part: each step's s_psi from the last ones
+        PSIP = np.empty((m, n_p, n_s))
+        SS = np.empty((m, n_p, n_s))
+        sS, table, j = self._sS, self._table, 0
+        for op in self._log:
+            if type(op) is int:
+                if op:
+                    pred, psi_p = _PRED_PSI[op] @ table[:op + 1]
+                    psi_p = psi_p.reshape(n_p, n_s)
+                else:
+                    psi_p = sS
+                sS = psi_p @ Mt[j] + dt[j]
+                if op:
+                    BDF._difference_update(table, sS.ravel() - pred, op)
+                PSIP[j], SS[j] = psi_p, sS
+                j += 1
+            else:
+                self._sS = sS
+                self._apply(op)
+                table = self._table
+        self._sS = sS
+        s_x = -(PSIP @ A.transpose(0, 2, 1) + B.transpose(0, 2, 1))
+        self._record(s_x, SS)
+        self._n_buf, self._log = 0, []
+
+    def _parameter_rows(self, p, g, cls, i, Pi, Pt, free, at, T, cv):
+        """(dG/dtheta (m, neq), dX/dtheta (m, n_continuous)) of parameter p over the
+        buffered steps: its class's ``param_jacobian`` where it states one, else a
+        finite difference of its twin's step equations and update."""
+        V, Sg, F, Xe, FX = at
+        m = len(T)
+
+        def rows(a):
+            return a.reshape(m, g.n, *a.shape[1:])[:, i]
+        Vi, Si, Xi, FXi = rows(V), rows(Sg), rows(Xe), rows(FX)
+        key = ("param", p)
+        if self._exact[p] is not False:
+            name = self.names[p].rsplit(".", 1)[1]
+            out = self._over_steps(
+                lambda Q, V_, X_, FX_, c_, t_: param_step_derivative(cls, Q, V_, X_, FX_,
+                                                                     t_, c_, name),
+                key, cls, Pi, [Pi.components[0]], free, (Vi, Xi, FXi, cv), T)
+            self._exact[p] = out is not None
+            if out is not None:
+                return out
+        eps, twin = self.parameters[p][4], self.parameters[p][6]
+        tcls = twin.kernel_class()
+        Ft, _, Xt, _, _ = self._over_steps(
+            lambda Q, V_, S_, c_, t_: step_point(tcls, Q, V_, S_, t_, c_, jac=False),
+            ("twin", p), tcls, Pt, [twin], free, (Vi, Si, cv), T)
+        cont = self._params_of[id(g)][3]
+        return (Ft - rows(F)) / eps, (Xt[:, cont] - Xi[:, cont]) / eps
+
+
+def _time_free(comps):
+    """True where a group's equations do not read the time: softflow's own
+    classes read it only through a source's signal (a constant here)."""
+    for c in comps:
+        if not type(c).__module__.startswith("softflow.components"):
+            return False
+        signal = getattr(c, "signal", None)
+        if signal is not None and getattr(signal, "func", None) is not None:
+            return False
+    return True
+
+
+def _tile_params(cls, P, comps, m):
+    """``cls.make_params(comps * m)``, made by tiling P where a trial with two
+    copies shows that is what it is (every per-instance array repeated, every
+    other attribute the same), else by make_params itself."""
+    if m == 1:
+        return P
+    P2 = cls.make_params(list(comps) * 2)
+    a, b = vars(P), vars(P2)
+    if a.keys() != b.keys():
+        return cls.make_params(list(comps) * m)
+    tiled = []
+    try:
+        for key, v in a.items():
+            w = b[key]
+            if key in ("n", "components"):
+                continue
+            if isinstance(v, np.ndarray):
+                if (v.ndim and isinstance(w, np.ndarray) and w.shape == (2 * v.shape[0],)
+                        + v.shape[1:] and np.array_equal(w, np.concatenate([v, v]),
+                                                         equal_nan=v.dtype.kind == "f")):
+                    tiled.append(key)
+                    continue
+                if isinstance(w, np.ndarray) and w.shape == v.shape and np.array_equal(v, w):
+                    continue
+                return cls.make_params(list(comps) * m)
+            if w is v or (type(v) in (int, float, bool, str, type(None)) and type(w) is type(v)
+                          and w == v) or (type(v) in (list, tuple) and not v and w == v):
+                continue
+            return cls.make_params(list(comps) * m)
+    except (TypeError, ValueError):
+        return cls.make_params(list(comps) * m)
+    Q = copy.copy(P)
+    for key in tiled:
+        v = a[key]
+        setattr(Q, key, np.tile(v, (m,) + (1,) * (v.ndim - 1)))
+    Q.n = P.n * m
+    Q.components = list(P.components) * m
+    return Q
+
+
+def _solve_stacked(J, R):
+    """J[j] Z[j] = R[j] for every step j; a singular J leaves NaN from its step on."""
+    try:
+        return np.linalg.solve(J, R)
+    except np.linalg.LinAlgError:
+        Z = np.full(R.shape, np.nan)
+        for j in range(len(J)):
+            try:
+                Z[j] = np.linalg.solve(J[j], R[j])
+            except np.linalg.LinAlgError:
+                break
+        return Z
