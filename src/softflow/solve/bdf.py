@@ -351,12 +351,9 @@ class BDF(Integrator):
         iS, iX, iQ = slice(0, ns), slice(ns, ns + n), slice(ns + n, None)
         DS, DX, DQ = D[:, iS], D[:, iX], D[:, iQ]
         tables = (D,)
+        # the states' sensitivities keep their own table, differenced and
+        # rescaled with the states' (softflow.solve.sensitivity)
         sens = self.sens
-        if sens is not None:
-            # the states' sensitivities, differenced and rescaled with the states
-            Dp = np.zeros((kmax + 3, sens.n_p * ns))
-            sS = self.sens_S.ravel()
-            tables = (D, Dp)
         delta = np.empty(D.shape[1])
         t = 0.0
         restart = True
@@ -378,8 +375,7 @@ class BDF(Integrator):
                 DX[0], DX[1] = x_right, h * xdot
                 DQ[0], DQ[1] = Q, h * x_right[qs]
                 if sens is not None:      # order 1: psi is the value alone
-                    Dp[:] = 0.0
-                    Dp[0] = sS
+                    sens.restart(kmax)
                 k, n_equal, fails = 1, 0, 0
                 restart = False
             # the step: no overshoot of the limit, no sliver left before it
@@ -481,11 +477,8 @@ class BDF(Integrator):
             self.order_counts[k] += 1
             Q_new = psi_all[iQ] + c * out.x[qs]
             if sens is not None:
-                pred_p, psi_p = _PRED_PSI[k] @ Dp[:k + 1]
-                sS = sens.step(out.x, psi, psi_p.reshape(sens.n_p, ns),
-                               math.nextafter(t_new, -math.inf) if at_break else t_new,
-                               c)[1].ravel()
-                self._difference_update(Dp, sS - pred_p, k)
+                sens.step(out.x, psi, math.nextafter(t_new, -math.inf) if at_break else t_new,
+                          c, k)
             delta[iS], delta[iX] = d, dx
             delta[iQ] = Q_new - pred[iQ]
             self._difference_update(D, delta, k)
@@ -536,8 +529,7 @@ class BDF(Integrator):
         for i in range(k, -1, -1):
             D[i] += D[i + 1]
 
-    @staticmethod
-    def _rescale(tables, k, factor):
+    def _rescale(self, tables, k, factor):
         if factor == 1.0:
             return
         # row 0 (the value at t_n) stays as it is: a constant has no differences at
@@ -546,9 +538,12 @@ class BDF(Integrator):
         M = _rescale_matrix(k, factor)[1:, 1:]
         for D in tables:
             D[1:k + 1] = M @ D[1:k + 1]
+        if self.sens is not None:
+            self.sens.rescale(k, M)
 
-    @staticmethod
-    def _reset_order(tables, k, k_new):
+    def _reset_order(self, tables, k, k_new):
         """Lower the order: the differences above k_new are dropped."""
         for D in tables:
             D[k_new + 1:] = 0.0
+        if self.sens is not None:
+            self.sens.reset_order(k_new)
