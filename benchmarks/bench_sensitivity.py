@@ -19,8 +19,9 @@ exp(-t/RC)) and, for the others, the difference from the fixed-step
 sensitivities at 0.1 ms (itself first-order accurate). Error: the largest
 |sensitivity - reference| over the variables named, relative to the largest
 |reference|. Cost: CPU time of a run with p parameters over the plain run's
-(median of --repeat, and in brackets the range of the single runs over the
-plain run's median); the last column is p = 2 with the parameter derivatives
+(median over --repeat rounds of the run's time over the same round's plain
+run, each round running the plain and the sensitivity runs in turn after one
+untimed run of each; in brackets the range of those ratios); the last column is p = 2 with the parameter derivatives
 taken by finite differences (``softflow.solve.sensitivity.ANALYTIC = False``).
 """
 from __future__ import annotations
@@ -119,19 +120,26 @@ def cost(build, kw, duration, params, stepping, repeat):
     """{p: (median ratio, lowest, highest)} for p = 1, 2 and 'fd' (p = 2, finite
     differences for the parameter derivatives), and the plain run's median [s]."""
     sim = sf.Simulation(build(), duration=duration, **kw, **stepping)
-    times = {}
-    for p in (0, 1, 2, "fd"):
-        names = list(params)[:2 if p == "fd" else p]
-        sensitivity.ANALYTIC = p != "fd"
-        times[p] = []
-        for _ in range(repeat):
+    kinds = (0, 1, 2, "fd")
+    times = {p: [] for p in kinds}
+    # one untimed run of each kind, then the kinds in turn in every round: the
+    # plain run is timed warm and under the same load as the others
+    for rnd in range(repeat + 1):
+        for p in kinds:
+            names = list(params)[:2 if p == "fd" else p]
+            sensitivity.ANALYTIC = p != "fd"
             t0 = time.process_time()
             sim.run(sensitivities=names or None)
-            times[p].append(time.process_time() - t0)
+            if rnd:
+                times[p].append(time.process_time() - t0)
     sensitivity.ANALYTIC = True
-    plain = statistics.median(times[0])
-    return {p: (statistics.median(ts) / plain, min(ts) / plain, max(ts) / plain)
-            for p, ts in times.items() if p != 0}, plain
+    out = {}
+    for p in kinds[1:]:
+        # each round's run over the same round's plain run: a load that drifts
+        # over the rounds (other jobs on the machine) cancels out
+        ratios = [t / t0 for t, t0 in zip(times[p], times[0])]
+        out[p] = (statistics.median(ratios), min(ratios), max(ratios))
+    return out, statistics.median(times[0])
 
 
 def _ratio(r):

@@ -74,6 +74,8 @@ CORRECTION_RTOL = 1e-8
 DEFER = True
 DEFER_MAX = 64
 CHUNK = 256
+#: the log's mark of the point t = 0 (step orders are >= 0)
+INITIAL = -1
 #: Take parameter derivatives from the classes' ``param_jacobian`` where they
 #: give one (False: finite differences everywhere; for tests and benchmarks).
 ANALYTIC = True
@@ -100,10 +102,9 @@ class Sensitivities:
     def __init__(self, asm, newton, names, components, thermal="isothermal"):
         self.asm, self.newton = asm, newton
         self.names = list(names)
-        # per parameter: (group, index in group, perturbed kernel, perturbed update,
-        # step, the compiled component, its perturbed twin)
+        # per parameter: (group, index in group, perturbed kernel, perturbed update
+        # (made when first needed), step, the compiled component, its perturbed twin)
         self.parameters = []
-        from .assembly import _library_group
         for key in self.names:
             if not isinstance(key, str) or "." not in key:
                 raise KeyError(f"sensitivities: {key!r} is not 'label.parameter' "
@@ -131,15 +132,13 @@ class Sensitivities:
                     "parameters (e.g. a diameter, a volume, a pressure)")
             eps = REL_STEP * (abs(value) if value != 0 else 1.0)
             twin = configure_like(rebuild(comp, {name: value + eps}), comp, thermal)
-            comps = list(g.comps)
-            comps[i] = twin
-            fresh = _library_group(twin.kernel_class(), comps)
-            self.parameters.append((g, i, fresh.kernel, fresh.update, eps, comp, twin))
+            self.parameters.append((g, i, None, None, eps, comp, twin))
         self.n_p = len(self.parameters)
         self._setup_groups()
         n_s = len(asm.S0)
         self._sS = np.zeros((self.n_p, n_s))     # the states' at the last accepted step
         self._table = None                         # BDF: their difference table
+        self._bdf = False                          # a BDF run (the table is in use)
         self._blocks_x, self._blocks_s = [], []   # (steps, n_p, n), (steps, n_p, n_s)
         self.deferred = self._deferrable()
         if self.deferred:
@@ -177,10 +176,13 @@ class Sensitivities:
             if g.ns:
                 s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = self._initial_states(
                     comp, twin, eps, self.names[p].rsplit(".", 1)[1])
+        self._sS = s_S0
+        if self.deferred:     # worked out with the first steps (s_x0 None till then)
+            self._push(x0, S0, t0, 0.0, INITIAL)
+            return None, s_S0
         s_x0 = self._unknowns(x0, S0, s_S0, t0, 0.0, np.zeros((self.n_p, len(x0))),
                               fresh=True)[0]
         self._record(s_x0[None], s_S0[None])
-        self._sS = s_S0
         return s_x0, s_S0
 
     def step(self, x, psi, t, c, k=0):
@@ -188,13 +190,7 @@ class Sensitivities:
         its states' s_psi are the last step's states' (k = 0, backward Euler) or
         formed from the BDF difference table at order k."""
         if self.deferred:
-            j = self._n_buf
-            self._bx[j], self._bpsi[j] = x, psi
-            self._bt[j], self._bc[j] = t, c
-            self._n_buf = j + 1
-            self._log.append(k)
-            if j + 1 == CHUNK:
-                self._flush()
+            self._push(x, psi, t, c, k)
             return
         if k:
             pred, psi_p = _PRED_PSI[k] @ self._table[:k + 1]
@@ -208,8 +204,18 @@ class Sensitivities:
         self._sS = s_S
         self._record(s_x[None], s_S[None])
 
+    def _push(self, x, psi, t, c, k):
+        j = self._n_buf
+        self._bx[j], self._bpsi[j] = x, psi
+        self._bt[j], self._bc[j] = t, c
+        self._n_buf = j + 1
+        self._log.append(k)
+        if j + 1 == CHUNK:
+            self._flush()
+
     def restart(self, kmax):
         """BDF restart at order 1: the table holds the current states' alone."""
+        self._bdf = True
         self._op(("restart", kmax))
 
     def rescale(self, k, M):
@@ -285,6 +291,13 @@ class Sensitivities:
         of its states (ns,)): analytic where its class states it, else a finite
         difference of the perturbed twin's step kernel and update."""
         g, i, kernel_p, update_p, eps, comp, twin = self.parameters[p]
+        if kernel_p is None:
+            from .assembly import _library_group
+            comps = list(g.comps)
+            comps[i] = twin
+            fresh = _library_group(twin.kernel_class(), comps)
+            kernel_p, update_p = fresh.kernel, fresh.update
+            self.parameters[p] = (g, i, kernel_p, update_p, eps, comp, twin)
         if self._exact[p] is not False:
             _, cls, P, cont = self._params_of[id(g)]
             V, Sg, X, FX, _ = lin[id(g)]
@@ -336,10 +349,7 @@ class Sensitivities:
             r0 = g.r0 + i * g.neq
             rhs[r0:r0 + g.neq, p] -= dG
             terms.append(dS)
-        if self.deferred:         # t = 0 of a deferred run: leave Newton's factors alone
-            s_x = np.linalg.solve(self._jacobian(), rhs)
-        else:
-            s_x = self._solve(rhs, start, c, fresh)
+        s_x = self._solve(rhs, start, c, fresh)
         return s_x.T, lin, terms
 
     def _solve(self, rhs, start, c, fresh):
@@ -441,17 +451,15 @@ class Sensitivities:
         self._keep = np.ones(n_s)            # the update keeps psi's continuous states
         if asm.has_discrete:
             self._keep[asm.s_discrete] = 0.0
-        # per parameter: (group entry, instance, its Params, its twin's Params,
-        # rows of its equations, columns of its continuous states)
+        # per parameter: (group entry, instance, rows of its equations, columns of
+        # its continuous states)
         self._dparams = []
         for p, (g, i, _, _, eps, comp, twin) in enumerate(self.parameters):
             entry = next(e for e in self._dgroups if e[0] is g)
-            cls = entry[1]
             cont = self._params_of[id(g)][3]
-            self._dparams.append((entry, i, cls.make_params([comp]),
-                                  twin.kernel_class().make_params([twin]),
-                                  slice(g.r0 + i * g.neq, g.r0 + (i + 1) * g.neq),
+            self._dparams.append((entry, i, slice(g.r0 + i * g.neq, g.r0 + (i + 1) * g.neq),
                                   g.s0 + i * g.ns + cont))
+        self._one = {}       # Params of one component (a parameter's own, its twin's)
 
     def _tiled(self, key, cls, P, comps, m):
         """P for m stacked copies of comps (one row per instance and step)."""
@@ -463,25 +471,33 @@ class Sensitivities:
     def _over_steps(self, fn, key, cls, P, comps, free, rows, T):
         """fn(Params, *row arrays, t) for the stacked rows of the buffered steps:
         one call on Params tiled over the steps where the group does not read
-        the time, else one call per step."""
+        the time (the steps padded with copies of the last to a power of two,
+        so that a run tiles its Params for few sizes), else one call per step."""
         m = len(T)
-        if free:
-            return fn(self._tiled(key, cls, P, comps, m), *rows, T[0])
         per = rows[0].shape[0] // m
+        if free:
+            size = min(1 << (m - 1).bit_length(), max(CHUNK, m))
+            if size > m:
+                # (whole steps: row k of the stack is instance k mod per)
+                rows = [np.concatenate([r, np.tile(r[-per:], (size - m,) + (1,) * (r.ndim - 1))])
+                        for r in rows]
+            out = fn(self._tiled(key, cls, P, comps, size), *rows, T[0])
+            if out is None or size == m:
+                return out
+            return tuple(None if o is None else o[:m * per] for o in out)
         outs = [fn(P, *(r[j * per:(j + 1) * per] for r in rows), T[j]) for j in range(m)]
         if outs[0] is None:
             return None
         return tuple(None if parts[0] is None else np.concatenate(parts)
                      for parts in zip(*outs))
 
-    def _flush(self):
-        """The buffered steps: every derivative at once (one kernel call per group
-        on the steps stacked, one batched solve), then the states' sensitivities
-        step by step along the log (the short sequential part), then the
-        unknowns' at once."""
+    def _pieces(self, X, PSI, T, cv):
+        """For the points (rows of X, PSI, T, cv): s_x = -(A s_psi + B) and the
+        states' s_S = s_psi Mt + dt (rows of (n_p, n_s)), every derivative at
+        once (one rates+residual call per group on the points stacked, one
+        batched solve with the step Jacobians)."""
         asm, n, n_s, n_p = self.asm, self.asm.n, len(self.asm.S0), self.n_p
-        m = self._n_buf
-        X, PSI, T, cv = self._bx[:m], self._bpsi[:m], self._bt[:m], self._bc[:m]
+        m = len(T)
         RAW = np.empty((m, asm.raw.size))
         RAW[:] = asm.raw                  # the node rows' entries (constant)
         GPSI = np.zeros((m, n, n_s + n_p))   # [d(step eqs)/d psi | d(step eqs)/d theta]
@@ -501,8 +517,8 @@ class Sensitivities:
                 rv_w.append(RV.reshape(m, -1))
             at[id(g)] = (V, Sg, F, Xe, FX)
         DS = np.zeros((m, n_s, n_p))
-        for p, ((g, cls, _, free, *_), i, Pi, Pt, rows, cols) in enumerate(self._dparams):
-            dG, dX = self._parameter_rows(p, g, cls, i, Pi, Pt, free, at[id(g)], T, cv)
+        for p, ((g, cls, P, free, *_), i, rows, cols) in enumerate(self._dparams):
+            dG, dX = self._parameter_rows(p, g, cls, P, i, free, at[id(g)], T, cv)
             GPSI[:, rows, n_s + p] = dG
             if dX.size:
                 DS[:, cols, p] = dX
@@ -523,21 +539,46 @@ class Sensitivities:
         else:
             M, d = np.zeros((m, n_s, n_s)), DS
         M[:, np.arange(n_s), np.arange(n_s)] += self._keep
-        Mt, dt = M.transpose(0, 2, 1).copy(), d.transpose(0, 2, 1).copy()
-        # the sequential part: each step's s_psi from the last ones
+        return A, B, M.transpose(0, 2, 1), d.transpose(0, 2, 1)
+
+    def _flush(self):
+        """The buffered steps: their pieces at once (:meth:`_pieces`), then the
+        states' sensitivities along the log (the sequential part: a log-depth
+        scan of the affine maps for backward Euler, the BDF table's operations
+        in turn), then the unknowns' at once."""
+        m = self._n_buf
+        A, B, Mt, dt = self._pieces(self._bx[:m], self._bpsi[:m], self._bt[:m], self._bc[:m])
+        if self._log[0] == INITIAL:       # the point t = 0: its s_S are the initial states'
+            Mt[0], dt[0] = np.eye(Mt.shape[1]), 0.0
+        if not self._bdf:                 # backward Euler: s_psi is the last s_S
+            SS = _affine_scan(self._sS, Mt, dt)
+            PSIP = np.concatenate([self._sS[None], SS[:-1]])
+            self._sS = SS[-1]
+        else:
+            PSIP, SS = self._replay(Mt, dt)
+        s_x = -(PSIP @ A.transpose(0, 2, 1) + B.transpose(0, 2, 1))
+        self._record(s_x, SS)
+        self._n_buf, self._log = 0, []
+
+    def _replay(self, Mt, dt):
+        """(s_psi, s_S) of the buffered steps along the logged BDF operations."""
+        m, (n_p, n_s) = len(Mt), self._sS.shape
         PSIP = np.empty((m, n_p, n_s))
         SS = np.empty((m, n_p, n_s))
         sS, table, j = self._sS, self._table, 0
         for op in self._log:
             if type(op) is int:
-                if op:
+                if op > 0:
+                    # BDF._difference_update as one product: rows 0..k gain the
+                    # rows below them up to k and the new difference, row k + 1
+                    # is it, row k + 2 it less the old row k + 1
                     pred, psi_p = _PRED_PSI[op] @ table[:op + 1]
                     psi_p = psi_p.reshape(n_p, n_s)
+                    sS = psi_p @ Mt[j] + dt[j]
+                    table[:op + 3] = _UPDATE[op] @ table[:op + 3] + (sS.ravel() - pred)
                 else:
                     psi_p = sS
-                sS = psi_p @ Mt[j] + dt[j]
-                if op:
-                    BDF._difference_update(table, sS.ravel() - pred, op)
+                    sS = psi_p @ Mt[j] + dt[j]
                 PSIP[j], SS[j] = psi_p, sS
                 j += 1
             else:
@@ -545,37 +586,70 @@ class Sensitivities:
                 self._apply(op)
                 table = self._table
         self._sS = sS
-        s_x = -(PSIP @ A.transpose(0, 2, 1) + B.transpose(0, 2, 1))
-        self._record(s_x, SS)
-        self._n_buf, self._log = 0, []
+        return PSIP, SS
 
-    def _parameter_rows(self, p, g, cls, i, Pi, Pt, free, at, T, cv):
+    def _parameter_rows(self, p, g, cls, P, i, free, at, T, cv):
         """(dG/dtheta (m, neq), dX/dtheta (m, n_continuous)) of parameter p over the
-        buffered steps: its class's ``param_jacobian`` where it states one, else a
-        finite difference of its twin's step equations and update."""
+        points: its class's ``param_jacobian`` where it states one, else a finite
+        difference of its twin's step equations and update."""
         V, Sg, F, Xe, FX = at
         m = len(T)
+        comp, twin = self.parameters[p][5:7]
 
         def rows(a):
-            return a.reshape(m, g.n, *a.shape[1:])[:, i]
+            return a if g.n == 1 else a.reshape(m, g.n, *a.shape[1:])[:, i]
         Vi, Si, Xi, FXi = rows(V), rows(Sg), rows(Xe), rows(FX)
-        key = ("param", p)
         if self._exact[p] is not False:
             name = self.names[p].rsplit(".", 1)[1]
+            Pi = P if g.n == 1 else self._one_params(("param", p), cls, comp)
             out = self._over_steps(
                 lambda Q, V_, X_, FX_, c_, t_: param_step_derivative(cls, Q, V_, X_, FX_,
                                                                      t_, c_, name),
-                key, cls, Pi, [Pi.components[0]], free, (Vi, Xi, FXi, cv), T)
+                ("param", p), cls, Pi, [comp], free, (Vi, Xi, FXi, cv), T)
             self._exact[p] = out is not None
             if out is not None:
                 return out
-        eps, twin = self.parameters[p][4], self.parameters[p][6]
+        eps = self.parameters[p][4]
         tcls = twin.kernel_class()
         Ft, _, Xt, _, _ = self._over_steps(
             lambda Q, V_, S_, c_, t_: step_point(tcls, Q, V_, S_, t_, c_, jac=False),
-            ("twin", p), tcls, Pt, [twin], free, (Vi, Si, cv), T)
+            ("twin", p), tcls, self._one_params(("twin", p), tcls, twin), [twin], free,
+            (Vi, Si, cv), T)
         cont = self._params_of[id(g)][3]
         return (Ft - rows(F)) / eps, (Xt[:, cont] - Xi[:, cont]) / eps
+
+    def _one_params(self, key, cls, comp):
+        got = self._one.get(key)
+        if got is None:
+            got = self._one[key] = cls.make_params([comp])
+        return got
+
+
+def _update_matrix(k):
+    """L with D_new[:k+3] = L @ D[:k+3] + d (every row) for
+    :meth:`softflow.solve.bdf.BDF._difference_update` at order k."""
+    L = np.zeros((k + 3, k + 3))
+    for i in range(k + 1):
+        L[i, i:k + 1] = 1.0
+    L[k + 2, k + 1] = -1.0
+    L.setflags(write=False)
+    return L
+
+
+_UPDATE = [None] + [_update_matrix(k) for k in range(1, len(_PRED_PSI))]
+
+
+def _affine_scan(s0, Mt, dt):
+    """s_j = s_{j-1} Mt_j + dt_j for j = 0..m-1 from s_{-1} = s0, every j at once:
+    the maps composed in log2(m) rounds of stacked products (Hillis-Steele)."""
+    Mt, dt = Mt.copy(), dt.copy()
+    m, off = len(Mt), 1
+    while off < m:
+        # map j after map j - off: s Mt_{j-off} Mt_j + dt_{j-off} Mt_j + dt_j
+        dt[off:] = dt[:-off] @ Mt[off:] + dt[off:]
+        Mt[off:] = Mt[:-off] @ Mt[off:]
+        off *= 2
+    return s0 @ Mt + dt
 
 
 def _time_free(comps):
@@ -593,7 +667,8 @@ def _time_free(comps):
 def _tile_params(cls, P, comps, m):
     """``cls.make_params(comps * m)``, made by tiling P where a trial with two
     copies shows that is what it is (every per-instance array repeated, every
-    other attribute the same), else by make_params itself."""
+    other attribute the same object or an equal plain value), else by
+    make_params itself."""
     if m == 1:
         return P
     P2 = cls.make_params(list(comps) * 2)
@@ -601,33 +676,33 @@ def _tile_params(cls, P, comps, m):
     if a.keys() != b.keys():
         return cls.make_params(list(comps) * m)
     tiled = []
-    try:
-        for key, v in a.items():
-            w = b[key]
-            if key in ("n", "components"):
-                continue
-            if isinstance(v, np.ndarray):
-                if (v.ndim and isinstance(w, np.ndarray) and w.shape == (2 * v.shape[0],)
-                        + v.shape[1:] and np.array_equal(w, np.concatenate([v, v]),
-                                                         equal_nan=v.dtype.kind == "f")):
-                    tiled.append(key)
-                    continue
-                if isinstance(w, np.ndarray) and w.shape == v.shape and np.array_equal(v, w):
-                    continue
+    for key, v in a.items():
+        w = b[key]
+        if key == "n" or key == "components":
+            continue
+        if type(v) is np.ndarray:
+            # bitwise (stricter than ==; a mismatch only costs make_params)
+            if (type(w) is np.ndarray and v.ndim and w.dtype == v.dtype
+                    and w.shape == (2 * v.shape[0],) + v.shape[1:]
+                    and w.tobytes() == v.tobytes() * 2):
+                tiled.append(key)
+            elif not (type(w) is np.ndarray and w.dtype == v.dtype and w.shape == v.shape
+                      and w.tobytes() == v.tobytes()):
                 return cls.make_params(list(comps) * m)
-            if w is v or (type(v) in (int, float, bool, str, type(None)) and type(w) is type(v)
-                          and w == v) or (type(v) in (list, tuple) and not v and w == v):
-                continue
+        elif not (w is v or (type(v) in _PLAIN and type(w) is type(v) and w == v)
+                  or (type(v) in (list, tuple) and not v and w == v)):
             return cls.make_params(list(comps) * m)
-    except (TypeError, ValueError):
-        return cls.make_params(list(comps) * m)
     Q = copy.copy(P)
     for key in tiled:
         v = a[key]
-        setattr(Q, key, np.tile(v, (m,) + (1,) * (v.ndim - 1)))
+        setattr(Q, key, v.repeat(m, axis=0) if v.shape[0] == 1
+                else np.tile(v, (m,) + (1,) * (v.ndim - 1)))
     Q.n = P.n * m
     Q.components = list(P.components) * m
     return Q
+
+
+_PLAIN = (int, float, bool, str, type(None), np.float64, np.int64, np.bool_)
 
 
 def _solve_stacked(J, R):
