@@ -39,7 +39,9 @@ Engines
     ``status``, ``message``, ``warnings`` and ``get(label, name)``). Its
     variants share the step sequence, each meeting the tolerance on its own:
     within the tolerance of, not bitwise equal to, their serial runs. Its bar
-    is the batched run's, in simulated time.
+    is the batched run's, in simulated time. It checks the variants itself
+    (``prepare(sim, variants)``, the same errors) and builds its batches from
+    the components that check rebuilt.
 
 The serial, process and Dask engines give the same numbers: each variant is
 the same run of the same compiled model (bitwise the same at fixed steps and

@@ -108,3 +108,35 @@ def test_subnetworks_are_held_to_their_own_scales():
     # zero here, and its tank's mass exact): RMS over its 6 unknowns and 1 state
     dx = np.where(b & pressure, 2 * 1e-3 * 3e2, 0.0)
     assert bdf._norm(np.zeros_like(S), w, dx) == pytest.approx(np.sqrt(8 / 7), rel=1e-6)
+
+
+def test_prepared_components_are_the_constructors_own():
+    """The batched engine checks each variant once and builds its batch from the
+    components that check rebuilt, the scene's Quantity arguments taken as SI
+    numbers once: the same numbers as a constructor given the Quantities."""
+    from softflow.solve.batched import prepare
+
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", sf.air, length=sf.Q_(30, "cm"), diameter=sf.Q_(1, "mm"))
+    s += sf.Container("tank", sf.air, volume=sf.Q_(10, "mL"))
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    sim = sf.Simulation(s, duration=0.01)
+    variants = [{"tube.diameter": sf.Q_(d, "mm")} for d in (0.8, 1.2)]
+    prepared = prepare(sim, variants)
+    batch = build_batch(sim.system, variants, {"src", "tube", "tank"}, prepared.built)
+    for k, d in enumerate((0.8, 1.2)):
+        mine = batch.get(f"v{k}/tube")
+        theirs = sf.CircularTube("tube", sf.air, length=sf.Q_(30, "cm"),
+                                 diameter=sf.Q_(d, "mm"))
+        floats = {key: v for key, v in vars(theirs).items() if isinstance(v, float)}
+        assert floats and all(vars(mine)[key] == pytest.approx(v, rel=1e-15)
+                              for key, v in floats.items())
+        # the variant's own copy of the unchanged components, with its own variables
+        assert batch.get(f"v{k}/tank").volume == pytest.approx(1e-5, rel=1e-15)
+        assert batch.get(f"v{k}/tank").terminals[0].variables[0] is not \
+            sim.system.get("tank").terminals[0].variables[0]
+    with pytest.raises(ValueError, match="diameter") as info:
+        prepare(sim, variants + [{"tube.diameter": -1e-3}])
+    assert info.value.variant_index == 2

@@ -20,6 +20,26 @@ already a large network.
 A variant whose failure is traced to its own components is taken out and run
 on its own (its Result says why it failed); the batch then runs again
 without it.
+
+Every variant is checked before any runs (:func:`prepare`), as
+``Simulation.run(params=...)`` checks it: its changed components are
+rebuilt by their constructors (units, ranges) and judged as
+:meth:`Assembly.replace` judges them (class, groups); the batch is built
+from those same components, so each is constructed once. Thermal scenes,
+whose components the compile configures in place, are checked by
+``Simulation.check_params`` and rebuilt for the batch.
+
+Where the time goes (1 000 source-tube-tank variants, batches of 250,
+~0.6 s in all): the four batch runs ~0.45 s, the checks, building and
+compiling the batches ~0.1 s. The batches' shared step sequences take more
+steps than their variants would alone (340 against 4-57 per variant run
+serially, 44 -> 49 steps for two variants 0.05 % apart, 173 for the 250
+widest tubes whose own runs take 40-57), at ~1.3 ms a step; a batched dense
+inverse of the (K, 6, 6) Jacobian blocks (numpy.linalg.inv) was measured no
+faster than the sparse LU of the condensed batch (~0.6 against ~0.3 ms a
+factorization, 23 against 40 us a solve), so the default linear solver
+stays. Per-variant step sizes would cut the steps, but need kernels that
+take a step and a time per instance.
 """
 from __future__ import annotations
 
