@@ -12,12 +12,13 @@ differentiated along the parameter, the unknowns' sensitivity s_x solves
 
     J s_x = -(dF/dpsi s_psi + dF/dtheta)
 
-with J the stepper's own iteration matrix: its LU factors, already made, solve
-all parameters' right-hand sides at once (one multi-column solve); where
-Newton reuses factors from an earlier step, a few corrections with products
-of the exact J at the converged point (one Jacobian evaluation per step, shared
-by all parameters) converge the stale-factor solve, and fresh factors are made
-where they do not. The states' sensitivity follows from the step's update,
+with J the step Jacobian at the converged point. Step by step, the stepper's
+own LU factors, already made, solve all parameters' right-hand sides at once
+(one multi-column solve); where Newton reuses factors from an earlier step, a
+few corrections with products of the exact J at the converged point (one
+Jacobian evaluation per step, shared by all parameters) converge the
+stale-factor solve, and fresh factors are made where they do not. (Deferred,
+below, the steps are instead solved together with their exact J.) The states' sensitivity follows from the step's update,
 s_S = s_psi + c (dr/dx s_x + dr/dtheta). s_psi is formed from the states'
 sensitivities exactly as psi is from the states (the same difference table for
 BDF, the last step's for backward Euler), so the sensitivities are those of the
@@ -25,7 +26,7 @@ discrete solution the stepper computed.
 
 Every derivative is analytic where the component states it. dF/dpsi (= dF/dX
 at the step's end states) and dr/dx come from the rate-form contract's own
-Jacobians (:func:`softflow.solve.discretize.step_linearization`). The
+Jacobians (:func:`softflow.solve.discretize.step_point`). The
 parameter derivatives come from an optional classmethod of a library class,
 ``param_jacobian(P, V, S, t, name)`` -> (dF/dtheta (n, n_eq) of its
 ``residual``, dr/dtheta (n, n_continuous) of its ``rates``) for parameter
@@ -40,6 +41,23 @@ parameter moved, and directional differences of the group's step kernel and
 update along the sensitivity vectors. Initial states: a component's
 ``initial_state_jacobian(name)`` where it states one (a Container's mass
 rho(p0)·volume), else the twin's difference.
+
+How it is evaluated. Nothing of the sensitivity equations feeds back into
+the run, so on dense networks (up to DEFER_MAX unknowns) whose groups are
+all in rate form the accepted steps (x, psi, t, c) are only buffered, and
+every CHUNK steps worked out together: one ``rates`` and one ``residual``
+call per group on the steps stacked (its Params tiled over them; a group
+that reads the time, a source with a signal, one call per step), the step
+Jacobians and d(step equations)/d(psi, theta) scattered into stacked dense
+arrays, one batched solve J A = dF/dpsi, J B = dF/dtheta, and the states'
+maps s_S = M s_psi + d. The one sequential part is then cheap: backward
+Euler's s_S_n = M_n s_S_{n-1} + d_n as a log-depth scan of the affine maps,
+BDF's along its difference table, whose operations (restart, rescale, order
+drop) the integrator logs in order and which are replayed here. Each step's
+J is the exact Jacobian at its converged point, as the step-by-step method's
+corrections converge to; the run itself is untouched (Newton's factors and
+so its steps are the plain run's). Other networks (user components, own
+steps, per-step coefficients, sparse systems) go step by step as above.
 
 At t = 0 the initial states' sensitivity is that of the component's initial
 states (e.g. a Container's mass to its volume), and the unknowns' follows from
@@ -71,8 +89,12 @@ MAX_CORRECTIONS = 4
 CORRECTION_RTOL = 1e-8
 #: Work out the sensitivities of rate-form networks of up to DEFER_MAX unknowns
 #: CHUNK steps at a time (see the module docstring); False: always step by step.
+#: Measured on air chains (2 parameters, cost over the plain run, loaded 2-core
+#: machine): deferred 1.1-1.3x against step by step 3.5-3.9x at 34 unknowns,
+#: 1.2-1.3x against 6-95x at 82; at 102-122 the stacked solves' n^3 and
+#: OpenBLAS's threads take over (2-9x, against 5-43x step by step).
 DEFER = True
-DEFER_MAX = 64
+DEFER_MAX = DENSE_MAX
 CHUNK = 256
 #: the log's mark of the point t = 0 (step orders are >= 0)
 INITIAL = -1
