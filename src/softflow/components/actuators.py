@@ -301,7 +301,7 @@ def _set_initial_state(comp, v0, p0):
                          f"initial volume {v0:.6g} m^3; expected an absolute pressure > 0")
     comp.initial_volume = v0
     comp.initial_pressure = p0
-    comp.terminals[0].variables[0].initial_value = p0
+    comp.terminals[0].own_variable(0).initial_value = p0
     comp._check_fluid_state(p0, "the initial pressure (from the PV curve)")
 
 

@@ -40,7 +40,7 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..network.component import Component
-from ..network.variable import Terminal, Variable
+from ..network.variable import SharedVariable, Terminal, Variable
 from ..units import to_si
 
 if TYPE_CHECKING:
@@ -132,15 +132,18 @@ class LibraryComponent(Component):
             self.set_terminals(*_spec_terminals(cls))
             self.set_states(*[Variable(q, "local", label=lab) for lab, q in self.state_spec])
             return
-        # the interface, checked once per class (see _interface_templates), copied
+        # the interface, checked once per class (see _interface_templates): its
+        # variables are shared, read-only (SharedVariable; a volume takes its own
+        # copy of the one it sets, Terminal.own_variable): fewer objects to
+        # build and for the cyclic collector to walk in a large network
         terminal_templates, state_templates = templates
         terms = []
         for tlabel, vars_ in terminal_templates:
-            t = _of_checked(tlabel, [v.copy() for v in vars_])
+            t = _of_checked(tlabel, vars_)
             t.component = self
             terms.append(t)
         self.terminals = terms
-        self.states = [v.copy() for v in state_templates]
+        self.states = state_templates
 
     # -- helpers for subclasses ------------------------------------------------------
     def _si(self, value, unit, name, *, positive=False, nonnegative=False):
@@ -298,8 +301,9 @@ def _interface_templates(cls):
         # an ill-declared class: each instance builds (and fails) as it always did
         _INTERFACE[cls] = _CUSTOM
         return _CUSTOM
-    templates = (tuple((t.label, tuple(t.variables)) for t in probe.terminals),
-                 tuple(probe.states))
+    templates = (tuple((t.label, tuple(SharedVariable.of(v) for v in t.variables))
+                       for t in probe.terminals),
+                 tuple(SharedVariable.of(v) for v in probe.states))
     _INTERFACE[cls] = templates
     return templates
 

@@ -78,7 +78,7 @@ class Container(LibraryComponent):
         self.volume = self._si(volume, "m**3", "volume", positive=True)
         self.initial_pressure = self._si(initial_pressure, "Pa", "initial_pressure",
                                          positive=True)
-        self.terminals[0].variables[0].initial_value = self.initial_pressure
+        self.terminals[0].own_variable(0).initial_value = self.initial_pressure
         self._check_fluid_state(self.initial_pressure, "initial_pressure")
         thermal_volume_fields(self, initial_temperature, wall_temperature,
                               heat_transfer_coefficient, area, hA, thermal)
@@ -174,7 +174,7 @@ class LinearAccumulator(LibraryComponent):
         self.initial_pressure = self._si(p0, "Pa", "initial_pressure", positive=True)
         if self._fluid_volume(self.initial_pressure) <= 0:
             raise ValueError(f"{self.describe()}: the fluid volume at initial_pressure is <= 0")
-        self.terminals[0].variables[0].initial_value = self.initial_pressure
+        self.terminals[0].own_variable(0).initial_value = self.initial_pressure
         self._check_fluid_state(self.initial_pressure, "initial_pressure")
         thermal_volume_fields(self, initial_temperature, wall_temperature,
                               heat_transfer_coefficient, area, hA, thermal)

@@ -73,6 +73,41 @@ class Variable:
 _new_variable = object.__new__
 
 
+class SharedVariable(Variable):
+    """A Variable that every instance of a library class shares (its interface,
+    checked once per class): read-only. Copies (:meth:`Variable.copy`) are plain
+    Variables; copying or deep-copying it gives itself, as for other immutable
+    values."""
+
+    __slots__ = ()
+
+    @classmethod
+    def of(cls, v: Variable) -> "SharedVariable":
+        new = _new_variable(cls)
+        for name in Variable.__slots__:
+            object.__setattr__(new, name, getattr(v, name))
+        return new
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(
+            f"Variable {self.label!r} is shared by every component of its class and "
+            f"cannot be changed; give the component its own copy first "
+            f"(terminal.own_variable(index))")
+
+    def __copy__(self) -> "SharedVariable":
+        return self
+
+    def __deepcopy__(self, memo: dict) -> "SharedVariable":
+        return self
+
+    def __reduce__(self):
+        return (_shared_variable, (self.quantity, self.role, self.label, self.initial_value))
+
+
+def _shared_variable(quantity, role, label, initial_value):
+    return SharedVariable.of(Variable(quantity, role, label, initial_value))
+
+
 class Terminal:
     """A connection point of a component: a label and its across/through variables.
 
@@ -108,6 +143,16 @@ class Terminal:
         t.variables = variables
         t.component = None
         return t
+
+    def own_variable(self, index: int) -> Variable:
+        """This terminal's own copy of its variable ``index`` (a library class
+        shares one interface among its instances): the variable now in the
+        terminal, which may then be changed."""
+        v = self.variables[index]
+        if isinstance(v, SharedVariable):
+            v = v.copy()
+            self.variables = (*self.variables[:index], v, *self.variables[index + 1:])
+        return v
 
     @property
     def across(self) -> list[Variable]:

@@ -200,9 +200,11 @@ def _setup_volume(c, model):
 
 def _enter(c, T0):
     for t in c.terminals:
-        del t.variables[2:]   # idempotent: a second thermal compile replaces the extras
-        t.variables.append(Variable("temperature", "across", label="T", initial_value=T0))
-        t.variables.append(Variable("energyflow", "through", label="E", initial_value=0.0))
+        # a new list (the first two may be the class's shared variables);
+        # idempotent: a second thermal compile replaces the extras
+        t.variables = [*t.variables[:2],
+                       Variable("temperature", "across", label="T", initial_value=T0),
+                       Variable("energyflow", "through", label="E", initial_value=0.0)]
     cls = c.kernel_class() if c._thermal is not None else None
     c.states = [Variable(q, "local", label=lab) for lab, q in cls.state_spec]
     c.locals = [Variable(q, "local", label=lab, initial_value=0.0)
@@ -211,7 +213,7 @@ def _enter(c, T0):
 
 def _leave(c):
     for t in c.terminals:
-        del t.variables[2:]
+        t.variables = t.variables[:2]
     c._thermal = None
     c.states = [Variable(q, "local", label=lab) for lab, q in type(c).state_spec]
     c.locals = []
