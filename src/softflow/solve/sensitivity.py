@@ -445,7 +445,7 @@ class Sensitivities:
     def _deferrable(self):
         """Every group in rate form (no user component, no own step, no per-step
         coefficients) and a dense system of at most DEFER_MAX unknowns."""
-        return (DEFER and self.asm.n <= DEFER_MAX and not self._fd
+        return (DEFER and self._dense and self.asm.n <= DEFER_MAX and not self._fd
                 and len(self._params_of) == len(self.asm.groups))
 
     def _setup_deferred(self):
