@@ -5,6 +5,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.sparse.linalg import spsolve
 
 import softflow as sf
 from helpers import rc_circuit, tank_and_actuator
@@ -171,28 +172,51 @@ DEFERRED_CASES = [
 ]
 
 
+def _air_chain(n):
+    """PressureSource -> (CircularTube -> Container) x n: 4 n + 2 unknowns."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 2e4)
+    for i in range(n):
+        s += sf.CircularTube(f"tube{i}", sf.air, 0.2, 2e-3)
+        s += sf.Container(f"cont{i}", sf.air, 5e-6)
+        s.connect((f"tube{i}", "a"), "src" if i == 0 else (f"cont{i - 1}", "a"))
+        s.connect((f"tube{i}", "b"), (f"cont{i}", "a"))
+    return s
+
+
+DEFERRED_CASES.append(
+    # past DENSE_MAX unknowns: a sparse LU of each step's exact Jacobian
+    ("sparse", lambda: _air_chain(35), {}, 0.05, ["tube0.diameter", "cont5.volume"],
+     [("cont5", "pressure"), ("cont1", "mass"), ("tube3", "massflow_a")]))
+
+
+def _exact_solve(self, rhs, start, c, fresh):
+    J = self._jacobian()
+    return np.linalg.solve(J, rhs) if isinstance(J, np.ndarray) else spsolve(J.tocsc(), rhs)
+
+
 def _exact_step_by_step(monkeypatch):
     """The step-by-step path with the exact Jacobian's solve at every step (its
     stale-factor corrections otherwise stop at CORRECTION_RTOL, and its fresh
     factors change Newton's next steps)."""
     monkeypatch.setattr(sensitivity, "DEFER", False)
-    monkeypatch.setattr(sensitivity.Sensitivities, "_solve",
-                        lambda self, rhs, start, c, fresh: np.linalg.solve(self._jacobian(), rhs))
+    monkeypatch.setattr(sensitivity.Sensitivities, "_solve", _exact_solve)
 
 
 @pytest.mark.parametrize("case", DEFERRED_CASES, ids=[c[0] for c in DEFERRED_CASES])
 @pytest.mark.parametrize("stepping", [{"step": 1e-3}, {"rtol": 1e-6}], ids=["fixed", "bdf"])
 def test_deferred_sensitivities_equal_the_step_by_step_ones(monkeypatch, case, stepping):
     """Buffered steps worked out CHUNK at a time (one kernel call per group on the
-    steps stacked, a batched solve, the BDF table's operations replayed) give the
-    step-by-step method's numbers to round-off, across chunk boundaries, a
-    time-dependent source (evaluated step by step) and a discrete switch.
-    Measured: <= 7e-13."""
+    steps stacked, a batched solve or, sparse, a sparse LU per step, the BDF
+    table's operations replayed) give the step-by-step method's numbers to
+    round-off, across chunk boundaries, a time-dependent source (evaluated step
+    by step), a discrete switch and a sparse system. Measured: <= 7e-13."""
     _, build, kw, duration, names, outputs = case
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         monkeypatch.setattr(sensitivity, "CHUNK", 7)       # many chunks, a partial last one
         sim = sf.Simulation(build(), duration=duration, **kw, **stepping)
+        assert (sim.asm.n > sensitivity.DENSE_MAX) == (case[0] == "sparse")
         deferred = sim.run(sensitivities=names)
         assert sim.run(sensitivities=names[:1]) is not None
         _exact_step_by_step(monkeypatch)

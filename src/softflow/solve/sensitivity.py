@@ -71,6 +71,8 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+from scipy.sparse import csc_matrix
+from scipy.sparse.linalg import splu
 
 from ..network.system import NetworkError
 from .bdf import _PRED_PSI, BDF
@@ -444,8 +446,9 @@ class Sensitivities:
     # -- deferred: steps worked out CHUNK at a time --------------------------------------
     def _deferrable(self):
         """Every group in rate form (no user component, no own step, no per-step
-        coefficients) and a dense system of at most DEFER_MAX unknowns."""
-        return (DEFER and self._dense and self.asm.n <= DEFER_MAX and not self._fd
+        coefficients); dense systems of at most DEFER_MAX unknowns, sparse ones
+        (a sparse LU per step, :meth:`_flush_sparse`)."""
+        return (DEFER and (self.asm.n <= DEFER_MAX or not self._dense) and not self._fd
                 and len(self._params_of) == len(self.asm.groups))
 
     def _setup_deferred(self):
@@ -454,22 +457,29 @@ class Sensitivities:
         self._bx, self._bpsi = np.empty((CHUNK, n)), np.empty((CHUNK, n_s))
         self._bt, self._bc = np.empty(CHUNK), np.empty(CHUNK)
         self._tiles = {}
-        # per group: (group, class, Params, time-free, FX's rows and columns in
-        # d(step equations)/d psi, RV's rows in the states' update)
+        # per group: (group, class, Params, time-free); where the entries of its
+        # FX (n, neq, ncont) and RV (n, ncont, nv) go in d(step equations)/d psi
+        # and in the states' d(update)/dx, all groups' in turn
         self._dgroups = []
+        fx_rows, fx_cols, rv_rows, rv_cols = [], [], [], []
         for key, (g, cls, P, cont) in self._params_of.items():
+            self._dgroups.append((g, cls, P, _time_free(g.comps)))
             ncont = cont.size
+            if not ncont:
+                continue
             inst = np.arange(g.n)[:, None, None]
-            fx_rows = (g.r0 + inst * g.neq + np.arange(g.neq)[None, :, None]
-                       + 0 * cont[None, None, :]).ravel()
-            fx_cols = (g.s0 + inst * g.ns + cont[None, None, :]
-                       + 0 * np.arange(g.neq)[None, :, None]).ravel()
-            nv = g.col.shape[1]
-            rv_rows = np.broadcast_to(g.s0 + inst * g.ns + cont[None, :, None],
-                                      (g.n, ncont, nv)).ravel()
-            rv_cols = np.broadcast_to(g.col[:, None, :], (g.n, ncont, nv)).ravel()
-            self._dgroups.append((g, cls, P, _time_free(g.comps), fx_rows, fx_cols,
-                                  rv_rows * n + rv_cols))
+            shape = (g.n, g.neq, ncont)
+            fx_rows.append(np.broadcast_to(
+                g.r0 + inst * g.neq + np.arange(g.neq)[None, :, None], shape).ravel())
+            fx_cols.append(np.broadcast_to(g.s0 + inst * g.ns + cont[None, None, :],
+                                           shape).ravel())
+            shape = (g.n, ncont, g.col.shape[1])
+            rv_rows.append(np.broadcast_to(g.s0 + inst * g.ns + cont[None, :, None],
+                                           shape).ravel())
+            rv_cols.append(np.broadcast_to(g.col[:, None, :], shape).ravel())
+        empty = np.zeros(0, dtype=np.int64)
+        self._fx_rows, self._fx_cols, self._rv_rows, self._rv_cols = (
+            np.concatenate(a) if a else empty for a in (fx_rows, fx_cols, rv_rows, rv_cols))
         self._keep = np.ones(n_s)            # the update keeps psi's continuous states
         if asm.has_discrete:
             self._keep[asm.s_discrete] = 0.0
@@ -513,19 +523,18 @@ class Sensitivities:
         return tuple(None if parts[0] is None else np.concatenate(parts)
                      for parts in zip(*outs))
 
-    def _pieces(self, X, PSI, T, cv):
-        """For the points (rows of X, PSI, T, cv): s_x = -(A s_psi + B) and the
-        states' s_S = s_psi Mt + dt (rows of (n_p, n_s)), every derivative at
-        once (one rates+residual call per group on the points stacked, one
-        batched solve with the step Jacobians)."""
+    def _stacked(self, X, PSI, T, cv):
+        """Every derivative at the points (rows of X, PSI, T, cv) at once (one
+        rates+residual call per group on the points stacked): the step
+        Jacobians' entries RAW (m, as ``asm.raw``), dF/dpsi's FXW (m, at
+        _fx_rows, _fx_cols), dr/dV's RVW (m, at _rv_rows, _rv_cols), dF/dtheta
+        GT (m, n, n_p) and the states' c·dr/dtheta DS (m, n_s, n_p)."""
         asm, n, n_s, n_p = self.asm, self.asm.n, len(self.asm.S0), self.n_p
         m = len(T)
         RAW = np.empty((m, asm.raw.size))
         RAW[:] = asm.raw                  # the node rows' entries (constant)
-        GPSI = np.zeros((m, n, n_s + n_p))   # [d(step eqs)/d psi | d(step eqs)/d theta]
-        rv_pos, rv_w = [], []
-        at = {}
-        for key, (g, cls, P, free, fx_rows, fx_cols, rv_flat) in enumerate(self._dgroups):
+        fxw, rvw, at = [], [], {}
+        for key, (g, cls, P, free) in enumerate(self._dgroups):
             V = X[:, g.col].reshape(m * g.n, -1)
             Sg = PSI[:, g.s0:g.s1].reshape(m * g.n, g.ns)
             cc = np.repeat(cv, g.n) if g.n > 1 else cv
@@ -534,27 +543,40 @@ class Sensitivities:
                 key, cls, P, g.comps, free, (V, Sg, cc), T)
             RAW[:, g.j0:g.j1] = J.reshape(m, -1)
             if FX.size:
-                GPSI[:, fx_rows, fx_cols] = FX.reshape(m, -1)
-                rv_pos.append(rv_flat)
-                rv_w.append(RV.reshape(m, -1))
+                fxw.append(FX.reshape(m, -1))
+                rvw.append(RV.reshape(m, -1))
             at[id(g)] = (V, Sg, F, Xe, FX)
+        GT = np.zeros((m, n, n_p))
         DS = np.zeros((m, n_s, n_p))
-        for p, ((g, cls, P, free, *_), i, rows, cols) in enumerate(self._dparams):
+        for p, ((g, cls, P, free), i, rows, cols) in enumerate(self._dparams):
             dG, dX = self._parameter_rows(p, g, cls, P, i, free, at[id(g)], T, cv)
-            GPSI[:, rows, n_s + p] = dG
+            GT[:, rows, p] = dG
             if dX.size:
                 DS[:, cols, p] = dX
+        FXW = np.concatenate(fxw, axis=1) if fxw else np.zeros((m, 0))
+        RVW = np.concatenate(rvw, axis=1) if rvw else np.zeros((m, 0))
+        return RAW, FXW, RVW, GT, DS
+
+    def _pieces(self, X, PSI, T, cv):
+        """Dense networks: s_x = -(A s_psi + B) and the states' s_S = s_psi Mt + dt
+        (rows of (n_p, n_s)) at the points, from :meth:`_stacked` and one
+        batched solve with the step Jacobians."""
+        n, n_s = self.asm.n, len(self.asm.S0)
+        m = len(T)
+        RAW, FXW, RVW, GT, DS = self._stacked(X, PSI, T, cv)
         J = np.bincount((np.arange(m)[:, None] * (n * n) + self._flat).ravel(),
                         weights=RAW.ravel(), minlength=m * n * n).reshape(m, n, n)
+        GPSI = np.zeros((m, n, n_s + self.n_p))   # [d(step eqs)/d psi | d/d theta]
+        GPSI[:, self._fx_rows, self._fx_cols] = FXW
+        GPSI[:, :, n_s:] = GT
         Z = _solve_stacked(J, GPSI)
         A, B = Z[:, :, :n_s], Z[:, :, n_s:]
         # s_S = keep·s_psi + c RV s_x + dS with s_x = -(A s_psi + B):
         # s_S = M s_psi + d, M = keep - c RV A, d = dS - c RV B
-        if rv_pos:
-            pos = np.concatenate(rv_pos)
-            RVg = np.bincount((np.arange(m)[:, None] * (n_s * n) + pos).ravel(),
-                              weights=np.concatenate(rv_w, axis=1).ravel(),
-                              minlength=m * n_s * n).reshape(m, n_s, n)
+        if RVW.size:
+            RVg = np.bincount((np.arange(m)[:, None] * (n_s * n)
+                               + self._rv_rows * n + self._rv_cols).ravel(),
+                              weights=RVW.ravel(), minlength=m * n_s * n).reshape(m, n_s, n)
             cRV = cv[:, None, None] * RVg
             M = -(cRV @ A)
             d = DS - cRV @ B
@@ -567,7 +589,10 @@ class Sensitivities:
         """The buffered steps: their pieces at once (:meth:`_pieces`), then the
         states' sensitivities along the log (the sequential part: a log-depth
         scan of the affine maps for backward Euler, the BDF table's operations
-        in turn), then the unknowns' at once."""
+        in turn), then the unknowns' at once. Sparse networks:
+        :meth:`_flush_sparse`."""
+        if not self._dense:
+            return self._flush_sparse()
         m = self._n_buf
         A, B, Mt, dt = self._pieces(self._bx[:m], self._bpsi[:m], self._bt[:m], self._bc[:m])
         if self._log[0] == INITIAL:       # the point t = 0: its s_S are the initial states'
@@ -577,14 +602,56 @@ class Sensitivities:
             PSIP = np.concatenate([self._sS[None], SS[:-1]])
             self._sS = SS[-1]
         else:
-            PSIP, SS = self._replay(Mt, dt)
+            PSIP, SS = self._replay(lambda j, psi_p, op: psi_p @ Mt[j] + dt[j])
         s_x = -(PSIP @ A.transpose(0, 2, 1) + B.transpose(0, 2, 1))
         self._record(s_x, SS)
         self._n_buf, self._log = 0, []
 
-    def _replay(self, Mt, dt):
-        """(s_psi, s_S) of the buffered steps along the logged BDF operations."""
-        m, (n_p, n_s) = len(Mt), self._sS.shape
+    def _flush_sparse(self):
+        """Sparse networks: the pieces at once (:meth:`_stacked`), then step by
+        step J s_x = -(dF/dpsi s_psi + dF/dtheta) with the step's exact J
+        (a sparse LU of its own, Newton's factors untouched) and the states'
+        update, along the log."""
+        asm, n, n_s, n_p = self.asm, self.asm.n, len(self.asm.S0), self.n_p
+        m = self._n_buf
+        cv = self._bc[:m]
+        RAW, FXW, RVW, GT, DS = self._stacked(self._bx[:m], self._bpsi[:m], self._bt[:m], cv)
+        if asm.duplicates:
+            DATA = np.bincount((np.arange(m)[:, None] * asm.nnz + asm._inv).ravel(),
+                               weights=RAW.ravel(), minlength=m * asm.nnz).reshape(m, asm.nnz)
+        else:
+            DATA = np.ascontiguousarray(RAW[:, asm._order])
+        fx_at = (np.arange(n_p)[:, None] * n + self._fx_rows).ravel()
+        rv_at = (np.arange(n_p)[:, None] * n_s + self._rv_rows).ravel()
+        fx_cols, rv_cols, keep = self._fx_cols, self._rv_cols, self._keep
+        GTt, DSt = GT.transpose(0, 2, 1), DS.transpose(0, 2, 1)
+        SX = np.full((m, n_p, n), np.nan)
+        J = csc_matrix((DATA[0], asm.indices, asm.indptr), shape=(n, n))   # its pattern
+
+        def advance(j, psi_p, op):
+            rhs = np.bincount(fx_at, weights=(FXW[j] * psi_p[:, fx_cols]).ravel(),
+                              minlength=n_p * n).reshape(n_p, n) + GTt[j]
+            J.data = DATA[j]
+            try:
+                lu = splu(J, permc_spec="COLAMD", relax=1)
+            except RuntimeError:          # exactly singular: NaN from here on
+                return np.full_like(psi_p, np.nan)
+            s_x = -lu.solve(np.ascontiguousarray(rhs.T)).T
+            SX[j] = s_x
+            if op == INITIAL:
+                return psi_p
+            return keep * psi_p + cv[j] * np.bincount(
+                rv_at, weights=(RVW[j] * s_x[:, rv_cols]).ravel(),
+                minlength=n_p * n_s).reshape(n_p, n_s) + DSt[j]
+        _, SS = self._replay(advance)
+        self._record(SX, SS)
+        self._n_buf, self._log = 0, []
+
+    def _replay(self, advance):
+        """(s_psi, s_S) of the buffered steps along the log: each step's s_psi
+        from the last s_S (backward Euler) or the BDF table, its s_S from
+        ``advance(j, s_psi, order)``, the table's operations in turn."""
+        m, (n_p, n_s) = self._n_buf, self._sS.shape
         PSIP = np.empty((m, n_p, n_s))
         SS = np.empty((m, n_p, n_s))
         sS, table, j = self._sS, self._table, 0
@@ -596,11 +663,11 @@ class Sensitivities:
                     # is it, row k + 2 it less the old row k + 1
                     pred, psi_p = _PRED_PSI[op] @ table[:op + 1]
                     psi_p = psi_p.reshape(n_p, n_s)
-                    sS = psi_p @ Mt[j] + dt[j]
+                    sS = advance(j, psi_p, op)
                     table[:op + 3] = _UPDATE[op] @ table[:op + 3] + (sS.ravel() - pred)
                 else:
                     psi_p = sS
-                    sS = psi_p @ Mt[j] + dt[j]
+                    sS = advance(j, psi_p, op)
                 PSIP[j], SS[j] = psi_p, sS
                 j += 1
             else:
