@@ -43,21 +43,23 @@ update along the sensitivity vectors. Initial states: a component's
 rho(p0)·volume), else the twin's difference.
 
 How it is evaluated. Nothing of the sensitivity equations feeds back into
-the run, so on dense networks (up to DEFER_MAX unknowns) whose groups are
-all in rate form the accepted steps (x, psi, t, c) are only buffered, and
-every CHUNK steps worked out together: one ``rates`` and one ``residual``
-call per group on the steps stacked (its Params tiled over them; a group
-that reads the time, a source with a signal, one call per step), the step
-Jacobians and d(step equations)/d(psi, theta) scattered into stacked dense
-arrays, one batched solve J A = dF/dpsi, J B = dF/dtheta, and the states'
-maps s_S = M s_psi + d. The one sequential part is then cheap: backward
-Euler's s_S_n = M_n s_S_{n-1} + d_n as a log-depth scan of the affine maps,
-BDF's along its difference table, whose operations (restart, rescale, order
-drop) the integrator logs in order and which are replayed here. Each step's
-J is the exact Jacobian at its converged point, as the step-by-step method's
-corrections converge to; the run itself is untouched (Newton's factors and
-so its steps are the plain run's). Other networks (user components, own
-steps, per-step coefficients, sparse systems) go step by step as above.
+the run, so on networks whose groups are all in rate form the accepted steps
+(x, psi, t, c) are only buffered, and every CHUNK steps worked out together:
+one ``rates`` and one ``residual`` call per group on the steps stacked (its
+Params tiled over them; a group that reads the time, a source with a signal,
+one call per step) gives every step's Jacobian entries, d(step
+equations)/d(psi, theta) and the update's dr/dx. Dense networks (up to
+DEFER_MAX unknowns) then take one batched solve J A = dF/dpsi, J B =
+dF/dtheta and the states' maps s_S = M s_psi + d, and the one sequential part
+is cheap: backward Euler's s_S_n = M_n s_S_{n-1} + d_n as a log-depth scan of
+the affine maps, BDF's along its difference table, whose operations
+(restart, rescale, order drop) the integrator logs in order and which are
+replayed here. Sparse networks solve step by step along the same log, each
+step with a sparse LU of its own J. Each step's J is the exact Jacobian at
+its converged point, as the step-by-step method's corrections converge to;
+the run itself is untouched (Newton's factors and so its steps are the plain
+run's). Other networks (user components, classes that write their own step,
+per-step coefficients) go step by step as above.
 
 At t = 0 the initial states' sensitivity is that of the component's initial
 states (e.g. a Container's mass to its volume), and the unknowns' follows from
@@ -89,12 +91,14 @@ MAX_CORRECTIONS = 4
 #: The corrections stop when the last one is below this fraction of the solution
 #: (per unknown, in Newton's tolerance units).
 CORRECTION_RTOL = 1e-8
-#: Work out the sensitivities of rate-form networks of up to DEFER_MAX unknowns
-#: CHUNK steps at a time (see the module docstring); False: always step by step.
-#: Measured on air chains (2 parameters, cost over the plain run, loaded 2-core
-#: machine): deferred 1.1-1.3x against step by step 3.5-3.9x at 34 unknowns,
-#: 1.2-1.3x against 6-95x at 82; at 102-122 the stacked solves' n^3 and
-#: OpenBLAS's threads take over (2-9x, against 5-43x step by step).
+#: Work out the sensitivities of rate-form networks CHUNK steps at a time (see
+#: the module docstring), with stacked dense solves up to DEFER_MAX unknowns and
+#: a sparse LU per step above; False: always step by step. Measured on air
+#: chains (2 parameters, cost over the plain run, loaded 2-core machine):
+#: deferred 1.1-1.3x against step by step 3.5-3.9x at 34 unknowns, 1.2-1.3x
+#: against 6-95x at 82; at 102-122 the stacked solves' n^3 and OpenBLAS's
+#: threads take over (2-9x, against 5-43x step by step); sparse, 1.5-1.6x
+#: against 3.8-4.1x at 162, 1.9-2.0x against 3.5-3.6x at 802.
 DEFER = True
 DEFER_MAX = DENSE_MAX
 CHUNK = 256
