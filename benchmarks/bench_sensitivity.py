@@ -21,8 +21,9 @@ sensitivities at 0.1 ms (itself first-order accurate). Error: the largest
 |reference|. Cost: CPU time of a run with p parameters over the plain run's
 (median over --repeat rounds of the run's time over the same round's plain
 run, each round running the plain and the sensitivity runs in turn after one
-untimed run of each; in brackets the range of those ratios); the last column is p = 2 with the parameter derivatives
-taken by finite differences (``softflow.solve.sensitivity.ANALYTIC = False``).
+untimed run of each; in brackets the range of those ratios); the last column
+is p = 2 with the parameter derivatives taken by finite differences
+(``softflow.solve.sensitivity.ANALYTIC = False``).
 """
 from __future__ import annotations
 

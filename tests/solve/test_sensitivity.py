@@ -10,7 +10,7 @@ from scipy.sparse.linalg import spsolve
 import softflow as sf
 from helpers import rc_circuit, tank_and_actuator
 from softflow.network.system import NetworkError
-from softflow.solve import sensitivity
+from softflow.solve import sensitivity, sensitivity_deferred
 
 P0 = sf.pressure_atmospheric
 DP, TAU, D, L = 1e4, 0.1, 0.5e-3, 1.0
@@ -214,7 +214,7 @@ def test_deferred_sensitivities_equal_the_step_by_step_ones(monkeypatch, case, s
     _, build, kw, duration, names, outputs = case
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        monkeypatch.setattr(sensitivity, "CHUNK", 7)       # many chunks, a partial last one
+        monkeypatch.setattr(sensitivity_deferred, "CHUNK", 7)   # many chunks, a partial last one
         sim = sf.Simulation(build(), duration=duration, **kw, **stepping)
         assert (sim.asm.n > sensitivity.DENSE_MAX) == (case[0] == "sparse")
         deferred = sim.run(sensitivities=names)
@@ -250,14 +250,14 @@ def test_the_difference_update_and_the_scan_are_the_integrators_own():
         D, d = rng.random((MAX_ORDER + 3, 4)), rng.random(4)
         ref = D.copy()
         BDF._difference_update(ref, d, k)
-        D[:k + 3] = sensitivity._UPDATE[k] @ D[:k + 3] + d
+        D[:k + 3] = sensitivity_deferred._UPDATE[k] @ D[:k + 3] + d
         np.testing.assert_allclose(D, ref, rtol=1e-14, atol=1e-15)
     s0, Mt, dt = rng.random((2, 3)), rng.random((37, 3, 3)) - 0.5, rng.random((37, 2, 3))
     seq, s = [], s0
     for j in range(37):
         s = s @ Mt[j] + dt[j]
         seq.append(s)
-    np.testing.assert_allclose(sensitivity._affine_scan(s0, Mt, dt), seq, rtol=1e-12)
+    np.testing.assert_allclose(sensitivity_deferred._affine_scan(s0, Mt, dt), seq, rtol=1e-12)
 
 
 def test_tiled_params_are_those_of_the_stacked_components():
@@ -273,7 +273,8 @@ def test_tiled_params_are_those_of_the_stacked_components():
     for cls, comps in ((sf.CircularTube, tubes), (Indexed, [Indexed("c", sf.air, 0.3, 1e-3)]),
                        (sf.PressureSource, [sf.PressureSource("s", pressure=2e5)])):
         P = cls.make_params(comps)
-        tiled, ref = sensitivity._tile_params(cls, P, comps, 5), cls.make_params(comps * 5)
+        tiled = sensitivity_deferred._tile_params(cls, P, comps, 5)
+        ref = cls.make_params(comps * 5)
         assert tiled.n == ref.n == 5 * len(comps)
         for key, value in vars(ref).items():
             if isinstance(value, np.ndarray):
