@@ -7,6 +7,7 @@ import pickle
 import pytest
 
 import softflow as sf
+from helpers import source_tube_tank
 from softflow.network.variable import SharedVariable, Variable
 
 
@@ -40,12 +41,7 @@ def test_copies_and_pickles_keep_the_values():
 
 
 def test_a_thermal_compile_leaves_the_shared_interface_alone():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=2e5)
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
+    s = source_tube_tank()
     other = sf.CircularTube("other", sf.air, 0.5, 1e-3)
     before = [len(t.variables) for t in other.terminals]
     sf.Simulation(s, duration=0.01, thermal="adiabatic").run()
