@@ -164,3 +164,46 @@ def test_compressibility_bound_of_the_built_in_gases_holds_against_coolprop():
             small = bound < 0.1
             assert np.all(z[small] <= bound[small] / 1.4), (name, T)
     assert compressibility_bound("CO2", 250.0, 300.0, [1e5]) is None
+
+
+def _adiabatic_hold(duration):
+    """A 100 mL wall-less tank filled adiabatically through 0.5 m of 1 mm tube
+    in ~0.1 s, then held: its free-convection thermal time constant is ~1.5 s."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", sf.ModelWarning)
+        res = sf.Simulation(_into(1.5e5, sf.CircularTube("tube", sf.air, 0.5, 1e-3),
+                                  sf.Container("tank", sf.air, 1e-4)),
+                            duration=duration, thermal="adiabatic").run()
+    return res, [str(w.message) for w in caught if issubclass(w.category, sf.ModelWarning)]
+
+
+@pytest.mark.parametrize("duration, side", [(0.3, "far"), (1.5, "near"), (3.0, "beyond")])
+def test_adiabatic_volume_held_longer_than_its_wall_allows(duration, side):
+    """The reverse of thermal_time_scale: the adiabatic model keeps the heat of
+    a fast fill for as long as the run holds it; a real wall takes it back
+    within a few thermal time constants."""
+    res, warned = _adiabatic_hold(duration)
+    mine = [r for r in res.validity if r.check == "adiabatic_time_scale"]
+    if side == "far":
+        assert mine == []
+        return
+    (rec,) = mine
+    assert rec.component == "tank" and rec.unit == "s"
+    assert 1.0 < rec.limit < 3.0                     # the thermal time constant
+    if side == "near":
+        assert rec.status == "near" and NEAR_FRACTION <= rec.fraction < 1
+        assert rec.message not in warned
+    else:
+        assert rec.status == "beyond" and rec.fraction > 1
+        assert rec.message in warned and "heat_transfer" in rec.suggestion
+        assert "a real wall would have taken back" in rec.message
+
+
+def test_adiabatic_check_leaves_isothermal_and_walled_volumes_alone():
+    s = _into(1.5e5, sf.CircularTube("tube", sf.air, 0.5, 1e-3),
+              sf.Container("tank", sf.air, 1e-4, hA=0.05))
+    for thermal in ("isothermal", "heat_transfer"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            res = sf.Simulation(s, duration=5.0, thermal=thermal).run()
+        assert "adiabatic_time_scale" not in {r.check for r in res.validity}

@@ -62,6 +62,16 @@ Checks
     (a sphere of the volume's size, 10 K difference: an estimate). Faster than a tenth of it,
     the gas is closer to adiabatic than to isothermal. Fraction: a tenth of
     the thermal time constant / the fill time.
+``adiabatic_time_scale``
+    The reverse: an adiabatic gas volume of a thermal scene (no wall heat)
+    whose temperature stayed away from its wall's, by more than
+    ``max(10 rtol, 1e-2)`` of it, for longer than its wall's thermal time
+    constant (free convection estimate, as above) would allow: the time
+    integral of the difference over its largest value against that constant.
+    A real wall would have taken back most of the difference (a fast fill
+    held for seconds); give the volume its wall and run
+    ``thermal='heat_transfer'``. Fraction: that time / the thermal time
+    constant.
 """
 from __future__ import annotations
 
@@ -437,6 +447,74 @@ def thermal_time_scale(g, result):
     return out
 
 
+#: An adiabatic gas volume's temperature that stays away from its wall's for
+#: longer than this many thermal time constants is reported: by then a real
+#: wall would have taken back most of the difference.
+ADIABATIC_PERSISTENCE = 1.0
+
+
+def adiabatic_time_scale(g, result):
+    """Adiabatic gas volumes of a thermal scene whose temperature stayed away
+    from the wall's for longer than the wall's thermal time constant (see the
+    module docstring)."""
+    comp0 = g.comps[0]
+    fluid = comp0.fluid
+    if fluid is None or not fluid.compressible:
+        return []
+    if len(result.times) < 2 or not any(getattr(c, "_thermal", None) == "adiabatic"
+                                        for c in g.comps):
+        return []          # isothermal, held or with a wall: nothing neglected here
+    keep, T = group_values(g, result, "temperature")
+    own = [j for j, i in enumerate(keep) if getattr(g.comps[i], "_thermal", None) == "adiabatic"]
+    if not own:
+        return []
+    _, m = group_values(g, result, "mass")
+    _, p = group_values(g, result, "pressure")
+    keep = [keep[j] for j in own]
+    T, m, p = T[:, own], m[:, own], p[:, own]
+    t = result.times
+    Tw = np.array([g.comps[i]._T_wall for i in keep])
+    dev = np.abs(T - Tw)
+    k = np.argmax(dev, axis=0)
+    cols = np.arange(len(keep))
+    peak = dev[k, cols]
+    limit = max(10 * _rtol(result), 1e-2)
+    significant = peak > limit * Tw
+    if not significant.any():
+        return []
+    from softflow.correlations.heat_transfer import FreeConvection
+    sphere = FreeConvection("sphere")
+    pk, Tk, mk = p[k, cols], T[k, cols], m[k, cols]
+    with np.errstate(all="ignore"):
+        persistence = np.trapezoid(dev, t, axis=0) / peak
+        try:
+            length = sphere.characteristic_length(mk / fluid.density(pk, Tk))
+            h = sphere.coefficient(fluid, pk, Tk, Tw, length)
+        except Exception:      # a fluid without conductivity: no estimate
+            return []
+        t_thermal = mk * fluid.cv(pk, Tk) / (h * np.pi * length ** 2)
+        fraction = persistence / (ADIABATIC_PERSISTENCE * t_thermal)
+    out = []
+    for j in np.flatnonzero(significant):
+        if not grade(fraction[j]):
+            continue
+        c = g.comps[keep[j]]
+        out.append(_record(
+            c, "adiabatic_time_scale", persistence[j], ADIABATIC_PERSISTENCE * t_thermal[j],
+            "s", fraction[j],
+            "give the volume its wall (hA, or heat_transfer_coefficient and area) and run "
+            "thermal='heat_transfer', or run it isothermal",
+            f"its gas stayed up to {peak[j]:.3g} K from its wall temperature "
+            f"({Tw[j]:.5g} K) for ~{persistence[j]:.3g} s (the time integral of the "
+            f"difference over its largest value), against a thermal time constant "
+            f"~{t_thermal[j]:.3g} s of its wall (free convection estimate): "
+            + ("a real wall would have taken back most of that difference, which the "
+               "adiabatic model keeps: its temperature, and its mass or pressure, are off."
+               if fraction[j] > 1 else f"{fraction[j]:.0%} of the way to that limit."),
+            thermal_time_constant=float(t_thermal[j]), time=float(t[k[j]])))
+    return out
+
+
 def has_wall(comp):
     """Whether a volume was given a wall (hA, or a coefficient and an area)."""
     return (getattr(comp, "hA", None) is not None
@@ -518,3 +596,4 @@ def register_all(register):
     for cls in (Container, LinearAccumulator, Actuator, HystereticActuator):
         register(cls, gas_compressibility)
         register(cls, thermal_time_scale)
+        register(cls, adiabatic_time_scale)
