@@ -328,3 +328,53 @@ def test_whole_run_sensitivities_match_central_differences_of_runs(monkeypatch, 
                     continue
                 assert _worst(res.sensitivity(olabel, var, name), fd) < 1e-3, \
                     (name, olabel, var)
+
+
+# -- switching functions' gradients (the sensitivities' jump at a located switch) ------
+def _switching_cases():
+    loop = loop_hysteretic()
+    out = [("SnappingValve", [sf.SnappingValve(f"s{i}", sf.air, 2e4, 5e3, 1e-11)
+                              for i in range(4)], [1.0, 0.0, 1.0, 0.0])]
+    acts = [sf.HystereticActuator(f"h{i}", sf.air, *loop) for i in range(4)]
+    out.append(("HystereticActuator", acts, [1.0, 0.0, 1.0, 0.0]))
+    for held in (None, "isothermal"):     # a free gas volume, one held at its wall
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=2e5)
+        s += sf.CircularTube("t", sf.air, 0.5, 1e-3)
+        s += sf.HystereticActuator("h", sf.air, *loop, thermal=held)
+        s.connect("src", "t")
+        s.connect("t", "h")
+        configure_thermal(s, "adiabatic")
+        out.append((f"HystereticActuator-{held or 'adiabatic'}", [s.components[-1]] * 4,
+                    [1.0, 0.0, 1.0, 0.0]))
+    return out
+
+
+@pytest.mark.parametrize("case", _switching_cases(), ids=lambda c: c[0])
+def test_switching_gradients_match_central_differences(case):
+    """switching_jacobian (dg/dV, dg/dS) and switching_param_jacobian against
+    central differences of ``switching`` (measured <= 1e-8 relative)."""
+    label, comps, modes = case
+    cls = comps[0].kernel_class()
+    assert "switching_jacobian" in vars(sensitivity._owner(cls, "switching"))
+    P = cls.make_params(comps)
+    rng = np.random.default_rng(3)
+    nv = 1 + max(v for _, v in cls.jac_pattern)
+    V = np.column_stack([rng.uniform(1.2e5, 2e5, 4), rng.uniform(-1, 1, 4) * 1e-5,
+                         rng.uniform(1.2e5, 2e5, 4) if nv == 4 else rng.uniform(280, 320, 4),
+                         rng.uniform(-1, 1, 4) * 1e-5][:nv] + [rng.uniform(1, 2, 4)] * (nv - 4))
+    S = _states(comps, rng, None)
+    S[:, step_plan(cls).disc[0]] = modes
+    GV, GS = cls.switching_jacobian(P, V, S)
+    g0 = cls.switching(P, V, S)
+    for A, G in ((V, GV), (S, GS)):
+        for k in range(A.shape[1]):
+            h = 1e-6 * np.maximum(np.abs(A[:, k]), 1e-3)
+            up, down = A.copy(), A.copy()
+            up[:, k] += h
+            down[:, k] -= h
+            args = ((up, S), (down, S)) if A is V else ((V, up), (V, down))
+            fd = (cls.switching(P, *args[0]) - cls.switching(P, *args[1])) / (2 * h[:, None])
+            scale = np.abs(g0).max() / np.maximum(np.abs(A[:, k]), 1e-3)[:, None] + 1e-300
+            np.testing.assert_allclose(G[:, :, k], fd, rtol=1e-6,
+                                       atol=1e-8 * scale.max(), err_msg=f"{label} column {k}")

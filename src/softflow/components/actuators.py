@@ -458,6 +458,24 @@ class HystereticActuator(LibraryComponent):
         return P.loop.switching(vol, S[:, 1] > 0.5)[:, None]
 
     @classmethod
+    def switching_jacobian(cls, P, V, S):
+        """d(switching)/dV (n, 1, 1) and d/dS (n, 1, 2): the branch's sign times
+        the volume's derivatives, vol = m / rho(p)."""
+        p, rho, vol = _volume(P, V, S)
+        sign = np.where(S[:, 1] > 0.5, 1.0, -1.0)
+        GV = np.zeros((P.n, 1, V.shape[1]))
+        GV[:, 0, 0] = -sign * vol * P.fluid.density_dp(p) / rho
+        GS = np.zeros((P.n, 1, S.shape[1]))
+        GS[:, 0, 0] = sign / rho
+        return GV, GS
+
+    @classmethod
+    def switching_param_jacobian(cls, P, V, S, name):
+        """d(switching)/d theta (n, 1): the loop's limits are not numeric
+        parameters (0 for initial_volume and meet_tolerance)."""
+        return np.zeros((P.n, 1))
+
+    @classmethod
     def residual(cls, P, V, S, t, jac):
         p, rho, vol = _volume(P, V, S)
         pc, dpc = P.loop.fdf_volume(vol, S[:, 1] > 0.5)

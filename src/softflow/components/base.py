@@ -18,6 +18,9 @@ every instance of the class in the network:
     its mode holds at (V, S), crossing zero where :meth:`switch` changes it.
     The adaptive stepper places the end of a step that switches a mode at the
     crossing (a secant between the step's ends) instead of bisecting.
+``switching_jacobian(P, V, S)``, ``switching_param_jacobian(P, V, S, name)`` (optional)
+    its derivatives in V (n, m, nv) and S (n, m, ns), and in a parameter (n, m),
+    for the sensitivities' jump at a located switch (else finite differences).
 ``param_jacobian(P, V, S, t, name)`` (optional)
     dF/dtheta of ``residual`` and dr/dtheta of ``rates`` for the numeric
     parameter ``name`` of every instance, or None where the class states none

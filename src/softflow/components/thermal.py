@@ -726,6 +726,27 @@ class _LoopCurve(_CurveWall):
         return np.repeat(g[:, None], len(cls.discrete_states), axis=1)
 
     @classmethod
+    def switching_jacobian(cls, P, V, S):
+        """d(switching)/dV and d/dS of :meth:`switching` (every column alike): the
+        branch's sign times the gas volume's derivatives, vol = m / rho(p, T)."""
+        p, T = V[:, 0], V[:, 2]
+        rho = P.fluid.density(p, T)
+        vol = S[:, 0] / rho
+        sign = np.where(S[:, cls._branch] > 0.5, 1.0, -1.0)
+        m = len(cls.discrete_states)
+        GV = np.zeros((P.n, m, V.shape[1]))
+        GV[:, :, 0] = (-sign * vol * P.fluid.density_dp(p, T) / rho)[:, None]
+        GV[:, :, 2] = (-sign * vol * P.fluid.density_dT(p, T) / rho)[:, None]
+        GS = np.zeros((P.n, m, S.shape[1]))
+        GS[:, :, 0] = (sign / rho)[:, None]
+        return GV, GS
+
+    @classmethod
+    def switching_param_jacobian(cls, P, V, S, name):
+        """0: the loop's limits are not numeric parameters."""
+        return np.zeros((P.n, len(cls.discrete_states)))
+
+    @classmethod
     def switch(cls, P, V, S):
         vol = cls._gas_volume(P, V, S)
         old = S[:, cls._branch] > 0.5

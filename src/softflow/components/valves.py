@@ -571,6 +571,26 @@ class SnappingValve(_TubeLike):
                         dp - P.opening_pressure)[:, None]
 
     @classmethod
+    def switching_jacobian(cls, P, V, S):
+        """d(switching)/dV (n, 1, 4) and d/dS (n, 1, 1) of :meth:`switching`: +-1
+        on p_a and p_b (sensitivities across a switch, softflow.solve.sensitivity)."""
+        sign = np.where(S[:, 0] > 0.5, -1.0, 1.0)
+        GV = np.zeros((P.n, 1, V.shape[1]))
+        GV[:, 0, 0], GV[:, 0, 2] = sign, -sign
+        return GV, np.zeros((P.n, 1, S.shape[1]))
+
+    @classmethod
+    def switching_param_jacobian(cls, P, V, S, name):
+        """d(switching)/d theta (n, 1): -1 (closed) for opening_pressure, +1 (open)
+        for closing_pressure, 0 for the parameters of the flow laws."""
+        is_open = S[:, 0] > 0.5
+        if name == "opening_pressure":
+            return np.where(is_open, 0.0, -1.0)[:, None]
+        if name == "closing_pressure":
+            return np.where(is_open, 1.0, 0.0)[:, None]
+        return np.zeros((P.n, 1))
+
+    @classmethod
     def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         is_open = S[:, 0] > 0.5
@@ -600,7 +620,8 @@ class SnappingValve(_TubeLike):
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta, dr/d theta) for the open passage's length, diameter and
         roughness, the closed_conductance, and the opening and closing pressures
-        (0: they act only in :meth:`switch`, whose time the sensitivities hold);
+        (0 in the equations: they act through the switch time, which the
+        sensitivities carry with :meth:`switching_param_jacobian` under BDF);
         None for the laminar-turbulent bounds."""
         pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
         is_open = S[:, 0] > 0.5

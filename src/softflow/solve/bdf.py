@@ -363,6 +363,7 @@ class BDF(Integrator):
         # fails, halves, doubles and fails again every third step
         fail_cap, fail_hold = math.inf, 0
         secant_tries = 0       # secant placements of the current switch
+        jump = None            # a switch's left side, for the sensitivities
         while t < t_stop:
             if next_break <= t * (1 + 1e-14) + 1e-300:
                 ib, next_break = self._next_break(t, ib)
@@ -375,6 +376,9 @@ class BDF(Integrator):
                 DX[0], DX[1] = x_right, h * xdot
                 DQ[0], DQ[1] = Q, h * x_right[qs]
                 if sens is not None:      # order 1: psi is the value alone
+                    if jump is not None:  # a located switch: the jump of s_S there
+                        sens.switch(*jump, r0)
+                        jump = None
                     sens.restart(kmax)
                 k, n_equal, fails = 1, 0, 0
                 restart = False
@@ -484,6 +488,10 @@ class BDF(Integrator):
             self._difference_update(D, delta, k)
             if switched:
                 report.switched(t_new, S, S_new, disc)
+                if sens is not None:
+                    # the unknowns' rate at the switch from the table (order k)
+                    xdot = (1.0 / np.arange(1, k + 1)) @ DX[1:k + 1] / h
+                    jump = (x, S, out.x, S_new, psi, c, xdot)
             x, S, t, Q = out.x, S_new, t_new, Q_new
             rec.add(t, x, S, Q)
             report.step(t)

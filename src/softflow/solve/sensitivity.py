@@ -65,10 +65,43 @@ per-step coefficients) go step by step as above.
 
 At t = 0 the initial states' sensitivity is that of the component's initial
 states (e.g. a Container's mass to its volume), and the unknowns' follows from
-the consistent-initial-value equations. At a discrete switch (a valve
-snapping, a hysteretic branch change) the derivative is that of the solution
-with the switch time held where it fell; a parameter that moves the switch
-time has, there, a derivative that this does not include.
+the consistent-initial-value equations.
+
+Discrete switches (a valve snapping, a hysteretic branch change). The
+solution is piecewise smooth; its derivative depends on how the switch time
+t* is found:
+
+* Adaptive BDF: the stepper locates the switch where the class's switching
+  function g (negative while the mode holds) crosses zero, so t* is a
+  function of the parameters, and at the switch the states' sensitivities
+  jump (:meth:`Sensitivities.switch`):
+
+      s_S(t*+) = s_S(t*-) - (dS/dt(t*+) - dS/dt(t*-)) dt*/dtheta,
+      dt*/dtheta = -(dg/dx s_x + dg/dS s_S + dg/dtheta) / (dg/dt)
+
+  at the end of the step that switched (the left-hand values: the step's
+  s_x, s_S; dS/dt(t*-) = (S - psi)/c, exact for the step; dS/dt(t*+) the
+  restart's rate in the new mode; dg/dt = dg/dx x' + dg/dS S' with x' from
+  the unknowns' difference table at the step's order). The unknowns'
+  sensitivities after it follow from the next step's equations in the new
+  mode. The gradients of g are the class's ``switching_jacobian(P, V, S)``
+  and ``switching_param_jacobian(P, V, S, name)`` (the library's: a snapping
+  valve's +-1 on its pressures and opening/closing pressure, a hysteretic
+  loop's volume against its branch limits), forward differences of
+  ``switching`` where the class that states ``switching`` does not state
+  them. Of several functions crossing in one step the earliest is taken.
+  Measured against central differences of whole runs at rtol 1e-8 (tests):
+  <= 1.3e-4 after a snapping valve's switches, where the held switch time
+  was off by order one; a hysteretic loop's branches meet at its limits, so
+  the rates, and the jump, are continuous there. Without a switching
+  function (user classes) the switch time is held where it fell.
+* Fixed steps (``step=``): a switch is not located; it falls at the end of
+  the step on which the switching condition first holds, and a small change
+  of a parameter leaves it on that step. The grid-quantized switch time is
+  then held, and the held-switch sensitivity is the exact derivative of that
+  discrete scheme (a parameter that acts only on the switch, such as a
+  valve's opening pressure, has sensitivity 0); the derivative of the
+  continuous solution's switch time is not in it.
 """
 from __future__ import annotations
 
@@ -78,7 +111,7 @@ from ..network.system import NetworkError
 from .bdf import _PRED_PSI, BDF
 from .discretize import linearizable, param_step_derivative, step_plan, step_point
 from .linalg import DENSE_MAX
-from .sensitivity_deferred import INITIAL, DeferredSteps
+from .sensitivity_deferred import INITIAL, DeferredSteps, _jumped
 from .params import STRUCTURAL, parameter_names, rebuild
 from .thermal import configure_like
 
@@ -103,6 +136,47 @@ DEFER_MAX = DENSE_MAX
 #: Take parameter derivatives from the classes' ``param_jacobian`` where they
 #: give one (False: finite differences everywhere; for tests and benchmarks).
 ANALYTIC = True
+
+
+def _owner(cls, name):
+    """The class of cls's MRO that defines ``name`` (None: none)."""
+    return next((k for k in cls.__mro__ if name in k.__dict__), None)
+
+
+def _switching_gradient(cls, P, V, S):
+    """d(switching)/dV (n, m, nv) and d/dS (n, m, ns): the class's
+    ``switching_jacobian`` where the class that states ``switching`` states it
+    too, else forward differences of ``switching`` (user classes)."""
+    if ANALYTIC and _owner(cls, "switching_jacobian") is _owner(cls, "switching"):
+        GV, GS = cls.switching_jacobian(P, V, S)
+        return np.asarray(GV, dtype=float), np.asarray(GS, dtype=float)
+    g0 = np.asarray(cls.switching(P, V, S), dtype=float).reshape(len(V), -1)
+    out = []
+    for A in (V, S):
+        G = np.zeros(g0.shape + (A.shape[1],))
+        for k in range(A.shape[1]):
+            h = REL_STEP * np.maximum(np.abs(A[:, k]), 1e-3)
+            B = A.copy()
+            B[:, k] += h
+            args = (B, S) if A is V else (V, B)
+            G[:, :, k] = (np.asarray(cls.switching(P, *args), float).reshape(g0.shape)
+                          - g0) / h[:, None]
+        out.append(G)
+    return out[0], out[1]
+
+
+def _switching_param(cls, P, V, S, i, j, name, twin, eps):
+    """d(switching function j of instance i)/d theta: the class's
+    ``switching_param_jacobian`` (same rule as :func:`_switching_gradient`), else
+    a difference of the perturbed twin's."""
+    if ANALYTIC and _owner(cls, "switching_param_jacobian") is _owner(cls, "switching"):
+        out = cls.switching_param_jacobian(P, V, S, name)
+        if out is not None:
+            return float(np.asarray(out, dtype=float).reshape(len(V), -1)[i, j])
+    tcls = twin.kernel_class()
+    moved = np.asarray(tcls.switching(tcls.make_params([twin]), V[i:i + 1], S[i:i + 1]), float)
+    here = np.asarray(cls.switching(P, V, S), dtype=float).reshape(len(V), -1)[i, j]
+    return float((moved.ravel()[j] - here) / eps)
 
 
 def _numeric_value(comp, name):
@@ -240,6 +314,68 @@ class Sensitivities(DeferredSteps):
     def reset_order(self, k_new):
         """BDF order drop: the differences above k_new go."""
         self._op(("reset", k_new))
+
+    def switch(self, x0, S0, x, S, psi, c, xdot, rate_after):
+        """A located discrete switch (BDF): the step from (x0, S0) ended at (x, S)
+        (new modes) from psi with coefficient c, the unknowns' rate there xdot, the
+        states' rate in the new mode rate_after. The switch time t* moved by the
+        parameters, dt*/dtheta = -(dg/dx s_x + dg/dS s_S + dg/dtheta) / (dg/dt)
+        for the switching function g that crossed zero, makes the states'
+        sensitivity jump by -(rate after - rate before) dt*/dtheta."""
+        jump = self._switch_jump(x0, S0, x, S, psi, c, xdot, rate_after)
+        if jump is None:
+            return
+        if self.deferred:
+            self._log.append(jump)
+        else:
+            self._sS = _jumped(self._last_x, self._sS, jump)
+            self._blocks_s[-1][-1] = self._sS
+
+    def _switch_jump(self, x0, S0, x, S, psi, c, xdot, rate_after):
+        """("jump", dg/dx (n,), dg/dS (n_s,), dg/dtheta (n_p,), dg/dt, rate change
+        (n_s,)) of the earliest crossing, or None where no switching function
+        crossed (the switch is then held where it fell)."""
+        asm = self.asm
+        disc = asm.s_discrete
+        old = S.copy()
+        old[disc] = S0[disc]
+        best = None
+        for g in asm.groups:
+            if g.switching is None:
+                continue
+            g0 = np.asarray(g.switching(x0[g.col], S0[g.s0:g.s1].reshape(g.n, g.ns)), float)
+            g1 = np.asarray(g.switching(x[g.col], old[g.s0:g.s1].reshape(g.n, g.ns)), float)
+            g0, g1 = g0.reshape(g.n, -1), g1.reshape(g.n, -1)
+            cross = (g0 < 0.0) & (g1 >= 0.0)
+            for i, j in zip(*np.nonzero(cross)):
+                theta = g0[i, j] / (g0[i, j] - g1[i, j])
+                if best is None or theta < best[0]:
+                    best = (theta, g, int(i), int(j))
+        if best is None:
+            return None
+        _, g, i, j = best
+        V, Sg = x[g.col], old[g.s0:g.s1].reshape(g.n, g.ns)
+        cls = g.comps[0].kernel_class()
+        P = g.switching.args[0]
+        GV, GS = _switching_gradient(cls, P, V, Sg)
+        gx = np.zeros(asm.n)
+        np.add.at(gx, g.col[i], GV[i, j])
+        gS = np.zeros(len(S))
+        gS[g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = GS[i, j]
+        gS[disc] = 0.0
+        rate_before = (S - psi) / c
+        rate_before[disc] = 0.0
+        change = np.asarray(rate_after, dtype=float) - rate_before
+        change[disc] = 0.0
+        gdot = float(gx @ xdot + gS @ rate_before)
+        gth = np.zeros(self.n_p)
+        for p, (gp, ip, _, _, eps, comp, twin) in enumerate(self.parameters):
+            if gp is g and ip == i:
+                gth[p] = _switching_param(cls, P, V, Sg, i, j, self.names[p].rsplit(".", 1)[1],
+                                          twin, eps)
+        if not (np.isfinite(gdot) and gdot > 0.0):
+            return None         # grazing (dg/dt = 0): t* is not differentiable
+        return ("jump", gx, gS, gth, gdot, change)
 
     def _op(self, op):
         if self.deferred:

@@ -29,14 +29,16 @@ class DeferredSteps:
     evaluation (state set up by :meth:`_setup_deferred`)."""
 
     def _push(self, x, psi, t, c, k):
+        # a full buffer is worked out when the next step comes (or at the end),
+        # so that the operations logged after its last step (a switch's jump,
+        # a restart) are replayed with it
+        if self._n_buf == CHUNK:
+            self._flush()
         j = self._n_buf
         self._bx[j], self._bpsi[j] = x, psi
         self._bt[j], self._bc[j] = t, c
         self._n_buf = j + 1
         self._log.append(k)
-        if j + 1 == CHUNK:
-            self._flush()
-
 
     def _setup_deferred(self):
         asm, n, n_s = self.asm, self.asm.n, len(self.asm.S0)
@@ -189,7 +191,8 @@ class DeferredSteps:
             PSIP = np.concatenate([self._sS[None], SS[:-1]])
             self._sS = SS[-1]
         else:
-            PSIP, SS = self._replay(lambda j, psi_p, op: psi_p @ Mt[j] + dt[j])
+            PSIP, SS = self._replay(lambda j, psi_p, op: psi_p @ Mt[j] + dt[j],
+                                    lambda j, psi_p: -(psi_p @ A[j].T + B[j].T))
         s_x = -(PSIP @ A.transpose(0, 2, 1) + B.transpose(0, 2, 1))
         self._record(s_x, SS)
         self._n_buf, self._log = 0, []
@@ -230,14 +233,15 @@ class DeferredSteps:
             return keep * psi_p + cv[j] * np.bincount(
                 rv_at, weights=(RVW[j] * s_x[:, rv_cols]).ravel(),
                 minlength=n_p * n_s).reshape(n_p, n_s) + DSt[j]
-        _, SS = self._replay(advance)
+        _, SS = self._replay(advance, lambda j, psi_p: SX[j])
         self._record(SX, SS)
         self._n_buf, self._log = 0, []
 
-    def _replay(self, advance):
+    def _replay(self, advance, unknowns):
         """(s_psi, s_S) of the buffered steps along the log: each step's s_psi
         from the last s_S (backward Euler) or the BDF table, its s_S from
-        ``advance(j, s_psi, order)``, the table's operations in turn."""
+        ``advance(j, s_psi, order)``, the table's operations in turn; a
+        switch's jump from the last step's s_x, ``unknowns(j, s_psi)``."""
         m, (n_p, n_s) = self._n_buf, self._sS.shape
         PSIP = np.empty((m, n_p, n_s))
         SS = np.empty((m, n_p, n_s))
@@ -257,6 +261,8 @@ class DeferredSteps:
                     sS = advance(j, psi_p, op)
                 PSIP[j], SS[j] = psi_p, sS
                 j += 1
+            elif op[0] == "jump":
+                sS = SS[j - 1] = _jumped(unknowns(j - 1, PSIP[j - 1]), sS, op)
             else:
                 self._sS = sS
                 self._apply(op)
@@ -326,6 +332,14 @@ def _affine_scan(s0, Mt, dt):
         Mt[off:] = Mt[:-off] @ Mt[off:]
         off *= 2
     return s0 @ Mt + dt
+
+
+def _jumped(s_x, s_S, jump):
+    """s_S after a located switch: s_S - (rate change) dt*/dtheta, with
+    dt*/dtheta = -(dg/dx s_x + dg/dS s_S + dg/dtheta) / (dg/dt) per parameter."""
+    _, gx, gS, gth, gdot, change = jump
+    dtau = -(s_x @ gx + s_S @ gS + gth) / gdot
+    return s_S - dtau[:, None] * change[None, :]
 
 
 def _time_free(comps):
