@@ -1,6 +1,7 @@
 """System: a set of components and the nodes that join their terminals."""
 from __future__ import annotations
 
+from operator import attrgetter
 from typing import TYPE_CHECKING, Any, Iterable, Iterator, Union
 
 from .component import Component
@@ -12,6 +13,9 @@ if TYPE_CHECKING:
     #: What :meth:`System.connect` takes: a component label, a ``(label, terminal)``
     #: pair, a Component or a Terminal.
     TerminalSpec = Union[str, tuple[str, str], Component, Terminal]
+
+
+_terminals_of = attrgetter("terminals")
 
 
 class NetworkError(ValueError):
@@ -197,19 +201,47 @@ class System:
     # -- topology -----------------------------------------------------------------
     def nodes(self) -> list[Node]:
         """Current nodes, in the order of the components' terminals."""
-        groups: dict[tuple, list[Terminal]] = {}
-        for c in self.components:
-            for k, t in enumerate(c.terminals):
-                groups.setdefault(self._find((c.label, k)), []).append(t)
-        return [Node(i, ts) for i, ts in enumerate(groups.values())]
+        node_of, count = self.terminal_nodes()
+        buckets: list[list[Terminal]] = [[] for _ in range(count)]
+        for t, k in zip([t for c in self.components for t in c.terminals], node_of):
+            buckets[k].append(t)
+        return [Node(i, ts) for i, ts in enumerate(buckets)]
+
+    def terminal_nodes(self, terminal_count: int | None = None) -> tuple[list[int], int]:
+        """(the node index of every terminal, in the order of the components'
+        terminals; the number of nodes), nodes numbered as :meth:`nodes`
+        returns them: by first appearance in that order. ``terminal_count``:
+        the number of the components' terminals, where the caller has counted
+        them."""
+        parent, find = self._parent, self._find
+        comps = self.components
+        if terminal_count is None:
+            terminal_count = sum(map(len, map(_terminals_of, comps)))
+        if len(parent) == terminal_count:
+            # the union-find's keys are the terminals in that order (added with
+            # their components, never removed): no key tuples to build
+            roots = [p if parent[p] == p else find(key) for key, p in parent.items()]
+        else:   # a component's terminals changed after it was added
+            roots = [find((c.label, k)) for c in comps for k in range(len(c.terminals))]
+        index = {r: k for k, r in enumerate(dict.fromkeys(roots))}
+        return list(map(index.__getitem__, roots)), len(index)
 
     def is_connected(self, terminal: Terminal) -> bool:
         """Whether ``terminal`` (of a component of this system) is part of a node."""
         return self._key(terminal) in self._connected
 
-    def unconnected_terminals(self) -> list[Terminal]:
-        return [t for c in self.components for k, t in enumerate(c.terminals)
-                if (c.label, k) not in self._connected]
+    def unconnected_terminals(self, terminal_count: int | None = None) -> list[Terminal]:
+        """Terminals of no node (``terminal_count``: as for :meth:`terminal_nodes`)."""
+        connected = self._connected
+        comps = self.components
+        if terminal_count is None:
+            terminal_count = sum(map(len, map(_terminals_of, comps)))
+        # every key connected (connect only records keys of the union-find, one
+        # per terminal added): nothing to list, without a key per terminal
+        if len(connected) == len(self._parent) == terminal_count:
+            return []
+        return [t for c in comps for k, t in enumerate(c.terminals)
+                if (c.label, k) not in connected]
 
     def __contains__(self, label: object) -> bool:
         return label in self._by_label

@@ -13,6 +13,8 @@ from __future__ import annotations
 import warnings
 from collections.abc import Sequence
 from functools import partial
+from itertools import repeat
+from operator import attrgetter, itemgetter
 
 import numpy as np
 from scipy.linalg import LinAlgWarning, lu_factor
@@ -100,21 +102,15 @@ _SCALE_PARAMETERS = ("length", "diameter", "volume", "initial_volume", "complian
                      "capacitance", "K", "Cd", "C", "conductance", "closed_conductance")
 
 
-def _check_fluids_at_nodes(nodes):
+def _check_fluids_at_nodes(asm, comps):
     """Components joined at one node must carry the same fluid (name and solute
     fraction; level and temperature may differ): a different one is an interface
     the network does not model, and its mass balance would mix two fluids."""
-    fluids = {}
-    for nd in nodes:
-        for t in nd.terminals:
-            fluid = getattr(t.component if hasattr(t, "component") else None, "fluid", None)
-            if fluid is not None:
-                fluids[id(fluid)] = fluid
-        if len(fluids) > 1:
-            break
-    else:
+    fluids = set(map(id, map(getattr, comps, repeat("fluid"), repeat(None))))
+    fluids.discard(id(None))
+    if len(fluids) <= 1:
         return      # one fluid object everywhere (the common case): nothing can differ
-    for nd in nodes:
+    for nd in asm.nodes:
         seen = {}
         for t in nd.terminals:
             comp = t.component if hasattr(t, "component") else None
@@ -273,10 +269,20 @@ class _Names(Sequence):
         return repr(self._names())
 
 
-def _unknown_names(across_named, groups):
+def _node_pairs(spec):
+    """(node index, quantity) of each node unknown or row, in order, from
+    ``spec``: the list itself, or (number of nodes, quantities of every node)."""
+    if isinstance(spec, tuple):
+        count, qs = spec
+        return [(k, q) for k in range(count) for q in qs]
+    return spec
+
+
+def _unknown_names(asm, across_named, groups):
     """Names of the unknowns in x order: node across unknowns, then each group's
     interface variables that are not across ones (as compiled, g.iface)."""
-    names = [f"{nd.name} {q}" for nd, q in across_named]
+    nodes = asm.nodes
+    names = [f"{nodes[k].name} {q}" for k, q in _node_pairs(across_named)]
     for g in groups:
         for c, (iface, _) in zip(g.comps, g.iface):
             for term, v in iface:
@@ -286,14 +292,128 @@ def _unknown_names(across_named, groups):
     return names
 
 
-def _row_names(node_through, groups):
+def _row_names(asm, node_through, groups):
     """Names of the rows: node conservation rows, then each group's equations."""
-    names = [f"conservation of {q} at {nd.name}" for nd, q in node_through]
+    nodes = asm.nodes
+    names = [f"conservation of {q} at {nodes[k].name}" for k, q in _node_pairs(node_through)]
     for g in groups:
         for c in g.comps:
             for e in range(g.neq):
                 names.append(f"equation {e} of {c.describe()}")
     return names
+
+
+def _state_names(groups):
+    return [f"{c.label} {sv.label}" for g in groups if g.ns for c in g.comps for sv in c.states]
+
+
+class _Interfaces(Sequence):
+    """A group's interfaces as compiled, per component: (its interface variables,
+    its states), read from the compiled components on first use (a list per
+    component was a tenth of compiling a large network). Pickles as a list."""
+
+    def __init__(self, comps):
+        self._comps = comps
+        self._made = {}
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self._comps)))]
+        if i < 0:
+            i += len(self._comps)
+        out = self._made.get(i)
+        if out is None:
+            c = self._comps[i]
+            out = self._made[i] = (c.interface_variables(), list(c.states))
+        return out
+
+    def __len__(self):
+        return len(self._comps)
+
+    def __reduce__(self):
+        return (list, (list(self),))
+
+
+class _Layout:
+    """The interface every member of a library group shares: one slot per
+    interface variable, (terminal label or None, terminal index or None,
+    index in the terminal or among the locals, quantity, role); the
+    (across, through) quantities of each terminal; and per terminal the
+    members' variable lists, or None where every member holds the first
+    one's (a class's shared interface)."""
+
+    __slots__ = ("slots", "terminal_sigs", "lists", "first")
+
+    def __init__(self, slots, terminal_sigs, lists, first):
+        self.slots = slots
+        self.terminal_sigs = terminal_sigs
+        self.lists = lists
+        self.first = first
+
+    def values(self, comps):
+        """(slot, initial value of that variable in each component: a list, or
+        one value for all) per slot."""
+        out = []
+        for k, (term, ti, vi, _, _) in enumerate(self.slots):
+            if ti is None:
+                out.append((k, [c.locals[vi].initial_value for c in comps]))
+            elif self.lists[ti] is None:
+                out.append((k, self.first.terminals[ti].variables[vi].initial_value))
+            else:
+                out.append((k, [vs[vi].initial_value for vs in self.lists[ti]]))
+        return out
+
+
+def _group_layout(comps):
+    """The shared :class:`_Layout` of a library group, or None where its members
+    differ in their terminals' or locals' quantities and roles (numbered one
+    by one then, as before)."""
+    first = comps[0]
+    nt, nl = len(first.terminals), len(first.locals)
+    term_lists = list(map(_terminals_of, comps))
+    if set(map(len, term_lists)) != {nt} or set(map(len, map(_locals_of, comps))) != {nl}:
+        return None
+    slots, sigs, lists = [], set(), []
+    for ti, t in enumerate(first.terminals):
+        tv = t.variables
+        kinds = [(v.quantity, v.role) for v in tv]
+        terms = list(map(itemgetter(ti), term_lists))
+        if set(map(_label_of, terms)) != {t.label}:
+            return None
+        vls = list(map(_variables_of, terms))
+        others = [vs for vs in vls if vs is not tv]
+        if others:
+            # members with variables of their own (a volume's pressure): the
+            # same quantities and roles, position by position
+            if {len(vs) for vs in others} != {len(tv)}:
+                return None
+            for vi, kind in enumerate(kinds):
+                if {(vs[vi].quantity, vs[vi].role) for vs in others} != {kind}:
+                    return None
+        lists.append(vls if others else None)
+        for vi, v in enumerate(tv):
+            slots.append((t.label, ti, vi, v.quantity, v.role))
+        sigs.add((tuple(dict.fromkeys(q for q, r in kinds if r == "across")),
+                  tuple(dict.fromkeys(q for q, r in kinds if r == "through"))))
+    if nl:
+        kinds = [(v.quantity, v.role) for v in first.locals]
+        for ls in [c.locals for c in comps]:
+            if [(v.quantity, v.role) for v in ls] != kinds:
+                return None
+        for vi, v in enumerate(first.locals):
+            slots.append((None, None, vi, v.quantity, v.role))
+    return _Layout(slots, sigs, lists, first)
+
+
+_terminals_of = attrgetter("terminals")
+_locals_of = attrgetter("locals")
+_label_of = attrgetter("label")
+_variables_of = attrgetter("variables")
+
+
+def _terminal_sig(t):
+    return (tuple(dict.fromkeys(v.quantity for v in t.variables if v.role == "across")),
+            tuple(dict.fromkeys(v.quantity for v in t.variables if v.role == "through")))
 
 
 class Assembly:
@@ -304,89 +424,101 @@ class Assembly:
         comps = list(system.components)
         if not comps:
             raise NetworkError("System is empty: add components before simulating")
-        unconnected = system.unconnected_terminals()
+        tcount = list(map(len, map(_terminals_of, comps)))
+        n_terminals = sum(tcount)
+        unconnected = system.unconnected_terminals(n_terminals)
         if unconnected and not allow_unconnected:
             names = ", ".join(t.name for t in unconnected)
             raise NetworkError(
                 f"unconnected terminal(s): {names}. Connect them, or pass "
                 "allow_unconnected=True to treat them as closed ends (zero flow)")
-        nodes = system.nodes()
-        self.nodes = nodes
-        _check_fluids_at_nodes(nodes)
-        node_of = {id(t): nd for nd in nodes for t in nd.terminals}
+        node_of, n_nodes = system.terminal_nodes(n_terminals)
+        # the nodes' terminals, as Node objects on first use (self.nodes)
+        self._node_comps, self._node_of, self._nodes = comps, node_of, None
+        _check_fluids_at_nodes(self, comps)
 
-        # unknowns and rows are numbered here; their names (for messages) are
-        # spelled out on first use (_Names), from the lists of what they name
-        quantities = []
-        across = {}
-        across_named = []           # (node, quantity) of each node across unknown
-        node_through = []           # (node, quantity) of each node conservation row
-        node_rows = {}
-        for nd in nodes:
-            for q in nd.quantities("across"):
-                across[(nd.index, q)] = len(quantities)
-                across_named.append((nd, q))
-                quantities.append(q)
-            for q in nd.quantities("through"):
-                node_rows[(nd.index, q)] = len(node_through)
-                node_through.append((nd, q))
-        #: node across unknowns (pressures, temperatures) are x[:n_across]
-        self.n_across = len(quantities)
-        self.n_node_rows = len(node_through)
-
-        # groups, in first-appearance order
+        # groups, in first-appearance order (with each member's position in comps)
         groups, keyed = [], {}
-        for c in comps:
+        for pos, c in enumerate(comps):
             if c.vectorized:
                 key = c.group_key()
                 if c._thermal is not None:   # thermal variants group apart
                     key = (c.kernel_class(), key)
                 if key not in keyed:
-                    keyed[key] = []
+                    keyed[key] = ([], [])
                     groups.append(("lib", key))
-                keyed[key].append(c)
+                members, at = keyed[key]
+                members.append(c)
+                at.append(pos)
             else:
-                groups.append(("user", c))
+                groups.append(("user", (c, pos)))
         self.groups = []
+        group_pos = []
         for kind, item in groups:
             if kind == "lib":
-                members = keyed[item]
+                members, at = keyed[item]
                 self.groups.append(_library_group(members[0].kernel_class(), members))
+                group_pos.append(at)
             else:
-                self.groups.append(_user_group(item))
+                self.groups.append(_user_group(item[0]))
+                group_pos.append([item[1]])
         #: component label -> (its Group, its index in the group)
-        self.where = {c.label: (g, i) for g in self.groups for i, c in enumerate(g.comps)}
-
-        # unknown indices per component interface variable
-        through_rows, through_cols = [], []
+        self.where = {}
         for g in self.groups:
-            # the interface as compiled (a later thermal or isothermal compile of the
-            # same components changes their variables, not this Assembly's results)
-            g.iface = []
-            cols = []
-            for c in g.comps:
-                iface = c.interface_variables()
-                g.iface.append((iface, list(c.states)))
-                terminal_of = {t.label: t for t in c.terminals}
-                row = []
-                for term, v in iface:
-                    role = v.role
-                    if role == "across":
-                        nd = node_of[id(terminal_of[term])]
-                        idx = across[(nd.index, v.quantity)]
-                    else:
-                        idx = len(quantities)
-                        quantities.append(v.quantity)
-                        if role == "through":
-                            nd = node_of[id(terminal_of[term])]
-                            through_rows.append(node_rows[(nd.index, v.quantity)])
-                            through_cols.append(idx)
-                    row.append(idx)
-                cols.append(row)
-            g.col = np.array(cols, dtype=np.int64).reshape(
-                g.n, len(g.comps[0].interface_variables()))
+            self.where.update(zip(map(_label_of, g.comps), zip(repeat(g), range(g.n))))
+        # each group's interface as compiled (a later thermal or isothermal compile
+        # of the same components changes their variables, not this Assembly's
+        # results); per component on first use (_Interfaces)
+        layouts = []
+        for g in self.groups:
+            g.iface = _Interfaces(list(g.comps))
+            layouts.append(_group_layout(g.comps) if g.row is None else None)
+        self._layouts = layouts
+
+        # unknowns and rows are numbered here; their names (for messages) are
+        # spelled out on first use (_Names), from the lists of what they name
+        across_of, row_of, across_named, node_through = self._node_numbering(layouts, n_nodes)
+        if isinstance(across_named, tuple):      # (nodes, the quantities of each)
+            quantities = list(across_named[1]) * across_named[0]
+            self.n_node_rows = len(node_through[1]) * node_through[0]
+        else:
+            quantities = [q for _, q in across_named]
+            self.n_node_rows = len(node_through)
+        #: node across unknowns (pressures, temperatures) are x[:n_across]
+        self.n_across = len(quantities)
+
+        # unknown indices per component interface variable: across ones at the
+        # node of their terminal, the others numbered in turn, component by
+        # component (one lookup per terminal; NumPy per library group)
+        tcount = np.array(tcount, dtype=np.int64)
+        t_start = np.cumsum(tcount) - tcount
+        node_arr = np.asarray(node_of, dtype=np.int64)
+        through_rows, through_cols = [], []
+        for g, layout, at in zip(self.groups, layouts, group_pos):
+            if layout is None:
+                self._number_one_by_one(g, node_arr, t_start, at, across_of, row_of,
+                                        quantities, through_rows, through_cols)
+                continue
+            slots = layout.slots
+            col = np.empty((g.n, len(slots)), dtype=np.int64)
+            starts = t_start[at]
+            own = [k for k, (_, _, _, q, role) in enumerate(slots) if role != "across"]
+            base = len(quantities)
+            if own:
+                col[:, own] = base + np.arange(g.n * len(own)).reshape(g.n, len(own))
+                quantities += [slots[k][3] for k in own] * g.n
+            thr = []
+            for k, (_, ti, _, q, role) in enumerate(slots):
+                if role == "across":
+                    col[:, k] = across_of[q][node_arr[starts + ti]]
+                elif role == "through":
+                    thr.append((k, row_of[q][node_arr[starts + ti]]))
+            if thr:     # component by component, in interface order
+                through_rows.append(np.stack([r for _, r in thr], axis=1).ravel())
+                through_cols.append(col[:, [k for k, _ in thr]].ravel())
+            g.col = col
         self.n = len(quantities)
-        self.x_names = _Names(partial(_unknown_names, across_named, self.groups))
+        self.x_names = _Names(partial(_unknown_names, self, across_named, self.groups))
         self.x_quantity = quantities
         # the unknowns grouped by quantity (Newton's tolerances and the integrators'
         # error weights scale each by its quantity's largest magnitude)
@@ -395,16 +527,19 @@ class Assembly:
         self.q_id = np.array([q_index[q] for q in quantities], dtype=np.int64)
         self.q_order = np.argsort(self.q_id, kind="stable")
         self.q_starts = np.searchsorted(self.q_id[self.q_order], np.arange(len(self.q_names)))
-        self.through_rows = np.array(through_rows, dtype=np.int64)
-        self.through_cols = np.array(through_cols, dtype=np.int64)
+        self.through_rows = (np.concatenate(through_rows).astype(np.int64) if through_rows
+                             else np.zeros(0, dtype=np.int64))
+        self.through_cols = (np.concatenate(through_cols).astype(np.int64) if through_cols
+                             else np.zeros(0, dtype=np.int64))
+        through_rows = self.through_rows
         self.x0 = self._initial_unknowns(compiled=True)
 
         # rows, states and Jacobian slots per group
         r = self.n_node_rows
         s = 0
         j = len(through_rows)
-        s_quantity, s_names, S0, s_discrete = [], [], [], []
-        self.row_names = _Names(partial(_row_names, node_through, self.groups))
+        s_quantity, S0, s_discrete = [], [], []
+        self.row_names = _Names(partial(_row_names, self, node_through, self.groups))
         for g in self.groups:
             g.r0, g.r1 = r, r + g.n * g.neq
             r = g.r1
@@ -412,17 +547,24 @@ class Assembly:
             s = g.s1
             g.j0, g.j1 = j, j + g.n * len(g.pattern)
             j = g.j1
+            if not g.ns:
+                continue
+            S0 += [v for c in g.comps for v in _initial_states(c)]
+            first = g.comps[0]
+            st, modes = first.states, getattr(first, "discrete_states", ())
+            if all(c.states is st and getattr(c, "discrete_states", ()) is modes
+                   for c in g.comps):       # one interface shared by the group's members
+                s_quantity += [sv.quantity for sv in st] * g.n
+                s_discrete += [sv.label in set(modes) for sv in st] * g.n
+                continue
             for c in g.comps:
-                if g.ns:
-                    S0.extend(_initial_states(c))
-                    modes = set(getattr(c, "discrete_states", ()))
-                    for sv in c.states:
-                        s_names.append(f"{c.label} {sv.label}")
-                        s_quantity.append(sv.quantity)
-                        s_discrete.append(sv.label in modes)
+                modes = set(getattr(c, "discrete_states", ()))
+                for sv in c.states:
+                    s_quantity.append(sv.quantity)
+                    s_discrete.append(sv.label in modes)
         self.n_rows = r
         self.S0 = np.array(S0, dtype=float)
-        self.s_names = s_names
+        self.s_names = _Names(partial(_state_names, self.groups))
         self.s_quantity = s_quantity
         # discrete states (modes of switching components) change between steps only;
         # the step controller leaves them out of its error estimate
@@ -430,7 +572,7 @@ class Assembly:
         self.s_continuous = np.flatnonzero(~self.s_discrete)
         self.has_discrete = bool(self.s_discrete.any())
         if self.n_rows != self.n:
-            odd = [nd.name for nd in nodes
+            odd = [nd.name for nd in self.nodes
                    if len(nd.quantities("across")) != len(nd.quantities("through"))]
             raise NetworkError(
                 f"the network has {self.n} unknowns but {self.n_rows} equations; every node "
@@ -470,6 +612,82 @@ class Assembly:
         #: what linear solvers derive from the pattern, kept for later runs
         self.solver_cache = {}
         self._check_structure()
+
+    @property
+    def nodes(self):
+        """The network's nodes (:class:`softflow.network.system.Node`), as
+        ``System.nodes()`` returned them at compile; made on first use."""
+        if self._nodes is None:
+            from ..network.system import Node
+            buckets = [[] for _ in range(max(self._node_of, default=-1) + 1)]
+            terminals = [t for c in self._node_comps for t in c.terminals]
+            for t, k in zip(terminals, self._node_of):
+                buckets[k].append(t)
+            self._nodes = [Node(i, ts) for i, ts in enumerate(buckets)]
+        return self._nodes
+
+    def _node_numbering(self, layouts, n_nodes):
+        """Where each node's across unknowns and conservation rows are: per
+        quantity an array over nodes of the unknown (row) index, -1 where the
+        node has no such quantity; and what they are, for names."""
+        sigs = set()
+        for g, layout in zip(self.groups, layouts):
+            if layout is not None:
+                sigs.update(layout.terminal_sigs)
+            else:
+                sigs.update(_terminal_sig(t) for c in g.comps for t in c.terminals)
+        if len(sigs) == 1:
+            # every terminal carries the same quantities (the usual network): so
+            # does every node, numbered node by node
+            (acr, thr), = sigs
+            at = np.arange(n_nodes, dtype=np.int64)
+            across_of = {q: at * len(acr) + k for k, q in enumerate(acr)}
+            row_of = {q: at * len(thr) + k for k, q in enumerate(thr)}
+            return across_of, row_of, (n_nodes, acr), (n_nodes, thr)
+        across, rows = {}, {}
+        across_named, node_through = [], []
+        for nd in self.nodes:
+            for q in nd.quantities("across"):
+                across.setdefault(q, {})[nd.index] = len(across_named)
+                across_named.append((nd.index, q))
+            for q in nd.quantities("through"):
+                rows.setdefault(q, {})[nd.index] = len(node_through)
+                node_through.append((nd.index, q))
+
+        def table(found):
+            out = {}
+            for q, where in found.items():
+                arr = np.full(n_nodes, -1, dtype=np.int64)
+                arr[list(where)] = list(where.values())
+                out[q] = arr
+            return out
+        return table(across), table(rows), across_named, node_through
+
+    def _number_one_by_one(self, g, node_arr, t_start, at, across_of, row_of, quantities,
+                           through_rows, through_cols):
+        """Unknown indices of a group numbered component by component (user
+        components; library groups whose members differ)."""
+        cols = []
+        for c, pos in zip(g.comps, at):
+            tindex = {t.label: k for k, t in enumerate(c.terminals)}
+            row, trows, tcols = [], [], []
+            for term, v in c.interface_variables():
+                role = v.role
+                if role == "across":
+                    idx = int(across_of[v.quantity][node_arr[t_start[pos] + tindex[term]]])
+                else:
+                    idx = len(quantities)
+                    quantities.append(v.quantity)
+                    if role == "through":
+                        nd = node_arr[t_start[pos] + tindex[term]]
+                        trows.append(int(row_of[v.quantity][nd]))
+                        tcols.append(idx)
+                row.append(idx)
+            cols.append(row)
+            through_rows.append(np.array(trows, dtype=np.int64))
+            through_cols.append(np.array(tcols, dtype=np.int64))
+        g.col = np.array(cols, dtype=np.int64).reshape(
+            g.n, len(g.comps[0].interface_variables()))
 
     # -- checks ---------------------------------------------------------------------------
     def _check_structure(self):
@@ -607,19 +825,47 @@ class Assembly:
 
     def _initial_unknowns(self, compiled=False):
         """Initial values of the unknowns from the components' variables: a node's
-        across unknown takes the first initial value given at it (``compiled``:
+        across unknown takes the first initial value given at it, in the order
+        of the groups, their components and their interfaces (``compiled``:
         the interfaces just compiled, g.iface, are the components' own)."""
         x0 = np.zeros(self.n)
-        seen = set()
-        for g in self.groups:
-            cols = g.col.tolist()
-            for i, c in enumerate(g.comps):
-                iface = g.iface[i][0] if compiled else c.interface_variables()
-                for (_, v), idx in zip(iface, cols[i]):
-                    if v.initial_value is None or (v.role == "across" and idx in seen):
-                        continue
-                    x0[idx] = v.initial_value
-                    seen.add(idx)
+        idx, vals = [], []
+        for g, layout in zip(self.groups, self._layouts):
+            if layout is not None and not compiled:     # other components (replace)
+                layout = _group_layout(g.comps)
+            if layout is None:
+                for i, c in enumerate(g.comps):
+                    iface = g.iface[i][0] if compiled else c.interface_variables()
+                    for (_, v), k in zip(iface, g.col[i].tolist()):
+                        if v.initial_value is not None:
+                            idx.append([k])
+                            vals.append([v.initial_value])
+                continue
+            # per slot, every member's value: component by component, slot by slot
+            given = np.zeros(g.col.shape, dtype=bool)
+            value = np.zeros(g.col.shape)
+            for k, vs in layout.values(g.comps):
+                if not isinstance(vs, list):      # one value for every member
+                    if vs is not None:
+                        given[:, k] = True
+                        value[:, k] = vs
+                    continue
+                have = [v is not None for v in vs]
+                if all(have):
+                    given[:, k] = True
+                    value[:, k] = vs
+                elif any(have):
+                    given[:, k] = have
+                    value[have, k] = [v for v in vs if v is not None]
+            idx.append(g.col[given])
+            vals.append(value[given])
+        if idx:
+            idx = np.concatenate([np.asarray(i, dtype=np.int64) for i in idx])
+            vals = np.concatenate([np.asarray(v, dtype=float) for v in vals])
+            # the first value given for each unknown (a node's across unknown
+            # may be given at several terminals; the others once)
+            first, at = np.unique(idx, return_index=True)
+            x0[first] = vals[at]
         return x0
 
     def replace(self, components):

@@ -236,7 +236,9 @@ class Simulation:
             self.thermal = configure_thermal(model, thermal)
             self.asm = Assembly(model, allow_unconnected=allow_unconnected)
             # the compiled components, and the run-time parameters now in force
-            self._compiled = {label: g.comps[i] for label, (g, i) in self.asm.where.items()}
+            self._compiled = {}
+            for g in self.asm.groups:
+                self._compiled.update(zip([c.label for c in g.comps], g.comps))
             self._applied: dict[str, Any] = {}
             self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
             self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0
