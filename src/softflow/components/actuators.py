@@ -29,6 +29,7 @@ from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
 from ..fluids.base import FluidError
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
+from .chambers import _given
 from .base import FLUID_PORT, LibraryComponent, Params
 from .chambers import MASS_RATE_PATTERN, mass_rates
 
@@ -220,6 +221,25 @@ class Actuator(LibraryComponent):
 
     def initial_states(self):
         return [float(self.fluid.density(self.initial_pressure)) * self.initial_volume]
+
+    def initial_state_jacobian(self, name):
+        """d(initial mass)/d theta of m0 = rho(p0)·v0 with p0 = p_atm + s·(curve(v0) -
+        p_atm) on the curve: for initial_volume (or initial_pressure, the curve
+        inverted) and pressure_scale; None for others."""
+        v0, p0, s = self.initial_volume, self.initial_pressure, self.pressure_scale
+        rho, drho = float(self.fluid.density(p0)), float(self.fluid.density_dp(p0))
+        pc, dpc = (float(a[0]) for a in self._curve_fn.fdf(np.array([v0])))
+        by_pressure = _given(self, "initial_pressure")
+        # (moving one of initial_volume / initial_pressure gives it from then on)
+        if name == "initial_volume":
+            return [rho + drho * v0 * s * dpc]
+        if name == "initial_pressure":
+            return [drho * v0 + rho / (s * dpc)]
+        if name == "pressure_scale":
+            if by_pressure:        # v0 moves: curve(v0) = p_atm + (p0 - p_atm) / s
+                return [-rho * (p0 - pressure_atmospheric) / (s * s * dpc)]
+            return [drho * v0 * (pc - pressure_atmospheric)]
+        return None
 
     # -- kernels --------------------------------------------------------------------------
     @classmethod
@@ -428,6 +448,16 @@ class HystereticActuator(LibraryComponent):
     def initial_states(self):
         return [float(self.fluid.density(self.initial_pressure)) * self.initial_volume,
                 self.initial_branch]
+
+    def initial_state_jacobian(self, name):
+        """d(initial states)/d theta for initial_volume: m0 = rho(p0)·v0 with p0 on
+        the initial branch (which a small change keeps); None for others."""
+        if name != "initial_volume":
+            return None
+        v0, p0 = self.initial_volume, self.initial_pressure
+        dpc = float(self.loop.fdf_volume(np.array([v0]), self.initial_branch > 0.5)[1][0])
+        rho, drho = float(self.fluid.density(p0)), float(self.fluid.density_dp(p0))
+        return [rho + drho * v0 * dpc, 0.0]
 
     @classmethod
     def make_params(cls, components):

@@ -1,6 +1,8 @@
 """Volumes that store fluid: rigid containers and linear accumulators."""
 from __future__ import annotations
 
+import inspect
+
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -28,6 +30,14 @@ def mass_rates(P, V, jac):
     """The mass balance of a one-terminal volume, dm/dt = mdot (the mass flow
     into its terminal), and its derivative: the one law every volume shares."""
     return V[:, 1:2], ((1.0,) if jac else None)
+
+
+def _given(comp, name):
+    """Whether the constructor argument ``name`` was given (not None) when
+    ``comp`` was made."""
+    args, kwargs = comp.__dict__.get("_definition", ((), {}))
+    bound = inspect.signature(type(comp).__init__).bind(comp, *args, **kwargs)
+    return bound.arguments.get(name) is not None
 
 
 def _volume_law_jacobian(P, V, name, dvolume, rigid_liquid=False):
@@ -196,15 +206,21 @@ class LinearAccumulator(LibraryComponent):
                                                  "reference_pressure": -P.compliance})
 
     def initial_state_jacobian(self, name):
-        """d(initial mass)/d theta of m0 = rho(p0)·V(p0) for volume and compliance
-        (p0 is the reference pressure when not given, so that one is left to
-        finite differences), or None."""
-        p0 = self.initial_pressure
-        rho = float(self.fluid.density(p0))
+        """d(initial mass)/d theta of m0 = rho(p0)·(volume + compliance (p0 - p_ref))
+        for volume, compliance, reference_pressure and initial_pressure (p0 is
+        p_ref where initial_pressure was not given: then they move together),
+        or None."""
+        p0, pref, C = self.initial_pressure, self.reference_pressure, self.compliance
+        rho, drho = float(self.fluid.density(p0)), float(self.fluid.density_dp(p0))
+        given = _given(self, "initial_pressure")
         if name == "volume":
             return [rho]
         if name == "compliance":
-            return [rho * (p0 - self.reference_pressure)]
+            return [rho * (p0 - pref)]
+        if name == "reference_pressure":
+            return [-rho * C] if given else [drho * self._fluid_volume(p0)]
+        if name == "initial_pressure":       # (given from then on, if it was not)
+            return [drho * self._fluid_volume(p0) + rho * C]
         return None
 
     @classmethod

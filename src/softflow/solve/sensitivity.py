@@ -228,6 +228,10 @@ class Sensitivities(DeferredSteps):
                     f"sensitivities[{key!r}]: {comp.describe()}'s {name!r} is not a number "
                     f"({value!r}); sensitivities are taken with respect to numeric "
                     "parameters (e.g. a diameter, a volume, a pressure)")
+            if not np.isfinite(value):
+                raise NetworkError(
+                    f"sensitivities[{key!r}]: {comp.describe()} does not use {name!r} "
+                    f"(it is {value!r} in this configuration)")
             eps = REL_STEP * (abs(value) if value != 0 else 1.0)
             twin = configure_like(rebuild(comp, {name: value + eps}), comp, thermal)
             self.parameters.append((g, i, None, None, eps, comp, twin))
