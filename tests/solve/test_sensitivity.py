@@ -383,3 +383,32 @@ def test_tiled_params_are_those_of_the_stacked_components():
         for key, value in vars(ref).items():
             if isinstance(value, np.ndarray):
                 np.testing.assert_array_equal(getattr(tiled, key), value, err_msg=key)
+
+
+@pytest.mark.parametrize("case", ["dense", "sparse"])
+def test_a_singular_step_jacobian_is_named_with_its_time(monkeypatch, case):
+    """Deferred: where a step's Jacobian is singular (made so here from t = 0.1 s
+    on) the sensitivities are NaN from that step on and a SensitivityWarning
+    names the parameters, the time and the reason."""
+    original = sensitivity_deferred.DeferredSteps._stacked
+
+    def singular_late(self, X, PSI, T, cv):
+        out = original(self, X, PSI, T, cv)
+        out[0][np.asarray(T) >= 0.1] = 0.0      # every entry of those steps' J
+        return out
+    monkeypatch.setattr(sensitivity_deferred.DeferredSteps, "_stacked", singular_late)
+    monkeypatch.setattr(sensitivity_deferred, "CHUNK", 16)
+    build = (lambda: rc_circuit(tau=TAU, D=D)) if case == "dense" else (lambda: _air_chain(35))
+    label, var = ("acc", "pressure") if case == "dense" else ("cont5", "pressure")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(build(), duration=0.2, step=1e-2)
+        with pytest.warns(sensitivity.SensitivityWarning,
+                          match=r"tube0?\.diameter are NaN from t = 0\.1 s on: the step "
+                                r"Jacobian is singular"):
+            res = sim.run(sensitivities=["tube0.diameter" if case == "sparse"
+                                         else "tube.diameter"])
+    s = res.sensitivity(label, var, "tube0.diameter" if case == "sparse" else "tube.diameter")
+    late = res.times >= 0.1 - 1e-12
+    assert np.all(np.isfinite(s[~late])) and np.all(np.isnan(s[late]))
+    assert res.success

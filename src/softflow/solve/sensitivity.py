@@ -61,7 +61,10 @@ step with a sparse LU of its own J. Each step's J is the exact Jacobian at
 its converged point, as the step-by-step method's corrections converge to;
 the run itself is untouched (Newton's factors and so its steps are the plain
 run's). Other networks (user components, classes that write their own step,
-per-step coefficients) go step by step as above.
+per-step coefficients) go step by step as above. Where a buffered step's
+Jacobian is singular (or a derivative not finite), the sensitivities are NaN
+from that step on and a :class:`SensitivityWarning` names the parameters,
+the time and the reason.
 
 At t = 0 the initial states' sensitivity is that of the component's initial
 states (e.g. a Container's mass to its volume), and the unknowns' follows from
@@ -111,7 +114,7 @@ from ..network.system import NetworkError
 from .bdf import _PRED_PSI, BDF
 from .discretize import linearizable, param_step_derivative, step_plan, step_point
 from .linalg import DENSE_MAX
-from .sensitivity_deferred import INITIAL, DeferredSteps, _jumped
+from .sensitivity_deferred import INITIAL, DeferredSteps, SensitivityWarning, _jumped  # noqa: F401
 from .params import STRUCTURAL, parameter_names, rebuild
 from .thermal import configure_like
 

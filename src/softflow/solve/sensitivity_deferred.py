@@ -10,6 +10,7 @@ the states' sensitivities along the integrator's log.
 from __future__ import annotations
 
 import copy
+import warnings
 
 import numpy as np
 from scipy.sparse import csc_matrix
@@ -22,6 +23,10 @@ from .discretize import param_step_derivative, step_point
 CHUNK = 256
 #: The log's mark of the point t = 0 (step orders are >= 0).
 INITIAL = -1
+
+
+class SensitivityWarning(RuntimeWarning):
+    """Sensitivities that could not be computed from some step on (NaN there)."""
 
 
 class DeferredSteps:
@@ -194,6 +199,7 @@ class DeferredSteps:
             PSIP, SS = self._replay(lambda j, psi_p, op: psi_p @ Mt[j] + dt[j],
                                     lambda j, psi_p: -(psi_p @ A[j].T + B[j].T))
         s_x = -(PSIP @ A.transpose(0, 2, 1) + B.transpose(0, 2, 1))
+        self._check_finite(s_x, SS, m)
         self._record(s_x, SS)
         self._n_buf, self._log = 0, []
 
@@ -234,8 +240,40 @@ class DeferredSteps:
                 rv_at, weights=(RVW[j] * s_x[:, rv_cols]).ravel(),
                 minlength=n_p * n_s).reshape(n_p, n_s) + DSt[j]
         _, SS = self._replay(advance, lambda j, psi_p: SX[j])
+        self._check_finite(SX, SS, m)
         self._record(SX, SS)
         self._n_buf, self._log = 0, []
+
+    def _check_finite(self, SX, SS, m):
+        """Warn once (:class:`SensitivityWarning`) at the first buffered step whose
+        sensitivities are not finite, naming its time and why; they stay NaN from
+        there on (each step's s_psi is formed from the last ones)."""
+        if getattr(self, "_failed_at", None) is not None:
+            return
+        bad = ~(np.isfinite(SX).all(axis=(1, 2)) & np.isfinite(SS).all(axis=(1, 2)))
+        if not bad.any():
+            return
+        j = int(np.argmax(bad))
+        self._failed_at = t = float(self._bt[j])
+        names = [self.names[p] for p in range(self.n_p)
+                 if not (np.isfinite(SX[j, p]).all() and np.isfinite(SS[j, p]).all())]
+        why = ("the step Jacobian is singular there" if self._singular_at(j)
+               else "a derivative of the step equations is not finite there")
+        warnings.warn(f"sensitivities to {', '.join(names)} are NaN from t = {t:.6g} s on: "
+                      f"{why}, so the sensitivity equations J s = -(dF/dpsi s_psi + "
+                      "dF/dtheta) have no unique solution at that step", SensitivityWarning,
+                      stacklevel=2)
+
+    def _singular_at(self, j):
+        """Whether buffered step j's exact step Jacobian is singular (rebuilt for
+        the message only)."""
+        n = self.asm.n
+        RAW = self._stacked(self._bx[j:j + 1], self._bpsi[j:j + 1], self._bt[j:j + 1],
+                            self._bc[j:j + 1])[0]
+        J = np.bincount(self._flat if self._dense else
+                        self.asm.pattern_rows * n + self.asm.pattern_cols,
+                        weights=RAW[0], minlength=n * n).reshape(n, n)
+        return (not np.isfinite(J).all()) or np.linalg.matrix_rank(J) < n
 
     def _replay(self, advance, unknowns):
         """(s_psi, s_S) of the buffered steps along the log: each step's s_psi
