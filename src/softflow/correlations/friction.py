@@ -38,7 +38,9 @@ def friction_Haaland(Re, eD):
 
 def smoothstep(x, lo, hi):
     """C1 step from 0 (x <= lo) to 1 (x >= hi): 3s^2 - 2s^3; returns (w, dw/dx)."""
-    s = np.clip((x - lo) / (hi - lo), 0.0, 1.0)
+    # minimum(maximum()): np.clip's values, without its dispatch (~2 us a call on
+    # the one-tube arrays of small scenes)
+    s = np.minimum(np.maximum((x - lo) / (hi - lo), 0.0), 1.0)
     w = s * s * (3.0 - 2.0 * s)
     dw = 6.0 * s * (1.0 - s) / (hi - lo)
     return w, dw
