@@ -259,19 +259,19 @@ _R = 8.314462618                # J/(mol K)
 
 
 def compressibility_bound(name, t_low, t_high, p):
-    """An upper bound on |Z - 1| of built-in gas ``name`` at pressures ``p``
+    """An upper bound on ``|Z - 1|`` of built-in gas ``name`` at pressures ``p``
     [Pa] (array) and any temperature from ``t_low`` to ``t_high`` [K], or None
     for another gas or near condensation (below 1.2 Tc): ask CoolProp.
 
     Z - 1 = B p / (R T) + C p^2 / (R T)^2 + ..., bounded by
-    (2 |B| + 2e-6) p / (R T) + 2e-9 p^2 / (R T)^2 (B in m^3/mol, C in
+    ``(2 |B| + 2e-6) p / (R T) + 2e-9 p^2 / (R T)^2`` (B in m^3/mol, C in
     m^6/mol^2), the largest over the temperatures (the two given and five
     between). B from the Pitzer correlation with Abbott's equations (Smith,
     Van Ness and Abbott, *Introduction to Chemical Engineering Thermodynamics*,
     7th ed., eqs. 3.61-3.66): B pc / (R Tc) = B0 + omega B1, B0 = 0.083 -
     0.422 / Tr^1.6, B1 = 0.139 - 0.172 / Tr^4.2 (air at 293 K: B = -9e-6
     m^3/mol from it, -8e-6 measured). Against CoolProp (tested) the bound is
-    at least 1.4x |Z - 1| from 1.2 Tc to 800 K wherever it is below 0.1."""
+    at least 1.4x ``|Z - 1|`` from 1.2 Tc to 800 K wherever it is below 0.1."""
     crit = _CRITICAL.get(name)
     if crit is None:
         return None
