@@ -13,6 +13,11 @@ from the run's own forward sensitivities:
 
 (the crossing time of V(t) = V_half moves by -dV/dD / dV/dt).
 
+Then both R2's diameter and actuator 2's plateau (its curve's
+``pressure_scale``: the plateau at 22 kPa x scale) are designed together for
+the same lag, both started 30 % off; one target and two parameters, so
+least squares moves both and stops on one of the designs that meet it.
+
     python examples/inverse_design.py            # prints the iterations
 """
 import warnings
@@ -38,16 +43,18 @@ def crossing(t, v, s, level):
 def lag(res, parameter="R2.diameter", half=None):
     """The lag [s] of actuator 2 behind actuator 1 at the volumes ``half``
     ({label: volume}; default: half of each one's largest in this run), and its
-    derivative with respect to ``parameter`` with those volumes held fixed."""
+    derivative with respect to ``parameter`` with those volumes held fixed
+    (None without a parameter: a run made without sensitivities)."""
     t = res.times
     out = []
     for label in ("act1", "act2"):
         v = res.get(label, "volume")
-        s = res.sensitivity(label, "volume", parameter)
+        s = (np.zeros_like(v) if parameter is None
+             else res.sensitivity(label, "volume", parameter))
         level = 0.5 * (v[0] + v.max()) if half is None else half[label]
         out.append(crossing(t, v, s, level))
     (t1, d1), (t2, d2) = out
-    return t2 - t1, d2 - d1
+    return t2 - t1, (None if parameter is None else d2 - d1)
 
 
 def find_diameter(target_lag, start, *, rtol=1e-5, verbose=True):
@@ -73,6 +80,36 @@ def find_diameter(target_lag, start, *, rtol=1e-5, verbose=True):
     return float(opt.x[0] * start), len(cache), opt
 
 
+def find_design(target_lag, start, *, rtol=1e-5, verbose=True):
+    """R2's diameter and actuator 2's ``pressure_scale`` for ``target_lag``
+    from ``start`` = (diameter, scale): (diameter, scale, lag reached, runs)."""
+    names = ("R2.diameter", "act2.pressure_scale")
+    sim = sf.Simulation(fig4("tube"), duration=duration(4) / 2, rtol=rtol)
+    ref = sim.run()      # half-volume levels from the compiled design, held fixed
+    half = {lab: 0.5 * (ref.get(lab, "volume")[0] + ref.get(lab, "volume").max())
+            for lab in ("act1", "act2")}
+    cache = {}
+
+    def evaluate(u):
+        key = tuple(float(a) for a in u)
+        if key not in cache:
+            params = {n: k * s0 for n, k, s0 in zip(names, key, start)}
+            res = sim.run(params=params, sensitivities=list(names))
+            (value, d_diameter), (_, d_scale) = (lag(res, parameter=n, half=half)
+                                                 for n in names)
+            cache[key] = (value, [d_diameter * start[0], d_scale * start[1]])
+            if verbose:
+                print(f"  D = {params[names[0]] * 1e3:.4f} mm, act2 scale "
+                      f"{params[names[1]]:.4f}: lag {value:.4f} s")
+        return cache[key]
+
+    opt = least_squares(lambda u: [evaluate(u)[0] - target_lag], [1.0, 1.0],
+                        jac=lambda u: [evaluate(u)[1]],
+                        bounds=([0.2, 0.5], [5.0, 2.0]), xtol=1e-6, ftol=1e-8)
+    reached = evaluate(opt.x)[0]
+    return float(opt.x[0] * start[0]), float(opt.x[1] * start[1]), reached, len(cache)
+
+
 def main():
     warnings.simplefilter("ignore", sf.ModelWarning)
     true_d = 2.5e-3
@@ -86,6 +123,14 @@ def main():
         found, runs, _ = find_diameter(target, start)
         print(f"  found D = {found * 1e3:.4f} mm in {runs} runs "
               f"({(found / true_d - 1) * 100:+.3f} % from {true_d * 1e3} mm)")
+    for factor in (0.7, 1.3):
+        start = (factor * true_d, factor)
+        print(f"diameter and act2 plateau together, from D = {start[0] * 1e3:.3f} mm, "
+              f"scale {start[1]:.2f}:")
+        d, scale, reached, runs = find_design(target, start)
+        print(f"  found D = {d * 1e3:.4f} mm, act2 plateau {22 * scale:.2f} kPa in {runs} "
+              f"runs: lag {reached:.4f} s ({(reached / target - 1) * 100:+.3f} % from the "
+              "target)")
 
 
 if __name__ == "__main__":
