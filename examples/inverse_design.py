@@ -57,11 +57,21 @@ def lag(res, parameter="R2.diameter", half=None):
     return t2 - t1, (None if parameter is None else d2 - d1)
 
 
-def find_diameter(target_lag, start, *, rtol=1e-5, verbose=True):
-    sim = sf.Simulation(fig4("tube"), duration=duration(4) / 2, rtol=rtol)
-    ref = sim.run()      # half-volume levels from the compiled design, held fixed
-    half = {lab: 0.5 * (ref.get(lab, "volume")[0] + ref.get(lab, "volume").max())
+def half_levels(res):
+    """{label: half-way volume} of both actuators in run ``res``."""
+    return {lab: 0.5 * (res.get(lab, "volume")[0] + res.get(lab, "volume").max())
             for lab in ("act1", "act2")}
+
+
+def design_simulation(rtol=1e-5):
+    """(the Fig. 4 tube network's Simulation, the half-volume levels of its
+    compiled design, held fixed while the parameters move)."""
+    sim = sf.Simulation(fig4("tube"), duration=duration(4) / 2, rtol=rtol)
+    return sim, half_levels(sim.run())
+
+
+def find_diameter(target_lag, start, *, rtol=1e-5, verbose=True):
+    sim, half = design_simulation(rtol)
     cache = {}
 
     def evaluate(u):
@@ -84,10 +94,7 @@ def find_design(target_lag, start, *, rtol=1e-5, verbose=True):
     """R2's diameter and actuator 2's ``pressure_scale`` for ``target_lag``
     from ``start`` = (diameter, scale): (diameter, scale, lag reached, runs)."""
     names = ("R2.diameter", "act2.pressure_scale")
-    sim = sf.Simulation(fig4("tube"), duration=duration(4) / 2, rtol=rtol)
-    ref = sim.run()      # half-volume levels from the compiled design, held fixed
-    half = {lab: 0.5 * (ref.get(lab, "volume")[0] + ref.get(lab, "volume").max())
-            for lab in ("act1", "act2")}
+    sim, half = design_simulation(rtol)
     cache = {}
 
     def evaluate(u):

@@ -16,10 +16,8 @@ def test_the_diameter_for_a_target_lag_is_found_from_30_percent_off():
     ns = runpy.run_path(str(EXAMPLE))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(ns["fig4"]("tube"), duration=ns["duration"](4) / 2, rtol=1e-5)
+        sim, half = ns["design_simulation"]()          # the levels held fixed
         res = sim.run(sensitivities=["R2.diameter"])
-        half = {lab: 0.5 * (res.get(lab, "volume")[0] + res.get(lab, "volume").max())
-                for lab in ("act1", "act2")}       # the levels held fixed
         target, slope = ns["lag"](res, half=half)
         # the lag's derivative against a central difference of whole runs
         h = 2.5e-5
@@ -40,10 +38,8 @@ def test_diameter_and_plateau_together_meet_the_target_lag_from_30_percent_off()
     ns = runpy.run_path(str(EXAMPLE))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(ns["fig4"]("tube"), duration=ns["duration"](4) / 2, rtol=1e-5)
+        sim, half = ns["design_simulation"]()
         res = sim.run(sensitivities=["act2.pressure_scale"])
-        half = {lab: 0.5 * (res.get(lab, "volume")[0] + res.get(lab, "volume").max())
-                for lab in ("act1", "act2")}
         target, slope = ns["lag"](res, parameter="act2.pressure_scale", half=half)
         h = 1e-3
         up, down = (sim.run(params={"act2.pressure_scale": 1 + e}) for e in (h, -h))
