@@ -101,6 +101,26 @@ def test_laminar_tube_at_high_reynolds_recommends_haaland_and_inertance():
     assert difference(recommended_run(a), ref, a.outputs) < TOL
     assert s.get("tube").friction == "laminar"         # the user's tube is not touched
     assert not s.get("tube").inertance
+    # Re 10.7x and the column's inertia 480x past their limits: both clear-cut
+    # and the last to probe, so one run adopts both (with the base and the
+    # time tolerance's run at 10 rtol0: three runs)
+    rows = a.table.set_index("axis")
+    assert rows.loc["friction", "effect"] == rows.loc["inertance", "effect"] > TOL
+    assert "together with inertance" in rows.loc["friction", "verdict"]
+    assert "clear-cut" in rows.loc["inertance", "verdict"]
+    assert len(a.runs) == 3
+
+
+def test_clear_cut_probes_run_one_by_one_where_one_is_not_clear():
+    """near_choking: the tube law (Mach 1.47x its limit) is no clear-cut case,
+    so it is probed on its own before the thermal level (one probe at the end
+    is the recommended models' run anyway)."""
+    s, duration, outputs = scenes.near_choking()
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    rows = a.table.set_index("axis")
+    assert "together" not in rows.loc["tube law", "verdict"]
+    assert "together" not in rows.loc["thermal", "verdict"]
+    assert rows.loc["tube law", "effect"] != rows.loc["thermal", "effect"]
 
 
 def _axis(a, axis):

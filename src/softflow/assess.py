@@ -39,6 +39,12 @@ thermal
     to adiabatic", is coarse for a 1 % tolerance): their heat transfer where
     they have a wall, else adiabatic; the other volumes held isothermal
     (``thermal='isothermal'`` overrides in a thermal scene).
+(two or more clear-cut axes last)
+    where the last two or more axes to probe are each far past their limit
+    (:data:`CLEAR_FACTOR` times it, or an isothermal error estimated at that
+    many tolerances), they are adopted in one run: each would be, and that
+    run is the recommended models' run at ``rtol0``, which the time
+    tolerance needs anyway; their effect is reported together.
 time tolerance
     on the models chosen (their time errors differ: a friction law's
     transition, a thermal scene's slow modes): a run at ``10 rtol0``, cheaper,
@@ -87,6 +93,10 @@ BUDGET_FRACTION = 0.5
 #: rtol0 is kept where it differs from 10 rtol0 by at most twice this, or
 #: from rtol0 / 10 by at most this (else rtol0 / 10 is recommended).
 LOOSE_FRACTION = 0.4
+#: A check this many times past its limit (or, for the thermal axis, an
+#: isothermal error estimated at this many tolerances) is clear-cut: the last
+#: probes, where two or more are, are run as one (module docstring).
+CLEAR_FACTOR = 10.0
 
 _THERMAL_CHECK = "thermal_time_scale"
 _INERTIA_CHECK = "tube_inertia"
@@ -468,8 +478,16 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
     current, neglected = base, {}
     from .solve.model_checks import isothermal_error
     errors = isothermal_error(base.result)
-    for axis, tried, lift, reason in scene.probes(base.config, records, rows, errors,
-                                                  tolerance):
+    probes = scene.probes(base.config, records, rows, errors, tolerance)
+    # the last probes, where two or more are clear-cut (each check CLEAR_FACTOR
+    # past its limit), are one run: each would be adopted, and the run of them
+    # all is the recommended models' run at rtol0, which the time tolerance
+    # needs anyway; its effect is theirs together
+    n_clear = 0
+    while n_clear < len(probes) and getattr(probes[-1 - n_clear][2], "clear", False):
+        n_clear += 1
+    together = probes[len(probes) - n_clear:] if n_clear >= 2 else []
+    for axis, tried, lift, reason in probes[:len(probes) - len(together)]:
         up = a.run(lift(current.config))
         if not up.ok and axis == "fluid level":
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}")
@@ -487,6 +505,31 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
         else:
             neglected[axis] = (effect, lift, len(rows))
             cost_row(axis, tried, effect, up, f"kept the lower level ({reason}): {effect:.2%}")
+    if together:
+        cfg = current.config
+        for _, _, lift, _ in together:
+            cfg = lift(cfg)
+        up = a.run(cfg)
+        if up.ok:
+            effect = difference(current.result, up.result, outputs)
+            names = [axis for axis, _, _, _ in together]
+            for axis, tried, _, reason in together:
+                cost_row(axis, tried, effect, up,
+                         f"adopted ({reason}, clear-cut: {CLEAR_FACTOR:g} x past its limit "
+                         f"or more) together with {', '.join(n for n in names if n != axis)}, "
+                         f"in one run: they change the outputs by {effect:.2%}")
+            current = up
+        else:          # one at a time, as any other probe
+            for axis, tried, lift, reason in together:
+                one = a.run(lift(current.config))
+                if not one.ok:
+                    cost_row(axis, tried, math.nan, one,
+                             f"failed: {one.error}; kept the lower level")
+                    continue
+                effect = difference(current.result, one.result, outputs)
+                current = one
+                cost_row(axis, tried, effect, one, f"adopted ({reason}): changes the outputs "
+                                                   f"by {effect:.2%}")
     config = current.config
     # the errors left add up: keep them within the budget (the time error is
     # measured below, on the configuration chosen)
@@ -621,11 +664,13 @@ class _Scene:
         out = []
 
         def per_tube(check, arg, value, status=("near", "beyond")):
-            labels = sorted({r.component for r in by_check.get(check, ())
-                             if r.status in status})
+            found = [r for r in by_check.get(check, ()) if r.status in status]
+            labels = sorted({r.component for r in found})
 
             def lift(cfg):
                 return cfg.with_overrides({lab: {arg: value} for lab in labels})
+            # clear-cut where every tube lifted is CLEAR_FACTOR past its limit
+            lift.clear = bool(found) and min(r.fraction for r in found) >= CLEAR_FACTOR
             return labels, lift
 
         labels, lift = per_tube(_FRICTION_CHECK, "friction", "Haaland", ("beyond",))
@@ -653,8 +698,10 @@ class _Scene:
             if _FLUID_CHECK in by_check:
                 part = self.high_pressure_part(sorted({r.component
                                                        for r in by_check[_FLUID_CHECK]}))
-                out.append(("fluid level", _fluid_tried("table", part),
-                            _fluid_lift("table", part), "|Z - 1| near or past the tolerance"))
+                lift = _fluid_lift("table", part)
+                lift.clear = min(r.fraction for r in by_check[_FLUID_CHECK]) >= CLEAR_FACTOR
+                out.append(("fluid level", _fluid_tried("table", part), lift,
+                            "|Z - 1| near or past the tolerance"))
             else:
                 rows.append(("fluid level", "ideal", math.nan, 0.0, 0.0,
                              f"kept: |Z - 1| below {NEAR_FRACTION:g} x tolerance"))
@@ -666,6 +713,8 @@ class _Scene:
             lifted = self.lifted_volumes(records, errors, tolerance)
             if lifted:
                 tried, lift = self.thermal_lift(lifted)
+                lift.clear = min(errors.get(c.label, 0.0) for c in lifted) >= \
+                    CLEAR_FACTOR * tolerance
                 hot = sorted({r.component for r in by_check.get(_THERMAL_CHECK, ())})
                 warm = sorted(c.label for c in lifted if c.label not in hot)
                 out.append(("thermal", tried, lift, "; ".join(
