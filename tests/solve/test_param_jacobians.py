@@ -42,7 +42,7 @@ def _cases():
     """(id, components, parameters, V sampler (rng -> V), modes or None)."""
     air, water = sf.air, sf.water
     pv, loop = curve_peak_valley(), loop_hysteretic()
-    tube_params = ["length", "diameter", "roughness"]
+    tube_params = ["length", "diameter", "roughness", "Re_laminar", "Re_turbulent"]
     out = [
         ("CircularTube-air", [sf.CircularTube(f"t{i}", air, 0.5, 1e-3) for i in range(4)],
          tube_params, lambda r: _two_port(r, AIR_FLOWS), None),
@@ -53,9 +53,10 @@ def _cases():
                                                      compressible="isothermal")
                                      for i in range(4)],
          tube_params, lambda r: _two_port(r, AIR_FLOWS), None),
+        # Re 3200, 3500 (the blend), 8500, 3800
         ("CircularTube-water", [sf.CircularTube(f"t{i}", water, 0.5, 1e-3 * (i + 1))
                                 for i in range(4)],
-         tube_params, lambda r: _two_port(r, np.array([1e-4, -3e-3, 2e-2, 5e-3])), None),
+         tube_params, lambda r: _two_port(r, np.array([2.5e-3, -5.5e-3, 2e-2, 1.2e-2])), None),
         ("InertialCircularTube-air", [sf.CircularTube(f"t{i}", air, 0.5, 1e-3, inertance=True)
                                       for i in range(4)],
          tube_params, lambda r: _two_port(r, AIR_FLOWS), None),
@@ -66,17 +67,29 @@ def _cases():
          ["diameter", "K"],
          lambda r: _two_port(r, np.zeros(4), dp=np.array([0.01, -0.02, 3e3, -2e4])), None),
         ("Orifice-ISO", [sf.Orifice(f"o{i}", air, C=1e-8, b=0.3) for i in range(4)],
-         ["C"], lambda r: _two_port(r, np.zeros(4)), None),
+         ["C", "b", "pr_laminar"], lambda r: _two_port(r, np.zeros(4)), None),
+        # laminar-like (pr > pr_laminar), subsonic and choked (pr < b), both directions
+        ("Orifice-ISO-regimes", [sf.Orifice(f"o{i}", air, C=1e-8, b=0.3 + 0.1 * i,
+                                            m=0.4 + 0.2 * i, pr_laminar=0.99)
+                                 for i in range(4)],
+         ["C", "b", "pr_laminar"],
+         lambda r: _two_port(r, np.zeros(4), dp=np.array([50.0, -900.0, 2e4, 4e5])), None),
         ("CheckValve", [sf.CheckValve(f"c{i}", air, 1e-3, cracking_pressure=5e3,
                                       leakage=1e-12) for i in range(4)],
          ["diameter", "cracking_pressure", "opening_band", "leakage"],
          lambda r: _two_port(r, np.zeros(4), dp=np.array([2e3, 5.4e3, 1e4, -3e3])), None),
         ("TeslaValve", [sf.TeslaValve(f"v{i}", air, 0.05, 1e-3) for i in range(4)],
-         ["length", "diameter", "roughness", "diodicity", "Re_blend"],
-         lambda r: _two_port(r, np.array([2e-6, -7e-8, -2e-4, 1.5e-4])), None),
+         ["length", "diameter", "roughness", "diodicity", "Re_blend", "Re_laminar",
+          "Re_turbulent"],
+         lambda r: _two_port(r, np.array([2e-6, -7e-8, -2e-4, 4.5e-5])), None),
         ("SnappingValve", [sf.SnappingValve(f"s{i}", air, 2e4, 5e3, 1e-11) for i in range(4)],
          ["length", "diameter", "roughness", "closed_conductance", "opening_pressure",
-          "closing_pressure"], lambda r: _two_port(r, AIR_FLOWS), [1.0, 0.0, 1.0, 0.0]),
+          "closing_pressure", "Re_laminar", "Re_turbulent"], lambda r: _two_port(r, AIR_FLOWS),
+         [1.0, 0.0, 1.0, 0.0]),
+        ("SnappingValve-open", [sf.SnappingValve(f"s{i}", air, 2e4, 5e3, 1e-11)
+                                for i in range(4)],
+         ["length", "diameter", "roughness", "Re_laminar", "Re_turbulent"],
+         lambda r: _two_port(r, 2 * AIR_FLOWS), [1.0, 1.0, 1.0, 1.0]),   # (D = 2 mm)
         ("Container-air", [sf.Container(f"k{i}", air, 1e-4 * (i + 1), initial_pressure=2e5)
                            for i in range(4)],
          ["volume", "initial_pressure"], lambda r: _one_port(r, 4), None),
@@ -218,15 +231,16 @@ def test_initial_state_jacobians_match_central_differences():
                                        rtol=1e-6, atol=0, err_msg=f"{comp.label} {name}")
 
 
-def test_uncovered_parameters_and_thermal_variants_fall_back():
-    """A parameter a class does not cover, a thermal variant of a covered class
-    (which inherits the isothermal class's param_jacobian through Python, but
-    not through the sensitivity equations) and a user subclass give None."""
+def test_uncovered_parameters_and_user_subclasses_fall_back():
+    """A parameter a class does not cover and a user subclass (which inherits the
+    library class's param_jacobian through Python, but not through the
+    sensitivity equations) give None; in a thermal scene the flow elements and
+    sources state their own, the volumes (another law) none."""
     tube = sf.CircularTube("t", sf.air, 0.5, 1e-3)
     P = sf.CircularTube.make_params([tube])
     V = _two_port(np.random.default_rng(0), AIR_FLOWS[:1])
     X, FX, _ = step_linearization(sf.CircularTube, P, V, np.zeros((1, 0)), 0.0, 1e-3)
-    assert param_step_derivative(sf.CircularTube, P, V, X, FX, 0.0, 1e-3, "Re_laminar") is None
+    assert param_step_derivative(sf.CircularTube, P, V, X, FX, 0.0, 1e-3, "friction") is None
 
     class Narrower(sf.CircularTube):
         pass
@@ -240,7 +254,86 @@ def test_uncovered_parameters_and_thermal_variants_fall_back():
     configure_thermal(s, "adiabatic")
     for comp in s.components:
         cls = comp.kernel_class()
-        assert cls is not type(comp) and "param_jacobian" not in cls.__dict__
+        assert cls is not type(comp)
+        assert ("param_jacobian" in cls.__dict__) == (comp.label != "k"), comp.label
+
+
+def _thermal_cases():
+    """(component configured in an adiabatic scene, its parameters, V sampler)."""
+    air = sf.air
+    out = []
+    for comp, names in [
+            (sf.CircularTube("t", air, 0.5, 1e-3), ["length", "diameter", "roughness",
+                                                   "Re_laminar", "Re_turbulent"]),
+            (sf.CircularTube("ti", air, 0.5, 1e-3, inertance=True),
+             ["length", "diameter", "Re_laminar"]),
+            (sf.Orifice("oi", air, C=1e-8, b=0.3, pr_laminar=0.99), ["C", "b", "pr_laminar"]),
+            (sf.Orifice("ok", air, diameter=1e-3, K=2.0), ["diameter", "K"]),
+            (sf.CheckValve("c", air, 1e-3, cracking_pressure=5e3, leakage=1e-12),
+             ["diameter", "cracking_pressure", "opening_band", "leakage"]),
+            (sf.TeslaValve("v", air, 0.05, 1e-3), ["length", "diameter", "diodicity",
+                                                   "Re_blend", "Re_laminar"]),
+            (sf.SnappingValve("sv", air, 2e4, 5e3, 1e-11, initially_open=True),
+             ["length", "diameter", "closed_conductance", "Re_turbulent"]),
+            (sf.PressureSource("ps", pressure=1.5e5, temperature=320.0), ["pressure"]),
+            (sf.MassFlowSource("ms", massflow=1e-5, temperature=320.0), ["massflow"]),
+            (sf.VolumeFlowSource("vs", volumeflow=-2e-6, fluid=air, temperature=320.0),
+             ["volumeflow"])]:
+        s = sf.System()
+        s += comp
+        s += sf.Container("k", air, 1e-4)
+        if len(comp.terminal_spec) == 2:
+            s += sf.PressureSource("src", pressure=2e5)
+            s.connect("src", (comp.label, "a"))
+            s.connect((comp.label, "b"), "k")
+        else:
+            s.connect(comp.label, "k")
+        configure_thermal(s, "adiabatic")
+        out.append((comp, names))
+    return out
+
+
+@pytest.mark.parametrize("case", _thermal_cases(), ids=lambda c: c[0].label)
+def test_thermal_variants_param_jacobians_match_central_differences(case):
+    """The thermal flow elements' and sources' param_jacobian (the isothermal
+    law's, its flow row scaled by the upstream temperature's factor) against
+    central differences of the rebuilt thermal components' residual and rates."""
+    from softflow.solve.thermal import configure_like
+    comp, names = case
+    cls = comp.kernel_class()
+    rng = np.random.default_rng(5)
+    n = 4
+    two = len(comp.terminal_spec) == 2
+    flows = (2 * AIR_FLOWS if comp.label == "sv" else AIR_FLOWS) if comp.label not in (
+        "ok", "c", "oi") else np.zeros(n)
+    if two:
+        pb = rng.uniform(1.1e5, 2e5, n)
+        dp = (np.array([50.0, -900.0, 2e4, 4e5]) if comp.label == "oi" else
+              np.array([0.01, -0.02, 3e3, -2e4]) if comp.label == "ok" else
+              np.array([2e3, 5.4e3, 1e4, -3e3]) if comp.label == "c" else
+              rng.uniform(-3e4, 3e4, n))
+        V = np.column_stack([pb + dp, flows, rng.uniform(280, 340, n), rng.normal(0, 1, n),
+                             pb, -flows, rng.uniform(280, 340, n), rng.normal(0, 1, n)])
+    else:
+        V = np.column_stack([rng.uniform(1.2e5, 2e5, n), rng.uniform(-1, 1, n) * 1e-5,
+                             rng.uniform(280, 340, n), rng.normal(0, 1, n)])
+    comps = [comp] * n
+    S = np.array([comp.initial_state_values()] * n, dtype=float).reshape(n, -1)
+    P = cls.make_params(comps)
+    for name in names:
+        out = cls.param_jacobian(P, V, S, 0.1, name)
+        assert out is not None, name
+        value = float(sensitivity._numeric_value(comp, name))
+        h = REL_STEP * abs(value)
+        ev = []
+        for sign in (1, -1):
+            twin = configure_like(rebuild(comp, {name: value + sign * h}), comp, "adiabatic")
+            ev.append(_evaluate([twin] * n, V, S, 0.1))
+        (Fu, ru), (Fd, rd) = ev
+        vals = np.full(n, value)
+        _close(out[0], (Fu - Fd) / (2 * h), vals, f"{comp.label}: dF/d{name}")
+        _close(np.asarray(out[1]).reshape(ru.shape), (ru - rd) / (2 * h), vals,
+               f"{comp.label}: dr/d{name}")
 
 
 # -- whole runs -----------------------------------------------------------------------
@@ -421,10 +514,30 @@ def _flows_scene():
     return s
 
 
+def _blend_scene():
+    """A Tesla valve and an open snapping valve (1 mm, 0.1 m passages) filling a
+    tank each from one pressure source: their flows fall through the
+    laminar-turbulent blend (Re 4000 -> 2300) for about 50 of the 300 steps."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 2e4)
+    s += sf.TeslaValve("tesla", sf.air, 0.1, 1e-3)
+    s += sf.Container("k1", sf.air, 3e-5)
+    s += sf.SnappingValve("snap", sf.air, opening_pressure=1e3, closing_pressure=-1e5,
+                          closed_conductance=1e-12, length=0.1, diameter=1e-3,
+                          initially_open=True)
+    s += sf.Container("k2", sf.air, 3e-5)
+    s.connect("src", ("tesla", "a"))
+    s.connect(("tesla", "b"), "k1")
+    s.connect("src", ("snap", "a"))
+    s.connect(("snap", "b"), "k2")
+    return s
+
+
 def _sweep_scenes():
     from test_sensitivity import _hysteretic_scene, _valve_scene as _snap_scene
     return [("valves", _valve_scene, 0.2, 1e-3), ("flows", _flows_scene, 0.2, 1e-3),
-            ("snap", _snap_scene, 0.3, 1e-3), ("hysteretic", _hysteretic_scene, 1.2, 2e-3)]
+            ("snap", _snap_scene, 0.3, 1e-3), ("hysteretic", _hysteretic_scene, 1.2, 2e-3),
+            ("blend", _blend_scene, 0.3, 1e-3)]
 
 
 def _numeric_parameters(sim):
@@ -450,15 +563,17 @@ def _numeric_parameters(sim):
 
 @pytest.mark.parametrize("scene", _sweep_scenes(), ids=lambda c: c[0])
 def test_every_numeric_parameter_matches_central_differences_of_runs(scene):
-    """Every numeric parameter of every library class in four small scenes (all
-    fourteen classes), fixed steps, Newton held to 1e-12: the sensitivities of
-    every pressure, mass and flow against (run(theta + h) - run(theta - h)) / 2h,
-    h = 1e-5 theta (1e-3 for a check valve's leakage, whose effect is near
-    Newton's tolerance), relative to the largest; an output that a 100 %
-    change would move by less than 1e-6 of its size counts as 0. Measured: <=
-    3e-5 for the analytic derivatives (1.6e-4: a check valve's diameter where
-    it cracks open), 7.4e-4 for an ISO orifice's pr_laminar (a finite-difference
-    fallback, forward step 1e-6, at the laminar blend's kink); 1e-3 holds all."""
+    """Every numeric parameter of every library class in five small scenes (all
+    fourteen classes; the Tesla and snapping valves' flows through their
+    laminar-turbulent blend in the last), fixed steps, Newton held to 1e-12:
+    the sensitivities of every pressure, mass and flow against (run(theta + h)
+    - run(theta - h)) / 2h, h = 1e-5 theta (1e-3 for a check valve's leakage,
+    whose effect is near Newton's tolerance), relative to the largest; an
+    output that a 100 % change would move by less than 1e-6 of its size counts
+    as 0. All analytic now; measured <= 3e-5 (1.6e-4: a check valve's diameter
+    where it cracks open), the blend bounds <= 2.5e-5, an ISO orifice's b
+    7.7e-5 and pr_laminar 1.3e-5 (7.4e-4 on the finite-difference fallback
+    before); 1e-3 holds all."""
     _, build, duration, step = scene
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)

@@ -302,6 +302,31 @@ class ThermalTwoPort:
         return F, J
 
     @classmethod
+    def _param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta (n, 4), dr/d theta) of the thermal variant from its isothermal
+        class's ``param_jacobian`` (None where that states none): the energy rows
+        (2, 3) hold no parameter, and the flow law's row 1 is the isothermal one
+        scaled by the upstream temperature's factor theta (sqrt(T_ref/T_up) on the
+        mass flow, T_up/T_ref on the pressure drop), which no parameter moves;
+        the rates (an inertial tube's) are the isothermal ones. The variant's
+        ``param_jacobian`` (set by :func:`_two_port_variant`)."""
+        base = cls.isothermal_class
+        if "param_jacobian" not in base.__dict__:
+            return None
+        out = base.param_jacobian(P, V[:, _ISO_COLS], S, t, name)
+        if out is None:
+            return None
+        dF_iso, dr = out
+        dF = np.zeros((P.n, 4))
+        dF[:, :2] = dF_iso
+        mode = cls.flow_temperature
+        if mode is not None:
+            w, _ = _upwind_weight(V[:, 1], False)
+            T_up = V[:, 6] + w * (V[:, 2] - V[:, 6])
+            dF[:, 1] *= np.sqrt(P.T_ref / T_up) if mode == "sqrt_density" else T_up / P.T_ref
+        return dF, dr
+
+    @classmethod
     def _kernel_pressure_drop(cls, P, V, jac):
         """The same equations for a flow law given as p_a - p_b = dp(p_a, mf, p_b)
         (``pressure_drop`` of the isothermal class, scaled by theta = T_up/T_ref),
@@ -366,7 +391,9 @@ def _two_port_variant(base, flow_temperature):
                 {"flow_temperature": flow_temperature, "jac_pattern": pattern,
                  "residual_pattern": res_pattern,
                  "rate_pattern": tuple((st, iso_map[v]) for st, v in base.rate_pattern),
-                 "direct": direct,
+                 "direct": direct, "isothermal_class": base,
+                 # its own (the sensitivities use only a class's own param_jacobian)
+                 "param_jacobian": ThermalTwoPort.__dict__["_param_jacobian"],
                  "__doc__": f"{base.__name__} in a thermal scene (see softflow.components.thermal)."})
 
 
@@ -383,6 +410,16 @@ def _source_energy(P, V, jac):
         return F, None
     d_mf, d_pa, d_Ta, d_pb, _ = dE
     return F, (-(d_pa + d_pb), -d_mf, -d_Ta, 1.0)
+
+
+def _thermal_source_jacobian(P, name, dF0):
+    """(dF/d theta (n, 2), dr/d theta (n, 0)) of a thermal source for its
+    constant value ``name`` (row 0), None for other parameters."""
+    if name != P.components[0].signal.name:
+        return None
+    dF = np.zeros((P.n, 2))
+    dF[:, 0] = dF0
+    return dF, np.zeros((P.n, 0))
 
 
 class _ThermalSource:
@@ -417,6 +454,11 @@ class ThermalPressureSource(_ThermalSource, PressureSource):
         F[:, 1] = V[:, 2] - P.T_source
         return F, (P.ones if jac else None)
 
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """dF/d pressure = (-1, 0): the temperature row holds no pressure."""
+        return _thermal_source_jacobian(P, name, -1.0)
+
 
 class ThermalMassFlowSource(_ThermalSource, MassFlowSource):
     """MassFlowSource in a thermal scene (delivers gas at its ``temperature``)."""
@@ -434,6 +476,11 @@ class ThermalMassFlowSource(_ThermalSource, MassFlowSource):
         J[:, 0] = 1.0
         _put(J, 1, dE)
         return F, J
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """dF/d massflow = (1, 0): the energy row reads the flow, not its setting."""
+        return _thermal_source_jacobian(P, name, 1.0)
 
 
 class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
@@ -461,6 +508,14 @@ class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
         J[:, 2] = np.where(out, 0.0, fl.density_dT(p, T_q) * q)
         _put(J, 3, dE)
         return F, J
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """dF/d volumeflow = (rho(p, T_q), 0), T_q the source's temperature while it
+        delivers, the node's while it draws."""
+        q = P.values(t)
+        T_q = np.where(q >= 0, P.T_source, V[:, 2])
+        return _thermal_source_jacobian(P, name, P.fluid_thermal.density(V[:, 0], T_q))
 
 
 # ---------------------------------------------------------------------------------------

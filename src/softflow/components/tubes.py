@@ -70,6 +70,31 @@ def friction_roughness_derivative(P, Re):
     return w * Ret * df
 
 
+#: The laminar-turbulent blend's bounds, whose derivatives :func:`friction_bound_derivative` states.
+BLEND_BOUNDS = ("Re_laminar", "Re_turbulent")
+
+
+def friction_bound_derivative(P, Re, name):
+    """d(f·Re)/d(Re_laminar) or d/d(Re_turbulent) of the group's blended friction
+    law (:func:`softflow.correlations.friction.fRe_blended`) at Re.
+
+    f·Re = 64 + w(s)·(phi_t(Re) - 64), w = 3s^2 - 2s^3, s = (Re - lo)/(hi - lo)
+    clipped to [0, 1], so with dw/dRe = 6 s (1 - s)/(hi - lo):
+    dw/dlo = -(1 - s) dw/dRe, dw/dhi = -s dw/dRe, and the turbulent law itself
+    does not move (it enters only where Re > lo). Zero where laminar (w = 0) or
+    fully turbulent (w = 1), and for a 'laminar' tube."""
+    turbulent = P.turbulent if hasattr(P, "turbulent") else friction_Haaland
+    if turbulent is None or Re.max(initial=0.0) <= P.Re_lo:
+        return np.zeros_like(Re)
+    lo, hi = P.Re_lo, P.Re_hi
+    s = np.minimum(np.maximum((Re - lo) / (hi - lo), 0.0), 1.0)
+    dw = 6.0 * s * (1.0 - s) / (hi - lo)
+    Ret = np.maximum(Re, lo)
+    phit = turbulent(Ret, P.eD)[0] * Ret
+    dw_dbound = -dw * ((1.0 - s) if name == "Re_laminar" else s)
+    return dw_dbound * (phit - 64.0)
+
+
 def tube_law_derivative(P, name, dp, mf_d_mf, d_eD):
     """d(dp)/d theta of a friction pressure drop dp = c(L, D)·phi(Re, eD)·mdot with
     c ∝ L/D^4, Re ∝ 1/D and eD = roughness/D, for theta in :data:`TUBE_GEOMETRY`,
@@ -321,8 +346,20 @@ class CircularTube(LibraryComponent):
     @classmethod
     def drop_parameter_derivative(cls, P, V, name):
         """d(p_a - p_b required)/d theta of the group's pressure-drop law for a
-        parameter of :data:`TUBE_GEOMETRY`; None for others (the blend bounds, which
-        group tubes) and for a tabulated friction correlation (made for the roughness)."""
+        parameter of :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS` (each instance's
+        own bound moved: its row depends on its own law alone); None for others
+        and, for the geometry, for a tabulated friction correlation (made for the
+        roughness; its table starts at Re_laminar, which the bounds' derivative
+        leaves out: the table interpolates the same correlation)."""
+        if name in BLEND_BOUNDS:
+            pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
+            rho = P.fluid.density(0.5 * (pa + pb)) if P.compressible else P.fluid.rho
+            re_per_mf, c_mu = P.re_per_mf, P.c_mu
+            if P.variable_mu:
+                mu_ratio = P.fluid.viscosity(0.5 * (pa + pb)) / P.mu
+                re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
+            # dp = c_mu/rho (f Re) mdot (+ the isothermal acceleration, which has no Re)
+            return c_mu / rho * mf * friction_bound_derivative(P, np.abs(mf) * re_per_mf, name)
         if name not in TUBE_GEOMETRY or isinstance(P.turbulent, FrictionTable):
             return None
         pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
@@ -343,8 +380,8 @@ class CircularTube(LibraryComponent):
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
-        """(dF/d theta (n, 2), dr/d theta (n, 0)) for length, diameter, roughness;
-        None for other parameters (see :func:`softflow.solve.discretize.param_step_derivative`)."""
+        """(dF/d theta (n, 2), dr/d theta (n, 0)) for length, diameter, roughness,
+        Re_laminar, Re_turbulent; None for other parameters (see :func:`softflow.solve.discretize.param_step_derivative`)."""
         d = cls.drop_parameter_derivative(P, V, name)
         if d is None:
             return None
@@ -397,7 +434,8 @@ class InertialCircularTube(CircularTube):
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta (n, 2) = 0, dr/d theta (n, 1)) of the flow's rate
-        dq/dt = A/L (p_a - p_b - dp_friction) for length, diameter, roughness."""
+        dq/dt = A/L (p_a - p_b - dp_friction) for length, diameter, roughness and
+        the blend's bounds."""
         d = cls.drop_parameter_derivative(P, V, name)
         if d is None:
             return None

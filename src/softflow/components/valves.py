@@ -13,11 +13,13 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..correlations.friction import fRe_blended, smoothstep
-from ..correlations.orifice import (dp_at_reynolds, loss_coefficient_from_discharge_coefficient,
+from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, dp_at_reynolds,
+                                    loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient)
 from .base import FLUID_PORT, LibraryComponent
-from .tubes import (TUBE_GEOMETRY, friction_roughness_derivative, set_tube_coefficients,
-                    set_tube_geometry, tube_law_derivative)
+from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative,
+                    friction_roughness_derivative, set_tube_coefficients, set_tube_geometry,
+                    tube_law_derivative)
 
 if TYPE_CHECKING:
     from .._typing import Scalar
@@ -70,6 +72,42 @@ def _loss_law_derivative(P, dp, rho, q, name):
     if name == "diameter":
         return (2.0 * q - 2.0 * g) / np.sqrt(4.0 * P.area / np.pi)
     return (g - 0.5 * q) / P.K
+
+
+def _iso_law_derivative(P, pa, pb, name):
+    """dq/d theta of the ISO 6358 law (:func:`massflow_ISO_6358`) for theta = b
+    (critical pressure ratio) or pr_laminar; None else.
+
+    q = ±k p_up phi(s; s_l), s = (1 - p_dn/p_up)/(1 - b), s_l = (1 - pr_laminar)/(1 - b):
+    ds/db = s/(1 - b), ds_l/db = s_l/(1 - b), ds_l/d(pr_laminar) = -1/(1 - b).
+    phi depends on s_l only inside the laminar-like region s < s_l, through the
+    odd cubic y = s (alpha + beta s^2) matched to f = u^m, u = s_l (2 - s_l), in
+    value f_l and slope f'_l at s_l: beta = (f'_l - f_l/s_l)/(2 s_l^2),
+    alpha = f_l/s_l - beta s_l^2, differentiated along s_l with f'' of u^m."""
+    if name not in ("b", "pr_laminar"):
+        return None
+    forward = pa >= pb
+    p_up = np.where(forward, pa, pb)
+    p_dn = np.where(forward, pb, pa)
+    k = P.C * ISO_6358_RHO0 * np.sqrt(ISO_6358_T0 / P.T)
+    m, one_b = P.subsonic_index, 1.0 - P.b
+    s = (1.0 - p_dn / p_up) / one_b
+    x = (1.0 - P.pr_laminar) / one_b                 # s_l
+    _, dphi_ds = _iso_6358_phi(s, P.b, m, x)
+    u = x * (2.0 - x)
+    f = u ** m
+    df = m * u ** (m - 1.0) * (2.0 - 2.0 * x)
+    ddf = m * (m - 1.0) * u ** (m - 2.0) * (2.0 - 2.0 * x) ** 2 - 2.0 * m * u ** (m - 1.0)
+    beta = (df - f / x) / (2.0 * x * x)
+    dbeta = (ddf - df / x + f / (x * x)) / (2.0 * x * x) - 2.0 * beta / x
+    dalpha = (df / x - f / (x * x)) - dbeta * x * x - 2.0 * beta * x
+    dphi_dx = np.where(s < x, s * (dalpha + dbeta * s * s), 0.0)
+    if name == "b":
+        dphi = (dphi_ds * s + dphi_dx * x) / one_b
+    else:
+        dphi = -dphi_dx / one_b
+    dq = k * p_up * dphi
+    return np.where(forward, dq, -dq)
 
 
 def _tube_drop_derivative(P, name, c, mf):
@@ -246,11 +284,12 @@ class Orifice(LibraryComponent):
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta, dr/d theta) for diameter and K (loss-coefficient model) or C
-        (ISO 6358, where the flow is proportional to it); None for others."""
+        (ISO 6358, where the flow is proportional to it), b and pr_laminar (ISO
+        6358, :func:`_iso_law_derivative`); None for others."""
         pa, pb = V[:, 0], V[:, 2]
         if P.model == "ISO 6358":
             if name != "C":
-                return None
+                return _flow_law_jacobian(P, _iso_law_derivative(P, pa, pb, name))
             q = massflow_ISO_6358(pa, pb, P.T, P.C, P.b, P.subsonic_index, P.pr_laminar)[0]
             return _flow_law_jacobian(P, q / P.C)
         fl = P.fluid
@@ -457,9 +496,9 @@ class TeslaValve(_TubeLike):
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
-        """(dF/d theta, dr/d theta) for length, diameter, roughness, diodicity and
-        Re_blend (the blend's width scales the flow mf_blend ∝ Re_blend·D);
-        None for the laminar-turbulent bounds, which group valves."""
+        """(dF/d theta, dr/d theta) for length, diameter, roughness, diodicity,
+        Re_blend (the blend's width scales the flow mf_blend ∝ Re_blend·D) and the
+        laminar-turbulent bounds Re_laminar, Re_turbulent."""
         pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
         c = P.c_mu / _mean_density(P.fluid, pa, pb)[0]
         w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
@@ -475,6 +514,9 @@ class TeslaValve(_TubeLike):
             d = dp * (1.0 - w)
         elif name == "Re_blend":
             d = d_blend / P.Re_blend
+        elif name in BLEND_BOUNDS:
+            Re = np.abs(mfa) * P.re_per_mf
+            d = c * mfa * mult * friction_bound_derivative(P, Re, name)
         else:
             return None
         return _flow_law_jacobian(P, d)
@@ -621,8 +663,8 @@ class SnappingValve(_TubeLike):
         """(dF/d theta, dr/d theta) for the open passage's length, diameter and
         roughness, the closed_conductance, and the opening and closing pressures
         (0 in the equations: they act through the switch time, which the
-        sensitivities carry with :meth:`switching_param_jacobian` under BDF);
-        None for the laminar-turbulent bounds."""
+        sensitivities carry with :meth:`switching_param_jacobian` under BDF) and
+        the open passage's laminar-turbulent bounds."""
         pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
         is_open = S[:, 0] > 0.5
         rho = _mean_density(P.fluid, pa, pb)[0]
@@ -632,6 +674,10 @@ class SnappingValve(_TubeLike):
             d = np.where(is_open, 0.0, -mfa / (P.closed_conductance ** 2 * rho))
         elif name in ("opening_pressure", "closing_pressure"):
             d = np.zeros(P.n)
+        elif name in BLEND_BOUNDS:
+            Re = np.abs(mfa) * P.re_per_mf
+            d = np.where(is_open, P.c_mu / rho * mfa * friction_bound_derivative(P, Re, name),
+                         0.0)
         else:
             return None
         return _flow_law_jacobian(P, d)

@@ -45,6 +45,37 @@ def parameter_names(comp):
     return list(_class_parameters(type(comp)))
 
 
+def given_value(comp, name):
+    """The constructor argument ``name`` of a library component as it was given
+    (its default where it was not); None where the component keeps no definition.
+    (A component may store another thing under the name: a hysteretic actuator's
+    initial_branch 'inflation' is kept as the number 1.0.)"""
+    definition = comp.__dict__.get("_definition")
+    if definition is None:
+        return None
+    args, kwargs = definition
+    try:
+        bound = _signature(comp).bind(comp, *args, **kwargs)
+    except TypeError:
+        return None
+    bound.apply_defaults()
+    return bound.arguments.get(name)
+
+
+def is_choice(comp, name):
+    """The constructor argument ``name`` is a name or a flag, not a number: given
+    as a str or bool, or declared so (``initial_branch: str | None``: a hysteretic
+    actuator keeps its default choice as the number 1.0 or 0.0)."""
+    if isinstance(given_value(comp, name), (str, bool)):
+        return True
+    param = _signature(comp).parameters.get(name)
+    note = getattr(param, "annotation", None)
+    if not isinstance(note, str) or not note.strip():
+        return False
+    kinds = {k.strip() for k in note.split("|")}
+    return kinds <= {"str", "bool", "None"} and kinds != {"None"}
+
+
 def split(params, labels):
     """``{"label.name": value}`` as ``{label: {name: value}}``; clear errors for
     keys that are not ``label.name`` or name no component."""

@@ -33,10 +33,15 @@ parameter derivatives come from an optional classmethod of a library class,
 ``residual``, dr/dtheta (n, n_continuous) of its ``rates``) for parameter
 ``name`` of every instance of the group, or None for a parameter it does not
 cover; the step's dF/dtheta + dF/dX · c · dr/dtheta is composed once, in
-:func:`softflow.solve.discretize.param_step_derivative`. Only the class that
-defines ``param_jacobian`` uses it: a thermal variant or a subclass with
-another law falls back. The fallback, for such parameters, user components
-and classes that write their own step (thermal volumes), is a finite
+:func:`softflow.solve.discretize.param_step_derivative`. Every numeric
+parameter of the library's isothermal classes is covered (the friction
+blend's bounds Re_laminar / Re_turbulent and an ISO 6358 orifice's b and
+pr_laminar included). Only the class that defines ``param_jacobian`` uses it:
+a subclass with another law falls back. The thermal variants of the flow
+elements and sources state their own (the isothermal law's, the flow row
+scaled by the upstream temperature's factor); the thermal volumes (another
+law) and a source's temperature do not. The fallback, for those, user
+components and classes that write their own step, is a finite
 difference (relative step 1e-6) of a twin component rebuilt with the
 parameter moved, and directional differences of the group's step kernel and
 update along the sensitivity vectors. Initial states: a component's
@@ -92,7 +97,15 @@ t* is found:
   valve's +-1 on its pressures and opening/closing pressure, a hysteretic
   loop's volume against its branch limits), forward differences of
   ``switching`` where the class that states ``switching`` does not state
-  them. Of several functions crossing in one step the earliest is taken.
+  them. The stepper ends a switching step just past the earliest crossing,
+  but accepts one over which several cross (within its last SWITCH_PAST, or
+  a step that moves by less than the tolerance): each crossing then jumps in
+  turn, in the order of its crossing time, by its own dt*/dtheta and the
+  rate change of its own mode, the rates with the modes changed one after
+  another worked out from the equations at the step's end. A run that ends on
+  the step that switched (no restart follows) gets its jump at that last
+  point all the same (:meth:`Sensitivities.finish`), its rates after the
+  switch and the unknowns' rate before it from the equations there.
   Measured against central differences of whole runs at rtol 1e-8 (tests):
   <= 1.3e-4 after a snapping valve's switches, where the held switch time
   was off by order one; a hysteretic loop's branches meet at its limits, so
@@ -109,13 +122,14 @@ t* is found:
 from __future__ import annotations
 
 import numpy as np
+from scipy.sparse.linalg import splu
 
 from ..network.system import NetworkError
 from .bdf import _PRED_PSI, BDF
 from .discretize import linearizable, param_step_derivative, step_plan, step_point
 from .linalg import DENSE_MAX
 from .sensitivity_deferred import INITIAL, DeferredSteps, SensitivityWarning, _jumped  # noqa: F401
-from .params import STRUCTURAL, parameter_names, rebuild
+from .params import STRUCTURAL, given_value, is_choice, parameter_names, rebuild
 from .thermal import configure_like
 
 #: Relative step of the finite differences (parameters without an analytic
@@ -182,6 +196,24 @@ def _switching_param(cls, P, V, S, i, j, name, twin, eps):
     return float((moved.ravel()[j] - here) / eps)
 
 
+def _is_number(value):
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_))
+
+
+def _named_choice(comp, name):
+    """The argument is a name or a flag (a hysteretic actuator's initial_branch
+    'inflation', a valve's initially_open), whatever number the component keeps
+    for it (:func:`softflow.solve.params.is_choice`)."""
+    return is_choice(comp, name)
+
+
+def _differentiable(comp, name):
+    """A parameter sensitivities can be taken to: a finite number, not a choice."""
+    value = _numeric_value(comp, name)
+    return _is_number(value) and np.isfinite(value) and not _named_choice(comp, name)
+
+
 def _numeric_value(comp, name):
     """The SI number behind a component's parameter: its attribute, or a
     source's constant value (None for a waveform or a function of time)."""
@@ -226,11 +258,15 @@ class Sensitivities(DeferredSteps):
                 raise KeyError(f"sensitivities[{key!r}]: {comp.describe()} has no parameter "
                                f"{name!r}; its parameters are {', '.join(valid) or 'none'}")
             value = _numeric_value(comp, name)
-            if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float)):
+            if not _is_number(value) or _named_choice(comp, name):
+                shown = given_value(comp, name) if _named_choice(comp, name) else value
+                shown = "not given: the component chooses" if shown is None else repr(shown)
+                numeric = [k for k in valid if k not in STRUCTURAL and _differentiable(comp, k)]
                 raise NetworkError(
                     f"sensitivities[{key!r}]: {comp.describe()}'s {name!r} is not a number "
-                    f"({value!r}); sensitivities are taken with respect to numeric "
-                    "parameters (e.g. a diameter, a volume, a pressure)")
+                    f"({shown}), so it is not differentiable; sensitivities are taken with "
+                    f"respect to numeric parameters: {comp.label!r}'s are "
+                    f"{', '.join(numeric) or 'none'}")
             if not np.isfinite(value):
                 raise NetworkError(
                     f"sensitivities[{key!r}]: {comp.describe()} does not use {name!r} "
@@ -282,6 +318,7 @@ class Sensitivities(DeferredSteps):
                 s_S0[p, g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = self._initial_states(
                     comp, twin, eps, self.names[p].rsplit(".", 1)[1])
         self._sS = s_S0
+        self._ends, self._t_last, self._switched_last = (None, (x0, S0, t0, None)), t0, False
         if self.deferred:     # worked out with the first steps (s_x0 None till then)
             self._push(x0, S0, t0, 0.0, INITIAL)
             return None, s_S0
@@ -294,6 +331,8 @@ class Sensitivities(DeferredSteps):
         """One accepted step, converged to x from psi at time t with coefficient c:
         its states' s_psi are the last step's states' (k = 0, backward Euler) or
         formed from the BDF difference table at order k."""
+        self._ends = (self._ends[1], (x, psi, t, c))
+        self._t_last, self._switched_last = t, False
         if self.deferred:
             self._push(x, psi, t, c, k)
             return
@@ -329,24 +368,31 @@ class Sensitivities(DeferredSteps):
         parameters, dt*/dtheta = -(dg/dx s_x + dg/dS s_S + dg/dtheta) / (dg/dt)
         for the switching function g that crossed zero, makes the states'
         sensitivity jump by -(rate after - rate before) dt*/dtheta."""
-        jump = self._switch_jump(x0, S0, x, S, psi, c, xdot, rate_after)
-        if jump is None:
-            return
-        if self.deferred:
-            self._log.append(jump)
-        else:
-            self._sS = _jumped(self._last_x, self._sS, jump)
-            self._blocks_s[-1][-1] = self._sS
+        self._switched_last = True
+        for jump in self._switch_jumps(x0, S0, x, S, psi, c, xdot, rate_after):
+            if self.deferred:
+                self._log.append(jump)
+            else:
+                self._sS = _jumped(self._last_x, self._sS, jump)
+                self._blocks_s[-1][-1] = self._sS
 
-    def _switch_jump(self, x0, S0, x, S, psi, c, xdot, rate_after):
-        """("jump", dg/dx (n,), dg/dS (n_s,), dg/dtheta (n_p,), dg/dt, rate change
-        (n_s,)) of the earliest crossing, or None where no switching function
-        crossed (the switch is then held where it fell)."""
+    def _switch_jumps(self, x0, S0, x, S, psi, c, xdot, rate_after):
+        """[("jump", dg/dx (n,), dg/dS (n_s,), dg/dtheta (n_p,), dg/dt, rate change
+        (n_s,)), ...]: one per switching function that crossed zero in the step
+        and whose mode changed, in the order of their (secant) crossing times.
+        The integrator places a step's end just past the earliest crossing, but
+        accepts a step over which several cross (within its last SWITCH_PAST, or a
+        step that moved by less than the tolerance): each then jumps in turn,
+        crossing j by -(f_j - f_(j-1)) dt_j*/dtheta, f_j the states' rate with
+        the first j modes changed (all from the equations at the step's end,
+        :meth:`_rates_in_modes`; one crossing alone takes the step's rate
+        before and the integrator's after, as before), dt_j*/dtheta from the
+        left-hand s_x and the s_S the earlier jumps left. Empty where none crossed (the switch is held where it fell)."""
         asm = self.asm
         disc = asm.s_discrete
         old = S.copy()
         old[disc] = S0[disc]
-        best = None
+        found = []
         for g in asm.groups:
             if g.switching is None:
                 continue
@@ -354,25 +400,57 @@ class Sensitivities(DeferredSteps):
             g1 = np.asarray(g.switching(x[g.col], old[g.s0:g.s1].reshape(g.n, g.ns)), float)
             g0, g1 = g0.reshape(g.n, -1), g1.reshape(g.n, -1)
             cross = (g0 < 0.0) & (g1 >= 0.0)
+            if not cross.any():
+                continue
+            local = step_plan(g.comps[0].kernel_class()).disc
             for i, j in zip(*np.nonzero(cross)):
-                theta = g0[i, j] / (g0[i, j] - g1[i, j])
-                if best is None or theta < best[0]:
-                    best = (theta, g, int(i), int(j))
-        if best is None:
-            return None
-        _, g, i, j = best
+                at = g.s0 + int(i) * g.ns + int(local[j])
+                if S[at] != S0[at]:           # its mode did change
+                    found.append((g0[i, j] / (g0[i, j] - g1[i, j]), len(found), g,
+                                  int(i), int(j), at))
+        found.sort(key=lambda f: f[:2])
+        rate_before = (S - psi) / c
+        rate_before[disc] = 0.0
+        if len(found) == 1:
+            rate = rate_before
+        else:
+            # several: every rate from the equations alike (the step's and the
+            # restart probe's differ from these by Newton's tolerance, which the
+            # differences between them would hand to the other crossings' states)
+            rate = self._rates_in_modes(x, old, self._t_last)
+        jumps, modes = [], old.copy()
+        for k, (_, _, g, i, j, at) in enumerate(found):
+            modes[at] = S[at]
+            if k + 1 < len(found):
+                after = self._rates_in_modes(x, modes, self._t_last)
+            elif len(found) > 1:
+                modes[disc] = S[disc]
+                after = self._rates_in_modes(x, modes, self._t_last)
+            else:
+                after = np.asarray(rate_after, dtype=float).copy()
+                after[disc] = 0.0
+            jump = self._crossing_jump(g, i, j, x, old, xdot, rate_before, after - rate)
+            rate = after
+            if jump is not None:
+                jumps.append(jump)
+        return jumps
+
+    def _crossing_jump(self, g, i, j, x, old, xdot, rate_before, change):
+        """The jump of switching function j of instance i of group g (see
+        :meth:`_switch_jumps`); None where it grazes (dg/dt <= 0: t* is not
+        differentiable there)."""
+        asm = self.asm
+        disc = asm.s_discrete
         V, Sg = x[g.col], old[g.s0:g.s1].reshape(g.n, g.ns)
         cls = g.comps[0].kernel_class()
         P = g.switching.args[0]
         GV, GS = _switching_gradient(cls, P, V, Sg)
         gx = np.zeros(asm.n)
         np.add.at(gx, g.col[i], GV[i, j])
-        gS = np.zeros(len(S))
+        gS = np.zeros(len(old))
         gS[g.s0 + i * g.ns:g.s0 + (i + 1) * g.ns] = GS[i, j]
         gS[disc] = 0.0
-        rate_before = (S - psi) / c
-        rate_before[disc] = 0.0
-        change = np.asarray(rate_after, dtype=float) - rate_before
+        change = change.copy()
         change[disc] = 0.0
         gdot = float(gx @ xdot + gS @ rate_before)
         gth = np.zeros(self.n_p)
@@ -381,8 +459,78 @@ class Sensitivities(DeferredSteps):
                 gth[p] = _switching_param(cls, P, V, Sg, i, j, self.names[p].rsplit(".", 1)[1],
                                           twin, eps)
         if not (np.isfinite(gdot) and gdot > 0.0):
-            return None         # grazing (dg/dt = 0): t* is not differentiable
+            return None
         return ("jump", gx, gS, gth, gdot, change)
+
+    # -- the algebraic equations at a point (c = 0), for the switches' rates -----------
+    def _algebraic_jacobian(self, x, S, t):
+        """F(x; S) of the equations at c = 0 (the states held) and their Jacobian
+        (dense or CSC), evaluated here: Newton's factors are not touched."""
+        F = self.asm.residual(x, S, t, 0.0, jac=True)
+        return F, self._jacobian()
+
+    @staticmethod
+    def _lin_solve(J, b):
+        if isinstance(J, np.ndarray):
+            return np.linalg.solve(J, b)
+        return splu(J.tocsc(), permc_spec="COLAMD").solve(np.ascontiguousarray(b))
+
+    def _rates_in_modes(self, x, S, t):
+        """The states' rates (discrete: 0) at the states S with the modes in S: the
+        unknowns from the equations at c = 0 (Newton from x, held to 1e-10 of
+        Newton's tolerances), the rates from the update, affine in its step
+        (X = S + dt r; the adaptive stepper requires it)."""
+        asm = self.asm
+        x = x.copy()
+        for _ in range(20):
+            F, J = self._algebraic_jacobian(x, S, t)
+            dx = self._lin_solve(J, F)
+            x -= dx
+            if np.max(np.abs(dx) / self.newton.tol) <= 1e-10:
+                break
+        r = np.asarray(asm.update_states(x, S, 1.0), dtype=float) - S
+        if asm.has_discrete:
+            r[asm.s_discrete] = 0.0
+        return r
+
+    def _unknowns_rate(self, x, S, rate, t):
+        """dx/dt along the states' rate at (x, S) (the equations at c = 0:
+        J x' = -(dF/dS S' + dF/dt), the bracket a central difference along
+        (S', 1) of relative size 1e-6 of the state's scale)."""
+        F0, J = self._algebraic_jacobian(x, S, t)
+        scale = np.max(np.abs(S[rate != 0]), initial=0.0) / max(np.max(np.abs(rate)), 1e-300)
+        h = 1e-6 * (scale if 0.0 < scale < np.inf else 1.0)
+        up = self.asm.residual(x, S + h * rate, t + h, 0.0)
+        down = self.asm.residual(x, S - h * rate, t - h, 0.0)
+        return -self._lin_solve(J, (up - down) / (2.0 * h))
+
+    def _end_switch(self):
+        """A run that ends on the step that switched (no restart follows, so the
+        integrator hands over no :meth:`switch`): the jump at that last point,
+        with the rates after it and the unknowns' rate before it worked out here
+        (:meth:`_rates_in_modes`, :meth:`_unknowns_rate`)."""
+        asm = self.asm
+        if not (self._bdf and asm.has_discrete) or getattr(self, "_switched_last", True):
+            return
+        prev, last = self._ends
+        if prev is None or last is None or last[3] is None:
+            return
+        x, psi, t, c = last
+        S = np.asarray(asm.update_states(x, psi, c), dtype=float)
+        disc = asm.s_discrete
+        if np.array_equal(S[disc], psi[disc]):
+            return
+        x0, S0, _, c0 = prev
+        if c0 is not None:                     # the step before's end states
+            S0 = np.asarray(asm.update_states(x0, S0, c0), dtype=float)
+        old = S.copy()
+        old[disc] = psi[disc]
+        rate_before = (S - psi) / c
+        rate_before[disc] = 0.0
+        xdot = self._unknowns_rate(x, old, rate_before, t)
+        rate_after = self._rates_in_modes(x, S, t)
+        self._t_last = t
+        self.switch(x0, S0, x, S, psi, c, xdot, rate_after)
 
     def _op(self, op):
         if self.deferred:
@@ -410,7 +558,11 @@ class Sensitivities(DeferredSteps):
         self._last_x = s_x[-1]
 
     def finish(self):
-        """Work out the steps still waiting (deferred mode)."""
+        """The jump of a switch on the run's last step (:meth:`_end_switch`), then
+        the steps still waiting (deferred mode)."""
+        if not getattr(self, "_finished", False):
+            self._finished = True
+            self._end_switch()
         if self.deferred and self._n_buf:
             self._flush()
 
