@@ -29,7 +29,7 @@ from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
 from ..fluids.base import FluidError
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
-from .chambers import _given
+from .chambers import _given, initial_mass_jacobian
 from .base import FLUID_PORT, LibraryComponent, Params
 from .chambers import MASS_RATE_PATTERN, mass_rates
 
@@ -222,24 +222,27 @@ class Actuator(LibraryComponent):
     def initial_states(self):
         return [float(self.fluid.density(self.initial_pressure)) * self.initial_volume]
 
-    def initial_state_jacobian(self, name):
-        """d(initial mass)/d theta of m0 = rho(p0)·v0 with p0 = p_atm + s·(curve(v0) -
-        p_atm) on the curve: for initial_volume (or initial_pressure, the curve
+    def _initial_point_jacobian(self, name):
+        """(dp0/d theta, dv0/d theta) of the initial point on the curve, p0 = p_atm +
+        s·(curve(v0) - p_atm): for initial_volume (or initial_pressure, the curve
         inverted) and pressure_scale; None for others."""
         v0, p0, s = self.initial_volume, self.initial_pressure, self.pressure_scale
-        rho, drho = float(self.fluid.density(p0)), float(self.fluid.density_dp(p0))
         pc, dpc = (float(a[0]) for a in self._curve_fn.fdf(np.array([v0])))
-        by_pressure = _given(self, "initial_pressure")
         # (moving one of initial_volume / initial_pressure gives it from then on)
         if name == "initial_volume":
-            return [rho + drho * v0 * s * dpc]
+            return s * dpc, 1.0
         if name == "initial_pressure":
-            return [drho * v0 + rho / (s * dpc)]
+            return 1.0, 1.0 / (s * dpc)
         if name == "pressure_scale":
-            if by_pressure:        # v0 moves: curve(v0) = p_atm + (p0 - p_atm) / s
-                return [-rho * (p0 - pressure_atmospheric) / (s * s * dpc)]
-            return [drho * v0 * (pc - pressure_atmospheric)]
+            if _given(self, "initial_pressure"):   # v0 moves: curve(v0) = p_atm + (p0 - p_atm)/s
+                return 0.0, -(p0 - pressure_atmospheric) / (s * s * dpc)
+            return pc - pressure_atmospheric, 0.0
         return None
+
+    def initial_state_jacobian(self, name):
+        """d(initial mass)/d theta of m0 = rho(p0)·v0 (:meth:`_initial_point_jacobian`),
+        or None."""
+        return initial_mass_jacobian(self, name)
 
     # -- kernels --------------------------------------------------------------------------
     @classmethod
@@ -271,8 +274,12 @@ class Actuator(LibraryComponent):
             return np.zeros((P.n, 1)), np.zeros((P.n, 1))
         if name != "pressure_scale":
             return None
-        vol = _volume(P, V, S)[2]
-        return (pressure_atmospheric - P.curve.value(vol))[:, None], np.zeros((P.n, 1))
+        return cls.scale_jacobian(P, _volume(P, V, S)[2])[:, None], np.zeros((P.n, 1))
+
+    @staticmethod
+    def scale_jacobian(P, vol):
+        """d(p - p_curve)/d pressure_scale at the volume vol: p_atm - curve(vol)."""
+        return pressure_atmospheric - P.curve.value(vol)
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -449,15 +456,21 @@ class HystereticActuator(LibraryComponent):
         return [float(self.fluid.density(self.initial_pressure)) * self.initial_volume,
                 self.initial_branch]
 
-    def initial_state_jacobian(self, name):
-        """d(initial states)/d theta for initial_volume: m0 = rho(p0)·v0 with p0 on
-        the initial branch (which a small change keeps); None for others."""
+    def _initial_point_jacobian(self, name):
+        """(dp0/d theta, dv0/d theta) for initial_volume, p0 on the initial branch
+        (which a small change keeps), and meet_tolerance (0); None for others."""
+        if name == "meet_tolerance":
+            return 0.0, 0.0
         if name != "initial_volume":
             return None
-        v0, p0 = self.initial_volume, self.initial_pressure
-        dpc = float(self.loop.fdf_volume(np.array([v0]), self.initial_branch > 0.5)[1][0])
-        rho, drho = float(self.fluid.density(p0)), float(self.fluid.density_dp(p0))
-        return [rho + drho * v0 * dpc, 0.0]
+        v0 = self.initial_volume
+        return float(self.loop.fdf_volume(np.array([v0]), self.initial_branch > 0.5)[1][0]), 1.0
+
+    def initial_state_jacobian(self, name):
+        """d(initial states)/d theta: the mass's (:meth:`_initial_point_jacobian`), the
+        branch's 0; None for others."""
+        dm = initial_mass_jacobian(self, name)
+        return None if dm is None else dm + [0.0]
 
     @classmethod
     def make_params(cls, components):

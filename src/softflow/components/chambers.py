@@ -40,6 +40,19 @@ def _given(comp, name):
     return bound.arguments.get(name) is not None
 
 
+def initial_mass_jacobian(comp, name):
+    """d(initial mass)/d theta of m0 = rho(p0)·V0 from the volume's initial point's
+    derivatives (dp0/d theta, dV0/d theta) (:meth:`_initial_point_jacobian`, the one
+    place each class states how its parameters move p0 and V0), or None."""
+    d = comp._initial_point_jacobian(name)
+    if d is None:
+        return None
+    from .thermal import initial_fluid_volume
+    p0 = comp.initial_pressure
+    return [float(comp.fluid.density_dp(p0)) * d[0] * initial_fluid_volume(comp)
+            + float(comp.fluid.density(p0)) * d[1]]
+
+
 def _volume_law_jacobian(P, V, name, dvolume, rigid_liquid=False):
     """(dF/d theta, dr/d theta) of a volume's law F = rho(p)·V_fluid - m, given
     d V_fluid/d theta per parameter name (``dvolume``); initial_pressure only
@@ -103,21 +116,25 @@ class Container(LibraryComponent):
         vol = self.volume
         return {"volume": ("volume", lambda get: np.full(np.shape(get("mass")), vol))}
 
+    @staticmethod
+    def volume_jacobian(P, p):
+        """{parameter: d(fluid volume)/d theta} of the rigid wall (volume)."""
+        return {"volume": 1.0}
+
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta, dr/d theta) for volume (F = rho(p)·volume - m) and
         initial_pressure (0: it sets the initial mass only); None for others."""
-        return _volume_law_jacobian(P, V, name, {"volume": 1.0},
+        return _volume_law_jacobian(P, V, name, cls.volume_jacobian(P, V[:, 0]),
                                     rigid_liquid=not P.fluid.compressible)
+
+    def _initial_point_jacobian(self, name):
+        """(dp0/d theta, dV0/d theta) of the initial pressure and fluid volume, or None."""
+        return {"volume": (0.0, 1.0), "initial_pressure": (1.0, 0.0)}.get(name)
 
     def initial_state_jacobian(self, name):
         """d(initial mass)/d theta of m0 = rho(p0)·volume, or None."""
-        p0 = self.initial_pressure
-        if name == "volume":
-            return [float(self.fluid.density(p0))]
-        if name == "initial_pressure":
-            return [float(self.fluid.density_dp(p0)) * self.volume]
-        return None
+        return initial_mass_jacobian(self, name)
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -201,27 +218,34 @@ class LinearAccumulator(LibraryComponent):
         """(dF/d theta, dr/d theta) of F = rho(p)·(volume + compliance (p - p_ref)) - m
         for volume, compliance and reference_pressure, and initial_pressure (0);
         None for others."""
-        dp = V[:, 0] - P.reference_pressure
-        return _volume_law_jacobian(P, V, name, {"volume": 1.0, "compliance": dp,
-                                                 "reference_pressure": -P.compliance})
+        return _volume_law_jacobian(P, V, name, cls.volume_jacobian(P, V[:, 0]))
+
+    @staticmethod
+    def volume_jacobian(P, p):
+        """{parameter: d(fluid volume)/d theta} of vol = volume + compliance (p - p_ref)."""
+        return {"volume": 1.0, "compliance": p - P.reference_pressure,
+                "reference_pressure": -P.compliance}
+
+    def _initial_point_jacobian(self, name):
+        """(dp0/d theta, dV0/d theta) of the initial pressure p0 and fluid volume
+        V0 = volume + compliance (p0 - p_ref) for volume, compliance,
+        reference_pressure and initial_pressure (p0 is p_ref where
+        initial_pressure was not given: then they move together), or None."""
+        p0, pref, C = self.initial_pressure, self.reference_pressure, self.compliance
+        if name == "volume":
+            return 0.0, 1.0
+        if name == "compliance":
+            return 0.0, p0 - pref
+        if name == "reference_pressure":
+            return (0.0, -C) if _given(self, "initial_pressure") else (1.0, 0.0)
+        if name == "initial_pressure":       # (given from then on, if it was not)
+            return 1.0, C
+        return None
 
     def initial_state_jacobian(self, name):
-        """d(initial mass)/d theta of m0 = rho(p0)·(volume + compliance (p0 - p_ref))
-        for volume, compliance, reference_pressure and initial_pressure (p0 is
-        p_ref where initial_pressure was not given: then they move together),
+        """d(initial mass)/d theta of m0 = rho(p0)·V0 (:meth:`_initial_point_jacobian`),
         or None."""
-        p0, pref, C = self.initial_pressure, self.reference_pressure, self.compliance
-        rho, drho = float(self.fluid.density(p0)), float(self.fluid.density_dp(p0))
-        given = _given(self, "initial_pressure")
-        if name == "volume":
-            return [rho]
-        if name == "compliance":
-            return [rho * (p0 - pref)]
-        if name == "reference_pressure":
-            return [-rho * C] if given else [drho * self._fluid_volume(p0)]
-        if name == "initial_pressure":       # (given from then on, if it was not)
-            return [drho * self._fluid_volume(p0) + rho * C]
-        return None
+        return initial_mass_jacobian(self, name)
 
     @classmethod
     def rates(cls, P, V, S, jac):

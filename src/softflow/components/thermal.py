@@ -814,6 +814,140 @@ class _LoopCurve(_CurveWall):
         return np.column_stack([new.astype(float), offset])
 
 
+# -- parameter derivatives of the volumes (the sensitivities' param_jacobian) ----------
+# Each wall states d(wall law)/d theta and d(work W)/d theta (:meth:`_wall_param`),
+# from the isothermal class's own volume law (volume_jacobian, scale_jacobian) and its
+# initial point's derivatives (_initial_point_jacobian: how theta moves p0 and V0).
+
+#: Parameters of a volume's thermal model: they do not move its initial pressure or
+#: volume (initial_temperature moves its initial mass and energy through rho(p0, T0)).
+_THERMAL_PARAMETERS = ("initial_temperature", "wall_temperature", "hA",
+                       "heat_transfer_coefficient", "area")
+
+
+def _first(x):
+    return float(np.asarray(x, dtype=float).ravel()[0])
+
+
+def _initial_points(P, name):
+    """Per instance: (dp0/d theta, dV0/d theta, p0, V0) arrays (n,) from the isothermal
+    class's ``_initial_point_jacobian`` (0 for the thermal model's parameters), or
+    None where it states none."""
+    seen = {}
+    for c in P.components:
+        if id(c) not in seen:
+            d = (0.0, 0.0) if name in _THERMAL_PARAMETERS else c._initial_point_jacobian(name)
+            if d is None:
+                return None
+            seen[id(c)] = (d[0], d[1], c.initial_pressure, initial_fluid_volume(c))
+    return np.array([seen[id(c)] for c in P.components], dtype=float).T
+
+
+def _rigid_wall_param(cls, P, p, T, S, name, d0):
+    """rho(p, T)·d(volume)/d theta of the law rho(p, T) vol - m (the isothermal
+    class's ``volume_jacobian``); no work."""
+    dvol = cls.volume_jacobian(P, p).get(name)
+    if dvol is None:
+        return 0.0, 0.0
+    return _parts(P.fluid, "density", p, T, False)[0] * dvol, 0.0
+
+
+def _linear_wall_param(cls, P, p, T, S, name, d0):
+    """As the rigid wall's, and W = compliance (p^2 - p_0^2)/2: d/d compliance =
+    W/compliance, and -compliance p_0 dp_0/d theta."""
+    dF0 = _rigid_wall_param(cls, P, p, T, S, name, d0)[0]
+    p_i = P.p_initial
+    dW = -P.compliance * p_i * d0[0]
+    if name == "compliance":
+        dW = dW + 0.5 * (p * p - p_i * p_i)
+    return dF0, dW
+
+
+def _plain_curve_param(cls, P, p, T, S, name, d0):
+    """p - (p_atm + s (curve(vol) - p_atm)) with vol = m / rho(p, T): the isothermal
+    class's ``scale_jacobian``; W = work(vol) - work(v0) of the scaled curve: d/ds =
+    the unscaled gauge work between v0 and vol, and -p0 dv0/d theta."""
+    dW = -d0[2] * d0[1]
+    if name != "pressure_scale":
+        return 0.0, dW
+    vol = S[:, 0] / _parts(P.fluid, "density", p, T, False)[0]
+    v0 = d0[3]
+    gauge = (P.curve.work(vol) - pressure_atmospheric * vol) - (
+        P.curve.work(v0) - pressure_atmospheric * v0)
+    return Actuator.scale_jacobian(P, vol), dW + gauge
+
+
+def _loop_curve_param(cls, P, p, T, S, name, d0):
+    """The loop's law has no numeric parameter; W = work(vol) - work_offset, the
+    offset carrying the loop's work at v0 (its changes of branch fall at the
+    loop's fixed limits): -p0 dv0/d theta."""
+    return 0.0, -d0[2] * d0[1]
+
+
+_RigidWall._wall_param = classmethod(_rigid_wall_param)
+_LinearWall._wall_param = classmethod(_linear_wall_param)
+_PlainCurve._wall_param = classmethod(_plain_curve_param)
+_LoopCurve._wall_param = classmethod(_loop_curve_param)
+
+
+def _volume_param_jacobian(cls, P, V, S, t, name):
+    """(dF/d theta, dr/d theta) of a thermal volume (rates: none): the wall's law and
+    work (:meth:`_wall_param`) for the isothermal class's parameters (volume,
+    compliance, reference/initial pressure, initial volume, pressure_scale,
+    meet_tolerance); wall_temperature, hA and a constant heat_transfer_coefficient
+    / area in Q - hA (T_wall - T) (a held volume: T - T_wall); initial_temperature
+    0 (it sets the initial states only). None for an area with a heat-transfer
+    correlation (h set each step: finite differences) and for other names."""
+    free = issubclass(cls, _Free)
+    n = P.n
+    dF = np.zeros((n, 3 if free else 2))
+    dr = np.zeros((n, 2 if free else 1))
+    p, T = V[:, 0], V[:, 2]
+    if name in _THERMAL_PARAMETERS:
+        if name == "initial_temperature" or not free and name != "wall_temperature":
+            return dF, dr
+        if name == "wall_temperature":
+            dF[:, 2 if free else 1] = -P.hA if free else -1.0
+            return dF, dr
+        if name == "area" and P.corr_idx.size:
+            return None
+        gap = P.T_wall - T
+        if name == "hA":
+            dF[:, 2] = -gap
+        else:
+            area = np.array([c.area if c.area is not None else np.nan for c in P.components])
+            dF[:, 2] = -gap * (area if name == "heat_transfer_coefficient" else P.hA / area)
+        return dF, dr
+    d0 = _initial_points(P, name)
+    if d0 is None:
+        return None
+    dF0, dW = cls._wall_param(P, p, T, S, name, d0)
+    dF[:, 0] = dF0
+    if free:
+        dF[:, 1] = dW
+    return dF, dr
+
+
+def _volume_initial_state_jacobian(cls, comp, name):
+    """d(initial states)/d theta of a thermal volume: m0 = rho(p0, T0)·V0 and
+    E_s0 = m0 (u(p0, T0) - h0) with p0, V0 moved as the isothermal class's
+    ``_initial_point_jacobian`` says and T0 by initial_temperature; discrete
+    states 0 (a hysteretic volume's work offset: see :func:`_loop_curve_param`);
+    None where the isothermal class states none."""
+    dT = 1.0 if name == "initial_temperature" else 0.0
+    d = (0.0, 0.0) if name in _THERMAL_PARAMETERS else comp._initial_point_jacobian(name)
+    if d is None:
+        return None
+    p0, T0 = np.array([comp.initial_pressure]), np.array([comp._T_initial])
+    V0 = initial_fluid_volume(comp)
+    rho, rho_p, rho_T = (_first(a) for a in _parts(comp.fluid, "density", p0, T0, True))
+    u, u_p, u_T = (_first(a) for a in _parts(comp.fluid, "internal_energy", p0, T0, True))
+    dm = (rho_p * d[0] + rho_T * dT) * V0 + rho * d[1]
+    dU = dm * (u - comp._h0) + rho * V0 * (u_p * d[0] + u_T * dT)
+    rows = {"mass": dm, "stored_energy": dU}
+    return [rows.get(label, 0.0) for label, _ in cls.state_spec]
+
+
 class ThermalContainer(_Free, _RigidWall, Container):
     """Container in a thermal scene (rigid: no work)."""
 
@@ -880,6 +1014,14 @@ class HeldHystereticActuator(_Held, _LoopCurve, HystereticActuator):
     @classmethod
     def thermal_initial_states(cls, comp):
         return [cls._initial_mass_energy(comp)[0], comp.initial_branch]
+
+
+for _cls in (ThermalContainer, HeldContainer, ThermalLinearAccumulator, HeldLinearAccumulator,
+             ThermalActuator, HeldActuator, ThermalHystereticActuator,
+             HeldHystereticActuator):
+    # each class's own (the sensitivities use only a class's own param_jacobian)
+    _cls.param_jacobian = classmethod(_volume_param_jacobian)
+    _cls.thermal_initial_state_jacobian = classmethod(_volume_initial_state_jacobian)
 
 
 def initial_fluid_volume(comp):

@@ -61,8 +61,10 @@ def _flow_law_jacobian(P, dq):
 def _loss_law_derivative(P, dp, rho, q, name):
     """dq/d theta of the loss-coefficient law q = A sqrt(2 rho/K) r(dp, dp_small)
     (:func:`massflow_loss_coefficient`) for theta = diameter (A ∝ D^2 and, at
-    fixed Reynolds number, dp_small ∝ 1/D^2) or K (dp_small ∝ K); None else."""
-    if name not in ("diameter", "K"):
+    fixed Reynolds number, dp_small ∝ 1/D^2), K (dp_small ∝ K), Cd (K = 1/Cd^2:
+    dK/dCd = -2 K^1.5) or Re_laminar (dp_small ∝ Re^2, :func:`dp_at_reynolds`);
+    None else."""
+    if name not in ("diameter", "K", "Cd", "Re_laminar"):
         return None
     xs = P.dp_small
     u = dp / xs
@@ -71,7 +73,19 @@ def _loss_law_derivative(P, dp, rho, q, name):
     g = P.area * np.sqrt(2.0 * rho / P.K) * dr_dxs * xs
     if name == "diameter":
         return (2.0 * q - 2.0 * g) / np.sqrt(4.0 * P.area / np.pi)
-    return (g - 0.5 * q) / P.K
+    if name == "Re_laminar":      # dp_small xs = K rho_n (Re mu / (rho_n D))^2 / 2
+        return 2.0 * g / _laminar_reynolds(P)
+    dq_dK = (g - 0.5 * q) / P.K
+    return dq_dK if name == "K" else -2.0 * P.K ** 1.5 * dq_dK
+
+
+def _laminar_reynolds(P):
+    """The Reynolds number Re_laminar that placed dp_small (:func:`dp_at_reynolds`
+    at the fluid's nominal density and the viscosity at 1 atm), from dp_small."""
+    rho = P.fluid.rho
+    mu = float(P.fluid.viscosity(pressure_atmospheric))
+    diameter = np.sqrt(4.0 * P.area / np.pi)
+    return np.sqrt(2.0 * P.dp_small / (P.K * rho)) * rho * diameter / mu
 
 
 def _iso_law_derivative(P, pa, pb, name):
@@ -84,7 +98,7 @@ def _iso_law_derivative(P, pa, pb, name):
     odd cubic y = s (alpha + beta s^2) matched to f = u^m, u = s_l (2 - s_l), in
     value f_l and slope f'_l at s_l: beta = (f'_l - f_l/s_l)/(2 s_l^2),
     alpha = f_l/s_l - beta s_l^2, differentiated along s_l with f'' of u^m."""
-    if name not in ("b", "pr_laminar"):
+    if name not in ("b", "pr_laminar", "m"):
         return None
     forward = pa >= pb
     p_up = np.where(forward, pa, pb)
@@ -104,8 +118,17 @@ def _iso_law_derivative(P, pa, pb, name):
     dphi_dx = np.where(s < x, s * (dalpha + dbeta * s * s), 0.0)
     if name == "b":
         dphi = (dphi_ds * s + dphi_dx * x) / one_b
-    else:
+    elif name == "pr_laminar":
         dphi = -dphi_dx / one_b
+    else:     # m: u^m ln u (subsonic), the cubic's coefficients along f_l, f'_l (laminar)
+        s_c = np.clip(s, x, 1.0)
+        uc = s_c * (2.0 - s_c)
+        f_m = f * np.log(u)
+        df_m = df * (1.0 / m + np.log(u))
+        beta_m = (df_m - f_m / x) / (2.0 * x * x)
+        alpha_m = f_m / x - beta_m * x * x
+        dphi = np.where(s < x, s * (alpha_m + beta_m * s * s),
+                        np.where(s >= 1.0, 0.0, uc ** m * np.log(uc)))
     dq = k * p_up * dphi
     return np.where(forward, dq, -dq)
 
@@ -283,9 +306,10 @@ class Orifice(LibraryComponent):
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
-        """(dF/d theta, dr/d theta) for diameter and K (loss-coefficient model) or C
-        (ISO 6358, where the flow is proportional to it), b and pr_laminar (ISO
-        6358, :func:`_iso_law_derivative`); None for others."""
+        """(dF/d theta, dr/d theta) for diameter, K, Cd and Re_laminar
+        (loss-coefficient model, :func:`_loss_law_derivative`) or C (ISO 6358,
+        where the flow is proportional to it), b, pr_laminar and m (ISO 6358,
+        :func:`_iso_law_derivative`); None for others."""
         pa, pb = V[:, 0], V[:, 2]
         if P.model == "ISO 6358":
             if name != "C":
@@ -386,7 +410,8 @@ class CheckValve(LibraryComponent):
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
-        """(dF/d theta, dr/d theta) for diameter, cracking_pressure, opening_band and
+        """(dF/d theta, dr/d theta) for diameter, Cd, Re_laminar (the open passage's
+        law, :func:`_loss_law_derivative`), cracking_pressure, opening_band and
         leakage; None for others."""
         pa, pb = V[:, 0], V[:, 2]
         fl = P.fluid
@@ -400,7 +425,7 @@ class CheckValve(LibraryComponent):
             dq = -dw * (dp - P.cracking_pressure) / P.opening_band * q_open
         elif name == "leakage":
             dq = _mean_density(fl, pa, pb)[0] * dp
-        elif name == "diameter":
+        elif name in ("diameter", "Cd", "Re_laminar"):
             dq = w * _loss_law_derivative(P, dp, rho_a, q_open, name)
         else:
             return None

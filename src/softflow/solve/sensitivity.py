@@ -35,18 +35,33 @@ parameter derivatives come from an optional classmethod of a library class,
 cover; the step's dF/dtheta + dF/dX · c · dr/dtheta is composed once, in
 :func:`softflow.solve.discretize.param_step_derivative`. Every numeric
 parameter of the library's isothermal classes is covered (the friction
-blend's bounds Re_laminar / Re_turbulent and an ISO 6358 orifice's b and
-pr_laminar included). Only the class that defines ``param_jacobian`` uses it:
-a subclass with another law falls back. The thermal variants of the flow
-elements and sources state their own (the isothermal law's, the flow row
-scaled by the upstream temperature's factor); the thermal volumes (another
-law) and a source's temperature do not. The fallback, for those, user
+blend's bounds Re_laminar / Re_turbulent, an ISO 6358 orifice's b,
+pr_laminar and m, an orifice's or check valve's Cd and Re_laminar included).
+Only the class that defines ``param_jacobian`` uses it: a subclass with
+another law falls back. The thermal variants state their own: the flow
+elements and sources the isothermal law's, the flow row scaled by the
+upstream temperature's factor; the volumes (free or held) their wall's law
+and work from the isothermal class's volume law and initial point, and the
+wall heat's parameters. A source's temperature and volumes whose h·A a
+heat-transfer correlation sets each step (``begin_step``; held over the step
+in the sensitivity equations too, so these are approximate, and their
+``area`` is refused) are not covered. The fallback, for those, user
 components and classes that write their own step, is a finite
 difference (relative step 1e-6) of a twin component rebuilt with the
-parameter moved, and directional differences of the group's step kernel and
-update along the sensitivity vectors. Initial states: a component's
-``initial_state_jacobian(name)`` where it states one (a Container's mass
-rho(p0)·volume), else the twin's difference.
+parameter moved (given what the run's ``begin_step`` set), and directional
+differences of the group's step kernel and update along the sensitivity
+vectors. Initial states: a component's ``initial_state_jacobian(name)``
+where it states one (a Container's mass rho(p0)·volume; in a thermal scene
+its thermal class's ``thermal_initial_state_jacobian(comp, name)``: mass and
+stored energy), else the twin's difference.
+
+Which arguments are numbers: a component's attribute of the argument's name,
+else the number it was given (an argument kept under another name or folded
+into another, :data:`USED_AS`), else the number it chose where the argument was
+left out (:data:`CHOSEN`). A name, a flag, a curve or a correlation is refused,
+and so are an argument the configuration does not use, and a number the
+component works out from another argument (moving it alone contradicts that
+one), each naming the key and the reason.
 
 How it is evaluated. Nothing of the sensitivity equations feeds back into
 the run, so on networks whose groups are all in rate form the accepted steps
@@ -121,7 +136,10 @@ t* is found:
 """
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
+import pint
 from scipy.sparse.linalg import splu
 
 from ..network.system import NetworkError
@@ -196,6 +214,14 @@ def _switching_param(cls, P, V, S, i, j, name, twin, eps):
     return float((moved.ravel()[j] - here) / eps)
 
 
+def _begin_params(g):
+    """The Params a library group's ``begin`` (per-step coefficients) sets."""
+    for cell in getattr(g.begin, "__closure__", None) or ():
+        if hasattr(cell.cell_contents, "components") and hasattr(cell.cell_contents, "n"):
+            return cell.cell_contents
+    return None
+
+
 def _is_number(value):
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
         value, (bool, np.bool_))
@@ -214,14 +240,44 @@ def _differentiable(comp, name):
     return _is_number(value) and np.isfinite(value) and not _named_choice(comp, name)
 
 
+#: Arguments left out (None) whose number the component chooses: where to read it
+#: (a thermal scene's temperatures, a hysteresis loop's meet tolerance).
+CHOSEN = {"initial_temperature": "_T_initial", "wall_temperature": "_T_wall",
+          "temperature": "_T_source", "meet_tolerance": "loop.meet_tolerance"}
+
+
+#: Arguments kept under another attribute, or folded into one: where that attribute
+#: is NaN, the component's configuration does not use the argument (an ISO 6358
+#: orifice's Cd and Re_laminar, a K or Cd orifice's m).
+USED_AS = {"Orifice": {"m": "subsonic_index", "Cd": "K", "Re_laminar": "dp_small"}}
+
+
 def _numeric_value(comp, name):
-    """The SI number behind a component's parameter: its attribute, or a
-    source's constant value (None for a waveform or a function of time)."""
+    """The SI number behind a component's parameter: its attribute, a source's
+    constant value (None for a waveform or a function of time), else the number
+    it was given (an argument kept under another name or not at all: an
+    orifice's m or Cd, a wall's heat_transfer_coefficient; a Quantity in SI), else
+    the number the component chose where it was left out (:data:`CHOSEN`)."""
+    alias = USED_AS.get(type(comp).__name__, {}).get(name)
+    if alias is not None and not np.isfinite(getattr(comp, alias, 0.0)):
+        return float("nan")
     value = getattr(comp, name, None)
     signal = getattr(comp, "signal", None)
     if value is None and signal is not None and signal.name == name:
         value = signal.const
-    return value
+    if value is not None:
+        return value
+    given = given_value(comp, name)
+    if _is_number(given):
+        return float(given)
+    if isinstance(given, pint.Quantity) and np.ndim(given.magnitude) == 0:
+        return float(given.to_base_units().magnitude)
+    if given is None and name in CHOSEN:
+        value = comp
+        for part in CHOSEN[name].split("."):
+            value = getattr(value, part, None)
+        return value
+    return given if given is not None else value
 
 
 class Sensitivities(DeferredSteps):
@@ -271,8 +327,22 @@ class Sensitivities(DeferredSteps):
                 raise NetworkError(
                     f"sensitivities[{key!r}]: {comp.describe()} does not use {name!r} "
                     f"(it is {value!r} in this configuration)")
+            if name == "area" and getattr(comp, "_h_corr", None) is not None:
+                raise NetworkError(
+                    f"sensitivities[{key!r}]: {comp.describe()}'s h·A comes from a heat-"
+                    "transfer correlation, worked out at the start of each step and held "
+                    "over it; its derivative is not carried, so 'area' is not "
+                    "differentiable here (give a constant heat_transfer_coefficient, or hA)")
             eps = REL_STEP * (abs(value) if value != 0 else 1.0)
-            twin = configure_like(rebuild(comp, {name: value + eps}), comp, thermal)
+            try:
+                moved = rebuild(comp, {name: value + eps})
+            except (ValueError, TypeError) as err:
+                # a number the component works out from another argument (an
+                # orifice's K from its Cd): moving it alone contradicts that one
+                raise NetworkError(
+                    f"sensitivities[{key!r}]: {comp.describe()}'s {name!r} ({value!r}) cannot "
+                    f"be moved alone, so it is not differentiable here: {err}") from None
+            twin = configure_like(moved, comp, thermal)
             self.parameters.append((g, i, None, None, eps, comp, twin))
         self.n_p = len(self.parameters)
         self._setup_groups()
@@ -608,6 +678,8 @@ class Sensitivities(DeferredSteps):
             fresh = _library_group(twin.kernel_class(), comps)
             kernel_p, update_p = fresh.kernel, fresh.update
             self.parameters[p] = (g, i, kernel_p, update_p, eps, comp, twin)
+            if fresh.begin is not None:
+                self.__dict__.setdefault("_twin_params", {})[p] = _begin_params(fresh)
         if self._exact[p] is not False:
             _, cls, P, cont = self._params_of[id(g)]
             V, Sg, X, FX, _ = lin[id(g)]
@@ -620,12 +692,33 @@ class Sensitivities(DeferredSteps):
                 return out[0][i], dS
         V = x[g.col]
         Sg = psi[g.s0:g.s1].reshape(g.n, g.ns)
+        if g.begin is not None:
+            self._freeze_like(g, p)
         F0, _ = g.kernel(V, Sg, t, c, False)
         Fp, _ = kernel_p(V, Sg, t, c, False)
         dG = (Fp[i] - F0[i]) / eps
         if not g.ns:
             return dG, np.zeros(0)
         return dG, (np.asarray(update_p(V, Sg, c))[i] - np.asarray(g.update(V, Sg, c))[i]) / eps
+
+    def _freeze_like(self, g, p):
+        """Give parameter p's perturbed twin group what the run's group set at the
+        start of the step (``begin_step``: a heat-transfer correlation's h·A,
+        frozen over the step), so that the difference is the parameter's alone:
+        every entry of the run's Params that begin_step moved from its made value."""
+        P_run = _begin_params(g)
+        P_twin = self.__dict__.get("_twin_params", {}).get(p)
+        if P_run is None or P_twin is None:
+            return
+        made = self.__dict__.setdefault("_made", {})
+        if id(g) not in made:
+            made[id(g)] = g.comps[0].kernel_class().make_params(g.comps)
+        for key, base in vars(made[id(g)]).items():
+            run, twin = getattr(P_run, key, None), getattr(P_twin, key, None)
+            if (type(base) is np.ndarray and base.dtype.kind == "f" and type(run) is np.ndarray
+                    and type(twin) is np.ndarray and run.shape == base.shape == twin.shape):
+                moved = run != base
+                twin[moved] = run[moved]
 
     def _eps(self):
         return np.array([prm[4] for prm in self.parameters])
@@ -720,8 +813,12 @@ class Sensitivities(DeferredSteps):
     def _initial_states(comp, twin, eps, name):
         """d(initial states)/d theta: the component's own, where it states them
         (isothermal scenes), else a finite difference of its twin's."""
-        exact = getattr(comp, "initial_state_jacobian", None)
-        if exact is not None and comp._thermal is None and ANALYTIC:
+        if comp._thermal is None:
+            exact = getattr(comp, "initial_state_jacobian", None)
+        else:     # the thermal variant's (initial mass and stored energy)
+            exact = getattr(comp.kernel_class(), "thermal_initial_state_jacobian", None)
+            exact = None if exact is None else partial(exact, comp)
+        if exact is not None and ANALYTIC:
             out = exact(name)
             if out is not None:
                 return np.asarray(out, dtype=float)
