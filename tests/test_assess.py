@@ -1,6 +1,7 @@
 """sf.assess and Simulation(model='auto'): the recommendation on small scenes where
 one axis matters (the scenes of benchmarks/assess_scenes.py), its error against
 a fine reference, the user's System left unchanged, and bad input."""
+import dataclasses
 import pickle
 import sys
 import warnings
@@ -109,6 +110,27 @@ def test_laminar_tube_at_high_reynolds_recommends_haaland_and_inertance():
     assert "together with inertance" in rows.loc["friction", "verdict"]
     assert "clear-cut" in rows.loc["inertance", "verdict"]
     assert len(a.runs) == 3
+
+
+def test_clear_cut_probes_fall_back_to_one_run_each_where_together_they_fail(monkeypatch):
+    """The run of the clear-cut levels together fails (here: made to): each is
+    then probed on its own, as any other axis."""
+    import softflow.assess as assess_module
+    real = assess_module._Assessor.run
+
+    def run(self, config):
+        done = real(self, config)
+        args = config.overrides_dict().get("tube", {})
+        if args.get("friction") == "Haaland" and args.get("inertance"):
+            return dataclasses.replace(done, result=None, error="made to fail")
+        return done
+    monkeypatch.setattr(assess_module._Assessor, "run", run)
+    a = sf.assess(laminar_water(), 0.5, tolerance=TOL, outputs=[("tube", "massflow", "a")])
+    rows = a.table.set_index("axis")
+    assert "together" not in rows.loc["friction", "verdict"]
+    assert rows.loc["friction", "verdict"].startswith("adopted")
+    assert "failed: made to fail" in rows.loc["inertance", "verdict"]
+    assert a.recommended["overrides"] == {"tube": {"friction": "Haaland"}}
 
 
 def test_clear_cut_probes_run_one_by_one_where_one_is_not_clear():

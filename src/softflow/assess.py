@@ -487,7 +487,11 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
     while n_clear < len(probes) and getattr(probes[-1 - n_clear][2], "clear", False):
         n_clear += 1
     together = probes[len(probes) - n_clear:] if n_clear >= 2 else []
-    for axis, tried, lift, reason in probes[:len(probes) - len(together)]:
+
+    def probe(axis, tried, lift, reason):
+        """Run ``lift`` on the current configuration; adopt it where it changes
+        the outputs by more than ADOPT_FRACTION of the tolerance."""
+        nonlocal current
         up = a.run(lift(current.config))
         if not up.ok and axis == "fluid level":
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}")
@@ -496,7 +500,7 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
             up = a.run(lift(current.config))
         if not up.ok:
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}; kept the lower level")
-            continue
+            return
         effect = difference(current.result, up.result, outputs)
         if effect > ADOPT_FRACTION * tolerance:
             current = up
@@ -505,6 +509,9 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
         else:
             neglected[axis] = (effect, lift, len(rows))
             cost_row(axis, tried, effect, up, f"kept the lower level ({reason}): {effect:.2%}")
+
+    for args in probes[:len(probes) - len(together)]:
+        probe(*args)
     if together:
         cfg = current.config
         for _, _, lift, _ in together:
@@ -520,16 +527,8 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
                          f"in one run: they change the outputs by {effect:.2%}")
             current = up
         else:          # one at a time, as any other probe
-            for axis, tried, lift, reason in together:
-                one = a.run(lift(current.config))
-                if not one.ok:
-                    cost_row(axis, tried, math.nan, one,
-                             f"failed: {one.error}; kept the lower level")
-                    continue
-                effect = difference(current.result, one.result, outputs)
-                current = one
-                cost_row(axis, tried, effect, one, f"adopted ({reason}): changes the outputs "
-                                                   f"by {effect:.2%}")
+            for args in together:
+                probe(*args)
     config = current.config
     # the errors left add up: keep them within the budget (the time error is
     # measured below, on the configuration chosen)

@@ -447,6 +447,10 @@ def thermal_time_scale(g, result):
     return out
 
 
+#: np.trapezoid from NumPy 2.0, np.trapz before it (numpy>=1.23 is supported)
+_trapezoid = getattr(np, "trapezoid", None) or getattr(np, "trapz")
+
+
 #: An adiabatic gas volume's temperature that stays away from its wall's for
 #: longer than this many thermal time constants is reported: by then a real
 #: wall would have taken back most of the difference.
@@ -486,7 +490,7 @@ def adiabatic_time_scale(g, result):
     sphere = FreeConvection("sphere")
     pk, Tk, mk = p[k, cols], T[k, cols], m[k, cols]
     with np.errstate(all="ignore"):
-        persistence = np.trapezoid(dev, t, axis=0) / peak
+        persistence = _trapezoid(dev, t, axis=0) / peak
         try:
             length = sphere.characteristic_length(mk / fluid.density(pk, Tk))
             h = sphere.coefficient(fluid, pk, Tk, Tw, length)
