@@ -373,6 +373,32 @@ def _energy_columns(J, k, dE):
     np.negative(d_Tb, out=J[:, k + 7])
 
 
+def _switching_on_iso_columns(base):
+    """A switching element's (a snapping valve's) ``switch``, ``switching`` and
+    their Jacobians for its thermal variant: the isothermal law's, on the
+    isothermal columns of V (in the thermal V, column 2 is T_a, not p_b)."""
+    out = {}
+    from .base import LibraryComponent
+    if base.switch.__func__ is not LibraryComponent.switch.__func__:
+        out["switch"] = classmethod(lambda cls, P, V, S: base.switch.__func__(
+            cls, P, V[:, _ISO_COLS], S))
+    if getattr(base, "switching", None) is not None:
+        out["switching"] = classmethod(lambda cls, P, V, S: base.switching.__func__(
+            cls, P, V[:, _ISO_COLS], S))
+    if getattr(base, "switching_jacobian", None) is not None:
+        def switching_jacobian(cls, P, V, S):
+            GV_iso, GS = base.switching_jacobian.__func__(cls, P, V[:, _ISO_COLS], S)
+            GV = np.zeros(GV_iso.shape[:2] + (V.shape[1],))
+            GV[:, :, _ISO_COLS] = GV_iso
+            return GV, GS
+        out["switching_jacobian"] = classmethod(switching_jacobian)
+    if getattr(base, "switching_param_jacobian", None) is not None:
+        out["switching_param_jacobian"] = classmethod(
+            lambda cls, P, V, S, name: base.switching_param_jacobian.__func__(
+                cls, P, V[:, _ISO_COLS], S, name))
+    return out
+
+
 def _two_port_variant(base, flow_temperature):
     iso_map = {0: 0, 1: 1, 2: 4, 3: 5}
     pattern = tuple((e, iso_map[v]) for e, v in base.jac_pattern)
@@ -394,6 +420,7 @@ def _two_port_variant(base, flow_temperature):
                  "direct": direct, "isothermal_class": base,
                  # its own (the sensitivities use only a class's own param_jacobian)
                  "param_jacobian": ThermalTwoPort.__dict__["_param_jacobian"],
+                 **_switching_on_iso_columns(base),
                  "__doc__": f"{base.__name__} in a thermal scene (see softflow.components.thermal)."})
 
 
