@@ -448,6 +448,32 @@ def test_a_singular_step_jacobian_is_named_with_its_time(monkeypatch, case):
     assert res.success
 
 
+@pytest.mark.parametrize("case", ["dense", "sparse"])
+def test_a_nonfinite_parameter_derivative_is_not_called_a_singular_jacobian(monkeypatch, case):
+    """Where dF/dtheta is not finite (made so from t = 0.1 s on) and the step
+    Jacobian is regular, the warning says so: it does not blame the Jacobian
+    (whose rows mix Pa and kg/s: a rank test of it would call it singular)."""
+    original = sensitivity_deferred.DeferredSteps._stacked
+
+    def nan_late(self, X, PSI, T, cv):
+        out = list(original(self, X, PSI, T, cv))
+        out[3] = out[3].copy()
+        out[3][np.asarray(T) >= 0.1] = np.nan   # dF/dtheta of those steps
+        return tuple(out)
+    monkeypatch.setattr(sensitivity_deferred.DeferredSteps, "_stacked", nan_late)
+    monkeypatch.setattr(sensitivity_deferred, "CHUNK", 16)
+    build = (lambda: rc_circuit(tau=TAU, D=D)) if case == "dense" else (lambda: _air_chain(35))
+    name = "tube0.diameter" if case == "sparse" else "tube.diameter"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(build(), duration=0.2, step=1e-2)
+        with pytest.warns(sensitivity.SensitivityWarning,
+                          match=r"NaN from t = 0\.1 s on: a derivative of the step "
+                                r"equations is not finite") as caught:
+            sim.run(sensitivities=[name])
+    assert not any("singular" in str(w.message) for w in caught)
+
+
 # -- switches: several in one step, one on the run's last step -----------------------
 def _twin_valve_scene():
     """The snapping-valve scene twice from one pressure source (branches 1 and 2,

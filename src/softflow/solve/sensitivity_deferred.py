@@ -163,7 +163,7 @@ class DeferredSteps:
         GPSI = np.zeros((m, n, n_s + self.n_p))   # [d(step eqs)/d psi | d/d theta]
         GPSI[:, self._fx_rows, self._fx_cols] = FXW
         GPSI[:, :, n_s:] = GT
-        Z = _solve_stacked(J, GPSI)
+        Z, self._singular_step = _solve_stacked(J, GPSI)
         A, B = Z[:, :, :n_s], Z[:, :, n_s:]
         # s_S = keep·s_psi + c RV s_x + dS with s_x = -(A s_psi + B):
         # s_S = M s_psi + d, M = keep - c RV A, d = dS - c RV B
@@ -222,6 +222,7 @@ class DeferredSteps:
         fx_cols, rv_cols, keep = self._fx_cols, self._rv_cols, self._keep
         GTt, DSt = GT.transpose(0, 2, 1), DS.transpose(0, 2, 1)
         SX = np.full((m, n_p, n), np.nan)
+        self._singular_step = None      # the step whose factorization fails, if one does
         J = csc_matrix((DATA[0], asm.indices, asm.indptr), shape=(n, n))   # its pattern
 
         def advance(j, psi_p, op):
@@ -231,6 +232,8 @@ class DeferredSteps:
             try:
                 lu = splu(J, permc_spec="COLAMD", relax=1)
             except RuntimeError:          # exactly singular: NaN from here on
+                if self._singular_step is None:
+                    self._singular_step = j
                 return np.full_like(psi_p, np.nan)
             s_x = -lu.solve(np.ascontiguousarray(rhs.T)).T
             SX[j] = s_x
@@ -257,23 +260,14 @@ class DeferredSteps:
         self._failed_at = t = float(self._bt[j])
         names = [self.names[p] for p in range(self.n_p)
                  if not (np.isfinite(SX[j, p]).all() and np.isfinite(SS[j, p]).all())]
-        why = ("the step Jacobian is singular there" if self._singular_at(j)
+        # singular where that step's factorization failed (known from the solve:
+        # a rank test of the unscaled J, whose rows mix Pa and kg/s, is no test)
+        why = ("the step Jacobian is singular there" if j == self._singular_step
                else "a derivative of the step equations is not finite there")
         warnings.warn(f"sensitivities to {', '.join(names)} are NaN from t = {t:.6g} s on: "
                       f"{why}, so the sensitivity equations J s = -(dF/dpsi s_psi + "
                       "dF/dtheta) have no unique solution at that step", SensitivityWarning,
                       stacklevel=2)
-
-    def _singular_at(self, j):
-        """Whether buffered step j's exact step Jacobian is singular (rebuilt for
-        the message only)."""
-        n = self.asm.n
-        RAW = self._stacked(self._bx[j:j + 1], self._bpsi[j:j + 1], self._bt[j:j + 1],
-                            self._bc[j:j + 1])[0]
-        J = np.bincount(self._flat if self._dense else
-                        self.asm.pattern_rows * n + self.asm.pattern_cols,
-                        weights=RAW[0], minlength=n * n).reshape(n, n)
-        return (not np.isfinite(J).all()) or np.linalg.matrix_rank(J) < n
 
     def _replay(self, advance, unknowns):
         """(s_psi, s_S) of the buffered steps along the log: each step's s_psi
@@ -434,14 +428,15 @@ _PLAIN = (int, float, bool, str, type(None), np.float64, np.int64, np.bool_)
 
 
 def _solve_stacked(J, R):
-    """J[j] Z[j] = R[j] for every step j; a singular J leaves NaN from its step on."""
+    """(Z, None) with J[j] Z[j] = R[j] for every step j; a singular J[j] leaves
+    NaN from its step on: (Z, j)."""
     try:
-        return np.linalg.solve(J, R)
+        return np.linalg.solve(J, R), None
     except np.linalg.LinAlgError:
         Z = np.full(R.shape, np.nan)
         for j in range(len(J)):
             try:
                 Z[j] = np.linalg.solve(J[j], R[j])
             except np.linalg.LinAlgError:
-                break
-        return Z
+                return Z, j
+        return Z, None
