@@ -549,3 +549,27 @@ def test_a_switch_on_the_last_step_jumps_there(monkeypatch, deferred):
             a, b = short.sensitivity(label, var, name)[-1], long.sensitivity(label, var, name)[k]
             jump = abs(b - long.sensitivity(label, var, name)[k - 1])
             assert abs(a - b) <= 1e-4 * max(abs(b), jump), (name, label, var, a, b)
+
+
+@pytest.mark.parametrize("defer", [True, False], ids=["deferred", "step by step"])
+def test_a_run_that_meets_a_singular_point_names_it_with_sensitivities_too(monkeypatch, defer):
+    """A tank drained by a mass-flow sink until its pressure gives way: the run
+    fails with the solver's own diagnosis (the singular Jacobian, the
+    component whose scale is extreme) with or without sensitivities, on both
+    paths; the step-by-step path's own factorization there leaves NaN and a
+    SensitivityWarning instead of ending the run with a bare exception."""
+    monkeypatch.setattr(sensitivity, "DEFER", defer)
+    s = sf.System()
+    s += sf.Container("tank", sf.air, 1e-5, initial_pressure=P0 + 1e4)
+    s += sf.CircularTube("tube", sf.air, 0.3, 1e-3)
+    s += sf.MassFlowSource("sink", massflow=-2e-5)
+    s.connect("tank", "tube")
+    s.connect("tube", "sink")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sim = sf.Simulation(s, duration=2.0, step=1e-4)
+        plain = sim.run(raise_on_failure=False)
+        res = sim.run(sensitivities=["tank.volume"], raise_on_failure=False)
+    assert plain.status == res.status == "failed"
+    assert res.message == plain.message and "singular Jacobian" in res.message
+    assert np.all(np.isfinite(res.sensitivity("tank", "pressure", "tank.volume")[:-2]))

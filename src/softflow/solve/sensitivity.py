@@ -145,6 +145,7 @@ from scipy.sparse.linalg import splu
 
 from ..network.system import NetworkError
 from .bdf import _PRED_PSI, BDF
+from .linalg import SingularJacobian
 from .discretize import linearizable, param_step_derivative, step_plan, step_point
 from .linalg import DENSE_MAX
 from .sensitivity_deferred import INITIAL, DeferredSteps, SensitivityWarning, _jumped  # noqa: F401
@@ -523,6 +524,12 @@ class Sensitivities(DeferredSteps):
             rate = after
             if jump is not None:
                 jumps.append(jump)
+            else:
+                warnings.warn(f"sensitivities: {g.comps[i].describe()} switched at t = "
+                              f"{self._t_last:.6g} s where its switching function only "
+                              "grazes zero (its rate there is not positive): the switch "
+                              "time is not differentiable there, and the sensitivities "
+                              "hold it", SensitivityWarning, stacklevel=2)
         return jumps
 
     def _crossing_jump(self, g, i, j, x, old, xdot, rate_before, change):
@@ -795,7 +802,17 @@ class Sensitivities(DeferredSteps):
                 s += ds
                 if np.max(np.abs(ds) * scale) <= CORRECTION_RTOL * np.max(np.abs(s) * scale):
                     return s
-        newton._factor(c)     # the Jacobian of the residual(jac=True) at this point
+        try:
+            newton._factor(c)     # the Jacobian of the residual(jac=True) at this point
+        except SingularJacobian:
+            # NaN from here on, said once; the run goes on to meet (and name) the
+            # singular point itself, as a run without sensitivities does
+            if getattr(self, "_failed_at", None) is None:
+                self._failed_at = self._t_last
+                warnings.warn(f"sensitivities to {', '.join(self.names)} are NaN from "
+                              f"t = {self._t_last:.6g} s on: the step Jacobian is singular "
+                              "there", SensitivityWarning, stacklevel=2)
+            return np.full(np.shape(rhs), np.nan)
         return lin.solve(rhs)
 
     def _step_now(self, x, psi, s_psi, t, c, start):
