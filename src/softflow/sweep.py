@@ -340,6 +340,7 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ModelWarning)
                 # one run of all the variants: its own bar, in simulated time
+                assert batched is not None
                 results = (batched(sim, variants, progress=progress) if prepared is None
                            else batched(sim, variants, progress=progress, prepared=prepared))
             if len(results) != n:

@@ -911,10 +911,9 @@ def _loop_curve_param(cls, P, p, T, S, name, d0):
     return 0.0, -d0[2] * d0[1]
 
 
-_RigidWall._wall_param = classmethod(_rigid_wall_param)
-_LinearWall._wall_param = classmethod(_linear_wall_param)
-_PlainCurve._wall_param = classmethod(_plain_curve_param)
-_LoopCurve._wall_param = classmethod(_loop_curve_param)
+for _wall, _param in ((_RigidWall, _rigid_wall_param), (_LinearWall, _linear_wall_param),
+                      (_PlainCurve, _plain_curve_param), (_LoopCurve, _loop_curve_param)):
+    setattr(_wall, "_wall_param", classmethod(_param))
 
 
 def _volume_param_jacobian(cls, P, V, S, t, name):
@@ -1047,8 +1046,9 @@ for _cls in (ThermalContainer, HeldContainer, ThermalLinearAccumulator, HeldLine
              ThermalActuator, HeldActuator, ThermalHystereticActuator,
              HeldHystereticActuator):
     # each class's own (the sensitivities use only a class's own param_jacobian)
-    _cls.param_jacobian = classmethod(_volume_param_jacobian)
-    _cls.thermal_initial_state_jacobian = classmethod(_volume_initial_state_jacobian)
+    setattr(_cls, "param_jacobian", classmethod(_volume_param_jacobian))
+    setattr(_cls, "thermal_initial_state_jacobian",
+            classmethod(_volume_initial_state_jacobian))
 
 
 def initial_fluid_volume(comp):

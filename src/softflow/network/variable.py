@@ -100,11 +100,12 @@ class SharedVariable(Variable):
     def __deepcopy__(self, memo: dict) -> "SharedVariable":
         return self
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple:
         return (_shared_variable, (self.quantity, self.role, self.label, self.initial_value))
 
 
-def _shared_variable(quantity, role, label, initial_value):
+def _shared_variable(quantity: str, role: str, label: str,
+                     initial_value: float | None) -> SharedVariable:
     return SharedVariable.of(Variable(quantity, role, label, initial_value))
 
 
@@ -151,7 +152,7 @@ class Terminal:
         v = self.variables[index]
         if isinstance(v, SharedVariable):
             v = v.copy()
-            self.variables = (*self.variables[:index], v, *self.variables[index + 1:])
+            self.variables = [*self.variables[:index], v, *self.variables[index + 1:]]
         return v
 
     @property

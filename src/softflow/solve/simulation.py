@@ -236,7 +236,7 @@ class Simulation:
             self.thermal = configure_thermal(model, thermal)
             self.asm = Assembly(model, allow_unconnected=allow_unconnected)
             # the compiled components, and the run-time parameters now in force
-            self._compiled = {}
+            self._compiled: dict[str, Any] = {}
             for g in self.asm.groups:
                 self._compiled.update(zip([c.label for c in g.comps], g.comps))
             self._applied: dict[str, Any] = {}
