@@ -58,3 +58,22 @@ def source_tube_tank(pressure=2e5, tank_fluid=sf.air):
     s.connect("tube", "src")
     s.connect("tube", "tank")
     return s
+
+
+def snapping_valve_scene(pressure=None):
+    """A tank filled through a tube from a PressureSource at ``pressure`` (a
+    number [Pa] or a function of t; default 30 kPa gauge); a snapping valve
+    opens at 20 kPa behind it into a second tank (bursts) and closes at 5 kPa."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.pressure_atmospheric + 3e4
+                           if pressure is None else pressure)
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-5)
+    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
+                          closed_conductance=1e-12)
+    s += sf.Container("out", sf.air, 1e-5)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    s.connect("tank", ("valve", "a"))
+    s.connect(("valve", "b"), "out")
+    return s

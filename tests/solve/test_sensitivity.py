@@ -8,7 +8,7 @@ import pytest
 from scipy.sparse.linalg import spsolve
 
 import softflow as sf
-from helpers import rc_circuit, tank_and_actuator
+from helpers import rc_circuit, snapping_valve_scene, tank_and_actuator
 from softflow.network.system import NetworkError
 from softflow.solve import sensitivity, sensitivity_deferred
 
@@ -130,18 +130,7 @@ def test_thermal_scene_sensitivities_are_those_of_the_discrete_solution():
 def _valve_scene():
     """A tank filled through a tube; a snapping valve opens at 20 kPa behind it
     into a second tank (bursts) and closes at 5 kPa."""
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=P0 + 3e4)
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5)
-    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
-                          closed_conductance=1e-12)
-    s += sf.Container("out", sf.air, 1e-5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    s.connect("tank", ("valve", "a"))
-    s.connect(("valve", "b"), "out")
-    return s
+    return snapping_valve_scene()
 
 
 def test_at_fixed_steps_a_switch_falls_on_the_grid_and_is_held():
@@ -268,18 +257,7 @@ def test_across_a_hysteretic_branch_change(parameter, value):
 def _switching_scene():
     """A tank behind a tube, a snapping valve (discrete state) into a second tank,
     fed by a pressure that rises as a function of time (read at each step's t)."""
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=lambda t: P0 + 3e4 * min(1.0, 20 * t))
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5)
-    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
-                          closed_conductance=1e-12)
-    s += sf.Container("out", sf.air, 1e-5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    s.connect("tank", ("valve", "a"))
-    s.connect(("valve", "b"), "out")
-    return s
+    return snapping_valve_scene(lambda t: P0 + 3e4 * min(1.0, 20 * t))
 
 
 DEFERRED_CASES = [

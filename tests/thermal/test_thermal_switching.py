@@ -8,30 +8,15 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import snapping_valve_scene
 
-P0 = sf.pressure_atmospheric
-
-
-def _valve_scene():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=P0 + 3e4)
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5)
-    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
-                          closed_conductance=1e-12)
-    s += sf.Container("out", sf.air, 1e-5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    s.connect("tank", ("valve", "a"))
-    s.connect(("valve", "b"), "out")
-    return s
 
 
 @pytest.mark.parametrize("thermal", ["isothermal", "adiabatic"])
 def test_snapping_valve_switches_at_its_pressures(thermal):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        res = sf.Simulation(_valve_scene(), duration=0.2, rtol=1e-6, thermal=thermal).run()
+        res = sf.Simulation(snapping_valve_scene(), duration=0.2, rtol=1e-6, thermal=thermal).run()
     k = np.flatnonzero(np.diff(res.get("valve", "open"))) + 1
     assert len(k) >= 2
     dp = res.get("tank", "pressure") - res.get("out", "pressure")
@@ -45,7 +30,7 @@ def test_snapping_valve_switches_at_its_pressures(thermal):
 def test_thermal_valve_sensitivity_to_its_opening_pressure():
     """d p_tank / d opening_pressure after the first switch against central
     differences of whole runs (BDF, tight tolerances)."""
-    sim = sf.Simulation(_valve_scene(), duration=0.06, rtol=1e-8, thermal="adiabatic",
+    sim = sf.Simulation(snapping_valve_scene(), duration=0.06, rtol=1e-8, thermal="adiabatic",
                         newton_rtol=1e-12)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
