@@ -379,17 +379,12 @@ def fill_and_thermal_times(g, result):
     moving = peak > 0
     if not moving.any():
         return None
-    from ..correlations.heat_transfer import FreeConvection
-    sphere = FreeConvection("sphere")
     T = float(fluid.temperature)
     with np.errstate(all="ignore"):
         t_fill = np.where(moving, m / peak, np.inf)
-        length = sphere.characteristic_length(m / fluid.density(pk))
-        try:
-            h = sphere.coefficient(fluid, pk, T + THERMAL_DT, T, length)
-        except Exception:      # a fluid without conductivity: no estimate
+        hA = _sphere_hA(fluid, pk, T + THERMAL_DT, T, m / fluid.density(pk))
+        if hA is None:
             return None
-        hA = h * np.pi * length ** 2
         for j, i in enumerate(keep):      # a wall the user gave is the scene's own
             hA[j] = _wall_hA(g.comps[i], fluid, pk[j], T, m[j], hA[j])
         t_thermal = m * fluid.cv(pk) / hA
@@ -486,17 +481,13 @@ def adiabatic_time_scale(g, result):
     significant = peak > limit * Tw
     if not significant.any():
         return []
-    from softflow.correlations.heat_transfer import FreeConvection
-    sphere = FreeConvection("sphere")
     pk, Tk, mk = p[k, cols], T[k, cols], m[k, cols]
     with np.errstate(all="ignore"):
         persistence = _trapezoid(dev, t, axis=0) / peak
-        try:
-            length = sphere.characteristic_length(mk / fluid.density(pk, Tk))
-            h = sphere.coefficient(fluid, pk, Tk, Tw, length)
-        except Exception:      # a fluid without conductivity: no estimate
+        hA = _sphere_hA(fluid, pk, Tk, Tw, mk / fluid.density(pk, Tk))
+        if hA is None:
             return []
-        t_thermal = mk * fluid.cv(pk, Tk) / (h * np.pi * length ** 2)
+        t_thermal = mk * fluid.cv(pk, Tk) / hA
         fraction = persistence / (ADIABATIC_PERSISTENCE * t_thermal)
     out = []
     for j in np.flatnonzero(significant):
@@ -523,6 +514,20 @@ def has_wall(comp):
     """Whether a volume was given a wall (hA, or a coefficient and an area)."""
     return (getattr(comp, "hA", None) is not None
             or getattr(comp, "h_correlation", None) is not None)
+
+
+def _sphere_hA(fluid, p, T, T_wall, volume):
+    """h A [W/K] by free convection of gas at (p, T) in a sphere of ``volume``
+    against its wall at ``T_wall`` (the thermal checks' estimate of a volume's
+    wall), or None for a fluid without conductivity."""
+    from ..correlations.heat_transfer import FreeConvection
+    sphere = FreeConvection("sphere")
+    length = sphere.characteristic_length(volume)
+    try:
+        h = sphere.coefficient(fluid, p, T, T_wall, length)
+    except Exception:      # a fluid without conductivity: no estimate
+        return None
+    return h * np.pi * length ** 2
 
 
 def _wall_hA(comp, fluid, p, T, m, estimate):
