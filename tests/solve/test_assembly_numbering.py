@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from softflow.demo import PaperActuator, balloon_csv
+from softflow.demo import paper_system
 from softflow.solve.assembly import Assembly
 from softflow.solve.thermal import configure_thermal
 
@@ -82,16 +82,6 @@ def _chain(n, own_pressure=False):
     return s
 
 
-def _paper():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=P0 + 3e4)
-    s += sf.CircularTube("tube", sf.water, length=0.6, diameter=1e-3)
-    s += PaperActuator("actu", sf.water, sf.PVCurve(balloon_csv()))
-    s.connect("tube", "src")
-    s.connect("tube", "actu")
-    return s
-
-
 def _open_end():
     s = _chain(3, own_pressure=True)
     s += sf.CircularTube("dangling", sf.air, 0.2, 1e-3)
@@ -107,7 +97,7 @@ def _thermal(system):
 
 @pytest.mark.parametrize("make", [
     lambda: _chain(1), lambda: _chain(7), lambda: _chain(5, own_pressure=True),
-    rc_circuit, tank_and_actuator, _paper, _open_end,
+    rc_circuit, tank_and_actuator, paper_system, _open_end,
     lambda: _thermal(_chain(4, own_pressure=True)), lambda: _thermal(tank_and_actuator()),
 ], ids=["chain1", "chain7", "chain_own_p", "rc", "tank_actuator", "paper_user_component",
         "open_end", "thermal_chain", "thermal_tank_actuator"])
