@@ -81,7 +81,7 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
-from .validity import NEAR_FRACTION, ValidityRecord, grade, group_values
+from .validity import NEAR_FRACTION, ValidityRecord, grade, group_times, group_values
 
 #: Mach number at the low-pressure end above which the mean-density tube law's
 #: neglect of the gas's acceleration is no longer small (~5 % of the drop).
@@ -126,6 +126,7 @@ def tube_reynolds(g, result):
     if getattr(comp0, "friction", None) != "laminar":
         return []
     keep, mf = group_values(g, result, "massflow_a")
+    tt = group_times(g, result, keep)
     out = []
     for j, i in enumerate(keep):
         c = g.comps[i]
@@ -139,11 +140,11 @@ def tube_reynolds(g, result):
                 c, "tube_reynolds", re[k], c.Re_laminar, "", fraction,
                 "use a turbulent correlation (friction='Haaland', the default, blends "
                 "laminar and turbulent flow)",
-                f"Reynolds number reached {re[k]:.4g} at t = {result.times[k]:.6g} s, "
+                f"Reynolds number reached {re[k]:.4g} at t = {tt[k, j]:.6g} s, "
                 f"{_past(fraction, f'Re_laminar = {c.Re_laminar:g}')} of its "
                 "friction='laminar' law" + (", which then under-predicts the pressure drop."
                                             if fraction > 1 else "."),
-                time=float(result.times[k])))
+                time=float(tt[k, j])))
     return out
 
 
@@ -172,11 +173,12 @@ def tube_mach(g, result):
     peak = mach.max(axis=0)
     gamma = float(fluid.gamma(pressure_atmospheric))
     choke = 1.0 / math.sqrt(gamma)
+    tt = group_times(g, result, keep)
     out = []
     for j in np.flatnonzero(peak >= NEAR_MACH):
         c = g.comps[keep[j]]
         k = int(np.argmax(mach[:, j]))
-        t = float(result.times[k])
+        t = float(tt[k, j])
         ratio = float(p_low[k, j] / p_high[k, j])
         mean_density = getattr(c, "compressible", None) == "mean_density"
         if peak[j] >= choke:
@@ -190,7 +192,7 @@ def tube_mach(g, result):
                 f"(pressure ratio p_low/p_high = {ratio:.3g}), past the isothermal choking "
                 f"limit Mach 1/sqrt(gamma) = {choke:.3g}, where more pressure difference "
                 "gives no more flow; the tube law has left its range.",
-                fatal=True, first_time=float(result.times[first]), pressure_ratio=ratio,
+                fatal=True, first_time=float(tt[first, j]), pressure_ratio=ratio,
                 time=t))
         elif mean_density:
             fraction = peak[j] / MACH_INCOMPRESSIBLE
@@ -224,6 +226,7 @@ def orifice_choked(g, result):
     _, pb = group_values(g, result, "pressure_b")
     gamma = float(fluid.gamma(pressure_atmospheric))
     critical = (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))
+    tt = group_times(g, result, keep)
     out = []
     for j, i in enumerate(keep):
         c = g.comps[i]
@@ -236,12 +239,12 @@ def orifice_choked(g, result):
                 "give the orifice by its ISO 6358 sonic conductance and critical ratio "
                 "(Orifice(..., C=..., b=...)), which chokes",
                 f"pressure ratio p_low/p_high reached {ratio[k]:.3g} at t = "
-                f"{result.times[k]:.6g} s, " + (
+                f"{tt[k, j]:.6g} s, " + (
                     f"below the critical ratio {critical:.3g}: the real flow is choked "
                     "there, and the incompressible K/Cd law over-predicts it."
                     if fraction > 1 else f"a pressure drop {fraction:.0%} of the critical "
                     f"one (ratio {critical:.3g}), where the gas's expansion starts to matter."),
-                time=float(result.times[k])))
+                time=float(tt[k, j])))
     return out
 
 
@@ -422,6 +425,7 @@ def thermal_time_scale(g, result):
     keep, t_fill, t_thermal, k = times
     with np.errstate(all="ignore"):
         fraction = THERMAL_FRACTION * t_thermal / t_fill
+    tt = group_times(g, result, keep)
     out = []
     for j in np.flatnonzero(fraction >= NEAR_FRACTION):
         c = g.comps[keep[j]]
@@ -431,14 +435,14 @@ def thermal_time_scale(g, result):
             "run the scene with thermal='adiabatic' (or 'heat_transfer' with the "
             "volume's area and a heat-transfer coefficient)",
             f"its gas filled or emptied on a time scale m/|mdot| = {t_fill[j]:.3g} s at "
-            f"t = {result.times[k[j]]:.6g} s, against a thermal time constant "
+            f"t = {tt[k[j], j]:.6g} s, against a thermal time constant "
             f"~{t_thermal[j]:.3g} s of its wall ("
             + ("its own h A" if has_wall(c) else "free convection estimate") + "), "
             + ("much faster than the wall exchanges heat: the gas is closer to adiabatic "
                "than to the isothermal model, and its pressure swings are larger than "
                "computed." if fraction[j] > 1 else
                f"{fraction[j]:.0%} of the way to the limit (a tenth of that constant)."),
-            thermal_time_constant=float(t_thermal[j]), time=float(result.times[k[j]])))
+            thermal_time_constant=float(t_thermal[j]), time=float(tt[k[j], j])))
     return out
 
 
@@ -471,7 +475,7 @@ def adiabatic_time_scale(g, result):
     _, p = group_values(g, result, "pressure")
     keep = [keep[j] for j in own]
     T, m, p = T[:, own], m[:, own], p[:, own]
-    t = result.times
+    t = group_times(g, result, keep)
     Tw = np.array([g.comps[i]._T_wall for i in keep])
     dev = np.abs(T - Tw)
     k = np.argmax(dev, axis=0)
@@ -506,7 +510,7 @@ def adiabatic_time_scale(g, result):
             + ("a real wall would have taken back most of that difference, which the "
                "adiabatic model keeps: its temperature, and its mass or pressure, are off."
                if fraction[j] > 1 else f"{fraction[j]:.0%} of the way to that limit."),
-            thermal_time_constant=float(t_thermal[j]), time=float(t[k[j]])))
+            thermal_time_constant=float(t_thermal[j]), time=float(t[k[j], j])))
     return out
 
 
@@ -552,11 +556,11 @@ def tube_inertia(g, result):
         return []
     _, pa = group_values(g, result, "pressure_a")
     _, pb = group_values(g, result, "pressure_b")
-    t = result.times
+    t = group_times(g, result, keep)
     limit = max(10 * _rtol(result), 1e-2)
     jump = np.abs(np.diff(mf, axis=0))
     with np.errstate(all="ignore"):
-        rate = jump / np.diff(t)[:, None]
+        rate = jump / np.diff(t, axis=0)
     # the pressures the tube works against: its ends' gauge pressures and its drop
     scale = np.maximum(np.max(np.abs(pa - pressure_atmospheric), axis=0),
                        np.max(np.abs(pb - pressure_atmospheric), axis=0))
@@ -580,11 +584,11 @@ def tube_inertia(g, result):
                 "build the tube with CircularTube(..., inertance=True)",
                 f"its liquid column's inertia, which the tube leaves out, would add "
                 f"{inertial:.3g} Pa (l/A times the flow's fastest change, at t = "
-                f"{t[k + 1]:.6g} s), {ratio:.3g} of the pressures it works between "
+                f"{t[k + 1, j]:.6g} s), {ratio:.3g} of the pressures it works between "
                 f"({scale[j]:.3g} Pa), " + (f"more than {limit:.3g} (10 x rtol)."
                                             if ratio > limit else
                                             f"against a limit of {limit:.3g} (10 x rtol)."),
-                inertial_pressure=inertial, time=float(t[k + 1])))
+                inertial_pressure=inertial, time=float(t[k + 1, j])))
     return out
 
 

@@ -233,6 +233,18 @@ def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]
     return keep, values
 
 
+def group_times(g: Any, result: Any, keep: list[int]) -> np.ndarray:
+    """Times (points x len(keep)) of the points of group ``g``'s components
+    ``keep`` (indices in the group, as :func:`group_values` gives them): the
+    result's times for each, or, in a batched run whose variants keep clocks
+    of their own (:mod:`softflow.solve.clocks`), each one's variant's."""
+    own = getattr(result, "instance_times", None)
+    if own is not None:
+        return np.asarray(own(g, keep))
+    t = np.asarray(result.times, dtype=float)
+    return np.broadcast_to(t[:, None], (t.size, len(keep)))
+
+
 def _columns(g: Any, result: Any, entry: Any, label: str, idx: list[int]
              ) -> tuple[list[int], np.ndarray]:
     """The recorded columns of ``entry`` (of component ``label`` of group ``g``) for
@@ -293,7 +305,7 @@ def pv_curve_range(g: Any, result: Any) -> list[ValidityRecord]:
         past = abs(reached - limit)
         col = vol[:, j]
         first = int(np.argmax(col > hi + slack) if above else np.argmax(col < lo - slack))
-        t_first = float(result.times[first])
+        t_first = float(group_times(g, result, keep)[first, j])
         side = "last" if above else "first"
         how = {"linear": "continued in a straight line with its end slope",
                "clamp": "held at its end pressure",
