@@ -110,19 +110,44 @@ class Integrator:
             ib += 1
         return ib, (breaks[ib] if ib < len(breaks) else math.inf)
 
+    #: a consistent point at t = 0 from an earlier run of the same network, inputs
+    #: and tolerances, to try before solving (Simulation.run remembers them):
+    #: (x, Newton's contraction estimate ``eta`` after the solve that made x), or None
+    start = None
+    #: the consistent point of this run and ``eta`` after it, set by :meth:`initial`
+    consistent = None
+
     def initial(self):
-        """Consistent algebraic unknowns at t = 0 (dt = 0, states at their initial values)."""
-        asm = self.asm
-        out = self.newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
-        if not out.converged:
-            raise StepFailure(0.0, 0.0, out)
-        self.newton.invalidate()
-        self.rec.add(0.0, out.x, asm.S0.copy())
+        """Consistent algebraic unknowns at t = 0 (dt = 0, states at their initial values).
+
+        A remembered ``start`` that Newton confirms (:meth:`Newton.confirms`:
+        one Jacobian and update, no iteration from the initial values) is
+        taken as it is, with the contraction estimate the solve that made it
+        left behind, so that the run goes on exactly as that one did; any
+        other is dropped and the unknowns are solved for from their initial
+        values."""
+        asm, newton = self.asm, self.newton
+        x = None
+        if self.start is not None:
+            x, eta = self.start
+            if x.shape == asm.x0.shape and newton.confirms(x, asm.S0, 0.0, 0.0):
+                x = x.copy()
+                newton.eta = eta
+            else:
+                x = None
+        if x is None:
+            out = newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
+            if not out.converged:
+                raise StepFailure(0.0, 0.0, out)
+            x = out.x
+        self.consistent = (x.copy(), newton.eta)
+        newton.invalidate()
+        self.rec.add(0.0, x, asm.S0.copy())
         if self.sens is not None:
-            self.sens_S = self.sens.initial(out.x, asm.S0)[1]
+            self.sens_S = self.sens.initial(x, asm.S0)[1]
         if self.stop_at_start is not None and self.stop_at_start():
             raise StoppedAtStart()
-        return out.x, asm.S0.copy()
+        return x, asm.S0.copy()
 
 
 class ImplicitEuler(Integrator):

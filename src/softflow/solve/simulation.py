@@ -5,6 +5,7 @@ import contextlib
 import copy
 import gc
 import math
+import operator
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
@@ -245,6 +246,9 @@ class Simulation:
         self.linear_solver_kind = linear_solver
         self.record = None if record is None else self._record_indices(record)
         self.result: Result | None = None
+        # the consistent point at t = 0 of the last run and what it was solved for
+        # (see _start_key), tried first by the next run (Integrator.initial)
+        self._start: tuple | None = None
 
     def __getstate__(self) -> dict[str, Any]:
         return {"definition": self._definition, "result": self.result}
@@ -268,6 +272,17 @@ class Simulation:
             ss.extend(range(g.s0 + i * g.ns, g.s0 + (i + 1) * g.ns))
         return (np.unique(np.array(xs, dtype=np.int64)), np.array(ss, dtype=np.int64),
                 list(labels))
+
+    def _start_key(self, newton):
+        """What the consistent point at t = 0 is solved for: the components in force
+        (as objects: run-time parameters replace them), the initial unknowns and
+        states, Newton's tolerances and linear solver. A run whose key is the last
+        run's may start from that run's point, which Newton still confirms
+        (Integrator.initial): user code may read what no key can see."""
+        asm = self.asm
+        return ((asm.x0.tobytes(), asm.S0.tobytes(), newton.rtol, newton.atol.tobytes(),
+                 tuple(newton._links), newton._T_range, newton.lin.kind),
+                tuple(c for g in asm.groups for c in g.comps))
 
     def _atol_vector(self, quantities, factor=1.0):
         return np.array([self.atol.get(q, 1e-9) * factor for q in quantities], dtype=float)
@@ -403,6 +418,9 @@ class Simulation:
                                  {label: g.comps[i] for label, (g, i) in asm.where.items()},
                                  thermal=self.thermal)
             integ.sens = sens  # type: ignore[assignment]
+        start_key = self._start_key(newton)
+        if self._start is not None and _same_start(self._start[0], start_key):
+            integ.start = self._start[1]
         if self.beyond_limits == "error" and can_refuse(asm):
             integ.stop_at_start = lambda: self._fatal_at_start(integ.rec)  # type: ignore[assignment]
         error = None
@@ -430,6 +448,7 @@ class Simulation:
                 error.__cause__ = None      # the message says it all, named
             else:
                 error.__cause__ = err.__cause__ if isinstance(err, ComponentError) else err
+        self._start = None if integ.consistent is None else (start_key, integ.consistent)
         t, X, S = integ.rec.arrays()
         integrals = integ.rec.integrals()
         if not len(t):     # failed at t = 0: the initial values as a 1-point result
@@ -514,6 +533,13 @@ class Simulation:
         msg = (f"solver failed at t = {fail.t:.6g} s (step {fail.dt:.3g} s): "
                f"{out.reason}{where}")
         return SimulationError(msg, time=fail.t, component=comp, equation=eq)
+
+
+def _same_start(a, b):
+    """Whether two :meth:`Simulation._start_key` s are the same: equal values,
+    the very same component objects."""
+    return (a[0] == b[0] and len(a[1]) == len(b[1])
+            and all(map(operator.is_, a[1], b[1])))
 
 
 def _temperature_edge(out, newton):
