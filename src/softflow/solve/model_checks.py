@@ -159,7 +159,7 @@ def tube_mach(g, result):
     _, pa = group_values(g, result, "pressure_a")
     _, pb = group_values(g, result, "pressure_b")
     area = np.array([math.pi * g.comps[i].diameter ** 2 / 4 for i in keep])
-    p_low, p_high = np.minimum(pa, pb), np.maximum(pa, pb)
+    p_low = np.minimum(pa, pb)
     try:
         rho, c = fluid.density(p_low), fluid.speed_of_sound(p_low)
     except FluidError:
@@ -179,7 +179,7 @@ def tube_mach(g, result):
         c = g.comps[keep[j]]
         k = int(np.argmax(mach[:, j]))
         t = float(tt[k, j])
-        ratio = float(p_low[k, j] / p_high[k, j])
+        ratio = float(p_low[k, j] / max(pa[k, j], pb[k, j]))
         mean_density = getattr(c, "compressible", None) == "mean_density"
         if peak[j] >= choke:
             first = int(np.argmax(mach[:, j] >= choke))
@@ -261,9 +261,14 @@ _CRITICAL = {"air": (132.53, 3.786e6, 0.0335), "nitrogen": (126.19, 3.3958e6, 0.
 _R = 8.314462618                # J/(mol K)
 
 
+#: where between the two temperatures compressibility_bound looks (np.linspace's
+#: fixed cost is ~20x that of this product on 7 numbers)
+_BOUND_STEPS = np.arange(7) / 6.0
+
+
 def compressibility_bound(name, t_low, t_high, p):
     """An upper bound on ``|Z - 1|`` of built-in gas ``name`` at pressures ``p``
-    [Pa] (array) and any temperature from ``t_low`` to ``t_high`` [K], or None
+    [Pa] (a float or an array: the bound has its shape) and any temperature from ``t_low`` to ``t_high`` [K], or None
     for another gas or near condensation (below 1.2 Tc): ask CoolProp.
 
     Z - 1 = B p / (R T) + C p^2 / (R T)^2 + ..., bounded by
@@ -279,14 +284,22 @@ def compressibility_bound(name, t_low, t_high, p):
     if crit is None:
         return None
     Tc, pc, omega = crit
-    T = np.linspace(t_low, t_high, 7)
+    # one temperature (an isothermal scene): plain floats, and p's own shape; the
+    # arithmetic below is the same on floats and arrays (on a few numbers each
+    # NumPy operation costs ~1 us, a float one ~0.05 us)
+    one = t_high == t_low
+    T = float(t_low) if one else t_low + (t_high - t_low) * _BOUND_STEPS
     tr = T / Tc
-    if not tr.min() >= 1.2:
+    if not (tr if one else tr.min()) >= 1.2:
         return None
     B = _R * Tc / pc * (0.083 - 0.422 / tr ** 1.6 + omega * (0.139 - 0.172 / tr ** 4.2))
-    p = np.asarray(p, dtype=float)[..., None]
+    if not isinstance(p, float):
+        p = np.asarray(p, dtype=float)
+        if not one:
+            p = p[..., None]
     rt = _R * T
-    return np.max((2 * np.abs(B) + 2e-6) * p / rt + 2e-9 * (p / rt) ** 2, axis=-1)
+    bound = (2 * abs(B) + 2e-6) * p / rt + 2e-9 * (p / rt) ** 2
+    return bound if one else np.max(bound, axis=-1)
 
 
 def gas_compressibility(g, result):
@@ -308,9 +321,17 @@ def gas_compressibility(g, result):
             T = [float(np.nanmin(temps)), float(np.nanmax(temps))]
     except KeyError:
         pass
+    limit = max(10 * _rtol(result), 1e-3)
+    # the bound grows with |p|: where it stays short of a near miss at the largest
+    # |p| of all the volumes, no volume is asked below (one bound instead of one
+    # per volume, and no NaN-aware reductions)
+    top = float(np.abs(p).max())
+    if top == top:
+        screen = compressibility_bound(fluid.name, min(T), max(T), top)
+        if screen is not None and not screen >= NEAR_FRACTION * limit:
+            return []
     with np.errstate(all="ignore"):
         p_min, p_max = np.nanmin(p, axis=0), np.nanmax(p, axis=0)
-    limit = max(10 * _rtol(result), 1e-3)
     # CoolProp is asked only where Z - 1 may reach a near miss, by a virial bound
     # for the built-in gases (a plain run of air at low pressure then does not
     # import CoolProp); another gas came from CoolProp already and is asked
@@ -374,7 +395,8 @@ def fill_and_thermal_times(g, result):
         return None
     _, mf = group_values(g, result, "massflow")
     _, p = group_values(g, result, "pressure")
-    keep, mass, mf, p = [keep[j] for j in own], mass[:, own], mf[:, own], p[:, own]
+    if len(own) < len(keep):
+        keep, mass, mf, p = [keep[j] for j in own], mass[:, own], mf[:, own], p[:, own]
     flow = np.abs(mf)
     k = np.argmax(flow, axis=0)
     cols = np.arange(len(keep))
@@ -520,12 +542,19 @@ def has_wall(comp):
             or getattr(comp, "h_correlation", None) is not None)
 
 
+#: the FreeConvection('sphere') of _sphere_hA, made on first use
+_SPHERE = None
+
+
 def _sphere_hA(fluid, p, T, T_wall, volume):
     """h A [W/K] by free convection of gas at (p, T) in a sphere of ``volume``
     against its wall at ``T_wall`` (the thermal checks' estimate of a volume's
     wall), or None for a fluid without conductivity."""
-    from ..correlations.heat_transfer import FreeConvection
-    sphere = FreeConvection("sphere")
+    global _SPHERE
+    sphere = _SPHERE
+    if sphere is None:
+        from ..correlations.heat_transfer import FreeConvection
+        sphere = _SPHERE = FreeConvection("sphere")     # a value: made once
     length = sphere.characteristic_length(volume)
     try:
         h = sphere.coefficient(fluid, p, T, T_wall, length)

@@ -81,6 +81,8 @@ class Result:
         self._where = asm.where
         self._entries: dict[str, list[Entry]] = {}
         self._specs: list[tuple[str, str, str, str]] | None = None   # export columns
+        # every component recorded, X and S holding every unknown and state
+        self._complete = recorded is None
         # column of X (S) holding each unknown (state); -1 where it was not recorded
         if recorded is None:
             self._xcol = np.arange(asm.n)

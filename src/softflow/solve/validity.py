@@ -36,6 +36,7 @@ exception chained.
 from __future__ import annotations
 
 import warnings
+import weakref
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterator
 
@@ -213,16 +214,40 @@ def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
 
 
 # -- reading a group's values from a result -----------------------------------------
+#: per compiled group, {name: where group_values finds it in a result that
+#: recorded every component}: ('x' or 's', columns of X or S, the group's
+#: indices) or ('missing', the KeyError's message). A group's members share
+#: one interface and their columns are fixed when the network compiles (run-time
+#: parameters replace members by members of the same class), so each name is
+#: looked up once per network instead of once per run.
+_FOUND: weakref.WeakKeyDictionary[Any, dict[str, tuple[str, Any, Any]]] = \
+    weakref.WeakKeyDictionary()
+
+
 def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]:
     """(indices in the group, values (times x those components)) of variable or
     output ``name`` of the recorded components of group ``g``. The components of
     a group share one interface, so the columns are found once for all of them."""
+    complete = getattr(result, "_complete", False)    # every component recorded: _FOUND
+    if complete:
+        found = _FOUND.get(g)
+        hit = found.get(name) if found is not None else None
+        if hit is not None:
+            kind, cols, keep = hit
+            if kind == "missing":
+                raise KeyError(cols)
+            return list(keep), (result.X if kind == "x" else result.S)[:, cols]
     where = result._where
     idx = [i for i, c in enumerate(g.comps) if c.label in where]     # recorded
     if not idx:
         return [], np.empty((len(result.times), 0))
     label = g.comps[idx[0]].label
-    e = result._entry(label, name, None)
+    try:
+        e = result._entry(label, name, None)
+    except KeyError as err:
+        if complete:
+            _FOUND.setdefault(g, {})[name] = ("missing", err.args[0], None)
+        raise
     if e[0] == "output":
         _, fn = g.comps[idx[0]].outputs()[name]
 
@@ -230,6 +255,13 @@ def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]
             return _columns(g, result, result._entry(label, n, term), label, idx)[1]
         return idx, np.asarray(fn(get), dtype=float)
     keep, values = _columns(g, result, e, label, idx)
+    if complete:       # as _columns finds them, for every member
+        k = result._component_entries(label).index(e)
+        n = len(g.comps)
+        col = g.col.reshape(n, -1)
+        hit = (("x", col[:, k].copy(), tuple(keep)) if k < col.shape[1] else
+               ("s", g.s0 + np.arange(n) * g.ns + (k - col.shape[1]), tuple(keep)))
+        _FOUND.setdefault(g, {})[name] = hit
     return keep, values
 
 
@@ -242,6 +274,10 @@ def group_times(g: Any, result: Any, keep: list[int]) -> np.ndarray:
     if own is not None:
         return np.asarray(own(g, keep))
     t = np.asarray(result.times, dtype=float)
+    if len(keep) == 1:        # a read-only column view: broadcast_to costs ~15x more
+        column = t[:, None]
+        column.flags.writeable = False
+        return column
     return np.broadcast_to(t[:, None], (t.size, len(keep)))
 
 
