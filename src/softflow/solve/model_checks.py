@@ -268,8 +268,9 @@ _BOUND_STEPS = np.arange(7) / 6.0
 
 def compressibility_bound(name, t_low, t_high, p):
     """An upper bound on ``|Z - 1|`` of built-in gas ``name`` at pressures ``p``
-    [Pa] (a float or an array: the bound has its shape) and any temperature from ``t_low`` to ``t_high`` [K], or None
-    for another gas or near condensation (below 1.2 Tc): ask CoolProp.
+    [Pa] (a float or an array: the bound has its shape) and any temperature
+    from ``t_low`` to ``t_high`` [K], or None for another gas or near
+    condensation (below 1.2 Tc): ask CoolProp.
 
     Z - 1 = B p / (R T) + C p^2 / (R T)^2 + ..., bounded by
     ``(2 |B| + 2e-6) p / (R T) + 2e-9 p^2 / (R T)^2`` (B in m^3/mol, C in
