@@ -1,0 +1,854 @@
+"""Batched variants on clocks of their own.
+
+A batched sweep (:mod:`softflow.solve.batched`) solves K variants of one
+scene as one network of K independent sub-networks. With one shared step
+sequence, the variant that needs the smallest steps at each moment sets
+everybody's step: 250 source-tube-tank variants took 340 shared steps where
+each alone takes 4-57. Here every variant keeps its own time t_v, step h_v,
+order k_v and difference table, and the batch advances them together: at
+each pass, each running variant proposes its next step; the kernels evaluate
+all variants in one vectorized call, each instance at its own variant's time
+and with its own step coefficient (``kernel(V, S, t, dt)`` with t an array
+(n,) and dt a column (n, 1), see :mod:`softflow.solve.discretize`); Newton
+solves the block-diagonal system with one factorization and judges each
+variant's convergence on its own; and each variant's step is accepted or
+rejected, and its next step and order chosen, by its own error test, exactly
+as :class:`softflow.solve.bdf.BDF` does for one network (same formulas,
+constants and controller; vectorized over the variants). A variant that
+finishes, or waits, is held at its last point (a zero step) while the others
+go on, so a stiff variant costs the others nothing but its share of the
+batch's vectorized evaluations.
+
+Declared breakpoints (an input's jump) are shared: the union of the
+variants' breakpoints is a barrier that every variant reaches, and all of
+them restart there together (the restart probes of the BDF, batched). A
+variant whose own inputs have no jump there restarts anyway: a cost, not an
+error.
+
+What this covers: scenes of library components in rate form (isothermal)
+without discrete modes (no snapping valve, no hysteretic actuator), run with
+the adaptive BDF. Others keep the shared step sequence
+(:func:`reason_not` says why). A variant whose step fails (Newton down to
+``step_min``) is reported failed here and run again on its own by the caller,
+where its result says why.
+
+Results: each variant's points are its own accepted steps; the batch's
+Result holds them padded to the longest (a variant's last point repeated)
+and :attr:`instance_times` gives each component its variant's times, which
+the model validity checks read (:func:`softflow.solve.validity.group_times`).
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from ..constants import pressure_atmospheric
+from ..fluids.base import FluidError
+from .bdf import (_ERR, _G, FAIL_HOLD, GROW_MIN, MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR,
+                  SAFETY)
+from .discretize import linearizable
+from .linalg import make_linear_solver
+from .newton import Newton, Stats
+
+#: Newton on the batch: chord iterations on the factors of the step's
+#: predictor (or of earlier steps, while every variant's step coefficient is
+#: within NEWTON_REUSE of the one they were made for), a fresh Jacobian at the
+#: iterate when a variant contracts too slowly, at most NEWTON_MAX iterations
+NEWTON_MAX = 7
+#: iterations of a full Newton solve (fresh Jacobian at every iterate: the
+#: consistent point at t = 0 and the restart probes, from a point across a jump)
+NEWTON_FULL_MAX = 20
+#: variants of up to this many unknowns solve by their dense blocks' inverses
+#: (one batched inversion per factorization, a batched product per iteration);
+#: larger ones by the batch's sparse factors
+DENSE_BLOCK_MAX = 24
+NEWTON_REUSE_ITER = 4
+NEWTON_REUSE = (0.6, 1.67)
+NEWTON_MAX_AGE = 50
+
+
+class Unsupported(Exception):
+    """The batch cannot run on own clocks (see :func:`reason_not`)."""
+
+
+def _variant_of(label):
+    head = label[1:label.index("/")] if label.startswith("v") and "/" in label else ""
+    return int(head) if head.isdigit() else None
+
+
+class Layout:
+    """Where each variant's unknowns, states and rows are in the batch's vectors:
+    ``xperm`` orders the unknowns variant by variant (``x[xperm].reshape(K, nx)``
+    is variant-major, each row in the same order as every other), likewise
+    ``sperm`` the states and ``rperm`` the residual rows; ``inst`` maps each
+    group to its instances' variants."""
+
+    def __init__(self, asm, K):
+        self.K = K
+        n, ns = asm.n, len(asm.S0)
+        x_var = np.full(n, -1, dtype=np.int64)
+        s_var = np.full(ns, -1, dtype=np.int64)
+        r_var = np.full(n, -1, dtype=np.int64)
+        self.inst = {}
+        for g in asm.groups:
+            v = np.array([_variant_of(c.label) for c in g.comps], dtype=object)
+            if any(e is None for e in v):
+                raise Unsupported("a component outside the variants' copies")
+            v = v.astype(np.int64)
+            self.inst[id(g)] = v
+            col = g.col.reshape(g.n, -1)
+            x_var[col] = v[:, None]
+            if g.ns:
+                s_var[g.s0:g.s1] = np.repeat(v, g.ns)
+            r_var[g.r0:g.r1] = np.repeat(v, (g.r1 - g.r0) // g.n)
+        nr = asm.n_node_rows
+        if nr:
+            r_var[asm.through_rows] = x_var[asm.through_cols]
+        if (x_var < 0).any() or (r_var < 0).any() or (ns and (s_var < 0).any()):
+            raise Unsupported("unknowns or equations of no variant")
+        for name, var, size in (("unknowns", x_var, n), ("states", s_var, ns),
+                                ("equations", r_var, n)):
+            if size % K or (np.bincount(var, minlength=K) != size // K).any():
+                raise Unsupported(f"the variants differ in their number of {name}")
+        self.xperm = np.argsort(x_var, kind="stable")
+        self.sperm = np.argsort(s_var, kind="stable")
+        self.rperm = np.argsort(r_var, kind="stable")
+        self.nx, self.ns = n // K, ns // K
+        # each Jacobian entry's place in its variant's dense block (K, nx, nx)
+        nx = self.nx
+        x_rank = np.empty(n, dtype=np.int64)
+        x_rank[self.xperm] = np.arange(n) % max(nx, 1)
+        r_rank = np.empty(n, dtype=np.int64)
+        r_rank[self.rperm] = np.arange(n) % max(nx, 1)
+        rows, cols = asm.pattern_rows, asm.pattern_cols
+        if (r_var[rows] != x_var[cols]).any():
+            raise Unsupported("an equation of one variant on another's unknown")
+        self.block_pos = (r_var[rows] * nx + r_rank[rows]) * nx + x_rank[cols]
+        xq = np.asarray(asm.x_quantity, dtype=object)[self.xperm].reshape(K, self.nx)
+        sq = np.asarray(asm.s_quantity, dtype=object)[self.sperm].reshape(K, self.ns)
+        if (xq != xq[0]).any() or (sq != sq[0]).any():
+            raise Unsupported("the variants' unknowns are ordered differently")
+        self.x_quantity, self.s_quantity = list(xq[0]), list(sq[0])
+
+    def to_v(self, x):
+        """Batch vector of unknowns -> (K, nx)."""
+        return x[self.xperm].reshape(self.K, self.nx)
+
+    def s_to_v(self, S):
+        return S[self.sperm].reshape(self.K, self.ns)
+
+    def from_v(self, Xv, out):
+        out[self.xperm] = Xv.ravel()
+        return out
+
+    def s_from_v(self, Sv, out):
+        out[self.sperm] = Sv.ravel()
+        return out
+
+
+def reason_not(sim):
+    """Why the compiled batch ``sim`` cannot run on own clocks, or None."""
+    asm = sim.asm
+    if not sim.adaptive:
+        return "fixed steps (step=) share one grid"
+    if sim.thermal != "isothermal":
+        return "thermal scenes keep the shared step sequence"
+    if asm.has_discrete:
+        return "discrete modes (valves, hysteretic actuators) keep the shared steps"
+    from ..components.base import LibraryComponent
+    for g in asm.groups:
+        c0 = g.comps[0]
+        if g.row is not None or not isinstance(c0, LibraryComponent):
+            return f"{c0.describe()} is not a library component"
+        cls = c0.kernel_class()
+        if not linearizable(cls) or g.begin is not None:
+            return f"{c0.describe()} writes its own step equations"
+        # each instance's own time reaches the library's residuals (only the
+        # sources read it, through their signal values); a user's residual may
+        # read t as one number
+        if not cls.residual.__func__.__module__.startswith("softflow."):
+            return f"{c0.describe()} has a residual of its own"
+    return None
+
+
+@functools.lru_cache(maxsize=None)
+def _unit_basis_inverse(order):
+    """Inverse of the Newton backward basis at the old spacing (see
+    :func:`softflow.solve.bdf._rescale_matrix`), made once per order."""
+    return np.linalg.inv(_basis(order, np.ones(1))[0])
+
+
+def _basis(order, scale):
+    """phi_j(-m·scale) for m, j = 0..order, for each scale: (n, order + 1, order + 1)."""
+    m = np.arange(order + 1, dtype=float)[None, :]
+    mf = m * scale[:, None]
+    A = np.empty((scale.size, order + 1, order + 1))
+    A[:, :, 0] = 1.0
+    for j in range(1, order + 1):
+        A[:, :, j] = A[:, :, j - 1] * (j - 1 - mf) / j
+    return A
+
+
+def _rescale_matrices(order, factors):
+    """(n, order, order) matrices mixing rows 1..order of a difference table
+    for a step size times each of ``factors`` (the batched form of
+    :func:`softflow.solve.bdf._rescale_matrix`)."""
+    M = _unit_basis_inverse(order) @ _basis(order, np.asarray(factors, dtype=float))
+    return M[:, 1:, 1:]
+
+
+class VariantBDF:
+    """The BDF of :class:`softflow.solve.bdf.BDF`, one clock per variant (module
+    docstring). ``run()`` returns each variant's points (:meth:`_collect`) and
+    leaves ``failed`` (variant -> reason), ``steps`` and ``rejected`` (per
+    variant) and ``stats`` (the batch's Newton work)."""
+
+    def __init__(self, sim, K):
+        asm = self.asm = sim.asm
+        self.K = K
+        self.lay = Layout(asm, K)
+        lay = self.lay
+        self.T = sim.duration
+        self.rtol = sim.rtol
+        self.step_min, self.step_max = sim.step_min, sim.step_max
+        self.kmax = sim.max_order
+        self.first_step = sim.step      # adaptive runs: the first step, if given
+        self.max_steps = sim.max_steps
+        self.stats = Stats()
+        # small variants: each one's dense block inverted, all in one call
+        self.dense = lay.nx <= DENSE_BLOCK_MAX
+        self._lin_kind = sim.linear_solver_kind
+        self._lin = None
+        self._inv = np.zeros((K, lay.nx, lay.nx)) if self.dense else None
+        # tolerances, variant-major (every variant has the same)
+        atol_s = np.broadcast_to(sim._atol_vector(asm.s_quantity), (len(asm.S0),))
+        atol_x = np.broadcast_to(sim._atol_vector(asm.x_quantity), (asm.n,))
+        self.atol_s = lay.s_to_v(np.asarray(atol_s, dtype=float))
+        self.atol_x = lay.to_v(np.asarray(atol_x, dtype=float))
+        self.newton_atol = 1e-3 * self.atol_x
+        self.newton_rtol = min(sim.newton_rtol, sim.rtol / 20)
+        names = sorted(set(lay.x_quantity))
+        self.qid = np.array([names.index(q) for q in lay.x_quantity], dtype=np.int64)
+        self.q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]
+        self.offset = np.where(np.array(lay.x_quantity, dtype=object) == "pressure",
+                               pressure_atmospheric, 0.0)
+        # absolute node pressures (the first n_across unknowns) must stay positive
+        self.p_cols = np.flatnonzero((np.array(lay.x_quantity, dtype=object) == "pressure")
+                                     & (lay.xperm[:lay.nx] < asm.n_across))
+        self._qmax_run = None
+        # the breakpoints of every variant: one barrier list
+        breaks = set(float(b) for b in sim.breakpoints)
+        for c in asm.where:
+            comp = asm.where[c][0].comps[asm.where[c][1]]
+            until = getattr(comp, "breakpoints_until", None)
+            breaks.update(float(b) for b in (until(self.T) if until else comp.breakpoints()))
+        self.breaks = sorted(b for b in breaks if 0.0 < b < self.T)
+        if any(b == self.T for b in breaks):
+            self.breaks.append(self.T)
+        # per group: what the kernels need, with each instance's variant
+        self._plan = [(g, lay.inst[id(g)]) + tuple(p[1:]) for g, p in
+                      zip(asm.groups, asm._plan)]
+        self._update_plan = [(g.update, g.col, g.s0, g.s1, (g.n, g.ns), lay.inst[id(g)])
+                             for g in asm.groups if g.has_states]
+        self.forced_steps = 0
+        self.order_counts = np.zeros(self.kmax + 1, dtype=np.int64)
+        self.steps = np.zeros(K, dtype=np.int64)
+        self.rejected = np.zeros(K, dtype=np.int64)
+        self.failed = {}
+        self._lu_c = np.full(K, np.nan)     # each variant's c its factors were made for
+        self._lu_age = np.zeros(K, dtype=np.int64)
+        self.eta = np.ones(K)      # each variant's last Newton rate / (1 - rate)
+
+    @property
+    def lin(self):
+        """The batch's sparse linear solver (made where it is used)."""
+        if self._lin is None:
+            self._lin = make_linear_solver(self.asm, self._lin_kind)
+        return self._lin
+
+    # -- the batch's equations, each instance at its variant's time and step -----------
+    def _residual(self, x, S, tv, cv, jac):
+        asm = self.asm
+        self.stats.residual_evaluations += 1
+        F = np.empty(asm.n)
+        nr = asm.n_node_rows
+        if nr:
+            F[:nr] = np.bincount(asm.through_rows, weights=x[asm.through_cols], minlength=nr)
+        raw = asm.raw
+        for (g, iv, kernel, col, s0, s1, s_shape, no_states, r0, r1, j0, j1) in self._plan:
+            try:
+                Fg, Jg = kernel(x[col], S[s0:s1].reshape(s_shape) if no_states is None
+                                else no_states, tv[iv], cv[iv][:, None], jac)
+            except FluidError as err:
+                # which variant's iterate left the fluid's range is not known here:
+                # the batch goes back to the shared steps, which isolate it
+                raise Unsupported(f"an iterate left a fluid's range ({err})") from None
+            F[r0:r1] = Fg.ravel()
+            if jac and j1 > j0:
+                raw[j0:j1] = Jg.ravel()
+        return F
+
+    def _update(self, x, S, cv):
+        out = S.copy()
+        for update, col, s0, s1, s_shape, iv in self._update_plan:
+            try:
+                new = update(x[col], S[s0:s1].reshape(s_shape), cv[iv][:, None])
+            except FluidError as err:
+                raise Unsupported(f"a state left a fluid's range ({err})") from None
+            out[s0:s1] = new.ravel()
+        return out
+
+    # -- norms, per variant -----------------------------------------------------------
+    def _weights(self, Sa, Sb, Xv):
+        wS = self.atol_s + self.rtol * np.maximum(np.abs(Sa), np.abs(Sb))
+        v = np.abs(Xv - self.offset)
+        qmax = np.stack([v[:, c].max(axis=1) if c.size else np.zeros(self.K)
+                         for c in self.q_cols], axis=1)
+        if self._qmax_run is not None:
+            qmax = np.maximum(qmax, self._qmax_run)
+        self._qmax_run = qmax
+        return wS, self.atol_x + self.rtol * qmax[:, self.qid]
+
+    @staticmethod
+    def _norms(dS, dX, w):
+        """Each variant's weighted RMS of (dS, dX), or its largest weighted entry
+        over PEAK_FACTOR where that is larger (as BDF._norm)."""
+        e, ex = dS / w[0], dX / w[1]
+        size = e.shape[1] + ex.shape[1]
+        if not size:
+            return np.zeros(len(e))
+        rms = np.sqrt(((e * e).sum(axis=1) + (ex * ex).sum(axis=1)) / size)
+        peak = np.maximum(np.abs(e).max(axis=1, initial=0.0), np.abs(ex).max(axis=1, initial=0.0))
+        return np.maximum(rms, peak / PEAK_FACTOR)
+
+    # -- Newton on the batch ------------------------------------------------------------
+    def _newton(self, x0, S, tv, cv, live, tight=False, full=False):
+        """Solve the step equations of the variants ``live`` (the others are held:
+        zero step, their own point). Returns (x, converged per variant).
+
+        Chord iterations as :class:`softflow.solve.newton.Newton` makes them,
+        each variant judged on its own: the update's largest entry over its
+        tolerance, and the Hairer-Wanner test on the contraction rate (the
+        rate seen in earlier solves for a first update). Each variant keeps its
+        factors while its step coefficient stays within NEWTON_REUSE of the one
+        they were made for (dense blocks: per variant; sparse factors: all
+        variants together). A variant that diverges or converges too slowly on
+        reused factors gets fresh ones at its iterate; on fresh factors, it
+        fails. ``full``: a fresh Jacobian at every iterate, converged where the
+        update is within the tolerance (the consistent point at t = 0);
+        ``tight``: that, held to 1e-12 (the restart probes)."""
+        lay, K = self.lay, self.K
+        rtol = min(self.newton_rtol, 1e-12) if tight else self.newton_rtol
+        full = full or tight
+        X0 = lay.to_v(x0)
+        qmax = np.stack([np.abs(X0[:, c]).max(axis=1) if c.size else np.zeros(K)
+                         for c in self.q_cols], axis=1)
+        itol = 1.0 / (self.newton_atol + rtol * qmax[:, self.qid])
+        x = x0.copy()
+        conv = ~live
+        bad = np.zeros(K, dtype=bool)
+        fresh = live.copy() if full else self._stale(cv, live)
+        F = self._residual(x, S, tv, cv, bool(fresh.any()))
+        if fresh.any():
+            bad |= self._factor(cv, fresh) & live
+        eta = self.eta
+        prev = np.full(K, np.nan)
+        limit = np.where(fresh, NEWTON_FULL_MAX if full else NEWTON_MAX, NEWTON_REUSE_ITER)
+        it = np.zeros(K, dtype=np.int64)     # iterations on each one's current factors
+        for _ in range(NEWTON_FULL_MAX if full else NEWTON_MAX + NEWTON_REUSE_ITER):
+            self.stats.newton_iterations += 1
+            Fv = F[lay.rperm].reshape(K, -1)
+            bad |= ~np.isfinite(Fv).all(axis=1) & ~conv
+            F[~np.isfinite(F)] = 0.0
+            if self.dense:
+                dXv = np.matmul(self._inv, Fv.reshape(K, -1, 1))[:, :, 0]
+                dXv[~np.isfinite(Fv).all(axis=1)] = 0.0
+            else:
+                dXv = lay.to_v(self.lin.solve(F))
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                nrm = np.abs(dXv * itol).max(axis=1, initial=0.0)
+                nrm[~np.isfinite(nrm)] = np.inf
+                first = np.isnan(prev)
+                rate = nrm / prev
+                new_eta = rate / (1.0 - rate)
+                if full:
+                    done = nrm <= 1.0
+                    trouble = ~np.isfinite(nrm)
+                else:
+                    done = np.where(first, (nrm <= 1.0) | (nrm * np.maximum(eta, 1e-3) ** 0.8
+                                                           <= 1.0), nrm * new_eta <= 1.0)
+                    diverge = ~first & (rate >= 0.9)
+                    slow = (~first & ~done & ~diverge
+                            & (nrm * rate ** np.maximum(limit - 1 - it, 0) / (1.0 - rate) > 1.0))
+                    trouble = diverge | slow | ~np.isfinite(nrm)
+            move = ~conv & ~bad
+            # the contraction seen (full solves too, as Newton keeps it)
+            keep_eta = move & ~first & ~trouble & (rate < 1.0)
+            eta[keep_eta] = new_eta[keep_eta]
+            step_ok = move & ~trouble
+            x -= lay.from_v(np.where(step_ok[:, None], dXv, 0.0), np.empty_like(x))
+            conv = conv | (step_ok & done)
+            prev = np.where(step_ok, nrm, prev)
+            it += move
+            trouble = (move & trouble) | (move & ~conv & (it >= limit))
+            refresh = (live & ~conv & ~bad) if full else np.zeros(K, dtype=bool)
+            if trouble.any():
+                bad |= trouble & fresh
+                again = trouble & ~fresh        # fresh factors at the iterate
+                fresh |= again
+                refresh |= again
+                limit[again], it[again], prev[again] = NEWTON_MAX, 0, np.nan
+            if (conv | bad).all():
+                break
+            F = self._residual(x, S, tv, cv, bool(refresh.any()))
+            if refresh.any():
+                bad |= self._factor(cv, refresh) & live
+        # absolute pressures stay positive
+        if self.p_cols.size:
+            conv &= ~((lay.to_v(x)[:, self.p_cols] <= 0.0).any(axis=1) & live)
+        conv &= ~bad | ~live
+        self._lu_c[live & ~conv] = np.nan      # fresh factors for the retries
+        return x, conv
+
+    def _stale(self, cv, live):
+        """The variants among ``live`` whose factors do not serve their step
+        coefficient now (sparse factors: all of them where one does not)."""
+        lo, hi = NEWTON_REUSE
+        ref = self._lu_c
+        with np.errstate(invalid="ignore"):
+            ok = (cv >= lo * ref) & (cv <= hi * ref) & (self._lu_age < NEWTON_MAX_AGE)
+        stale = live & ~ok
+        if not self.dense and stale.any():
+            return live.copy()
+        return stale
+
+    def _factor(self, cv, which):
+        """Factors of the Jacobian just evaluated (asm.raw) for the variants
+        ``which`` (dense blocks) or all (sparse). Returns the variants whose
+        block is singular (all of them where the sparse factors fail)."""
+        K = self.K
+        singular = np.zeros(K, dtype=bool)
+        self.stats.factorizations += 1
+        self.stats.jacobian_evaluations += 1
+        if self.dense:
+            lay = self.lay
+            nx = lay.nx
+            J = np.bincount(lay.block_pos, weights=self.asm.raw,
+                            minlength=K * nx * nx).reshape(K, nx, nx)
+            ids = np.flatnonzero(which)
+            try:
+                self._inv[ids] = np.linalg.inv(J[ids])
+            except np.linalg.LinAlgError:
+                for v in ids:          # find the singular ones
+                    try:
+                        self._inv[v] = np.linalg.inv(J[v])
+                    except np.linalg.LinAlgError:
+                        singular[v] = True
+            done = which & ~singular
+        else:
+            try:
+                self.lin.factor()
+            except (RuntimeError, ValueError, np.linalg.LinAlgError):
+                self._lu_c[:] = np.nan
+                return np.ones(K, dtype=bool)
+            done = np.ones(K, dtype=bool)
+        self._lu_c[done] = cv[done]
+        self._lu_age[done] = 0
+        self._lu_c[singular] = np.nan
+        return singular
+
+    # -- the difference tables --------------------------------------------------------
+    def _rescale(self, ids, factors):
+        """Re-interpolate the tables of the variants ``ids`` for their steps times
+        ``factors`` (rows 1..k of each, k its order), in one product."""
+        keep = factors != 1.0
+        ids, factors = ids[keep], factors[keep]
+        if not ids.size:
+            return
+        k = self.k[ids]
+        top = int(k.max())
+        M = np.zeros((ids.size, top, top))
+        M[:] = np.eye(top)
+        for order in np.unique(k):
+            sel = k == order
+            M[sel, :order, :order] = _rescale_matrices(int(order), factors[sel])
+        D = self.D
+        D[1:top + 1, ids] = np.einsum("vij,jvm->ivm", M, D[1:top + 1, ids])
+
+    def _difference_update(self, ids, delta):
+        D = self.D
+        kk = self.k[ids]
+        Ds = D[:, ids]
+        r = np.arange(ids.size)
+        Ds[kk + 2, r] = delta - Ds[kk + 1, r]
+        Ds[kk + 1, r] = delta
+        for i in range(self.kmax, -1, -1):
+            m = i <= kk
+            Ds[i, m] += Ds[i + 1, m]
+        D[:, ids] = Ds
+
+    # -- restarts -----------------------------------------------------------------------
+    def _probe(self, ids, x, S, Xv_from, hv):
+        """Backward Euler over hv from each variant's point (states S, unknowns
+        starting at Xv_from) for the variants ``ids``, Newton held tight; the
+        others held. (x_h batch, rate (K, ns), converged)."""
+        lay, K = self.lay, self.K
+        live = np.zeros(K, dtype=bool)
+        live[ids] = True
+        cv = np.where(live, hv, 0.0)
+        tv = self.t + cv
+        x0 = lay.from_v(np.where(live[:, None], Xv_from, self.Xv), x.copy())
+        xh, conv = self._newton(x0, S, tv, cv, live, tight=True)
+        Sh = lay.s_to_v(self._update(xh, S, cv))
+        with np.errstate(all="ignore"):
+            r = (Sh - self.Sv) / np.where(live, hv, 1.0)[:, None]
+        return xh, r, conv & live | ~live
+
+    def _restart(self, ids, x, S):
+        """Order 1 and a first step for the variants ``ids`` at their points (as
+        BDF._restart, batched); False for a variant whose probe failed."""
+        lay = self.lay
+        T = self.T
+        span_all = self._limit()[0] - self.t
+        hp = np.full(self.K, 0.0)
+        hp[ids] = np.minimum(max(self.step_min, 1e-7 * T), 0.25 * span_all[ids])
+        x1, r0, ok1 = self._probe(ids, x, S, self.Xv, hp)
+        X1 = lay.to_v(x1)
+        x2, _, ok2 = self._probe(ids, x, S, X1, 2 * hp)
+        X2 = lay.to_v(x2)
+        ok = ok1 & ok2
+        with np.errstate(all="ignore"):
+            xdot = (X2 - X1) / np.where(hp > 0, hp, 1.0)[:, None]
+        x_right = X1 - hp[:, None] * xdot
+        Sv = self.Sv
+        w = self._weights(Sv, Sv, x_right)
+        d0 = self._norms(Sv, x_right, w)
+        d1 = self._norms(r0, xdot, w)
+        with np.errstate(all="ignore"):
+            h0 = np.where((d0 < 1e-5) | (d1 < 1e-5), 1e-6 * span_all, 0.01 * d0 / d1)
+        h0 = np.minimum(np.minimum(np.maximum(h0, 4 * hp), span_all), self.step_max)
+        if self.first_step is not None:
+            h = np.maximum(np.minimum(self.first_step, span_all), self.step_min)
+        else:
+            x3, r3, ok3 = self._probe(ids, x, S, x_right, h0)
+            X3 = lay.to_v(x3)
+            with np.errstate(all="ignore"):
+                ddx = 2 * (X3 - x_right - h0[:, None] * xdot) / (h0 ** 2)[:, None]
+                d2 = self._norms((r3 - r0) / h0[:, None], ddx, w)
+                h1 = np.where(d2 > 1e-15, np.sqrt(0.5 / d2),
+                              np.maximum(1e-6 * span_all, 1e3 * h0))
+            h = np.where(ok3, np.minimum(100 * h0, h1), 0.1 * h0)
+            h = np.maximum(np.minimum(np.minimum(h, span_all), self.step_max), self.step_min)
+        D = self.D
+        D[:, ids] = 0.0
+        ns, nx = lay.ns, lay.nx
+        D[0, ids, :ns] = Sv[ids]
+        D[1, ids, :ns] = h[ids, None] * r0[ids]
+        D[0, ids, ns:ns + nx] = x_right[ids]
+        D[1, ids, ns:ns + nx] = h[ids, None] * xdot[ids]
+        D[0, ids, ns + nx:] = self.Qv[ids]
+        D[1, ids, ns + nx:] = h[ids, None] * x_right[ids]
+        self.h[ids] = h[ids]
+        self.k[ids] = 1
+        self.n_equal[ids] = 0
+        self.fails[ids] = 0
+        self.fail_cap[ids] = math.inf
+        self.fail_hold[ids] = 0
+        return ok[ids]
+
+    def _limit(self):
+        """(where each variant's step may end at most: its next breakpoint or the
+        end, that next breakpoint or inf)."""
+        if not self.breaks:
+            return np.full(self.K, self.T), np.full(self.K, math.inf)
+        b = np.asarray(self.breaks + [math.inf])
+        i = np.searchsorted(b, self.t * (1 + 1e-14) + 1e-300, side="right")
+        nxt = b[i]
+        return np.where(nxt < self.T, nxt, self.T), nxt
+
+    # -- the loop -----------------------------------------------------------------------
+    def run(self):
+        asm, lay, K = self.asm, self.lay, self.K
+        kmax = self.kmax
+        x, S = self._initial()
+        ns, nx = lay.ns, lay.nx
+        self.Xv, self.Sv = lay.to_v(x), lay.s_to_v(S)
+        self.Qv = np.zeros((K, nx))
+        self.t = np.zeros(K)
+        self.h = np.zeros(K)
+        self.k = np.ones(K, dtype=np.int64)
+        self.n_equal = np.zeros(K, dtype=np.int64)
+        self.fails = np.zeros(K, dtype=np.int64)
+        self.fail_cap = np.full(K, math.inf)
+        self.fail_hold = np.zeros(K, dtype=np.int64)
+        self.D = np.zeros((kmax + 3, K, ns + 2 * nx))
+        done = np.zeros(K, dtype=bool)
+        waiting = np.zeros(K, dtype=bool)
+        tried = np.zeros(K, dtype=np.int64)
+        rec = [(np.arange(K), self.t.copy(), self.Xv.copy(), self.Sv.copy(), self.Qv.copy())]
+        iS, iX, iQ = slice(0, ns), slice(ns, ns + nx), slice(ns + nx, None)
+        ar = np.arange(K)
+        pred_rows = np.zeros((kmax + 1, 2, kmax + 1))
+        for kk in range(1, kmax + 1):
+            pred_rows[kk, 0, :kk + 1] = 1.0
+            pred_rows[kk, 1, :kk + 1] = np.r_[1.0, 1.0 - _G[1:kk + 1] / _G[kk]]
+        t_stop = self.T * (1 - 1e-14)
+        smin = self.step_min * 1.0000001
+
+        def fail(ids, why):
+            for v in ids:
+                self.failed[int(v)] = why
+            done[ids] = True
+
+        ok = self._restart(ar, x, S)
+        fail(ar[~ok], "the restart probes at t = 0 failed")
+        while True:
+            live = ~done & ~waiting
+            if not live.any():
+                if not waiting.any():
+                    break
+                ids = np.flatnonzero(waiting)
+                waiting[:] = False
+                x = lay.from_v(self.Xv, x)
+                S = lay.s_from_v(self.Sv, S)
+                ok = self._restart(ids, x, S)
+                fail(ids[~ok], "a restart at a breakpoint failed")
+                continue
+            lim, nxt = self._limit()
+            # step sizes: no overshoot of the limit, no sliver left before it
+            h = self.h
+            h_try = np.minimum(np.minimum(h, self.step_max), self.fail_cap)
+            short = (self.t + h_try >= lim) | (lim - (self.t + h_try) < 0.2 * h_try)
+            h_try = np.where(short, lim - self.t, h_try)
+            change = live & (h_try != h)
+            if change.any():
+                ids = np.flatnonzero(change)
+                self._rescale(ids, h_try[ids] / h[ids])
+                h[ids] = h_try[ids]
+                self.n_equal[ids] = 0
+            # a step aimed at the limit lands on it exactly
+            land = live & short
+            t_new = np.where(land, lim, np.where(live, self.t + h, self.t))
+            at_break = land & (lim == nxt)
+            coef = pred_rows[self.k]
+            pp = np.einsum("vaj,jvm->avm", coef, self.D[:kmax + 1])
+            pred, psi_all = pp[0], pp[1]
+            S_pred, X_pred = pred[:, iS], pred[:, iX]
+            psi = np.where(live[:, None], psi_all[:, iS], self.Sv)
+            x_pred = np.where(live[:, None], X_pred, self.Xv)
+            cv = np.where(live, h / _G[self.k], 0.0)
+            tv = np.where(at_break, np.nextafter(t_new, -np.inf), t_new)
+            tried += live
+            if self.max_steps is not None and (tried > self.max_steps).any():
+                over = np.flatnonzero(live & (tried > self.max_steps))
+                fail(over, f"more than max_steps = {self.max_steps} steps")
+                continue
+            S_b = lay.s_from_v(psi, S.copy())
+            x_new, conv = self._newton(lay.from_v(x_pred, x.copy()), S_b, tv, cv, live)
+            self._lu_age += 1
+            # Newton failures: a quarter of the step, down to step_min
+            nf = live & ~conv
+            if nf.any():
+                ids = np.flatnonzero(nf)
+                self.rejected[ids] += 1
+                self.stats.rejected_steps += ids.size
+                gone = ids[h[ids] <= smin]
+                fail(gone, "Newton failed at the smallest step")
+                ids = ids[h[ids] > smin]
+                factor = np.maximum(0.25, self.step_min / h[ids])
+                self._rescale(ids, factor)
+                h[ids] *= factor
+                self.n_equal[ids] = 0
+            ok = live & conv
+            if not ok.any():
+                continue
+            S_new_b = self._update(x_new, S_b, cv)
+            S_new, X_new = lay.s_to_v(S_new_b), lay.to_v(x_new)
+            d, dx = S_new - S_pred, X_new - X_pred
+            w = self._weights(self.Sv, S_new, X_new)
+            err = _ERR[self.k] * self._norms(d, dx, w)
+            big = ok & (err > 1.0)
+            efail = big & (h > smin)
+            self.forced_steps += int((big & ~efail).sum())
+            if efail.any():
+                ids = np.flatnonzero(efail)
+                self.rejected[ids] += 1
+                self.stats.rejected_steps += ids.size
+                self.stats.error_test_failures += ids.size
+                self.fails[ids] += 1
+                self.fail_cap[ids] = 0.9 * h[ids]
+                self.fail_hold[ids] = FAIL_HOLD
+                kk = self.k[ids]
+                factor = np.maximum(MIN_FACTOR,
+                                    SAFETY * (2 * err[ids] + 1e-4) ** (-1.0 / (kk + 1)))
+                f = self.fails[ids]
+                factor = np.where(f == 2, np.minimum(factor, 0.25), factor)
+                factor = np.where(f >= 3, 0.25, factor)
+                drop = ids[(f >= 3) & (kk > 1)]
+                if drop.size:
+                    self.D[2:, drop] = 0.0
+                    self.k[drop] = 1
+                factor = np.maximum(factor, self.step_min / h[ids])
+                self._rescale(ids, factor)
+                h[ids] *= factor
+                self.n_equal[ids] = 0
+            acc = ok & ~efail
+            if not acc.any():
+                continue
+            ids = np.flatnonzero(acc)
+            self.fails[ids] = 0
+            held = ids[self.fail_hold[ids] > 0]
+            self.fail_hold[held] -= 1
+            self.fail_cap[held[self.fail_hold[held] == 0]] = math.inf
+            self.steps[ids] += 1
+            np.add.at(self.order_counts, self.k[ids], 1)
+            c_ids = cv[ids]
+            Q_new = psi_all[ids, iQ] + c_ids[:, None] * X_new[ids]
+            delta = np.concatenate([d[ids], dx[ids], Q_new - pred[ids, iQ]], axis=1)
+            self._difference_update(ids, delta)
+            self.Xv[ids], self.Sv[ids], self.Qv[ids] = X_new[ids], S_new[ids], Q_new
+            self.t[ids] = t_new[ids]
+            rec.append((ids, self.t[ids].copy(), X_new[ids].copy(), S_new[ids].copy(),
+                        Q_new.copy()))
+            x = lay.from_v(self.Xv, x)
+            S = lay.s_from_v(self.Sv, S)
+            fin = ids[self.t[ids] >= t_stop]
+            done[fin] = True
+            brk = ids[at_break[ids] & ~done[ids]]
+            waiting[brk] = True
+            self._lu_c[brk] = np.nan
+            go = ids[~done[ids] & ~waiting[ids]]
+            self.n_equal[go] += 1
+            sel = go[self.n_equal[go] >= self.k[go] + 1]
+            if sel.size:
+                self._choose(sel, err)
+        self._rec = rec
+        return self._collect()
+
+    def _initial(self):
+        """The consistent point at t = 0 of every variant (zero step), by Newton
+        on the variants' blocks, else by :class:`softflow.solve.newton.Newton` on
+        the batch (which damps its steps)."""
+        asm, K = self.asm, self.K
+        S = asm.S0.copy()
+        zero = np.zeros(K)
+        self.t = zero
+        x, conv = self._newton(asm.x0.copy(), S, zero, zero, np.ones(K, dtype=bool), full=True)
+        if conv.all():
+            return x, S
+        atol = self.lay.from_v(1e-3 * self.atol_x, np.empty(asm.n))
+        newton = Newton(asm, self.lin, self.stats, rtol=self.newton_rtol, atol=atol)
+        out = newton.solve(asm.x0.copy(), S, 0.0, 0.0)
+        if not out.converged:
+            raise Unsupported("no consistent point at t = 0 for the batch")
+        self._lu_c[:] = np.nan
+        return out.x.copy(), S
+
+    def _choose(self, ids, err):
+        """Order and next step of the variants ``ids`` after k + 1 steps at one step
+        size: estimates at k - 1, k and k + 1 (as BDF.run)."""
+        lay = self.lay
+        ns, nx = lay.ns, lay.nx
+        kmax = self.kmax
+        D, k = self.D, self.k[ids]
+        Sv, Xv = self.Sv[ids], self.Xv[ids]
+        w_all = self._weights(self.Sv, self.Sv, self.Xv)
+        w = (w_all[0][ids], w_all[1][ids])
+        err_k = np.maximum(err[ids], 1e-16)
+        cands = np.full((3, ids.size), -np.inf)     # orders k + 1, k, k - 1
+        cands[1] = SAFETY * err_k ** (-1.0 / (k + 1))
+        lo = k > 1
+        if lo.any():
+            row = D[k, ids]
+            e_lo = np.maximum(_ERR[np.maximum(k - 1, 0)] * self._norms(row[:, :ns],
+                                                                       row[:, ns:ns + nx], w),
+                              1e-16)
+            cands[2] = np.where(lo, SAFETY * e_lo ** (-1.0 / np.maximum(k, 1)), -np.inf)
+        hi = k < kmax
+        if hi.any():
+            row = D[np.minimum(k + 2, kmax + 2), ids]
+            e_hi = np.maximum(_ERR[np.minimum(k + 1, kmax + 1)]
+                              * self._norms(row[:, :ns], row[:, ns:ns + nx], w), 1e-16)
+            cands[0] = np.where(hi, SAFETY * e_hi ** (-1.0 / (k + 2)), -np.inf)
+        best = np.argmax(cands, axis=0)       # ties: the higher order
+        factor = np.minimum(MAX_FACTOR, cands[best, np.arange(ids.size)])
+        k_new = k + 1 - best
+        small = (factor >= 1.0) & (factor < GROW_MIN)
+        stay = small & (k_new == k)
+        factor = np.where(small, 1.0, factor)
+        go = ~stay
+        ids, k_new, factor = ids[go], k_new[go], np.maximum(MIN_FACTOR, factor[go])
+        self.k[ids] = k_new
+        self._rescale(ids, factor)
+        self.h[ids] *= factor
+        self.n_equal[ids] = 0
+        del Sv, Xv
+
+    # -- the results ----------------------------------------------------------------------
+    def _collect(self):
+        """(times (M, K), X (M, n), S (M, ns), Q (M, n), points per variant): each
+        variant's points in the batch layout, padded with its last point."""
+        lay, K = self.lay, self.K
+        ids = np.concatenate([r[0] for r in self._rec])
+        t = np.concatenate([r[1] for r in self._rec])
+        X = np.concatenate([r[2] for r in self._rec])
+        S = np.concatenate([r[3] for r in self._rec])
+        Q = np.concatenate([r[4] for r in self._rec])
+        order = np.argsort(ids, kind="stable")
+        counts = np.bincount(ids, minlength=K)
+        M = int(counts.max())
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        j = np.arange(M)[:, None]
+        rows = order[starts[None, :] + np.minimum(j, counts[None, :] - 1)]     # (M, K)
+        times = t[rows]
+        # padded points follow the last one by a hair: the checks' time
+        # derivatives see no change there (not a division by zero)
+        pad = j >= counts[None, :]
+        times = np.where(pad, times + (j - counts[None, :] + 1) * 1e-12 * self.T, times)
+        n, nss = self.asm.n, len(self.asm.S0)
+        Xb = np.empty((M, n))
+        Xb[:, lay.xperm] = X[rows].reshape(M, K * lay.nx)
+        Sb = np.empty((M, nss))
+        Sb[:, lay.sperm] = S[rows].reshape(M, K * lay.ns)
+        Qb = np.empty((M, n))
+        Qb[:, lay.xperm] = Q[rows].reshape(M, K * lay.nx)
+        return times, Xb, Sb, Qb, counts
+
+
+def run(sim, K):
+    """Run the compiled batch ``sim`` of K variants on own clocks.
+
+    Returns (result, counts, times, steps, failed): the batch's Result (each
+    variant's points padded to the longest, its validity checked on each
+    variant's own times), the number of points of each variant, their times
+    (M, K), accepted and rejected steps per variant, and {variant: reason}
+    of the variants whose run failed. Raises :class:`Unsupported` where the
+    batch cannot run so (:func:`reason_not`)."""
+    from .result import Result
+    from .validity import beyond, check_result
+    why = reason_not(sim)
+    if why is not None:
+        raise Unsupported(why)
+    integ = VariantBDF(sim, K)
+    with np.errstate(all="ignore"):
+        times, X, S, Q, counts = integ.run()
+    info = integ.stats.as_dict()
+    info.update(method=sim.method, rtol=sim.rtol, unknowns=sim.asm.n, clocks="own",
+                forced_steps=integ.forced_steps,
+                linear_solver="dense blocks" if integ.dense else integ.lin.kind,
+                order_steps=integ.order_counts.tolist())
+    result = Result(sim.asm, times[:, 0], X, S, stats=info, integrals=Q)
+    inst = integ.lay.inst
+    result.instance_times = lambda g, keep: times[:, inst[id(g)][np.asarray(keep, dtype=np.int64)]]
+    records = check_result(sim.asm, result)
+    result.validity, result.warnings = records, beyond(records)
+    failed = dict(integ.failed)
+    if sim.beyond_limits == "error":
+        for w in result.warnings:
+            if w.details.get("fatal"):
+                v = _variant_of(str(w.component))
+                if v is not None:
+                    failed.setdefault(v, w.message)
+    return result, counts, times, (integ.steps, integ.rejected), failed

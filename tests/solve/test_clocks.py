@@ -1,0 +1,185 @@
+"""Batched variants on clocks of their own (softflow.solve.clocks)."""
+import warnings
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.solve import clocks
+from softflow.solve.batched import _run_batched, build_batch
+from softflow.solve.bdf import _rescale_matrix
+
+P0 = sf.pressure_atmospheric
+
+
+def scene(source=None, friction="Haaland", fluid=sf.air):
+    s = sf.System()
+    s += source or sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", fluid, 0.5, 1e-3, friction=friction)
+    s += sf.Container("tank", fluid, 1e-5)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    return s
+
+
+def _run(sim, variants):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        return _run_batched(sim, variants)
+
+
+def test_rescale_matrices_are_the_bdf_ones():
+    factors = np.array([0.2, 0.55, 1.0, 1.3, 2.0])
+    for order in range(1, 6):
+        M = clocks._rescale_matrices(order, factors)
+        for f, m in zip(factors, M):
+            np.testing.assert_allclose(m, _rescale_matrix(order, float(f))[1:, 1:],
+                                       rtol=1e-12, atol=1e-13)
+
+
+def test_each_instance_steps_at_its_own_time_and_step():
+    """The batch's step equations with a time and a step per variant are, row
+    for row, each variant's equations at its own (a ramp source reads t)."""
+    ramp = sf.waveforms.Ramp(0.0, 0.05, sf.Q_(0.0, "bar"), sf.Q_(0.4, "bar"))
+    src = sf.PressureSource("src", pressure=ramp, gauge=True)
+    sim = sf.Simulation(scene(src), duration=0.1)
+    variants = [{"tube.diameter": d} for d in (0.7e-3, 1e-3, 1.5e-3)]
+    batch = build_batch(sim.system, variants, {"src", "tube", "tank"})
+    bsim = sf.Simulation(batch, duration=0.1)
+    integ = clocks.VariantBDF(bsim, 3)
+    asm, lay = bsim.asm, integ.lay
+    rng = np.random.default_rng(1)
+    x = asm.x0 + rng.uniform(0.0, 1.0, asm.n) * np.where(
+        np.array(asm.x_quantity) == "pressure", 2e4, 1e-5)
+    S = asm.S0 * (1 + 0.1 * rng.uniform(size=asm.S0.size))
+    tv, cv = np.array([0.01, 0.02, 0.07]), np.array([1e-4, 3e-3, 2e-5])
+    F = integ._residual(x, S, tv, cv, True)
+    J = bsim.asm.jacobian_csc().toarray()
+    Sn = integ._update(x, S, cv)
+    for v in range(3):
+        rows = lay.rperm.reshape(3, -1)[v]
+        cols = lay.xperm.reshape(3, -1)[v]
+        states = lay.sperm.reshape(3, -1)[v]
+        Fv = asm.residual(x, S, tv[v], cv[v], True)
+        Jv = asm.jacobian_csc().toarray()
+        np.testing.assert_allclose(F[rows], Fv[rows], rtol=1e-14, atol=0)
+        np.testing.assert_allclose(J[np.ix_(rows, cols)], Jv[np.ix_(rows, cols)], rtol=1e-14)
+        np.testing.assert_allclose(Sn[states], asm.update_states(x, S, cv[v])[states],
+                                   rtol=1e-14)
+
+
+def _reference(variant, duration, source=None):
+    res = sf.Simulation(scene(source), duration=duration, rtol=1e-9).run(params=variant)
+    return res.times, res.get("tank", "pressure") - P0
+
+
+def _error(res, ref):
+    t, p = ref
+    mine = res.get("tank", "pressure") - P0
+    return np.max(np.abs(mine - np.interp(res.times, t, p))) / np.max(np.abs(p))
+
+
+def test_a_stiff_variant_does_not_set_the_others_steps():
+    """Tubes 0.4-2.5 mm: time constants ~1000x apart. Each variant takes about
+    the steps its own run takes (one shared sequence took the union), and is as
+    accurate as its own run."""
+    sim = sf.Simulation(scene(), duration=0.1)
+    variants = [{"tube.diameter": d} for d in np.geomspace(0.4e-3, 2.5e-3, 10)]
+    out = _run(sim, variants)
+    shared = None
+    for v, b in zip(variants, out):
+        assert b.success and b.stats["clocks"] == "own"
+        serial = sim.run(params=v)
+        assert abs(b.stats["steps"] - serial.stats["steps"]) <= max(3, 0.2 * serial.stats["steps"])
+        assert len(b.times) == b.stats["steps"] + 1
+        assert np.all(np.diff(b.times) > 0) and b.times[-1] == pytest.approx(0.1, rel=1e-12)
+        ref = _reference(v, 0.1)
+        assert _error(b, ref) <= 2 * max(_error(serial, ref), 1e-3), v
+    from softflow.solve.batched import _run_batch
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        shared = _run_batch(sim, variants, False, own_clocks=False)
+    assert shared[0].stats["clocks"] == "shared"
+    assert shared[0].stats["steps"] > 2 * max(b.stats["steps"] for b in out)
+    assert out[0].stats["steps"] < 0.2 * shared[0].stats["steps"]
+
+
+def test_a_declared_jump_is_a_barrier_every_variant_restarts_at():
+    """A source stepping at 20 ms: every variant lands on the jump, sees its
+    left limit there, restarts after it, and matches its own run."""
+    step = sf.waveforms.Step(0.02, sf.Q_(0.3, "bar"), sf.Q_(0.1, "bar"))
+    sim = sf.Simulation(scene(sf.PressureSource("src", pressure=step, gauge=True)), duration=0.06)
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1e-3, 2e-3)]
+    out = _run(sim, variants)
+    for v, b in zip(variants, out):
+        assert b.stats["clocks"] == "own"
+        assert np.any(b.times == 0.02)
+        serial = sim.run(params=v)
+        ref = sf.Simulation(scene(sf.PressureSource("src", pressure=step, gauge=True)), duration=0.06,
+                            rtol=1e-9).run(params=v)
+        r = (ref.times, ref.get("tank", "pressure") - P0)
+        assert _error(b, r) <= 2 * max(_error(serial, r), 1e-3), v
+
+
+def test_validity_is_judged_on_each_variant_own_times():
+    """friction='laminar' past Re 2 300 in the wide tubes only (3 500 and
+    16 000): each of those warns at the time its own run finds, the narrow one
+    does not."""
+    src = sf.PressureSource("src", pressure=sf.Q_(1.1, "bar"))
+    sim = sf.Simulation(scene(src, friction="laminar"), duration=0.05)
+    variants = [{"tube.diameter": d} for d in (0.3e-3, 1.2e-3, 2e-3)]
+    with pytest.warns(sf.ModelWarning, match="Reynolds"):
+        out = _run_batched(sim, variants)
+    assert out[0].stats["clocks"] == "own"
+    for v, b in zip(variants, out):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            serial = sim.run(params=v)
+        mine = [w for w in b.warnings if w.check == "tube_reynolds"]
+        theirs = [w for w in serial.warnings if w.check == "tube_reynolds"]
+        assert len(mine) == len(theirs)
+        for a, s in zip(mine, theirs):
+            assert a.component == "tube"
+            assert a.details["time"] in b.times
+            assert a.details["time"] == pytest.approx(s.details["time"], rel=0.05, abs=1e-4)
+            assert a.measured == pytest.approx(s.measured, rel=0.02)
+    assert not [w for w in out[0].warnings if w.check == "tube_reynolds"]
+
+
+def test_a_variant_past_choking_fails_on_its_own_and_the_others_go_on():
+    sim = sf.Simulation(scene(sf.PressureSource("src", pressure=sf.Q_(9, "bar"), gauge=True)),
+                        duration=0.02)
+    variants = [{"src.pressure": p} for p in (sf.Q_(0.2, "bar"), sf.Q_(9, "bar"),
+                                             sf.Q_(0.3, "bar"))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        out = _run_batched(sim, variants)
+        alone = sim.run(params=variants[1], raise_on_failure=False)
+    assert [r.status for r in out] == ["success", "failed", "success"]
+    assert out[1].message == alone.message and "chokes" in out[1].message
+    assert out[0].stats["clocks"] == "own"
+
+
+@pytest.mark.parametrize("case", ["valve", "thermal", "fixed"])
+def test_scenes_it_does_not_cover_keep_the_shared_steps(case):
+    if case == "valve":
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=sf.Q_(0.5, "bar"))
+        s += sf.SnappingValve("valve", sf.air, opening_pressure=sf.Q_(0.2, "bar"),
+                              closing_pressure=sf.Q_(0.1, "bar"),
+                              closed_conductance=1e-12, diameter=1e-3)
+        s += sf.Container("tank", sf.air, 1e-5)
+        s.connect("src", "valve")
+        s.connect("valve", "tank")
+        sim = sf.Simulation(s, duration=0.02)
+        variants = [{"tank.volume": v} for v in (1e-5, 2e-5)]
+        why = "discrete modes"
+    else:
+        kw = {"thermal": "adiabatic"} if case == "thermal" else {"step": 1e-3}
+        sim = sf.Simulation(scene(), duration=0.02, **kw)
+        variants = [{"tube.diameter": d} for d in (1e-3, 1.5e-3)]
+        why = "thermal" if case == "thermal" else "fixed steps"
+    assert why in clocks.reason_not(sim)
+    out = _run(sim, variants)
+    assert all(r.success for r in out)
+    assert out[0].stats["clocks"] == "shared" and why in out[0].stats["shared_because"]
