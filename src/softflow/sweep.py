@@ -36,10 +36,17 @@ Engines
     The variants solved together as one vectorized network by
     :mod:`softflow.solve.batched` (``_run_batched(sim, variants, progress=)``:
     one Result-like object per variant, in order, each with ``times``,
-    ``status``, ``message``, ``warnings`` and ``get(label, name)``). Its
-    variants share the step sequence, each meeting the tolerance on its own:
-    within the tolerance of, not bitwise equal to, their serial runs. Its bar
-    is the batched run's, in simulated time. It checks the variants itself
+    ``status``, ``message``, ``warnings`` and ``get(label, name)``). Each
+    variant meets the tolerance on its own: within the tolerance of, not
+    bitwise equal to, its serial run. Where :mod:`softflow.solve.clocks`
+    covers the scene (adaptive, isothermal, no valve or actuator with
+    modes) each variant also keeps its own clock, taking the steps its own
+    run would take (``stats['clocks'] == 'own'``); other scenes share one
+    step sequence (``'shared'``, ``stats['shared_because']`` says why).
+    Batched beats processes on many variants of a small scene; on variants
+    that are themselves large networks, or widely different ones on shared
+    steps, processes (or Dask) may be faster. Its bar is the batched run's,
+    in simulated time. It checks the variants itself
     (``prepare(sim, variants)``, the same errors) and builds its batches from
     the components that check rebuilt.
 

@@ -25,7 +25,7 @@ def scene(source=None, friction="Haaland", fluid=sf.air):
 def _run(sim, variants):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        return _run_batched(sim, variants)
+        return _run_batched(sim, variants, own_clocks=True)
 
 
 def test_rescale_matrices_are_the_bdf_ones():
@@ -129,7 +129,7 @@ def test_validity_is_judged_on_each_variant_own_times():
     sim = sf.Simulation(scene(src, friction="laminar"), duration=0.05)
     variants = [{"tube.diameter": d} for d in (0.3e-3, 1.2e-3, 2e-3)]
     with pytest.warns(sf.ModelWarning, match="Reynolds"):
-        out = _run_batched(sim, variants)
+        out = _run_batched(sim, variants, own_clocks=True)
     assert out[0].stats["clocks"] == "own"
     for v, b in zip(variants, out):
         with warnings.catch_warnings():
@@ -153,7 +153,7 @@ def test_a_variant_past_choking_fails_on_its_own_and_the_others_go_on():
                                              sf.Q_(0.3, "bar"))]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        out = _run_batched(sim, variants)
+        out = _run_batched(sim, variants, own_clocks=True)
         alone = sim.run(params=variants[1], raise_on_failure=False)
     assert [r.status for r in out] == ["success", "failed", "success"]
     assert out[1].message == alone.message and "chokes" in out[1].message
@@ -183,3 +183,18 @@ def test_scenes_it_does_not_cover_keep_the_shared_steps(case):
     out = _run(sim, variants)
     assert all(r.success for r in out)
     assert out[0].stats["clocks"] == "shared" and why in out[0].stats["shared_because"]
+
+
+def test_small_sweeps_share_their_steps_unless_asked():
+    """Below OWN_CLOCKS_MIN variants a batch shares one step sequence (cheaper
+    there), and says so."""
+    from softflow.solve import batched
+    sim = sf.Simulation(scene(), duration=0.02)
+    variants = [{"tube.diameter": d} for d in (1e-3, 1.5e-3)]
+    assert len(variants) < batched.OWN_CLOCKS_MIN
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        out = _run_batched(sim, variants)
+    assert out[0].stats["clocks"] == "shared"
+    assert "fewer than" in out[0].stats["shared_because"]
+    assert _run(sim, variants)[0].stats["clocks"] == "own"

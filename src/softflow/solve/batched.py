@@ -5,17 +5,27 @@ holding a relabelled copy of the scene per variant (``v<k>/<label>``), each
 with that variant's run-time parameters, and runs it once. The copies share
 no node, so the network is K independent sub-networks: the kernels evaluate
 each component class for all variants in one vectorized call, and Newton
-solves the block-diagonal system with one sparse factorization.
+solves the block-diagonal system (one sparse factorization, or, on own
+clocks, each variant's small dense block).
 
-Each variant meets the tolerance on its own: the adaptive error test takes
-the largest of the sub-networks' own error norms, each unknown scaled by its
-quantity's magnitude in its own sub-network (:class:`softflow.solve.bdf.BDF`).
-The variants do share the step sequence: where one variant needs small
-steps (a snap, a fast transient) the others take them too, which costs time
-but not accuracy. Batching therefore pays for many similar variants of a
-small scene (where per-run overhead dominates a serial loop) and pays less,
-or loses, when variants differ widely in stiffness or when each variant is
-already a large network.
+Each variant meets the tolerance on its own, and, where
+:mod:`softflow.solve.clocks` covers the scene (isothermal rate-form library
+components without discrete modes, adaptive BDF: most design sweeps of
+tubes, chambers, actuators and sources) and the sweep has at least
+:data:`OWN_CLOCKS_MIN` variants, each variant keeps its own clock:
+its own time, step, order and error test, the batch advancing all of them
+together, so a stiff variant takes small steps without making the others
+take them (``result.stats['clocks'] == 'own'``). Other scenes (snapping
+valves, hysteretic actuators, thermal models, fixed steps) share one step
+sequence (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
+the error test takes the largest of the sub-networks' own error norms, each
+unknown scaled by its quantity's magnitude in its own sub-network
+(:class:`softflow.solve.bdf.BDF`), so where one variant needs small steps
+(a snap, a fast transient) the others take them too, which costs time but
+not accuracy. Batching pays for many variants of a small scene (where a
+serial loop's per-run overhead dominates); it pays less where each variant
+is already a large network, and on shared steps less again when the
+variants differ widely in stiffness.
 
 A variant whose failure is traced to its own components is taken out and run
 on its own (its Result says why it failed); the batch then runs again
@@ -29,17 +39,14 @@ from those same components, so each is constructed once. Thermal scenes,
 whose components the compile configures in place, are checked by
 ``Simulation.check_params`` and rebuilt for the batch.
 
-Where the time goes (1 000 source-tube-tank variants, batches of 250,
-~0.6 s in all): the four batch runs ~0.45 s, the checks, building and
-compiling the batches ~0.1 s. The batches' shared step sequences take more
-steps than their variants would alone (340 against 4-57 per variant run
-serially, 44 -> 49 steps for two variants 0.05 % apart, 173 for the 250
-widest tubes whose own runs take 40-57), at ~1.3 ms a step; a batched dense
-inverse of the (K, 6, 6) Jacobian blocks (numpy.linalg.inv) was measured no
-faster than the sparse LU of the condensed batch (~0.6 against ~0.3 ms a
-factorization, 23 against 40 us a solve), so the default linear solver
-stays. Per-variant step sizes would cut the steps, but need kernels that
-take a step and a time per instance.
+Where the time goes on shared steps (1 000 source-tube-tank variants,
+batches of 250, ~0.6 s in all): the four batch runs ~0.45 s, the checks,
+building and compiling the batches ~0.1 s. The shared step sequences take
+more steps than their variants would alone (340 against 4-57 per variant run
+serially, 173 for the 250 widest tubes whose own runs take 40-57), at
+~1.3 ms a step. On own clocks the same 1 000 variants run as one batch of
+~80 passes (the most steps any variant takes, plus its rejections), each
+variant taking its own run's steps.
 """
 from __future__ import annotations
 
@@ -278,6 +285,12 @@ BATCH_SIZE = 250
 #: cost over more variants (1 000 source-tube-tank variants: one batch ~10 %
 #: faster than four of 250)
 OWN_CLOCKS_BATCH_SIZE = 1000
+#: Fewest variants a batch runs on own clocks: each pass of the vectorized
+#: integrator costs ~1-2 ms of NumPy calls whatever the batch's size, which a
+#: small batch's shared steps undercut (source-tube-tank, 0.5-2 mm: 20
+#: variants 0.15 s on own clocks against 0.08 s shared, 250 variants 0.35 s
+#: against 0.53 s)
+OWN_CLOCKS_MIN = 64
 
 
 def _order_key(params):
@@ -292,24 +305,31 @@ def _order_key(params):
     return tuple(out)
 
 
-def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=None):
+def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=None,
+                 own_clocks=None):
     """Results (one per variant, in order) of ``sim`` under each variant's
     run-time parameters, solved in batches of ``batch_size`` similar variants
     (module doc). ``prepared``: the variants already checked by
-    :func:`prepare` (else they are checked here, all before any runs)."""
+    :func:`prepare` (else they are checked here, all before any runs).
+    ``own_clocks``: each variant on its own clock where
+    :mod:`softflow.solve.clocks` covers the scene (True), never (False), or
+    where there are at least :data:`OWN_CLOCKS_MIN` variants (None)."""
     from .clocks import reason_not
     if prepared is None:
         prepared = prepare(sim, variants)
     variants = prepared.variants
     built = prepared.built
-    if reason_not(sim) is None:
+    if own_clocks is None:
+        own_clocks = len(variants) >= OWN_CLOCKS_MIN
+    if own_clocks and reason_not(sim) is None:
         batch_size = max(batch_size, OWN_CLOCKS_BATCH_SIZE)
     order = sorted(range(len(variants)), key=lambda k: _order_key(variants[k]))
     results = [None] * len(variants)
     for start in range(0, len(order), batch_size):
         chunk = order[start:start + batch_size]
         own = None if built is None else [built[k] for k in chunk]
-        for k, res in zip(chunk, _run_batch(sim, [variants[k] for k in chunk], progress, own)):
+        for k, res in zip(chunk, _run_batch(sim, [variants[k] for k in chunk], progress, own,
+                                            own_clocks=own_clocks)):
             results[k] = res
     return results
 
@@ -344,8 +364,8 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
             with warnings.catch_warnings():      # issued below, one per check
                 warnings.simplefilter("ignore", ModelWarning)
                 batch_sim = Simulation(batch, **kw)
-                own, why = (_on_own_clocks(batch_sim, todo) if own_clocks
-                            else (None, "own_clocks=False"))
+                own, why = (_on_own_clocks(batch_sim, todo) if own_clocks else
+                            (None, f"fewer than {OWN_CLOCKS_MIN} variants"))
                 if own is not None:
                     res, counts, times, (steps, rejected), failed = own
                 else:
