@@ -128,3 +128,56 @@ def test_a_run_refused_at_start_is_refused_again():
         sim.run()
     assert str(one.value) == str(two.value)
     _same(one.value.result, two.value.result)
+
+
+@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
+def test_a_check_registered_between_runs_is_asked_at_the_start():
+    """The start's check is remembered with the point it passed; a check
+    registered after that run is asked at the next start, which it refuses."""
+    from softflow.solve import validity
+
+    sim = sf.Simulation(scene(), duration=0.01, step=1e-3)
+    assert len(sim.run().times) == 11
+    asked = []
+
+    def refuse(g, result):
+        asked.append(len(result.times))
+        c = g.comps[0]
+        return [validity.ValidityRecord(
+            component=c.label, check="refuse", measured=1.0, limit=0.0, unit="",
+            suggestion="none", message=f"{c.label} refused", status="beyond",
+            details={"fatal": True, "first_time": float(result.times[0])})]
+    refuse.can_refuse = True
+    validity.register(sf.CircularTube, refuse)
+    try:
+        with pytest.raises(sf.SimulationError, match="t refused") as err:
+            sim.run()
+        assert asked[0] == 1             # asked at the start, on the point at t = 0
+        assert len(err.value.result.times) == 1
+    finally:
+        validity._CHECKS[sf.CircularTube].remove(refuse)
+        validity._VERSION += 1
+    assert len(sim.run().times) == 11
+
+
+@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
+def test_the_start_check_is_asked_once_per_remembered_point(monkeypatch):
+    calls = []
+    ask = sf.Simulation._fatal_at_start
+
+    def counted(self, rec):
+        calls.append(len(rec.t))
+        return ask(self, rec)
+    monkeypatch.setattr(sf.Simulation, "_fatal_at_start", counted)
+    sim = sf.Simulation(scene(), duration=0.01, step=1e-3)
+    first, second = sim.run(), sim.run()
+    assert calls == [1]
+    _same(first, second)
+    sim.run(params={"t.diameter": 1.2e-3})       # another point: asked
+    assert calls == [1, 1]
+    sim.beyond_limits = "warn"                   # not asked; and not remembered as passed
+    sim.run()
+    sim.beyond_limits = "error"
+    sim.run()
+    sim.run()
+    assert calls == [1, 1, 1]

@@ -112,9 +112,10 @@ class Integrator:
 
     #: a consistent point at t = 0 from an earlier run of the same network, inputs
     #: and tolerances, to try before solving (Simulation.run remembers them):
-    #: (x, Newton's contraction estimate ``eta`` after the solve that made x), or None
+    #: (x, Newton's contraction estimate ``eta`` after the solve that made x,
+    #: whether ``stop_at_start`` passed x), or None
     start = None
-    #: the consistent point of this run and ``eta`` after it, set by :meth:`initial`
+    #: the same of this run, set by :meth:`initial`
     consistent = None
 
     def initial(self):
@@ -127,26 +128,36 @@ class Integrator:
         other is dropped and the unknowns are solved for from their initial
         values."""
         asm, newton = self.asm, self.newton
-        x = None
+        x, passed = None, False
         if self.start is not None:
-            x, eta = self.start
+            x, eta, passed = self.start
             if x.shape == asm.x0.shape and newton.confirms(x, asm.S0, 0.0, 0.0):
                 x = x.copy()
                 newton.eta = eta
             else:
-                x = None
+                x, passed = None, False
         if x is None:
             out = newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
             if not out.converged:
                 raise StepFailure(0.0, 0.0, out)
             x = out.x
-        self.consistent = (x.copy(), newton.eta)
+        eta = newton.eta
         newton.invalidate()
         self.rec.add(0.0, x, asm.S0.copy())
         if self.sens is not None:
             self.sens_S = self.sens.initial(x, asm.S0)[1]
-        if self.stop_at_start is not None and self.stop_at_start():
-            raise StoppedAtStart()
+        if self.stop_at_start is None:
+            passed = False
+        elif not passed:
+            # the same point passed the same checks in the run it is remembered
+            # from; only a point of its own is asked (the check only spares a run
+            # refused from its start its remaining steps: the checks after the
+            # run, always made, refuse it all the same)
+            self.consistent = (x.copy(), eta, False)
+            if self.stop_at_start():
+                raise StoppedAtStart()
+            passed = True
+        self.consistent = (x.copy(), eta, passed)
         return x, asm.S0.copy()
 
 

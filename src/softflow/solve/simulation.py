@@ -24,7 +24,8 @@ from .newton import Newton, Stats
 from .params import rebuild
 from .params import split as split_params
 from .result import Result
-from .validity import ComponentError, beyond, can_refuse, check_result, issue
+from .validity import (ComponentError, beyond, can_refuse, check_result, checks_version,
+                       issue)
 from .thermal import check_model, configure_like, configure_thermal
 
 if TYPE_CHECKING:
@@ -276,12 +277,16 @@ class Simulation:
     def _start_key(self, newton):
         """What the consistent point at t = 0 is solved for: the components in force
         (as objects: run-time parameters replace them), the initial unknowns and
-        states, Newton's tolerances and linear solver. A run whose key is the last
-        run's may start from that run's point, which Newton still confirms
-        (Integrator.initial): user code may read what no key can see."""
+        states, Newton's tolerances and linear solver; and what the check at the
+        start reads of it (the registered checks, the recorded components). A run
+        whose key is the last run's may start from that run's point, which Newton
+        still confirms (Integrator.initial): user code may read what no key can
+        see."""
         asm = self.asm
         return ((asm.x0.tobytes(), asm.S0.tobytes(), newton.rtol, newton.atol.tobytes(),
-                 tuple(newton._links), newton._T_range, newton.lin.kind),
+                 tuple(newton._links), newton._T_range, newton.lin.kind,
+                 # what the check at the start (_fatal_at_start) reads besides
+                 checks_version(), None if self.record is None else tuple(self.record[2])),
                 tuple(c for g in asm.groups for c in g.comps))
 
     def _atol_vector(self, quantities, factor=1.0):

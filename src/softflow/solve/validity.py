@@ -150,10 +150,23 @@ def table(records: list[ValidityRecord]) -> Any:
 _CHECKS: dict[type, list[Callable[[Any, Any], list[ValidityRecord]]]] = {}
 
 
+#: how many checks were registered: what a run remembers of the checks its start passed
+_VERSION = 0
+
+
 def register(cls: type, check: Callable[[Any, Any], list[ValidityRecord]]) -> None:
     """Run ``check(group, result)`` after every run on each compiled group of
     components that are instances of ``cls``."""
+    global _VERSION
     _CHECKS.setdefault(cls, []).append(check)
+    _VERSION += 1
+
+
+def checks_version() -> int:
+    """A number that changes whenever a check is registered (the library's are
+    registered first)."""
+    _register_library_checks()
+    return _VERSION
 
 
 def _register_library_checks() -> None:
