@@ -357,14 +357,18 @@ class VariantBDF:
         prev = np.full(K, np.nan)
         limit = np.where(fresh, NEWTON_FULL_MAX if full else NEWTON_MAX, NEWTON_REUSE_ITER)
         it = np.zeros(K, dtype=np.int64)     # iterations on each one's current factors
+        Xv = X0.copy()                       # the iterates, variant-major
+        rperm, dense = lay.rperm, self.dense
         for _ in range(NEWTON_FULL_MAX if full else NEWTON_MAX + NEWTON_REUSE_ITER):
             self.stats.newton_iterations += 1
-            Fv = F[lay.rperm].reshape(K, -1)
-            bad |= ~np.isfinite(Fv).all(axis=1) & ~conv
-            F[~np.isfinite(F)] = 0.0
-            if self.dense:
-                dXv = np.matmul(self._inv, Fv.reshape(K, -1, 1))[:, :, 0]
-                dXv[~np.isfinite(Fv).all(axis=1)] = 0.0
+            Fv = F[rperm].reshape(K, -1)
+            finite = np.isfinite(Fv).all(axis=1)
+            if not finite.all():
+                bad |= ~finite & ~conv
+                Fv[~finite] = 0.0
+                F[~np.isfinite(F)] = 0.0
+            if dense:
+                dXv = np.matmul(self._inv, Fv[:, :, None])[:, :, 0]
             else:
                 dXv = lay.to_v(self.lin.solve(F))
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -375,39 +379,45 @@ class VariantBDF:
                 new_eta = rate / (1.0 - rate)
                 if full:
                     done = nrm <= 1.0
-                    trouble = ~np.isfinite(nrm)
+                    trouble = np.isinf(nrm)
                 else:
                     done = np.where(first, (nrm <= 1.0) | (nrm * np.maximum(eta, 1e-3) ** 0.8
                                                            <= 1.0), nrm * new_eta <= 1.0)
-                    diverge = ~first & (rate >= 0.9)
-                    slow = (~first & ~done & ~diverge
-                            & (nrm * rate ** np.maximum(limit - 1 - it, 0) / (1.0 - rate) > 1.0))
-                    trouble = diverge | slow | ~np.isfinite(nrm)
+                    diverge = rate >= 0.9                # (False where first: NaN)
+                    slow = ~done & ~diverge & (
+                        nrm * rate ** np.maximum(limit - 1 - it, 0) / (1.0 - rate) > 1.0)
+                    trouble = diverge | slow | np.isinf(nrm)
             move = ~conv & ~bad
-            # the contraction seen (full solves too, as Newton keeps it)
-            keep_eta = move & ~first & ~trouble & (rate < 1.0)
-            eta[keep_eta] = new_eta[keep_eta]
             step_ok = move & ~trouble
-            x -= lay.from_v(np.where(step_ok[:, None], dXv, 0.0), np.empty_like(x))
+            # the contraction seen (full solves too, as Newton keeps it)
+            keep_eta = step_ok & ~first & (rate < 1.0)
+            eta[keep_eta] = new_eta[keep_eta]
+            if step_ok.all():
+                Xv -= dXv
+            else:
+                Xv -= np.where(step_ok[:, None], dXv, 0.0)
             conv = conv | (step_ok & done)
             prev = np.where(step_ok, nrm, prev)
             it += move
-            trouble = (move & trouble) | (move & ~conv & (it >= limit))
-            refresh = (live & ~conv & ~bad) if full else np.zeros(K, dtype=bool)
+            trouble = move & (trouble | (~conv & (it >= limit)))
+            refresh = (live & ~conv & ~bad) if full else None
             if trouble.any():
                 bad |= trouble & fresh
                 again = trouble & ~fresh        # fresh factors at the iterate
                 fresh |= again
-                refresh |= again
+                refresh = again if refresh is None else refresh | again
                 limit[again], it[again], prev[again] = NEWTON_MAX, 0, np.nan
             if (conv | bad).all():
                 break
-            F = self._residual(x, S, tv, cv, bool(refresh.any()))
-            if refresh.any():
+            lay.from_v(Xv, x)
+            jac = refresh is not None and bool(refresh.any())
+            F = self._residual(x, S, tv, cv, jac)
+            if jac:
                 bad |= self._factor(cv, refresh) & live
+        lay.from_v(Xv, x)
         # absolute pressures stay positive
         if self.p_cols.size:
-            conv &= ~((lay.to_v(x)[:, self.p_cols] <= 0.0).any(axis=1) & live)
+            conv &= ~((Xv[:, self.p_cols] <= 0.0).any(axis=1) & live)
         conv &= ~bad | ~live
         self._lu_c[live & ~conv] = np.nan      # fresh factors for the retries
         return x, conv
