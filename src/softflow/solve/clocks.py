@@ -25,12 +25,19 @@ them restart there together (the restart probes of the BDF, batched). A
 variant whose own inputs have no jump there restarts anyway: a cost, not an
 error.
 
-What this covers: scenes of library components in rate form (isothermal)
-without discrete modes (no snapping valve, no hysteretic actuator), run with
-the adaptive BDF. Others keep the shared step sequence
-(:func:`reason_not` says why). A variant whose step fails (Newton down to
-``step_min``) is reported failed here and run again on its own by the caller,
-where its result says why.
+A discrete mode that switches (a snapping valve, a hysteretic actuator) is
+located and restarted from per variant as the BDF does for one network (the
+step retried to end just past the secant crossing of the switching
+functions, then order 1 from the new mode): each variant snaps at its own
+time, and only the variants that switch pay for the restart.
+
+What this covers: scenes of library components in rate form (isothermal),
+run with the adaptive BDF. Others (thermal models, user components, fixed
+steps) keep the shared step sequence (:func:`reason_not` says why). A
+variant whose step fails (Newton down to ``step_min``) is reported failed
+here and run again on its own by the caller, where its result says why; an
+iterate that leaves a fluid's range sends the whole batch back to the shared
+steps, which find the variant responsible.
 
 Results: each variant's points are its own accepted steps; the batch's
 Result holds them padded to the longest (a variant's last point repeated)
@@ -47,7 +54,7 @@ import numpy as np
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .bdf import (_ERR, _G, FAIL_HOLD, GROW_MIN, MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR,
-                  SAFETY)
+                  SAFETY, SECANT_TRIES, SWITCH_PAST)
 from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
@@ -155,8 +162,6 @@ def reason_not(sim):
         return "fixed steps (step=) share one grid"
     if sim.thermal != "isothermal":
         return "thermal scenes keep the shared step sequence"
-    if asm.has_discrete:
-        return "discrete modes (valves, hysteretic actuators) keep the shared steps"
     from ..components.base import LibraryComponent
     for g in asm.groups:
         c0 = g.comps[0]
@@ -226,6 +231,16 @@ class VariantBDF:
         atol_s = np.broadcast_to(sim._atol_vector(asm.s_quantity), (len(asm.S0),))
         atol_x = np.broadcast_to(sim._atol_vector(asm.x_quantity), (asm.n,))
         self.atol_s = lay.s_to_v(np.asarray(atol_s, dtype=float))
+        # discrete states (a valve's or an actuator's mode) are left out of the
+        # error test; each variant's are the same columns
+        disc = lay.s_to_v(asm.s_discrete)
+        if disc.size and (disc != disc[0]).any():
+            raise Unsupported("the variants' modes are ordered differently")
+        self.disc_cols = np.flatnonzero(disc[0]) if disc.size else np.zeros(0, dtype=np.int64)
+        self.cont = (None if not self.disc_cols.size
+                     else np.flatnonzero(~disc[0]))
+        self.atol_s_c = self.atol_s if self.cont is None else self.atol_s[:, self.cont]
+        self._sw_var = None        # the variant of each switching function's entry
         self.atol_x = lay.to_v(np.asarray(atol_x, dtype=float))
         self.newton_atol = 1e-3 * self.atol_x
         self.newton_rtol = min(sim.newton_rtol, sim.rtol / 20)
@@ -302,7 +317,12 @@ class VariantBDF:
 
     # -- norms, per variant -----------------------------------------------------------
     def _weights(self, Sa, Sb, Xv):
-        wS = self.atol_s + self.rtol * np.maximum(np.abs(Sa), np.abs(Sb))
+        """Error weights (continuous states', unknowns') of each variant for a step
+        from Sa to Sb (as BDF._weights)."""
+        c = self.cont
+        if c is not None:
+            Sa, Sb = Sa[:, c], Sb[:, c]
+        wS = self.atol_s_c + self.rtol * np.maximum(np.abs(Sa), np.abs(Sb))
         v = np.abs(Xv - self.offset)
         qmax = np.stack([v[:, c].max(axis=1) if c.size else np.zeros(self.K)
                          for c in self.q_cols], axis=1)
@@ -311,10 +331,11 @@ class VariantBDF:
         self._qmax_run = qmax
         return wS, self.atol_x + self.rtol * qmax[:, self.qid]
 
-    @staticmethod
-    def _norms(dS, dX, w):
-        """Each variant's weighted RMS of (dS, dX), or its largest weighted entry
-        over PEAK_FACTOR where that is larger (as BDF._norm)."""
+    def _norms(self, dS, dX, w):
+        """Each variant's weighted RMS of (dS, dX) (continuous states only), or its
+        largest weighted entry over PEAK_FACTOR where that is larger (as BDF._norm)."""
+        if self.cont is not None:
+            dS = dS[:, self.cont]
         e, ex = dS / w[0], dX / w[1]
         size = e.shape[1] + ex.shape[1]
         if not size:
@@ -514,6 +535,7 @@ class VariantBDF:
         Sh = lay.s_to_v(self._update(xh, S, cv))
         with np.errstate(all="ignore"):
             r = (Sh - self.Sv) / np.where(live, hv, 1.0)[:, None]
+        r[:, self.disc_cols] = 0.0          # a mode has no rate
         return xh, r, conv & live | ~live
 
     def _restart(self, ids, x, S):
@@ -566,6 +588,9 @@ class VariantBDF:
         self.fails[ids] = 0
         self.fail_cap[ids] = math.inf
         self.fail_hold[ids] = 0
+        self.h_cap[ids] = math.inf
+        self.cap_hold[ids] = 0
+        self._lu_c[ids] = np.nan
         return ok[ids]
 
     def _limit(self):
@@ -593,6 +618,10 @@ class VariantBDF:
         self.fails = np.zeros(K, dtype=np.int64)
         self.fail_cap = np.full(K, math.inf)
         self.fail_hold = np.zeros(K, dtype=np.int64)
+        # while a mode switch is being located (as BDF.run)
+        self.h_cap = np.full(K, math.inf)
+        self.cap_hold = np.zeros(K, dtype=np.int64)
+        self.secant_tries = np.zeros(K, dtype=np.int64)
         self.D = np.zeros((kmax + 3, K, ns + 2 * nx))
         done = np.zeros(K, dtype=bool)
         waiting = np.zeros(K, dtype=bool)
@@ -629,7 +658,8 @@ class VariantBDF:
             lim, nxt = self._limit()
             # step sizes: no overshoot of the limit, no sliver left before it
             h = self.h
-            h_try = np.minimum(np.minimum(h, self.step_max), self.fail_cap)
+            h_try = np.minimum(np.minimum(np.minimum(h, self.step_max), self.fail_cap),
+                               self.h_cap)
             short = (self.t + h_try >= lim) | (lim - (self.t + h_try) < 0.2 * h_try)
             h_try = np.where(short, lim - self.t, h_try)
             change = live & (h_try != h)
@@ -705,6 +735,13 @@ class VariantBDF:
                 h[ids] *= factor
                 self.n_equal[ids] = 0
             acc = ok & ~efail
+            switched = None
+            if self.disc_cols.size and acc.any():
+                switched = acc & (S_new[:, self.disc_cols] != self.Sv[:, self.disc_cols]).any(axis=1)
+                if switched.any():
+                    acc &= ~self._locate(switched, x, S, x_new, S_new_b, S_new, X_new, w, h)
+                    switched &= acc
+                self.secant_tries[acc] = 0
             if not acc.any():
                 continue
             ids = np.flatnonzero(acc)
@@ -712,6 +749,9 @@ class VariantBDF:
             held = ids[self.fail_hold[ids] > 0]
             self.fail_hold[held] -= 1
             self.fail_cap[held[self.fail_hold[held] == 0]] = math.inf
+            held = ids[self.cap_hold[ids] > 0]      # the switch did not come back
+            self.cap_hold[held] -= 1
+            self.h_cap[held[self.cap_hold[held] == 0]] = math.inf
             self.steps[ids] += 1
             np.add.at(self.order_counts, self.k[ids], 1)
             c_ids = cv[ids]
@@ -729,6 +769,13 @@ class VariantBDF:
             brk = ids[at_break[ids] & ~done[ids]]
             waiting[brk] = True
             self._lu_c[brk] = np.nan
+            if switched is not None:        # a mode switched: order 1 from the new mode
+                sw = ids[switched[ids] & ~done[ids] & ~waiting[ids]]
+                if sw.size:
+                    ok_sw = self._restart(sw, x, S)
+                    fail(sw[~ok_sw], "a restart after a mode switch failed")
+                    done[sw[~ok_sw]] = True
+                    ids = ids[~np.isin(ids, sw)]
             go = ids[~done[ids] & ~waiting[ids]]
             self.n_equal[go] += 1
             sel = go[self.n_equal[go] >= self.k[go] + 1]
@@ -736,6 +783,68 @@ class VariantBDF:
                 self._choose(sel, err)
         self._rec = rec
         return self._collect()
+
+    def _locate(self, switched, x, S, x_new, S_new_b, S_new, X_new, w, h):
+        """The variants among ``switched`` (a mode switched at the end of their
+        step) whose step is rejected to place the switch (as BDF.run: the step
+        retried to end just past the secant crossing of the switching functions,
+        or bisected where there is none, until the part past the switch moves
+        the solution by no more than the tolerance); their steps are cut."""
+        smin = self.step_min * 1.0000001
+        locate = switched & (h > smin)
+        if not locate.any():
+            return np.zeros(self.K, dtype=bool)
+        motion = self._norms(S_new - self.Sv, X_new - self.Xv, w)
+        theta = self._crossings(x, S, x_new, S_new_b)
+        secant = locate & (motion > 1.0) & (self.secant_tries < SECANT_TRIES) & np.isfinite(theta)
+        past = np.where(secant, 1.0 - theta, 1.0)
+        rej = locate & (motion * past > 1.0)
+        if not rej.any():
+            return rej
+        ids = np.flatnonzero(rej)
+        self.rejected[ids] += 1
+        self.stats.rejected_steps += ids.size
+        sec = secant[ids]
+        self.secant_tries[ids[sec]] += 1
+        with np.errstate(all="ignore"):
+            part = np.minimum(SWITCH_PAST, 0.5 / np.maximum(motion[ids] * theta[ids], 1.0))
+            factor = np.where(sec, np.maximum(theta[ids] * (1.0 + part), self.step_min / h[ids]),
+                              np.maximum(0.5, self.step_min / h[ids]))
+        bis = ids[~sec]
+        self.h_cap[bis] = h[bis] * factor[~sec]
+        self.cap_hold[bis] = FAIL_HOLD
+        self._rescale(ids, factor)
+        h[ids] *= factor
+        self.n_equal[ids] = 0
+        return rej
+
+    def _crossings(self, x, S, x_new, S_new_b):
+        """Each variant's first crossing of a switching function over its step,
+        as a fraction of the step (a secant between the ends, the end with the
+        old modes), or NaN (none, or none in (0, 1])."""
+        asm = self.asm
+        g0 = asm.switching(x, S)
+        out = np.full(self.K, np.nan)
+        if g0 is None:
+            return out
+        if self._sw_var is None:
+            parts = []
+            for g in asm.groups:
+                if g.switching is not None:
+                    m = np.asarray(g.switching(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns))).size
+                    parts.append(np.repeat(self.lay.inst[id(g)], m // g.n))
+            self._sw_var = np.concatenate(parts)
+        old = S_new_b.copy()
+        old[asm.s_discrete] = S[asm.s_discrete]
+        g1 = asm.switching(x_new, old)
+        with np.errstate(all="ignore"):
+            cross = (g0 < 0.0) & (g1 >= 0.0)
+            th = np.where(cross, g0 / (g0 - g1), np.inf)
+        first = np.full(self.K, np.inf)
+        np.minimum.at(first, self._sw_var, th)
+        ok = (first > 0.0) & (first <= 1.0)
+        out[ok] = first[ok]
+        return out
 
     def _initial(self):
         """The consistent point at t = 0 of every variant (zero step), by Newton
