@@ -39,8 +39,7 @@ Engines
     ``status``, ``message``, ``warnings`` and ``get(label, name)``). Each
     variant meets the tolerance on its own: within the tolerance of, not
     bitwise equal to, its serial run. Where :mod:`softflow.solve.clocks`
-    covers the scene (adaptive, isothermal, library components; from 64
-    variants) each variant also keeps its own clock, taking the steps its own
+    covers the scene (adaptive, library components; from 64 variants) each variant also keeps its own clock, taking the steps its own
     run would take (``stats['clocks'] == 'own'``); other scenes share one
     step sequence (``'shared'``, ``stats['shared_because']`` says why).
     Batched beats processes on many variants of a small scene; on variants

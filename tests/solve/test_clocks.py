@@ -190,16 +190,65 @@ def test_snapping_valves_switch_on_their_own_clocks():
     assert shared[0].stats["steps"] > 3 * np.median([b.stats["steps"] for b in out])
 
 
-@pytest.mark.parametrize("case", ["thermal", "fixed"])
+class _UserChamber(sf.Component):
+    """A user's stiff chamber, written the paper's way."""
+
+    def __init__(self, label):
+        super().__init__(label)
+        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf = sf.Variable("massflow", "through", label="mf")
+        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p, mf]))
+        self.set_states(m)
+        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
+        self.update_state = self.auto_state(lambda dt, mass, mf: {"mass": mass + mf * dt})
+
+
+@pytest.mark.parametrize("case", ["user", "fixed"])
 def test_scenes_it_does_not_cover_keep_the_shared_steps(case):
-    kw = {"thermal": "adiabatic"} if case == "thermal" else {"step": 1e-3}
-    sim = sf.Simulation(scene(), duration=0.02, **kw)
+    if case == "user":
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 1e4)
+        s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+        s += _UserChamber("tank")
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        sim = sf.Simulation(s, duration=0.02)
+        why = "not a library component"
+    else:
+        sim = sf.Simulation(scene(), duration=0.02, step=1e-3)
+        why = "fixed steps"
     variants = [{"tube.diameter": d} for d in (1e-3, 1.5e-3)]
-    why = "thermal" if case == "thermal" else "fixed steps"
     assert why in clocks.reason_not(sim)
     out = _run(sim, variants)
     assert all(r.success for r in out)
     assert out[0].stats["clocks"] == "shared" and why in out[0].stats["shared_because"]
+
+
+@pytest.mark.parametrize("thermal", ["adiabatic", "heat_transfer"])
+def test_thermal_variants_keep_their_own_clocks(thermal):
+    """Adiabatic tanks, and tanks whose wall's h A a free-convection correlation
+    gives, frozen at each variant's own step start: each as its own run."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    extra = ({"heat_transfer_coefficient": sf.FreeConvection(), "area": 2.2e-3}
+             if thermal == "heat_transfer" else {})
+    s += sf.Container("tank", sf.air, 1e-5, **extra)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    sim = sf.Simulation(s, duration=0.2, thermal=thermal)
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1e-3, 2e-3)]
+    out = _run(sim, variants)
+    for v, b in zip(variants, out):
+        assert b.success and b.stats["clocks"] == "own"
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            serial = sim.run(params=v)
+        assert abs(b.stats["steps"] - serial.stats["steps"]) <= max(3, 0.3 * serial.stats["steps"])
+        for name, scale in (("pressure", 3e4), ("temperature", 30.0)):
+            mine = np.interp(serial.times, b.times, b.get("tank", name))
+            assert np.max(np.abs(mine - serial.get("tank", name))) <= 2e-3 * scale, (v, name)
 
 
 def test_small_sweeps_share_their_steps_unless_asked():

@@ -9,15 +9,15 @@ solves the block-diagonal system (one sparse factorization, or, on own
 clocks, each variant's small dense block).
 
 Each variant meets the tolerance on its own, and, where
-:mod:`softflow.solve.clocks` covers the scene (isothermal rate-form library
-components, snapping valves and hysteretic actuators included, adaptive BDF:
-most design sweeps) and the sweep has at least
+:mod:`softflow.solve.clocks` covers the scene (library components,
+snapping valves, hysteretic actuators and thermal models included, adaptive
+BDF) and the sweep has at least
 :data:`OWN_CLOCKS_MIN` variants, each variant keeps its own clock:
 its own time, step, order and error test, the batch advancing all of them
 together, so a stiff variant takes small steps without making the others
 take them, and each valve snaps on its own clock (``result.stats['clocks']
-== 'own'``). Other scenes (thermal models, user components, fixed steps)
-share one step sequence (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
+== 'own'``). Other scenes (user components, fixed steps) share one step
+sequence (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
 the error test takes the largest of the sub-networks' own error norms, each
 unknown scaled by its quantity's magnitude in its own sub-network
 (:class:`softflow.solve.bdf.BDF`), so where one variant needs small steps

@@ -31,9 +31,10 @@ step retried to end just past the secant crossing of the switching
 functions, then order 1 from the new mode): each variant snaps at its own
 time, and only the variants that switch pay for the restart.
 
-What this covers: scenes of library components in rate form (isothermal),
-run with the adaptive BDF. Others (thermal models, user components, fixed
-steps) keep the shared step sequence (:func:`reason_not` says why). A
+What this covers: scenes of library components in rate form, isothermal or
+thermal (a heat-transfer correlation's h A frozen at each variant's own
+step start, as the BDF freezes it), run with the adaptive BDF. Others (user
+components, fixed steps) keep the shared step sequence (:func:`reason_not` says why). A
 variant whose step fails (Newton down to ``step_min``) is reported failed
 here and run again on its own by the caller, where its result says why; an
 iterate that leaves a fluid's range sends the whole batch back to the shared
@@ -160,15 +161,13 @@ def reason_not(sim):
     asm = sim.asm
     if not sim.adaptive:
         return "fixed steps (step=) share one grid"
-    if sim.thermal != "isothermal":
-        return "thermal scenes keep the shared step sequence"
     from ..components.base import LibraryComponent
     for g in asm.groups:
         c0 = g.comps[0]
         if g.row is not None or not isinstance(c0, LibraryComponent):
             return f"{c0.describe()} is not a library component"
         cls = c0.kernel_class()
-        if not linearizable(cls) or g.begin is not None:
+        if not linearizable(cls):
             return f"{c0.describe()} writes its own step equations"
         # each instance's own time reaches the library's residuals (only the
         # sources read it, through their signal values); a user's residual may
@@ -641,6 +640,11 @@ class VariantBDF:
                 self.failed[int(v)] = why
             done[ids] = True
 
+        # per-step coefficients (heat-transfer correlations) frozen at the point
+        # where each variant's step starts, as BDF.run freezes them
+        begin = asm.begin_step if asm.has_begin_step else None
+        if begin is not None:
+            begin(x, S)
         ok = self._restart(ar, x, S)
         fail(ar[~ok], "the restart probes at t = 0 failed")
         while True:
@@ -764,6 +768,8 @@ class VariantBDF:
                         Q_new.copy()))
             x = lay.from_v(self.Xv, x)
             S = lay.s_from_v(self.Sv, S)
+            if begin is not None:
+                begin(x, S)
             fin = ids[self.t[ids] >= t_stop]
             done[fin] = True
             brk = ids[at_break[ids] & ~done[ids]]
