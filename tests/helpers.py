@@ -77,3 +77,30 @@ def snapping_valve_scene(pressure=None):
     s.connect("tank", ("valve", "a"))
     s.connect(("valve", "b"), "out")
     return s
+
+
+def filling_tank(source=None, fluid=sf.air, friction="Haaland"):
+    """A 10 mL tank of ``fluid`` filled through 0.5 m of 1 mm tube (``friction``)
+    from ``source`` (default a PressureSource at 1.3 bar): the batched-variant
+    tests' scene."""
+    s = sf.System()
+    s += source or sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", fluid, 0.5, 1e-3, friction=friction)
+    s += sf.Container("tank", fluid, 1e-5)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    return s
+
+
+def gauge_reference(sim, variant, label="tank"):
+    """(times, gauge pressure of ``label``) of ``variant`` run on ``sim``."""
+    res = sim.run(params=variant)
+    return res.times, res.get(label, "pressure") - sf.pressure_atmospheric
+
+
+def gauge_error(res, ref, label="tank"):
+    """Largest deviation of ``res``'s gauge pressure of ``label`` from ``ref``
+    (:func:`gauge_reference`) at ``res``'s points, over ref's largest value."""
+    t, p = ref
+    mine = res.get(label, "pressure") - sf.pressure_atmospheric
+    return np.max(np.abs(mine - np.interp(res.times, t, p))) / np.max(np.abs(p))

@@ -4,30 +4,17 @@ import pytest
 
 import softflow as sf
 from softflow.solve.batched import _run_batched, build_batch
+from helpers import filling_tank, gauge_error, gauge_reference
 
 P0 = sf.pressure_atmospheric
 
 
 def scene(fluid=sf.air, source=None):
-    s = sf.System()
-    s += source or sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", fluid, 0.5, 1e-3)
-    s += sf.Container("tank", fluid, 1e-5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    return s
+    return filling_tank(source, fluid)
 
 
 def _reference(variant, duration):
-    sim = sf.Simulation(scene(), duration=duration, rtol=1e-9)
-    res = sim.run(params=variant)
-    return res.times, res.get("tank", "pressure") - P0
-
-
-def _error(res, ref):
-    t, p = ref
-    mine = res.get("tank", "pressure") - P0
-    return np.max(np.abs(mine - np.interp(res.times, t, p))) / np.max(np.abs(p))
+    return gauge_reference(sf.Simulation(scene(), duration=duration, rtol=1e-9), variant)
 
 
 def test_batch_is_one_copy_of_the_scene_per_variant():
@@ -54,7 +41,7 @@ def test_each_variant_meets_the_tolerance_of_its_own_serial_run(stepping):
             np.testing.assert_allclose(b.get("tank", "pressure"), serial.get("tank", "pressure"),
                                        rtol=0, atol=1e-4 * 3e4)
         else:             # each within (a small multiple of) what its own run achieves
-            assert _error(b, ref) <= 2 * max(_error(serial, ref), 1e-3), v
+            assert gauge_error(b, ref) <= 2 * max(gauge_error(serial, ref), 1e-3), v
 
 
 def test_a_failing_variant_is_isolated_and_reported():

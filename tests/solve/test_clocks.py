@@ -8,19 +8,13 @@ import softflow as sf
 from softflow.solve import clocks
 from softflow.solve.batched import _run_batched, build_batch
 from softflow.solve.bdf import _rescale_matrix
-from helpers import snapping_valve_scene
+from helpers import filling_tank, gauge_error, gauge_reference, snapping_valve_scene
 
 P0 = sf.pressure_atmospheric
 
 
-def scene(source=None, friction="Haaland", fluid=sf.air):
-    s = sf.System()
-    s += source or sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", fluid, 0.5, 1e-3, friction=friction)
-    s += sf.Container("tank", fluid, 1e-5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    return s
+def scene(source=None, friction="Haaland"):
+    return filling_tank(source, friction=friction)
 
 
 def _run(sim, variants):
@@ -70,14 +64,7 @@ def test_each_instance_steps_at_its_own_time_and_step():
 
 
 def _reference(variant, duration, source=None):
-    res = sf.Simulation(scene(source), duration=duration, rtol=1e-9).run(params=variant)
-    return res.times, res.get("tank", "pressure") - P0
-
-
-def _error(res, ref):
-    t, p = ref
-    mine = res.get("tank", "pressure") - P0
-    return np.max(np.abs(mine - np.interp(res.times, t, p))) / np.max(np.abs(p))
+    return gauge_reference(sf.Simulation(scene(source), duration=duration, rtol=1e-9), variant)
 
 
 def test_a_stiff_variant_does_not_set_the_others_steps():
@@ -95,7 +82,7 @@ def test_a_stiff_variant_does_not_set_the_others_steps():
         assert len(b.times) == b.stats["steps"] + 1
         assert np.all(np.diff(b.times) > 0) and b.times[-1] == pytest.approx(0.1, rel=1e-12)
         ref = _reference(v, 0.1)
-        assert _error(b, ref) <= 2 * max(_error(serial, ref), 1e-3), v
+        assert gauge_error(b, ref) <= 2 * max(gauge_error(serial, ref), 1e-3), v
     from softflow.solve.batched import _run_batch
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
@@ -116,10 +103,8 @@ def test_a_declared_jump_is_a_barrier_every_variant_restarts_at():
         assert b.stats["clocks"] == "own"
         assert np.any(b.times == 0.02)
         serial = sim.run(params=v)
-        ref = sf.Simulation(scene(sf.PressureSource("src", pressure=step, gauge=True)), duration=0.06,
-                            rtol=1e-9).run(params=v)
-        r = (ref.times, ref.get("tank", "pressure") - P0)
-        assert _error(b, r) <= 2 * max(_error(serial, r), 1e-3), v
+        r = _reference(v, 0.06, sf.PressureSource("src", pressure=step, gauge=True))
+        assert gauge_error(b, r) <= 2 * max(gauge_error(serial, r), 1e-3), v
 
 
 def test_validity_is_judged_on_each_variant_own_times():
