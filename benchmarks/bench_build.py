@@ -10,7 +10,12 @@ compiling it into a Simulation, and the per-run overhead of a small scene.
 (2) compile: sf.Simulation(s, duration=0.01, step=1e-3) on that System, per
     component;
 (3) a small scene's fixed per-run cost: source-tube-container, one fixed 1 ms
-    step, repeated sim.run().
+    step, repeated sim.run() (from the second run on, each starts from the
+    consistent point at t = 0 its predecessor left, which Newton confirms);
+(4) the same with sim.run(params={"t.diameter": 1e-3}): the built value, but
+    given as a run-time parameter, so every run solves for its consistent
+    point from the initial values (a cold start, as each run of a serial
+    sweep does); no target, for comparison.
 
 Each figure is the median over --repeat repeats (a small-scene repeat is the
 median of --runs runs) with the range of the repeats (min-max), in wall-clock
@@ -77,8 +82,8 @@ def main():
 
     # each figure twice: wall clock, and this process's CPU time (steadier on
     # a shared machine, where other processes take turns on the cores)
-    wall = {"build": [], "compile": [], "run": []}
-    cpu = {"build": [], "compile": [], "run": []}
+    wall = {"build": [], "compile": [], "run": [], "cold": []}
+    cpu = {"build": [], "compile": [], "run": [], "cold": []}
 
     def clocks():
         return time.perf_counter(), time.process_time()
@@ -98,17 +103,19 @@ def main():
 
     sim = sf.Simulation(small_scene(), duration=1e-3, step=1e-3)
     sim.run()
+    cold = {"t.diameter": 1e-3}
     for _ in range(args.repeat):
-        ws, cs = [], []
-        for _ in range(args.runs):
-            w0, c0 = clocks()
-            sim.run()
-            w1, c1 = clocks()
-            ws.append(w1 - w0)
-            cs.append(c1 - c0)
-        wall["run"].append(statistics.median(ws) * 1e3)
-        # process_time ticks coarsely on some systems: the mean of many runs
-        cpu["run"].append(sum(cs) / len(cs) * 1e3)
+        for key, params in (("run", None), ("cold", cold)):
+            ws, cs = [], []
+            for _ in range(args.runs):
+                w0, c0 = clocks()
+                sim.run(params=params)
+                w1, c1 = clocks()
+                ws.append(w1 - w0)
+                cs.append(c1 - c0)
+            wall[key].append(statistics.median(ws) * 1e3)
+            # process_time ticks coarsely on some systems: the mean of many runs
+            cpu[key].append(sum(cs) / len(cs) * 1e3)
 
     load = os.getloadavg()
     print(f"N = {args.n} pairs ({2 * args.n + 1} components), {args.repeat} repeats; "
@@ -117,12 +124,14 @@ def main():
           f"{'wall/t':>6s} {'cpu/t':>6s}")
     rows = [("build System [us/component]", "build", TARGET_BUILD_US),
             ("Simulation(...) [us/component]", "compile", TARGET_COMPILE_US),
-            ("small run() [ms/run]", "run", TARGET_RUN_MS)]
+            ("small run() [ms/run]", "run", TARGET_RUN_MS),
+            ("small run(params=), cold [ms]", "cold", None)]
     for name, key, target in rows:
         med, lo, hi = summary(wall[key])
         c = statistics.median(cpu[key])
-        print(f"{name:32s} {med:8.2f} {lo:7.2f}-{hi:<7.2f} {c:8.2f} {target:7.2f} "
-              f"{med / target:6.2f} {c / target:6.2f}")
+        ratios = (f"{target:7.2f} {med / target:6.2f} {c / target:6.2f}" if target
+                  else f"{'-':>7s} {'-':>6s} {'-':>6s}")
+        print(f"{name:32s} {med:8.2f} {lo:7.2f}-{hi:<7.2f} {c:8.2f} {ratios}")
 
 
 if __name__ == "__main__":
