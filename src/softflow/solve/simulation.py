@@ -274,6 +274,15 @@ class Simulation:
         return (np.unique(np.array(xs, dtype=np.int64)), np.array(ss, dtype=np.int64),
                 list(labels))
 
+    def _can_refuse(self):
+        """validity.can_refuse of the network, found once per set of registered
+        checks (run-time parameters replace components by ones of their class)."""
+        version = checks_version()
+        known = getattr(self, "_refusable", None)
+        if known is None or known[0] != version:
+            known = self._refusable = (version, can_refuse(self.asm))
+        return known[1]
+
     def _start_key(self, newton):
         """What the consistent point at t = 0 is solved for: the components in force
         (as objects: run-time parameters replace them), the initial unknowns and
@@ -390,9 +399,10 @@ class Simulation:
         newton = Newton(asm, lin, stats, rtol=newton_rtol,
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
         newton.max_solves = self.max_steps
-        gas = next((c.fluid for c in components
-                    if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
-        if self.thermal != "isothermal" and gas is not None:
+        gas = None if self.thermal == "isothermal" else next(
+            (c.fluid for c in components
+             if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
+        if gas is not None:
             T = gas.temperature
             newton.set_magnitude_link("energyflow", "massflow",
                                       float(gas.cp(pressure_atmospheric, T)) * T)
@@ -426,7 +436,7 @@ class Simulation:
         start_key = self._start_key(newton)
         if self._start is not None and _same_start(self._start[0], start_key):
             integ.start = self._start[1]
-        if self.beyond_limits == "error" and can_refuse(asm):
+        if self.beyond_limits == "error" and self._can_refuse():
             integ.stop_at_start = lambda: self._fatal_at_start(integ.rec)  # type: ignore[assignment]
         error = None
         try:
