@@ -249,3 +249,20 @@ def test_small_sweeps_share_their_steps_unless_asked():
     assert out[0].stats["clocks"] == "shared"
     assert "fewer than" in out[0].stats["shared_because"]
     assert _run(sim, variants)[0].stats["clocks"] == "own"
+
+
+def test_recorded_components_only_are_kept():
+    """Simulation(record=[...]): each variant keeps the named components' columns
+    only, with the values of a run that keeps all."""
+    sim_all = sf.Simulation(scene(), duration=0.05)
+    sim_rec = sf.Simulation(scene(), duration=0.05, record=["tank"])
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1e-3, 2e-3)]
+    full, part = _run(sim_all, variants), _run(sim_rec, variants)
+    for a, b in zip(full, part):
+        assert b.stats["clocks"] == "own"
+        np.testing.assert_array_equal(a.times, b.times)
+        np.testing.assert_array_equal(a.get("tank", "pressure"), b.get("tank", "pressure"))
+        np.testing.assert_array_equal(a.integral("tank", "massflow"), b.integral("tank", "massflow"))
+        with pytest.raises(KeyError):
+            b.get("tube", "massflow_a")
+    assert part[0]._result.X.shape[1] < full[0]._result.X.shape[1]

@@ -266,6 +266,9 @@ class VariantBDF:
                       zip(asm.groups, asm._plan)]
         self._update_plan = [(g.update, g.col, g.s0, g.s1, (g.n, g.ns), lay.inst[id(g)])
                              for g in asm.groups if g.has_states]
+        # what is kept of each point: every unknown and state, or those of the
+        # components Simulation(record=...) names (the same in every variant)
+        self._keep = self._kept(sim.record)
         self.forced_steps = 0
         self.order_counts = np.zeros(self.kmax + 1, dtype=np.int64)
         self.steps = np.zeros(K, dtype=np.int64)
@@ -625,7 +628,8 @@ class VariantBDF:
         done = np.zeros(K, dtype=bool)
         waiting = np.zeros(K, dtype=bool)
         tried = np.zeros(K, dtype=np.int64)
-        rec = [(np.arange(K), self.t.copy(), self.Xv.copy(), self.Sv.copy(), self.Qv.copy())]
+        kx, ks = self._keep
+        rec = [(np.arange(K), self.t.copy(), self.Xv[:, kx], self.Sv[:, ks], self.Qv[:, kx])]
         iS, iX, iQ = slice(0, ns), slice(ns, ns + nx), slice(ns + nx, None)
         ar = np.arange(K)
         pred_rows = np.zeros((kmax + 1, 2, kmax + 1))
@@ -764,8 +768,8 @@ class VariantBDF:
             self._difference_update(ids, delta)
             self.Xv[ids], self.Sv[ids], self.Qv[ids] = X_new[ids], S_new[ids], Q_new
             self.t[ids] = t_new[ids]
-            rec.append((ids, self.t[ids].copy(), X_new[ids].copy(), S_new[ids].copy(),
-                        Q_new.copy()))
+            rec.append((ids, self.t[ids].copy(), X_new[ids][:, kx], S_new[ids][:, ks],
+                        Q_new[:, kx]))
             x = lay.from_v(self.Xv, x)
             S = lay.s_from_v(self.Sv, S)
             if begin is not None:
@@ -932,14 +936,47 @@ class VariantBDF:
         # derivatives see no change there (not a division by zero)
         pad = j >= counts[None, :]
         times = np.where(pad, times + (j - counts[None, :] + 1) * 1e-12 * self.T, times)
-        n, nss = self.asm.n, len(self.asm.S0)
-        Xb = np.empty((M, n))
-        Xb[:, lay.xperm] = X[rows].reshape(M, K * lay.nx)
-        Sb = np.empty((M, nss))
-        Sb[:, lay.sperm] = S[rows].reshape(M, K * lay.ns)
-        Qb = np.empty((M, n))
-        Qb[:, lay.xperm] = Q[rows].reshape(M, K * lay.nx)
+        # the batch's columns (all, or the recorded ones in Simulation's order)
+        # from each variant's kept ones
+        gx, gs = self._gather
+        Xb = X[rows].reshape(M, -1)[:, gx]
+        Sb = S[rows].reshape(M, -1)[:, gs]
+        Qb = Q[rows].reshape(M, -1)[:, gx]
         return times, Xb, Sb, Qb, counts
+
+    def _kept(self, record):
+        """(unknowns, states) each variant keeps of a point (variant-local
+        columns), and, in ``_gather``, where each column of the batch's result
+        comes from in the (K, kept) rows flattened."""
+        lay, K = self.lay, self.K
+        if record is None:
+            kx, ks = np.arange(lay.nx), np.arange(lay.ns)
+            xi, si = np.arange(self.asm.n), np.arange(len(self.asm.S0))
+        else:
+            xi, si = np.asarray(record[0]), np.asarray(record[1])
+            kx = np.unique(self._local(xi, lay.xperm, lay.nx))
+            ks = np.unique(self._local(si, lay.sperm, lay.ns))
+        self._gather = (self._source(xi, lay.xperm, lay.nx, kx),
+                        self._source(si, lay.sperm, lay.ns, ks))
+        return kx, ks
+
+    def _local(self, idx, perm, n_local):
+        """Each batch index's position within its variant's columns."""
+        rank = np.empty(perm.size, dtype=np.int64)
+        rank[perm] = np.arange(perm.size)
+        return rank[idx] % max(n_local, 1)
+
+    def _source(self, idx, perm, n_local, kept):
+        """For batch columns ``idx``: their place in the flattened (K, kept) rows."""
+        if not idx.size:
+            return np.zeros(0, dtype=np.int64)
+        rank = np.empty(perm.size, dtype=np.int64)
+        rank[perm] = np.arange(perm.size)
+        variant, local = np.divmod(rank[idx], max(n_local, 1))
+        pos = np.searchsorted(kept, local)
+        if (pos >= kept.size).any() or (kept[np.minimum(pos, kept.size - 1)] != local).any():
+            raise Unsupported("the variants record different columns")
+        return variant * kept.size + pos
 
 
 def run(sim, K):
@@ -964,7 +1001,7 @@ def run(sim, K):
                 forced_steps=integ.forced_steps,
                 linear_solver="dense blocks" if integ.dense else integ.lin.kind,
                 order_steps=integ.order_counts.tolist())
-    result = Result(sim.asm, times[:, 0], X, S, stats=info, integrals=Q)
+    result = Result(sim.asm, times[:, 0], X, S, stats=info, recorded=sim.record, integrals=Q)
     inst = integ.lay.inst
     result.instance_times = lambda g, keep: times[:, inst[id(g)][np.asarray(keep, dtype=np.int64)]]
     records = check_result(sim.asm, result)
