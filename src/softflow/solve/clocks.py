@@ -919,7 +919,7 @@ class VariantBDF:
     def _collect(self):
         """(times (M, K), X (M, n), S (M, ns), Q (M, n), points per variant): each
         variant's points in the batch layout, padded with its last point."""
-        lay, K = self.lay, self.K
+        K = self.K
         ids = np.concatenate([r[0] for r in self._rec])
         t = np.concatenate([r[1] for r in self._rec])
         X = np.concatenate([r[2] for r in self._rec])
@@ -948,7 +948,7 @@ class VariantBDF:
         """(unknowns, states) each variant keeps of a point (variant-local
         columns), and, in ``_gather``, where each column of the batch's result
         comes from in the (K, kept) rows flattened."""
-        lay, K = self.lay, self.K
+        lay = self.lay
         if record is None:
             kx, ks = np.arange(lay.nx), np.arange(lay.ns)
             xi, si = np.arange(self.asm.n), np.arange(len(self.asm.S0))
