@@ -181,3 +181,38 @@ def test_the_start_check_is_asked_once_per_remembered_point(monkeypatch):
     sim.run()
     sim.run()
     assert calls == [1, 1, 1]
+
+
+@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
+def test_a_dense_start_is_confirmed_on_the_factors_of_its_own_solve():
+    sim = sf.Simulation(scene(), duration=1e-3, step=1e-3)
+    cold = sim.run()
+    x, _, _, lin0 = sim._start[1]
+    assert lin0 is not None and lin0.kind == "dense"
+    asm = sim.asm
+    stats = Stats()
+    newton = Newton(asm, make_linear_solver(asm, "dense"), stats,
+                    atol=sim._atol_vector(asm.x_quantity, 1e-3))
+    assert newton.confirms(x, asm.S0, 0.0, 0.0, lin=lin0)
+    assert (stats.residual_evaluations, stats.jacobian_evaluations,
+            stats.factorizations) == (1, 0, 0)
+    off = x.copy()
+    off[2:] *= 1.01
+    assert not newton.confirms(off, asm.S0, 0.0, 0.0, lin=lin0)
+    warm = sim.run()
+    _same(warm, cold)
+    # warm, the step's Jacobian is the run's only one
+    assert warm.stats["jacobian_evaluations"] == 1
+    assert sim._start[1][3] is lin0          # kept as the cold solve left it
+
+
+@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
+@pytest.mark.parametrize("kind", ["sparse", "condensed"])
+def test_other_linear_solvers_confirm_on_a_jacobian_of_their_own(kind):
+    cold = sf.Simulation(scene(), duration=0.01, step=1e-3, linear_solver=kind).run()
+    sim = sf.Simulation(scene(), duration=0.01, step=1e-3, linear_solver=kind)
+    first, second = sim.run(), sim.run()
+    assert sim._start[1][3] is None
+    _same(first, cold)
+    _same(second, cold)
+    assert second.stats["residual_evaluations"] < first.stats["residual_evaluations"]

@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 
+from .linalg import make_linear_solver
 from .progress import SILENT
 
 
@@ -113,7 +114,8 @@ class Integrator:
     #: a consistent point at t = 0 from an earlier run of the same network, inputs
     #: and tolerances, to try before solving (Simulation.run remembers them):
     #: (x, Newton's contraction estimate ``eta`` after the solve that made x,
-    #: whether ``stop_at_start`` passed x), or None
+    #: whether ``stop_at_start`` passed x, the dense linear solver that solve
+    #: factored or None), or None
     start = None
     #: the same of this run, set by :meth:`initial`
     consistent = None
@@ -122,25 +124,26 @@ class Integrator:
         """Consistent algebraic unknowns at t = 0 (dt = 0, states at their initial values).
 
         A remembered ``start`` that Newton confirms (:meth:`Newton.confirms`:
-        one Jacobian and update, no iteration from the initial values) is
+        one residual and update, no iteration from the initial values) is
         taken as it is, with the contraction estimate the solve that made it
         left behind, so that the run goes on exactly as that one did; any
         other is dropped and the unknowns are solved for from their initial
-        values."""
+        values. Dense systems solve it on a linear solver of its own, whose
+        factors stay as that solve left them: the next run confirms its point
+        on them, without a Jacobian (larger systems confirm on a Jacobian of
+        their own: a second sparse solver's analysis costs more than that)."""
         asm, newton = self.asm, self.newton
-        x, passed = None, False
+        x, passed, lin0 = None, False, None
         if self.start is not None:
-            x, eta, passed = self.start
-            if x.shape == asm.x0.shape and newton.confirms(x, asm.S0, 0.0, 0.0):
+            x, eta, passed, lin0 = self.start
+            if (x.shape == asm.x0.shape
+                    and newton.confirms(x, asm.S0, 0.0, 0.0, lin=lin0)):
                 x = x.copy()
                 newton.eta = eta
             else:
-                x, passed = None, False
+                x, passed, lin0 = None, False, None
         if x is None:
-            out = newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
-            if not out.converged:
-                raise StepFailure(0.0, 0.0, out)
-            x = out.x
+            x, lin0 = self._solve_initial()
         eta = newton.eta
         newton.invalidate()
         self.rec.add(0.0, x, asm.S0.copy())
@@ -153,12 +156,29 @@ class Integrator:
             # from; only a point of its own is asked (the check only spares a run
             # refused from its start its remaining steps: the checks after the
             # run, always made, refuse it all the same)
-            self.consistent = (x.copy(), eta, False)
+            self.consistent = (x.copy(), eta, False, lin0)
             if self.stop_at_start():
                 raise StoppedAtStart()
             passed = True
-        self.consistent = (x.copy(), eta, passed)
+        self.consistent = (x.copy(), eta, passed, lin0)
         return x, asm.S0.copy()
+
+    def _solve_initial(self):
+        """The consistent point at t = 0 solved for from the initial values, and
+        the dense linear solver of its own that solve factored (None: the
+        run's solver, for sparse and condensed systems)."""
+        asm, newton = self.asm, self.newton
+        lin0 = make_linear_solver(asm, "dense") if newton.lin.kind == "dense" else None
+        run_lin = newton.lin
+        if lin0 is not None:
+            newton.lin = lin0
+        try:
+            out = newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
+        finally:
+            newton.lin = run_lin
+        if not out.converged:
+            raise StepFailure(0.0, 0.0, out)
+        return out.x, lin0
 
 
 class ImplicitEuler(Integrator):

@@ -275,32 +275,38 @@ class Newton:
             return s == s and min(v) > 0.0
         return _min(p) > 0.0
 
-    def confirms(self, x, S, t, dt):
+    def confirms(self, x, S, t, dt, lin=None):
         """Whether ``x`` already solves F(x; S, t, dt) = 0 to this Newton's
         tolerance (a consistent point remembered from an earlier run, say): the
-        Newton update at x, on a Jacobian evaluated and factored there, passes
-        the convergence test of an iteration, max_i |dx_i| / tol_i <= 1 with the
-        tolerances of x (no contraction estimate: there is no iterate before
-        it), and the absolute pressures of x are positive. x itself is the
-        answer, not x minus the update: a point that passes is as good as the
-        solve that made it, and taking it unchanged keeps a run that does so
-        the same as the one that made it. One residual and Jacobian
-        evaluation, one factorization and one iteration, counted as such; a
-        point that does not pass (or a non-finite residual, a singular
-        Jacobian, a fluid's range left) leaves the factors stale."""
+        Newton update at x passes the convergence test of an iteration,
+        max_i |dx_i| / tol_i <= 1 with the tolerances of x (no contraction
+        estimate: there is no iterate before it), and the absolute pressures of
+        x are positive. The update is on a Jacobian evaluated and factored at
+        x, or with ``lin``, on that linear solver's factors (those of the solve
+        that made x, left as they were): the test of a chord iteration on
+        earlier factors, which the 'reuse' stage makes at every step. x itself
+        is the answer, not x minus the update: a point that passes is as good
+        as the solve that made it, and taking it unchanged keeps a run that
+        does so the same as the one that made it. One residual evaluation and
+        one iteration (and without ``lin`` a Jacobian and a factorization),
+        counted as such; a point that does not pass (or a non-finite residual,
+        a singular Jacobian, a fluid's range left) leaves this Newton's factors
+        stale."""
         self.fluid_error = None
-        F = self._eval(x, S, t, dt, jac=True)
+        F = self._eval(x, S, t, dt, jac=lin is None)
         ok = False
         if all_finite(F):
             try:
-                self._factor(dt)
+                if lin is None:
+                    self._factor(dt)
+                    lin = self.lin
             except SingularJacobian:
                 pass
             else:
                 self._set_scale(x)
                 self.stats.newton_iterations += 1
-                ok = self._norm(self.lin.solve(F)) <= 1.0 and (not self._has_p
-                                                               or self._positive(x))
+                ok = self._norm(lin.solve(F)) <= 1.0 and (not self._has_p
+                                                          or self._positive(x))
         if not ok:
             self.stale = True
         return ok
