@@ -203,6 +203,25 @@ def _rescale_matrices(order, factors):
     return M[:, 1:, 1:]
 
 
+@functools.lru_cache(maxsize=None)
+def _rescale_polynomials(kmax):
+    """C (kmax + 1, kmax + 1, kmax, kmax): the rescaling matrix of order k for a
+    factor f is sum_p C[k, p] f^p (its entries are polynomials of degree <= k
+    in f), padded with the identity past row and column k, so that one
+    product rescales variants of every order. Found from the matrices at
+    kmax + 1 factors (a Vandermonde solve, exact for those degrees)."""
+    f = np.linspace(0.5, 2.0, kmax + 1)
+    V = np.vander(f, kmax + 1, increasing=True)           # V[i, p] = f_i^p
+    C = np.zeros((kmax + 1, kmax + 1, kmax, kmax))
+    for k in range(1, kmax + 1):
+        M = np.zeros((kmax + 1, kmax, kmax))
+        M[:] = np.eye(kmax)
+        M[:, :k, :k] = _rescale_matrices(k, f)
+        C[k] = np.linalg.solve(V, M.reshape(kmax + 1, -1)).reshape(kmax + 1, kmax, kmax)
+    C.setflags(write=False)
+    return C
+
+
 class VariantBDF:
     """The BDF of :class:`softflow.solve.bdf.BDF`, one clock per variant (module
     docstring). ``run()`` returns each variant's points (:meth:`_collect`) and
@@ -500,15 +519,11 @@ class VariantBDF:
         ids, factors = ids[keep], factors[keep]
         if not ids.size:
             return
-        k = self.k[ids]
-        top = int(k.max())
-        M = np.zeros((ids.size, top, top))
-        M[:] = np.eye(top)
-        for order in np.unique(k):
-            sel = k == order
-            M[sel, :order, :order] = _rescale_matrices(int(order), factors[sel])
+        kmax = self.kmax
+        powers = factors[:, None] ** np.arange(kmax + 1)
+        M = np.einsum("vp,vpij->vij", powers, _rescale_polynomials(kmax)[self.k[ids]])
         D = self.D
-        D[1:top + 1, ids] = np.einsum("vij,jvm->ivm", M, D[1:top + 1, ids])
+        D[1:kmax + 1, ids] = np.einsum("vij,jvm->ivm", M, D[1:kmax + 1, ids])
 
     def _difference_update(self, ids, delta):
         D = self.D
