@@ -9,7 +9,8 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
-                                     friction_Haaland, resolve_friction, smoothstep)
+                                     friction_Haaland, resolve_friction, roughness_terms,
+                                     smoothstep)
 from .base import FLUID_PORT, Affine, LibraryComponent
 
 if TYPE_CHECKING:
@@ -66,7 +67,8 @@ def friction_roughness_derivative(P, Re):
     Ret = np.maximum(Re, P.Re_lo)
     h = 1e-4 * np.maximum(P.eD, 1e-6)
     lo = np.maximum(P.eD - h, 0.0)
-    df = (turbulent(Ret, P.eD + h)[0] - turbulent(Ret, lo)[0]) / (P.eD + h - lo)
+    df = ((turbulent(Ret, P.eD + h, derivative=False)[0]
+           - turbulent(Ret, lo, derivative=False)[0]) / (P.eD + h - lo))
     return w * Ret * df
 
 
@@ -90,7 +92,7 @@ def friction_bound_derivative(P, Re, name):
     s = np.minimum(np.maximum((Re - lo) / (hi - lo), 0.0), 1.0)
     dw = 6.0 * s * (1.0 - s) / (hi - lo)
     Ret = np.maximum(Re, lo)
-    phit = turbulent(Ret, P.eD)[0] * Ret
+    phit = turbulent(Ret, P.eD, derivative=False)[0] * Ret
     dw_dbound = -dw * ((1.0 - s) if name == "Re_laminar" else s)
     return dw_dbound * (phit - 64.0)
 
@@ -232,6 +234,9 @@ class CircularTube(LibraryComponent):
             except ValueError as err:
                 labels = ", ".join(repr(c.label) for c in P.components)
                 raise ValueError(f"CircularTube {labels}: friction: {err}") from None
+        # what the turbulent law computes from the roughness alone, once per group
+        # (make_params runs again for a run that changes a roughness or diameter)
+        P.friction_terms = roughness_terms(P.turbulent, P.eD)
         return P
 
     @classmethod
@@ -257,11 +262,14 @@ class CircularTube(LibraryComponent):
         laminar = P.turbulent is None or (P.n <= _DOT_MAX and abs_mf.dot(re_per_mf) <= P.Re_lo)
         if not laminar:
             Re = abs_mf * re_per_mf
-            laminar = Re.max() <= P.Re_lo
+            # (one tube: the dot was its Reynolds number, the same product)
+            laminar = P.n > 1 and Re.max() <= P.Re_lo
         if laminar:
             phi, dphi = 64.0, None
         else:
-            phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent)
+            # without jac, the value alone (the same arithmetic)
+            phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent, derivative=jac,
+                                    terms=P.friction_terms)
         # a liquid at constant viscosity: c_mu / rho is a constant of the group,
         # and so is c·64 when all flow is laminar (the same product, made once)
         c = P.c_per_rho if P.c_per_rho is not None else c_mu / rho

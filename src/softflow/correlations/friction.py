@@ -16,7 +16,7 @@ def friction_laminar(Re):
     return 64.0 / Re
 
 
-def friction_Haaland(Re, eD):
+def friction_Haaland(Re, eD, *, derivative=True, terms=None):
     """Haaland (1983) explicit approximation to Colebrook, and df/dRe.
 
     f = [-1.8 log10((eD/3.7)^1.11 + 6.9/Re)]^-2, valid 4e3 < Re < 1e8,
@@ -25,48 +25,85 @@ def friction_Haaland(Re, eD):
     Haaland, S.E., "Simple and Explicit Formulas for the Friction Factor in
     Turbulent Pipe Flow", J. Fluids Eng. 105 (1983) 89-90.
 
-    Returns (f, df/dRe).
+    ``terms`` may hold (eD/3.7)^1.11 made beforehand for this eD
+    (:func:`roughness_terms`): a group of tubes makes it once, not per call.
+
+    Returns (f, df/dRe); df is None without ``derivative``.
     """
-    a = (eD / 3.7) ** 1.11
+    a = _haaland_terms(eD) if terms is None else terms
     arg = a + 6.9 / Re
     y = -1.8 * np.log(arg) / _LN10
     f = 1.0 / (y * y)
+    if not derivative:
+        return f, None
     dy = 1.8 / _LN10 * (6.9 / (Re * Re)) / arg
     df = -2.0 * f / y * dy
     return f, df
 
 
-def smoothstep(x, lo, hi):
-    """C1 step from 0 (x <= lo) to 1 (x >= hi): 3s^2 - 2s^3; returns (w, dw/dx)."""
+def _haaland_terms(eD):
+    return (eD / 3.7) ** 1.11
+
+
+def smoothstep(x, lo, hi, derivative=True):
+    """C1 step from 0 (x <= lo) to 1 (x >= hi): 3s^2 - 2s^3; returns (w, dw/dx),
+    dw/dx None without ``derivative``."""
     # minimum(maximum()): np.clip's values, without its dispatch (~2 us a call on
     # the one-tube arrays of small scenes)
     s = np.minimum(np.maximum((x - lo) / (hi - lo), 0.0), 1.0)
     w = s * s * (3.0 - 2.0 * s)
+    if not derivative:
+        return w, None
     dw = 6.0 * s * (1.0 - s) / (hi - lo)
     return w, dw
 
 
-def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None):
+def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivative=True,
+                terms=None):
     """The product f·Re of the Darcy friction factor and the Reynolds number,
     laminar (64) below Re_lo, the turbulent correlation above Re_hi, and a C1
-    smoothstep blend between them; returns (f·Re, d(f·Re)/dRe).
+    smoothstep blend between them; returns (f·Re, d(f·Re)/dRe), the derivative
+    None without ``derivative`` (the value is the same either way).
 
-    ``turbulent(Re, eD) -> (f, df/dRe)`` defaults to :func:`friction_Haaland`.
+    ``turbulent(Re, eD, derivative=...) -> (f, df/dRe)`` defaults to
+    :func:`friction_Haaland`; ``terms``, what :func:`roughness_terms` made for it
+    and this eD, is passed on to it (``terms=``) where given.
     f·Re stays finite at Re = 0, which lets a tube write Δp = C·(f·Re)·ṁ with
     a derivative that never vanishes at zero flow.
     """
     Re = np.asarray(Re, dtype=float)
-    w, dw = smoothstep(Re, Re_lo, Re_hi)
+    law = turbulent or friction_Haaland
+    kw = {"derivative": derivative} if terms is None else {"derivative": derivative,
+                                                          "terms": terms}
+    if Re_lo <= Re_hi and (Re.item() if Re.size == 1 else Re.min(initial=np.inf)) >= Re_hi:
+        # all past the blend (w = 1, dw = 0): f·Re of the turbulent law itself, the
+        # blend's value bitwise (64 + (phit - 64) is exact for phit >= 32, and f·Re
+        # of a turbulent law is far above that), without the smoothstep's arithmetic
+        ft, dft = law(Re, eD, **kw)
+        return ft * Re, (ft + Re * dft if derivative else None)
+    w, dw = smoothstep(Re, Re_lo, Re_hi, derivative)
     Ret = np.maximum(Re, Re_lo)  # the turbulent law is only needed (and finite) above Re_lo
-    ft, dft = (turbulent or friction_Haaland)(Ret, eD)
+    ft, dft = law(Ret, eD, **kw)
     phit = ft * Ret
-    dphit = np.where(Re > Re_lo, ft + Ret * dft, 0.0)
     phi = 64.0 + w * (phit - 64.0)
+    if not derivative:
+        return phi, None
+    dphit = np.where(Re > Re_lo, ft + Ret * dft, 0.0)
     dphi = dw * (phit - 64.0) + w * dphit
     return phi, dphi
 
 
-def friction_Swamee_Jain_1976(Re, eD):
+def roughness_terms(turbulent, eD):
+    """What the turbulent correlation ``turbulent`` computes from the relative
+    roughness eD alone, for its ``terms=`` argument: made once per group of
+    tubes (at compile, and again when a run changes a roughness or diameter),
+    not at every residual. None where there is nothing worth keeping."""
+    if turbulent is friction_Haaland:
+        return _haaland_terms(eD)      # as friction_Haaland would make it: bitwise
+    return None
+
+
+def friction_Swamee_Jain_1976(Re, eD, *, derivative=True):
     """Swamee & Jain (1976) explicit approximation to Colebrook, and df/dRe.
 
     f = 0.25 / [log10((6.97/Re)^0.9 + eD/3.7)]^2, stated range 5e3 <= Re <= 1e8,
@@ -75,18 +112,20 @@ def friction_Swamee_Jain_1976(Re, eD):
     Swamee, P.K., Jain, A.K., "Explicit equations for pipe-flow problems",
     J. Hydraul. Div. ASCE 102 (1976) 657-664.
 
-    Returns (f, df/dRe).
+    Returns (f, df/dRe); df is None without ``derivative``.
     """
     s = (6.97 / Re) ** 0.9
     arg = s + eD / 3.7
     y = np.log(arg) / _LN10
     f = 0.25 / (y * y)
+    if not derivative:
+        return f, None
     dy = -0.9 * s / Re / (arg * _LN10)
     df = -2.0 * f / y * dy
     return f, df
 
 
-def friction_Churchill_1977(Re, eD):
+def friction_Churchill_1977(Re, eD, *, derivative=True):
     """Churchill (1977) friction factor for all regimes, and df/dRe.
 
     f = 8 [(8/Re)^12 + (A + B)^-1.5]^(1/12),
@@ -95,27 +134,29 @@ def friction_Churchill_1977(Re, eD):
     Churchill, S.W., "Friction-factor equation spans all fluid-flow regimes",
     Chem. Eng. 84 (1977) 91-92.
 
-    Returns (f, df/dRe).
+    Returns (f, df/dRe); df is None without ``derivative``.
     """
     s = (7.0 / Re) ** 0.9
     u = s + 0.27 * eD
     L = -np.log(u)
-    dL = 0.9 * s / Re / u                 # d/dRe of -ln(u)
     A = (2.457 * L) ** 16
-    dA = 16.0 * A / L * dL
     B = (37530.0 / Re) ** 16
-    dB = -16.0 * B / Re
     T = (A + B) ** -1.5
-    dT = -1.5 * T / (A + B) * (dA + dB)
     lam = (8.0 / Re) ** 12
     X = lam + T
-    dX = -12.0 * lam / Re + dT
     f = 8.0 * X ** (1.0 / 12.0)
+    if not derivative:
+        return f, None
+    dL = 0.9 * s / Re / u                 # d/dRe of -ln(u)
+    dA = 16.0 * A / L * dL
+    dB = -16.0 * B / Re
+    dT = -1.5 * T / (A + B) * (dA + dB)
+    dX = -12.0 * lam / Re + dT
     df = f / 12.0 * dX / X
     return f, df
 
 
-def friction_Colebrook(Re, eD, *, iterations=8):
+def friction_Colebrook(Re, eD, *, iterations=8, derivative=True):
     """Colebrook (1939) implicit equation solved to round-off, and df/dRe.
 
     1/sqrt(f) = -2 log10(eD/3.7 + 2.51/(Re sqrt(f))), the reference turbulent
@@ -127,7 +168,7 @@ def friction_Colebrook(Re, eD, *, iterations=8):
     transition region between the smooth and rough pipe laws",
     J. Inst. Civ. Eng. 11 (1939) 133-156.
 
-    Returns (f, df/dRe).
+    Returns (f, df/dRe); df is None without ``derivative``.
     """
     Re = np.asarray(Re, dtype=float)
     a = np.asarray(eD, dtype=float) / 3.7
@@ -141,6 +182,8 @@ def friction_Colebrook(Re, eD, *, iterations=8):
         x = x - dx
         if np.all(np.abs(dx) <= 1e-15 * x):
             break
+    if not derivative:
+        return 1.0 / (x * x), None
     w = a + b * x
     dg_dx = 1.0 + c * b / w
     dg_dRe = -c * b * x / (w * Re)          # db/dRe = -b/Re
@@ -195,13 +238,16 @@ class FrictionTable:
         self.coef = CubicSpline(self.x, table, axis=0).c     # (4, k-1, n_unique)
         self.h = self.x[1] - self.x[0]
 
-    def __call__(self, Re, eD=None):
-        """(f, df/dRe) for an array Re with one entry per instance (eD is fixed)."""
+    def __call__(self, Re, eD=None, *, derivative=True):
+        """(f, df/dRe) for an array Re with one entry per instance (eD is fixed);
+        df is None without ``derivative``."""
         x = np.clip(np.log(np.maximum(Re, 1e-300)), self.x[0], self.x[-1])
         k = np.minimum(((x - self.x[0]) / self.h).astype(np.int64), len(self.x) - 2)
         s = x - self.x[k]
         c0, c1, c2, c3 = self.coef[:, k, self._cols]
         f = ((c0 * s + c1) * s + c2) * s + c3
+        if not derivative:
+            return f, None
         dfdx = (3.0 * c0 * s + 2.0 * c1) * s + c2
         held = np.log(np.maximum(Re, 1e-300)) >= self.x[-1]
         return f, np.where(held, 0.0, dfdx / Re)
