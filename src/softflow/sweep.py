@@ -45,7 +45,7 @@ Engines
     Batched beats processes on many variants of a small scene; on variants
     that are themselves large networks, or widely different ones on shared
     steps, processes (or Dask) may be faster. Its bar is the batched run's,
-    in simulated time. It checks the variants itself
+    in simulated time (on own clocks, the slowest variant's). It checks the variants itself
     (``prepare(sim, variants)``, the same errors) and builds its batches from
     the components that check rebuilt.
 

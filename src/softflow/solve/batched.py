@@ -334,12 +334,12 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
     return results
 
 
-def _on_own_clocks(batch_sim, todo):
+def _on_own_clocks(batch_sim, todo, progress=None):
     """(the batch run with a clock per variant (:mod:`softflow.solve.clocks`),
     None), or (None, why not) where it keeps the shared step sequence."""
     from . import clocks
     try:
-        return clocks.run(batch_sim, len(todo)), None
+        return clocks.run(batch_sim, len(todo), progress), None
     except clocks.Unsupported as err:
         return None, str(err)
 
@@ -364,7 +364,7 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
             with warnings.catch_warnings():      # issued below, one per check
                 warnings.simplefilter("ignore", ModelWarning)
                 batch_sim = Simulation(batch, **kw)
-                own, why = (_on_own_clocks(batch_sim, todo) if own_clocks else
+                own, why = (_on_own_clocks(batch_sim, todo, progress) if own_clocks else
                             (None, f"fewer than {OWN_CLOCKS_MIN} variants"))
                 if own is not None:
                     res, counts, times, (steps, rejected), failed = own

@@ -296,6 +296,7 @@ class VariantBDF:
         self._lu_c = np.full(K, np.nan)     # each variant's c its factors were made for
         self._lu_age = np.zeros(K, dtype=np.int64)
         self.eta = np.ones(K)      # each variant's last Newton rate / (1 - rate)
+        self.progress = None       # a softflow.solve.progress.Progress, or None
 
     @property
     def lin(self):
@@ -803,6 +804,8 @@ class VariantBDF:
                     ids = ids[~np.isin(ids, sw)]
             go = ids[~done[ids] & ~waiting[ids]]
             self.n_equal[go] += 1
+            if self.progress is not None and not done.all():
+                self.progress.step(float(self.t[~done].min()))
             sel = go[self.n_equal[go] >= self.k[go] + 1]
             if sel.size:
                 self._choose(sel, err)
@@ -994,8 +997,11 @@ class VariantBDF:
         return variant * kept.size + pos
 
 
-def run(sim, K):
+def run(sim, K, progress=None):
     """Run the compiled batch ``sim`` of K variants on own clocks.
+
+    ``progress``: a bar in simulated time, at the slowest variant's clock
+    (as ``Simulation.run(progress=)``).
 
     Returns (result, counts, times, steps, failed): the batch's Result (each
     variant's points padded to the longest, its validity checked on each
@@ -1008,8 +1014,11 @@ def run(sim, K):
     why = reason_not(sim)
     if why is not None:
         raise Unsupported(why)
+    from .progress import Progress
     integ = VariantBDF(sim, K)
-    with np.errstate(all="ignore"):
+    # the bar follows the slowest clock
+    integ.progress = Progress(sim.duration, progress)
+    with np.errstate(all="ignore"), integ.progress:
         times, X, S, Q, counts = integ.run()
     info = integ.stats.as_dict()
     info.update(method=sim.method, rtol=sim.rtol, unknowns=sim.asm.n, clocks="own",
