@@ -1,7 +1,8 @@
 """The tube law's cheaper evaluations give the same numbers: its value without
 derivatives (jac=False), the Haaland roughness term made once per group, the
-fully turbulent shortcut past the blend, the one-tube laminarity test; and a
-run-time change of roughness or diameter remakes what the group precomputed."""
+fully turbulent shortcut past the blend, one tube's law on Python floats
+(P.one); and a run-time change of roughness or diameter remakes what the group
+precomputed."""
 import numpy as np
 import pytest
 
@@ -165,3 +166,42 @@ def test_run_params_remake_the_precomputed_roughness_term(change, built):
                                                                     **built})])
     assert (np.abs(fresh["t.massflow_a"]).max() * P.re_per_mf > 4000).all()
     np.testing.assert_array_equal(P.friction_terms, (P.eD / 3.7) ** 1.11)
+
+
+class _OwnLaw(CircularTube):
+    @classmethod
+    def pressure_drop(cls, P, pa, mf, pb, jac):
+        dp, d_pa, d_mf, d_pb = super().pressure_drop(P, pa, mf, pb, jac)
+        return 2 * dp, d_pa, (None if d_mf is None else 2 * d_mf), d_pb
+
+
+@pytest.mark.parametrize("tubes, scalar", [
+    ([CircularTube("t", sf.air, 0.1, 1e-3)], True),
+    ([CircularTube("t", sf.water, 0.1, 1e-3, friction="laminar")], True),
+    ([CircularTube("t", sf.air, 0.1, 1e-3, compressible="isothermal")], True),
+    ([CircularTube("t", sf.air, 0.1, 1e-3, friction="Colebrook")], False),   # its ** differs
+    ([CircularTube("t", sf.air.with_level("table"), 0.1, 1e-3)], False),      # mu(p)
+    ([CircularTube("t", sf.air, 0.1, 1e-3), CircularTube("u", sf.air, 0.2, 1e-3)], False),
+    ([_OwnLaw("t", sf.air, 0.1, 1e-3)], False),
+], ids=["haaland", "laminar", "isothermal", "colebrook", "table", "two", "own-law"])
+def test_one_tube_scalar_view_is_made_where_it_is_the_same_arithmetic(tubes, scalar):
+    cls = type(tubes[0])
+    P = cls.make_params(tubes)
+    assert (P.one is not None) is scalar
+    if scalar:
+        for key, value in vars(P).items():
+            if type(value) is np.ndarray and value.shape == (1,):
+                got = getattr(P.one, key)
+                assert type(got) is float and got == value[0], key
+        # its residual without Jacobian is the array law's, bitwise, at any flow
+        for re in (0.0, 1e3, 3e3, 5e3, -2e5):
+            mf = re / P.re_per_mf[0]
+            V = np.array([[2.0e5, mf, 1.9e5, -mf]])
+            F, _ = cls.residual(P, V, np.zeros((1, 0)), 0.0, False)
+            P.one, one = None, P.one
+            try:
+                F_arrays, _ = cls.residual(P, V, np.zeros((1, 0)), 0.0, False)
+            finally:
+                P.one = one
+            if P.lin_map is None:
+                np.testing.assert_array_equal(F, F_arrays)

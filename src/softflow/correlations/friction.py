@@ -71,11 +71,15 @@ def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivativ
     f·Re stays finite at Re = 0, which lets a tube write Δp = C·(f·Re)·ṁ with
     a derivative that never vanishes at zero flow.
     """
-    Re = np.asarray(Re, dtype=float)
+    if isinstance(Re, float):     # one value stays a scalar (a 0-d array costs more)
+        lowest = Re
+    else:
+        Re = np.asarray(Re, dtype=float)
+        lowest = Re.item() if Re.size == 1 else Re.min(initial=np.inf)
     law = turbulent or friction_Haaland
     kw = {"derivative": derivative} if terms is None else {"derivative": derivative,
                                                           "terms": terms}
-    if Re_lo <= Re_hi and (Re.item() if Re.size == 1 else Re.min(initial=np.inf)) >= Re_hi:
+    if Re_lo <= Re_hi and lowest >= Re_hi:
         # all past the blend (w = 1, dw = 0): f·Re of the turbulent law itself, the
         # blend's value bitwise (64 + (phit - 64) is exact for phit >= 32, and f·Re
         # of a turbulent law is far above that), without the smoothstep's arithmetic
