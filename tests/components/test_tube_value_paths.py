@@ -193,15 +193,20 @@ def test_one_tube_scalar_view_is_made_where_it_is_the_same_arithmetic(tubes, sca
             if type(value) is np.ndarray and value.shape == (1,):
                 got = getattr(P.one, key)
                 assert type(got) is float and got == value[0], key
-        # its residual without Jacobian is the array law's, bitwise, at any flow
-        for re in (0.0, 1e3, 3e3, 5e3, -2e5):
+        # its residual and Jacobian are the array law's, bitwise, at any flow
+        for re in (0.0, 1e3, 2300.0, 3e3, 4000.0, 5e3, -2e5):
             mf = re / P.re_per_mf[0]
             V = np.array([[2.0e5, mf, 1.9e5, -mf]])
             F, _ = cls.residual(P, V, np.zeros((1, 0)), 0.0, False)
+            FJ, J = cls.residual(P, V, np.zeros((1, 0)), 0.0, True)
             P.one, one = None, P.one
             try:
                 F_arrays, _ = cls.residual(P, V, np.zeros((1, 0)), 0.0, False)
+                FJ_arrays, J_arrays = cls.residual(P, V, np.zeros((1, 0)), 0.0, True)
             finally:
                 P.one = one
             if P.lin_map is None:
                 np.testing.assert_array_equal(F, F_arrays)
+            np.testing.assert_array_equal(FJ, FJ_arrays)
+            assert J.shape == J_arrays.shape == (1, 5) and J.dtype == float
+            np.testing.assert_array_equal(J, J_arrays)

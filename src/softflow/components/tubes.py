@@ -238,9 +238,9 @@ class CircularTube(LibraryComponent):
         # what the turbulent law computes from the roughness alone, once per group
         # (make_params runs again for a run that changes a roughness or diameter)
         P.friction_terms = roughness_terms(P.turbulent, P.eD)
-        # one tube: its residual without Jacobian evaluates the law on Python floats
-        # (P.one: this P with its per-instance values as floats), ~31 k instead of
-        # ~106 k instructions a call. The same arithmetic, bitwise: +-*/ are IEEE either
+        # one tube: its residual evaluates the law on Python floats (P.one: this P
+        # with its per-instance values as floats), ~31 k instead of ~106 k
+        # instructions a call without Jacobian. The same arithmetic, bitwise: +-*/ are IEEE either
         # way and np.log is NumPy's on a float as on an array (math.log and a
         # float's ** are not, hence Haaland or laminar only, and no real-fluid mu)
         P.one = None
@@ -355,11 +355,14 @@ class CircularTube(LibraryComponent):
                 F = V.dot(P.lin_map)
                 F[:, 1] -= P.c64_per_rho * V[:, 1]
                 return F, None
-        if P.one is not None and not jac:
-            # one tube without Jacobian: the same law on Python floats (make_params)
+        if P.one is not None:
+            # one tube: the same law on Python floats (see make_params)
             pa, mfa, pb, mfb = V[0].tolist()
-            dp = cls.pressure_drop(P.one, pa, mfa, pb, False)[0]
-            return np.array([[mfa + mfb, (pa - pb) - dp]]), None
+            dp, d_pa, d_mf, d_pb = cls.pressure_drop(P.one, pa, mfa, pb, jac)
+            F = np.array([[mfa + mfb, (pa - pb) - dp]])
+            if not jac:
+                return F, None
+            return F, np.array([[1.0, 1.0, 1.0 - d_pa, -d_mf, -1.0 - d_pb]])
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
         F = np.empty((P.n, 2))
