@@ -10,8 +10,10 @@ each pass, each running variant proposes its next step; the kernels evaluate
 all variants in one vectorized call, each instance at its own variant's time
 and with its own step coefficient (``kernel(V, S, t, dt)`` with t an array
 (n,) and dt a column (n, 1), see :mod:`softflow.solve.discretize`); Newton
-solves the block-diagonal system with one factorization and judges each
-variant's convergence on its own; and each variant's step is accepted or
+solves each variant's block (small ones by their dense inverses, made in one
+call for the variants whose step coefficient moved; large ones by the
+batch's sparse factors) and judges each variant's convergence on its own;
+and each variant's step is accepted or
 rejected, and its next step and order chosen, by its own error test, exactly
 as :class:`softflow.solve.bdf.BDF` does for one network (same formulas,
 constants and controller; vectorized over the variants). A variant that
@@ -34,8 +36,8 @@ time, and only the variants that switch pay for the restart.
 What this covers: scenes of library components in rate form, isothermal or
 thermal (a heat-transfer correlation's h A frozen at each variant's own
 step start, as the BDF freezes it), run with the adaptive BDF. Others (user
-components, fixed steps) keep the shared step sequence (:func:`reason_not` says why). A
-variant whose step fails (Newton down to ``step_min``) is reported failed
+components, fixed steps) keep the shared step sequence (:func:`reason_not`
+says why). A variant whose step fails (Newton down to ``step_min``) is reported failed
 here and run again on its own by the caller, where its result says why; an
 iterate that leaves a fluid's range sends the whole batch back to the shared
 steps, which find the variant responsible.
@@ -60,10 +62,11 @@ from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 
-#: Newton on the batch: chord iterations on the factors of the step's
-#: predictor (or of earlier steps, while every variant's step coefficient is
-#: within NEWTON_REUSE of the one they were made for), a fresh Jacobian at the
-#: iterate when a variant contracts too slowly, at most NEWTON_MAX iterations
+#: Newton on the batch: chord iterations on each variant's factors, kept while
+#: its step coefficient stays within NEWTON_REUSE of the one they were made for
+#: (and for at most NEWTON_MAX_AGE passes), at most NEWTON_REUSE_ITER
+#: iterations on kept factors, then fresh ones at the iterate and at most
+#: NEWTON_MAX iterations on those
 NEWTON_MAX = 7
 #: iterations of a full Newton solve (fresh Jacobian at every iterate: the
 #: consistent point at t = 0 and the restart probes, from a point across a jump)
