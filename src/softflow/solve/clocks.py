@@ -903,7 +903,6 @@ class VariantBDF:
         ns, nx = lay.ns, lay.nx
         kmax = self.kmax
         D, k = self.D, self.k[ids]
-        Sv, Xv = self.Sv[ids], self.Xv[ids]
         w_all = self._weights(self.Sv, self.Sv, self.Xv)
         w = (w_all[0][ids], w_all[1][ids])
         err_k = np.maximum(err[ids], 1e-16)
@@ -934,7 +933,6 @@ class VariantBDF:
         self._rescale(ids, factor)
         self.h[ids] *= factor
         self.n_equal[ids] = 0
-        del Sv, Xv
 
     # -- the results ----------------------------------------------------------------------
     def _collect(self):
