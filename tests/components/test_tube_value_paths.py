@@ -1,6 +1,6 @@
 """The tube law's cheaper evaluations give the same numbers: its value without
 derivatives (jac=False), the Haaland roughness term made once per group, the
-fully turbulent shortcut past the blend, one tube's law on Python floats
+fully turbulent shortcut past the blend, one tube's law on NumPy scalars
 (P.one); and a run-time change of roughness or diameter remakes what the group
 precomputed."""
 import numpy as np
@@ -192,7 +192,7 @@ def test_one_tube_scalar_view_is_made_where_it_is_the_same_arithmetic(tubes, sca
         for key, value in vars(P).items():
             if type(value) is np.ndarray and value.shape == (1,):
                 got = getattr(P.one, key)
-                assert type(got) is float and got == value[0], key
+                assert type(got) is np.float64 and got == value[0], key
         # its residual and Jacobian are the array law's, bitwise, at any flow
         for re in (0.0, 1e3, 2300.0, 3e3, 4000.0, 5e3, -2e5):
             mf = re / P.re_per_mf[0]
@@ -210,3 +210,27 @@ def test_one_tube_scalar_view_is_made_where_it_is_the_same_arithmetic(tubes, sca
             np.testing.assert_array_equal(FJ, FJ_arrays)
             assert J.shape == J_arrays.shape == (1, 5) and J.dtype == float
             np.testing.assert_array_equal(J, J_arrays)
+
+
+@pytest.mark.parametrize("V", [[0.0, 0.0, 0.0, 0.0], [0.0, 1e-4, 1e5, -1e-4],
+                               [1e5, 1e-4, 0.0, -1e-4], [np.nan, 1e-4, 1e5, -1e-4]],
+                         ids=["zero", "pa-zero", "pb-zero", "nan"])
+@pytest.mark.parametrize("compressible", ["mean_density", "isothermal"])
+def test_one_tube_at_degenerate_points_is_the_array_law(V, compressible):
+    """Zero or NaN pressures give the array law's inf/nan, never an exception
+    (a Newton iterate may pass there; the solver rejects non-finite residuals)."""
+    P = CircularTube.make_params([CircularTube("t", sf.air, 0.1, 1e-3,
+                                               compressible=compressible)])
+    assert P.one is not None
+    V = np.array([V])
+    S = np.zeros((1, 0))
+    with np.errstate(all="ignore"):
+        got = [CircularTube.residual(P, V, S, 0.0, jac) for jac in (False, True)]
+        P.one, one = None, P.one
+        try:
+            want = [CircularTube.residual(P, V, S, 0.0, jac) for jac in (False, True)]
+        finally:
+            P.one = one
+    np.testing.assert_array_equal(got[0][0], want[0][0])
+    np.testing.assert_array_equal(got[1][0], want[1][0])
+    np.testing.assert_array_equal(got[1][1], want[1][1])

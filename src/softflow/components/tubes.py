@@ -238,18 +238,20 @@ class CircularTube(LibraryComponent):
         # what the turbulent law computes from the roughness alone, once per group
         # (make_params runs again for a run that changes a roughness or diameter)
         P.friction_terms = roughness_terms(P.turbulent, P.eD)
-        # one tube: its residual evaluates the law on Python floats (P.one: this P
-        # with its per-instance values as floats), ~31 k instead of ~106 k
-        # instructions a call without Jacobian. The same arithmetic, bitwise: +-*/ are IEEE either
-        # way and np.log is NumPy's on a float as on an array (math.log and a
-        # float's ** are not, hence Haaland or laminar only, and no real-fluid mu)
+        # one tube: its residual evaluates the law on NumPy scalars (P.one: this P
+        # with its per-instance values as np.float64), ~31 k instead of ~106 k
+        # instructions a call without Jacobian. The same arithmetic, bitwise: +-*/
+        # are IEEE either way and np.log is NumPy's on a scalar as on an array
+        # (math.log and ** are not, hence Haaland or laminar only, and no
+        # real-fluid mu); np.float64, not float, so that a division by zero gives
+        # inf or nan, as on arrays, instead of raising
         P.one = None
         if (P.n == 1 and P.turbulent in (None, friction_Haaland) and not P.variable_mu
                 and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__):
             P.one = copy.copy(P)
             for key, value in vars(P).items():
                 if type(value) is np.ndarray and value.shape == (1,):
-                    setattr(P.one, key, value.item())
+                    setattr(P.one, key, value[0])
             P.one.one = None
         return P
 
@@ -268,7 +270,7 @@ class CircularTube(LibraryComponent):
         if P.variable_mu:
             mu_ratio = P.fluid.viscosity(pm) / P.mu       # relative to mu at 1 atm
             re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
-        abs_mf = abs(mf)        # (arrays and floats: see residual)
+        abs_mf = abs(mf)        # (arrays and scalars: see residual)
         # all laminar: f Re = 64 exactly. On small groups the sum of the Reynolds
         # numbers, which bounds the largest, is one dot product (~0.3 us against
         # ~0.8 us for a max); the max decides when the sum exceeds Re_lo. Large
@@ -356,8 +358,8 @@ class CircularTube(LibraryComponent):
                 F[:, 1] -= P.c64_per_rho * V[:, 1]
                 return F, None
         if P.one is not None:
-            # one tube: the same law on Python floats (see make_params)
-            pa, mfa, pb, mfb = V[0].tolist()
+            # one tube: the same law on NumPy scalars (see make_params)
+            pa, mfa, pb, mfb = V[0]
             dp, d_pa, d_mf, d_pb = cls.pressure_drop(P.one, pa, mfa, pb, jac)
             F = np.array([[mfa + mfb, (pa - pb) - dp]])
             if not jac:
