@@ -38,3 +38,19 @@ def test_coefficient_rejects_shapes_that_do_not_broadcast():
     with pytest.raises(ValueError):
         sf.FreeConvection("sphere").coefficient(sf.air, np.full(3, 2e5), np.full(2, 300.0),
                                                 293.15, 0.01)
+
+
+def test_the_correlation_gets_numpy_scalars():
+    """As before the shapes were handled without np.broadcast_arrays: NumPy
+    scalars, whose division by zero gives inf (a Python float's would raise)."""
+    seen = []
+
+    def nusselt(Pr, Gr):
+        seen.append((type(Pr), type(Gr)))
+        return 2.0 + Gr / (Pr - Pr)
+
+    corr = sf.FreeConvection("sphere", nusselt=nusselt)
+    with np.errstate(all="ignore"):
+        h = corr.coefficient(sf.air, np.array([2e5, 3e5]), 310.0, 293.15, 0.01)
+    assert np.isinf(h).all()
+    assert seen == [(np.float64, np.float64)] * 2

@@ -130,10 +130,9 @@ class FreeConvection:
         Gr = np.asarray(GRAVITY * np.abs(beta * (T - T_wall)) * length ** 3 * (rho / mu) ** 2)
         if Pr.shape != Gr.shape:
             Pr, Gr = np.broadcast_arrays(Pr, Gr)
-        # Python floats for the correlation: its scalar arithmetic is several times
-        # faster on them than on NumPy scalars, with the same IEEE operations
-        Nu = np.array([float(self.nusselt(a, b)) for a, b in zip(Pr.ravel().tolist(),
-                                                                 Gr.ravel().tolist())])
+        # NumPy scalars for the correlation (as before): a Python float's division
+        # by zero would raise where NumPy's gives inf
+        Nu = np.array([float(self.nusselt(a, b)) for a, b in zip(Pr.ravel(), Gr.ravel())])
         h = Nu.reshape(Gr.shape) * k / length
         return float(h) if h.ndim == 0 else h
 
