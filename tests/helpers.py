@@ -104,3 +104,24 @@ def gauge_error(res, ref, label="tank"):
     t, p = ref
     mine = res.get(label, "pressure") - sf.pressure_atmospheric
     return np.max(np.abs(mine - np.interp(res.times, t, p))) / np.max(np.abs(p))
+
+
+class UserChamber(sf.Component):
+    """A user's stiff gas-like chamber written the paper's way (``evaluate`` and
+    ``update_state``); ``squared``: its update_state is not affine in dt (a
+    term in dt^2), which the adaptive BDF refuses."""
+
+    def __init__(self, label, squared=False):
+        super().__init__(label)
+        P0 = sf.pressure_atmospheric
+        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf = sf.Variable("massflow", "through", label="mf")
+        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p, mf]))
+        self.set_states(m)
+        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
+        if squared:
+            self.update_state = self.auto_state(
+                lambda dt, mass, mf: {"mass": mass + mf * dt + 1e3 * (mf * dt) ** 2})
+        else:
+            self.update_state = self.auto_state(lambda dt, mass, mf: {"mass": mass + mf * dt})

@@ -7,7 +7,7 @@ import pytest
 
 import softflow as sf
 from softflow.paper_scenes import curve_peak_valley
-from helpers import rc_circuit
+from helpers import UserChamber, rc_circuit
 from softflow.solve.bdf import _rescale_matrix
 from softflow.solve.thermal import energy_balance
 
@@ -257,27 +257,12 @@ def test_bad_input_names_the_culprit():
         sf.Simulation(s, newton_rtol=float("nan"))
 
 
-class _Squared(sf.Component):
-    """A user chamber whose update_state is not affine in dt."""
-
-    def __init__(self, label):
-        super().__init__(label)
-        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
-        mf = sf.Variable("massflow", "through", label="mf")
-        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
-        self.set_terminals(sf.Terminal("a", [p, mf]))
-        self.set_states(m)
-        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
-        self.update_state = self.auto_state(
-            lambda dt, mass, mf: {"mass": mass + mf * dt + 1e3 * (mf * dt) ** 2})
-
-
 def test_update_state_not_affine_in_dt_is_refused_by_bdf_only():
     def scene():
         s = sf.System()
         s += sf.PressureSource("src", pressure=P0 + 1e4)
         s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
-        s += _Squared("sq")
+        s += UserChamber("sq", squared=True)
         s.connect("tube", "src")
         s.connect("tube", "sq")
         return s

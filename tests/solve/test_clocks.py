@@ -8,7 +8,8 @@ import softflow as sf
 from softflow.solve import clocks
 from softflow.solve.batched import _run_batched, build_batch
 from softflow.solve.bdf import _rescale_matrix
-from helpers import filling_tank, gauge_error, gauge_reference, snapping_valve_scene
+from helpers import (UserChamber, filling_tank, gauge_error, gauge_reference,
+                     snapping_valve_scene)
 
 P0 = sf.pressure_atmospheric
 
@@ -178,27 +179,13 @@ def test_snapping_valves_switch_on_their_own_clocks():
     assert shared[0].stats["steps"] > 3 * np.median([b.stats["steps"] for b in out])
 
 
-class _UserChamber(sf.Component):
-    """A user's stiff chamber, written the paper's way."""
-
-    def __init__(self, label):
-        super().__init__(label)
-        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
-        mf = sf.Variable("massflow", "through", label="mf")
-        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
-        self.set_terminals(sf.Terminal("a", [p, mf]))
-        self.set_states(m)
-        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
-        self.update_state = self.auto_state(lambda dt, mass, mf: {"mass": mass + mf * dt})
-
-
 @pytest.mark.parametrize("case", ["user", "fixed"])
 def test_scenes_it_does_not_cover_keep_the_shared_steps(case):
     if case == "user":
         s = sf.System()
         s += sf.PressureSource("src", pressure=P0 + 1e4)
         s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
-        s += _UserChamber("tank")
+        s += UserChamber("tank")
         s.connect("tube", "src")
         s.connect("tube", "tank")
         sim = sf.Simulation(s, duration=0.02)
