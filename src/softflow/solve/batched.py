@@ -369,22 +369,7 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
                 if own is not None:
                     res, counts, times, (steps, rejected), failed = own
                 else:
-                    res = batch_sim.run(progress=progress)
-            if own is not None:
-                mine = {}
-                for w in res.validity:
-                    mine.setdefault(_variant_of(w.component), []).append(w)
-                for j, k in enumerate(todo):
-                    if j in failed:    # on its own, where its result says why
-                        results[k] = sim.run(params=variants[k], raise_on_failure=False)
-                        continue
-                    n = int(counts[j])
-                    results[k] = VariantResult(
-                        res, PREFIX.format(j), mine.get(j, []), times=times[:n, j],
-                        stats={"steps": int(steps[j]), "rejected_steps": int(rejected[j])})
-                _summarize([w for w in res.warnings if _variant_of(w.component) not in failed],
-                           len(todo))
-                break
+                    res, failed = batch_sim.run(progress=progress), {}
         except SimulationError as err:
             culprit = _variant_of(err.component)
             if culprit is None or culprit >= len(todo):
@@ -399,9 +384,18 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
         for w in getattr(res, "validity", []):
             mine.setdefault(_variant_of(w.component), []).append(w)
         for j, k in enumerate(todo):
-            results[k] = VariantResult(res, PREFIX.format(j), mine.get(j, []),
-                                       stats={"clocks": "shared", "shared_because": why})
-        _summarize(res.warnings, len(todo))
+            if j in failed:    # on its own clock it failed: run alone, its result says why
+                results[k] = sim.run(params=variants[k], raise_on_failure=False)
+            elif own is not None:
+                n = int(counts[j])
+                results[k] = VariantResult(
+                    res, PREFIX.format(j), mine.get(j, []), times=times[:n, j],
+                    stats={"steps": int(steps[j]), "rejected_steps": int(rejected[j])})
+            else:
+                results[k] = VariantResult(res, PREFIX.format(j), mine.get(j, []),
+                                           stats={"clocks": "shared", "shared_because": why})
+        _summarize([w for w in res.warnings if _variant_of(w.component) not in failed],
+                   len(todo))
         break
     return results
 

@@ -56,8 +56,9 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
+from .batched import _variant_of
 from .bdf import (_ERR, _G, FAIL_HOLD, GROW_MIN, MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR,
-                  SAFETY, SECANT_TRIES, SWITCH_PAST)
+                  SAFETY, SECANT_TRIES, SWITCH_PAST, _rescale_matrix)
 from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
@@ -82,11 +83,6 @@ NEWTON_MAX_AGE = 50
 
 class Unsupported(Exception):
     """The batch cannot run on own clocks (see :func:`reason_not`)."""
-
-
-def _variant_of(label):
-    head = label[1:label.index("/")] if label.startswith("v") and "/" in label else ""
-    return int(head) if head.isdigit() else None
 
 
 class Layout:
@@ -127,16 +123,17 @@ class Layout:
         self.sperm = np.argsort(s_var, kind="stable")
         self.rperm = np.argsort(r_var, kind="stable")
         self.nx, self.ns = n // K, ns // K
-        # each Jacobian entry's place in its variant's dense block (K, nx, nx)
+        # each unknown's (state's, equation's) variant and place among its own
         nx = self.nx
-        x_rank = np.empty(n, dtype=np.int64)
-        x_rank[self.xperm] = np.arange(n) % max(nx, 1)
-        r_rank = np.empty(n, dtype=np.int64)
-        r_rank[self.rperm] = np.arange(n) % max(nx, 1)
+        self.x_var, self.s_var = x_var, s_var
+        self.x_local = _places(self.xperm, nx)
+        self.s_local = _places(self.sperm, self.ns)
+        r_local = _places(self.rperm, nx)
+        # each Jacobian entry's place in its variant's dense block (K, nx, nx)
         rows, cols = asm.pattern_rows, asm.pattern_cols
         if (r_var[rows] != x_var[cols]).any():
             raise Unsupported("an equation of one variant on another's unknown")
-        self.block_pos = (r_var[rows] * nx + r_rank[rows]) * nx + x_rank[cols]
+        self.block_pos = (r_var[rows] * nx + r_local[rows]) * nx + self.x_local[cols]
         xq = np.asarray(asm.x_quantity, dtype=object)[self.xperm].reshape(K, self.nx)
         sq = np.asarray(asm.s_quantity, dtype=object)[self.sperm].reshape(K, self.ns)
         if (xq != xq[0]).any() or (sq != sq[0]).any():
@@ -157,6 +154,14 @@ class Layout:
     def s_from_v(self, Sv, out):
         out[self.sperm] = Sv.ravel()
         return out
+
+
+def _places(perm, n_local):
+    """Each index's position within its variant's, given the variant-major
+    order ``perm`` of a vector whose variants hold ``n_local`` entries each."""
+    out = np.empty(perm.size, dtype=np.int64)
+    out[perm] = np.arange(perm.size) % max(n_local, 1)
+    return out
 
 
 def reason_not(sim):
@@ -181,32 +186,6 @@ def reason_not(sim):
 
 
 @functools.lru_cache(maxsize=None)
-def _unit_basis_inverse(order):
-    """Inverse of the Newton backward basis at the old spacing (see
-    :func:`softflow.solve.bdf._rescale_matrix`), made once per order."""
-    return np.linalg.inv(_basis(order, np.ones(1))[0])
-
-
-def _basis(order, scale):
-    """phi_j(-m·scale) for m, j = 0..order, for each scale: (n, order + 1, order + 1)."""
-    m = np.arange(order + 1, dtype=float)[None, :]
-    mf = m * scale[:, None]
-    A = np.empty((scale.size, order + 1, order + 1))
-    A[:, :, 0] = 1.0
-    for j in range(1, order + 1):
-        A[:, :, j] = A[:, :, j - 1] * (j - 1 - mf) / j
-    return A
-
-
-def _rescale_matrices(order, factors):
-    """(n, order, order) matrices mixing rows 1..order of a difference table
-    for a step size times each of ``factors`` (the batched form of
-    :func:`softflow.solve.bdf._rescale_matrix`)."""
-    M = _unit_basis_inverse(order) @ _basis(order, np.asarray(factors, dtype=float))
-    return M[:, 1:, 1:]
-
-
-@functools.lru_cache(maxsize=None)
 def _rescale_polynomials(kmax):
     """C (kmax + 1, kmax + 1, kmax, kmax): the rescaling matrix of order k for a
     factor f is sum_p C[k, p] f^p (its entries are polynomials of degree <= k
@@ -219,10 +198,19 @@ def _rescale_polynomials(kmax):
     for k in range(1, kmax + 1):
         M = np.zeros((kmax + 1, kmax, kmax))
         M[:] = np.eye(kmax)
-        M[:, :k, :k] = _rescale_matrices(k, f)
+        M[:, :k, :k] = [_rescale_matrix(k, float(fi))[1:, 1:] for fi in f]
         C[k] = np.linalg.solve(V, M.reshape(kmax + 1, -1)).reshape(kmax + 1, kmax, kmax)
     C.setflags(write=False)
     return C
+
+
+def _source(idx, var, local, kept):
+    """For batch columns ``idx`` (of variants ``var``, places ``local``): their
+    place in the flattened (K, kept) rows each variant keeps."""
+    pos = np.searchsorted(kept, local[idx])
+    if (kept[np.minimum(pos, kept.size - 1)] != local[idx]).any():
+        raise Unsupported("the variants record different columns")
+    return var[idx] * kept.size + pos
 
 
 class VariantBDF:
@@ -349,12 +337,17 @@ class VariantBDF:
             Sa, Sb = Sa[:, c], Sb[:, c]
         wS = self.atol_s_c + self.rtol * np.maximum(np.abs(Sa), np.abs(Sb))
         v = np.abs(Xv - self.offset)
-        qmax = np.stack([v[:, c].max(axis=1) if c.size else np.zeros(self.K)
-                         for c in self.q_cols], axis=1)
+        qmax = self._quantity_max(v)
         if self._qmax_run is not None:
             qmax = np.maximum(qmax, self._qmax_run)
         self._qmax_run = qmax
         return wS, self.atol_x + self.rtol * qmax[:, self.qid]
+
+    def _quantity_max(self, v):
+        """(K, quantities): each variant's largest entry of ``v`` (K, nx, not
+        negative) per quantity (as Assembly.quantity_max for one network)."""
+        return np.stack([v[:, c].max(axis=1) if c.size else np.zeros(self.K)
+                         for c in self.q_cols], axis=1)
 
     def _norms(self, dS, dX, w):
         """Each variant's weighted RMS of (dS, dX) (continuous states only), or its
@@ -389,8 +382,7 @@ class VariantBDF:
         rtol = min(self.newton_rtol, 1e-12) if tight else self.newton_rtol
         full = full or tight
         X0 = lay.to_v(x0)
-        qmax = np.stack([np.abs(X0[:, c]).max(axis=1) if c.size else np.zeros(K)
-                         for c in self.q_cols], axis=1)
+        qmax = self._quantity_max(np.abs(X0))
         itol = 1.0 / (self.newton_atol + rtol * qmax[:, self.qid])
         x = x0.copy()
         conv = ~live
@@ -969,33 +961,13 @@ class VariantBDF:
         comes from in the (K, kept) rows flattened."""
         lay = self.lay
         if record is None:
-            kx, ks = np.arange(lay.nx), np.arange(lay.ns)
             xi, si = np.arange(self.asm.n), np.arange(len(self.asm.S0))
         else:
             xi, si = np.asarray(record[0]), np.asarray(record[1])
-            kx = np.unique(self._local(xi, lay.xperm, lay.nx))
-            ks = np.unique(self._local(si, lay.sperm, lay.ns))
-        self._gather = (self._source(xi, lay.xperm, lay.nx, kx),
-                        self._source(si, lay.sperm, lay.ns, ks))
+        kx, ks = np.unique(lay.x_local[xi]), np.unique(lay.s_local[si])
+        self._gather = (_source(xi, lay.x_var, lay.x_local, kx),
+                        _source(si, lay.s_var, lay.s_local, ks))
         return kx, ks
-
-    def _local(self, idx, perm, n_local):
-        """Each batch index's position within its variant's columns."""
-        rank = np.empty(perm.size, dtype=np.int64)
-        rank[perm] = np.arange(perm.size)
-        return rank[idx] % max(n_local, 1)
-
-    def _source(self, idx, perm, n_local, kept):
-        """For batch columns ``idx``: their place in the flattened (K, kept) rows."""
-        if not idx.size:
-            return np.zeros(0, dtype=np.int64)
-        rank = np.empty(perm.size, dtype=np.int64)
-        rank[perm] = np.arange(perm.size)
-        variant, local = np.divmod(rank[idx], max(n_local, 1))
-        pos = np.searchsorted(kept, local)
-        if (pos >= kept.size).any() or (kept[np.minimum(pos, kept.size - 1)] != local).any():
-            raise Unsupported("the variants record different columns")
-        return variant * kept.size + pos
 
 
 def run(sim, K, progress=None):
