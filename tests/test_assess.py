@@ -133,16 +133,86 @@ def test_clear_cut_probes_fall_back_to_one_run_each_where_together_they_fail(mon
     assert a.recommended["overrides"] == {"tube": {"friction": "Haaland"}}
 
 
-def test_clear_cut_probes_run_one_by_one_where_one_is_not_clear():
-    """near_choking: the tube law (Mach 1.47x its limit) is no clear-cut case,
-    so it is probed on its own before the thermal level (one probe at the end
-    is the recommended models' run anyway)."""
+def _gas_tube_fill(supply_bar, **tank):
+    """near_choking's tube and tank at another supply pressure (2.2 bar there:
+    Mach 1.47x the mean-density law's limit; 1.5 bar: 0.78x, near it)."""
+    s = sf.System()
+    s += sf.PressureSource("supply", pressure=sf.Q_(supply_bar, "bar"))
+    s += sf.CircularTube("tube", sf.air, length=1.0, diameter=2e-3)
+    s += sf.Container("tank", sf.air, volume=1e-3, **tank)
+    s.connect("supply", "tube")
+    s.connect("tube", "tank")
+    return s
+
+
+def test_a_tube_law_past_its_limit_joins_the_clear_cut_run():
+    """near_choking: the tube law (Mach 1.47x its limit, no clear-cut case:
+    the choke comes first) is one law for another, so it is not probed on its
+    own but joins the run of the clear-cut thermal level (estimated 40 %):
+    base, the models chosen at rtol0, at 10 rtol0: three runs. The
+    recommendation is within the tolerance of the fine reference."""
     s, duration, outputs = scenes.near_choking()
     a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    assert [(r.check, r.status) for r in a.validity
+            if r.component == "tube" and r.status != "ok"] == [("tube_mach", "beyond")]
+    rows = a.table.set_index("axis")
+    assert rows.loc["tube law", "effect"] == rows.loc["thermal", "effect"] > TOL
+    assert "together with thermal" in rows.loc["tube law", "verdict"]
+    assert "not measured on its own" in rows.loc["tube law", "verdict"]
+    assert "clear-cut" in rows.loc["thermal", "verdict"]
+    assert a.recommended["overrides"] == {"tube": {"compressible": "isothermal"}}
+    assert a.recommended["thermal"] == "heat_transfer"
+    assert len(a.runs) == 3
+    assert not any(r.config.thermal == "isothermal" and r.config.overrides for r in a.runs)
+    ref = reference(s, duration, "heat_transfer", "ideal",
+                    {"tube": {"compressible": "isothermal"}})
+    assert difference(recommended_run(a), ref, a.outputs) < TOL
+
+
+def test_a_tube_law_near_its_limit_is_measured_on_its_own():
+    """Mach 0.78x the limit (near, not past: borderline): the tube law is
+    probed on its own, before the thermal level, and its effect reported."""
+    a = sf.assess(_gas_tube_fill(1.5, hA=0.3), 10.0, tolerance=TOL,
+                  outputs=[("tank", "pressure")])
+    assert [r.status for r in a.validity if r.check == "tube_mach"] == ["near"]
     rows = a.table.set_index("axis")
     assert "together" not in rows.loc["tube law", "verdict"]
     assert "together" not in rows.loc["thermal", "verdict"]
     assert rows.loc["tube law", "effect"] != rows.loc["thermal", "effect"]
+    assert any(r.config.thermal == "isothermal" and r.config.overrides for r in a.runs)
+
+
+def test_a_tube_law_past_its_limit_without_a_clear_cut_axis_is_measured():
+    """The tank held at its wall temperature (thermal='isothermal'): no thermal
+    axis, no clear-cut run to join, so the tube law past its limit is probed
+    on its own, as any other level."""
+    a = sf.assess(_gas_tube_fill(2.2, thermal="isothermal"), 10.0, tolerance=TOL,
+                  outputs=[("tank", "pressure")])
+    assert [r.status for r in a.validity if r.check == "tube_mach"] == ["beyond"]
+    row = _axis(a, "tube law")
+    assert "together" not in row["verdict"] and row["effect"] > 0
+    assert a.runs[1].config.overrides_dict() == {"tube": {"compressible": "isothermal"}}
+
+
+def test_together_takes_the_trailing_clear_cut_probes_and_the_free_ones():
+    """_together: the trailing clear-cut probes with the free lifts (a tube law
+    past its limit) from before them, where that makes two or more; nothing
+    where no clear-cut probe ends the list."""
+    from softflow.assess import _together
+
+    def probe(axis, clear=False, free=False):
+        def lift(cfg):
+            return cfg
+        lift.clear, lift.free = clear, free
+        return (axis, axis, lift, "")
+    free, other, clear = probe("tube law", free=True), probe("fluid level"), probe("thermal", True)
+    assert _together([free, other, clear]) == [free, clear]
+    assert _together([other, clear]) == []                  # one run alone: a probe as any
+    assert _together([free, other]) == []                   # nothing clear-cut to join
+    assert _together([free, clear, other]) == []            # the clear one is not last
+    both = probe("inertance", True)
+    assert _together([other, both, clear]) == [both, clear]
+    assert _together([probe("tube law"), other, clear]) == []   # near: measured
 
 
 def _axis(a, axis):
