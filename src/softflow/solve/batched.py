@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import copy
 import warnings
-from dataclasses import replace
 
 import numpy as np
 
@@ -80,8 +79,7 @@ class VariantResult:
         if validity is None:        # this variant's records, found among all of the batch's
             validity = [w for w in getattr(result, "validity", [])
                         if str(w.component).startswith(prefix)]
-        n = len(prefix)
-        self.validity = [replace(w, component=w.component[n:]) for w in validity]
+        self.validity = [_relabel(w, prefix) for w in validity]
         self.warnings = beyond(self.validity)
 
     @property
@@ -100,6 +98,18 @@ class VariantResult:
 
     def __repr__(self):
         return f"<VariantResult {self._prefix!r}: {len(self.times)} points, {self.status}>"
+
+
+def _relabel(record, prefix):
+    """``record`` (a ValidityRecord of the batch) as the variant's own: its
+    component and the label its message quotes without the batch prefix
+    (``'v17/tube'`` -> ``'tube'``). A copy of the frozen record made without
+    dataclasses.replace (~1 us against ~8 us; a record or two per variant)."""
+    twin = object.__new__(type(record))
+    twin.__dict__.update(record.__dict__)
+    object.__setattr__(twin, "component", record.component[len(prefix):])
+    object.__setattr__(twin, "message", record.message.replace("'" + prefix, "'"))
+    return twin
 
 
 def _copy(comp, label, changes=None):
@@ -410,7 +420,8 @@ def _summarize(records, n_variants):
         variants = {r.component.split("/", 1)[0] for r in found}
         more = (f" (and the same check in {len(variants) - 1} more of the {n_variants} "
                 "variants; see each variant's result.warnings)" if len(variants) > 1 else "")
-        warnings.warn(found[0].message + more, ModelWarning, stacklevel=3)
+        first = _relabel(found[0], found[0].component.split("/", 1)[0] + "/")
+        warnings.warn(first.message + more, ModelWarning, stacklevel=3)
 
 
 def _variant_of(label):
