@@ -131,17 +131,32 @@ def _copy(comp, label, changes=None):
     return twin
 
 
+def _plain(cls):
+    """Whether copy.copy of a ``cls`` instance is a new instance with the same
+    __dict__ (no reduce protocol, __copy__, __setstate__ or __slots__ of its
+    own); known per class."""
+    known = _PLAIN.get(cls)
+    if known is None:
+        known = _PLAIN[cls] = not (
+            cls.__reduce_ex__ is not object.__reduce_ex__
+            or cls.__reduce__ is not object.__reduce__
+            or getattr(cls, "__getstate__", None) is not object.__getstate__
+            or hasattr(cls, "__setstate__") or hasattr(cls, "__copy__")
+            or hasattr(cls, "__slots__"))
+    return known
+
+
+_PLAIN: dict = {}
+
+
 def _shallow(obj):
     """copy.copy of a plain object (its attributes shared), without copy's
     reduce protocol: ~1 us against ~6 us, some 10 copies per component of a
     batch."""
     cls = type(obj)
-    if (cls.__reduce_ex__ is not object.__reduce_ex__ or cls.__reduce__ is not object.__reduce__
-            or getattr(cls, "__getstate__", None) is not object.__getstate__
-            or hasattr(cls, "__setstate__") or hasattr(cls, "__copy__")
-            or hasattr(cls, "__slots__") or not hasattr(obj, "__dict__")):
+    if not _plain(cls) or not hasattr(obj, "__dict__"):
         return copy.copy(obj)      # a class that copies its own way
-    twin = object.__new__(type(obj))
+    twin = object.__new__(cls)
     twin.__dict__.update(obj.__dict__)
     return twin
 
