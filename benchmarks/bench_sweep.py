@@ -15,6 +15,15 @@ Each way of running the variants is timed end to end (checks, runs, sampling):
 Prints variants/s (median of the repeats, with min-max) and the ratio to the
 serial loop, the ways taken in turn within each repeat so that machine noise
 hits them alike; then how far each engine's end pressures are from serial's.
+
+Two phases. A LocalCluster's scheduler runs in a thread of the process that
+starts it, and its periodic work (heartbeats, bookkeeping) takes the
+interpreter's lock from whatever else that process does: with a cluster up,
+1 000 batched variants took ~25 % more CPU in this process (min of 7: 481-494
+against 363-399 ms without). So the ways that do not use Dask are timed
+first, with no cluster in the process; then the cluster starts and the Dask
+way is timed in turns with the serial loop again, its ratio taken to that
+serial loop (the one timed beside it).
 On a shared machine wall time follows the load, so the CPU seconds each way
 spends per variant are printed too (this process, the pool's workers, the Dask
 workers and nannies: psutil), and what that work would give on the workers'
@@ -76,6 +85,27 @@ def cpu_seconds():
     return total
 
 
+def take_turns(ways, repeat, ends):
+    """Wall and CPU seconds of each way per repeat, the ways in turn; the first
+    repeat's end pressures go into ``ends``."""
+    walls = {name: [] for name in ways}
+    cpus = {name: [] for name in ways}
+    for r in range(repeat):
+        for name, way in ways.items():
+            c = cpu_seconds()
+            t = time.perf_counter()
+            out = way()
+            walls[name].append(time.perf_counter() - t)
+            cpus[name].append(cpu_seconds() - c)
+            if r == 0:
+                ends[name] = (out if isinstance(out, np.ndarray) else out.data[:, 0, -1])
+                if not isinstance(out, np.ndarray) and out.failed:
+                    print(f"  {name}: {len(out.failed)} variants failed")
+            print(f"  repeat {r + 1}: {name:38s} {walls[name][-1]:7.2f} s wall, "
+                  f"{cpus[name][-1]:7.2f} s CPU, load {os.getloadavg()[0]:.1f}", flush=True)
+    return walls, cpus
+
+
 def machine():
     try:
         with open("/proc/cpuinfo") as fh:
@@ -106,59 +136,49 @@ def main():
     print(f"machine: {machine()}")
     print(f"{args.variants} variants, {args.repeat} repeats, {args.workers} workers\n")
 
-    t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
-    client = Client(cluster)
-    print(f"LocalCluster ({args.workers} worker processes) start-up: "
-          f"{time.perf_counter() - t0:.1f} s (not counted below)\n")
-
+    serial = "serial: loop of run(params=)"
     ways = {
-        "serial: loop of run(params=)": lambda: sf.sweep(sim, variants, **end),
+        serial: lambda: sf.sweep(sim, variants, **end),
         "fresh builds (old way)": lambda: fresh_builds(diameters),
         f"processes ({args.workers} workers)":
             lambda: sf.sweep(sim, variants, engine="processes", workers=args.workers, **end),
-        f"dask LocalCluster ({args.workers} workers)":
-            lambda: sf.sweep(sim, variants, engine="dask", client=client, **end),
     }
     if importlib.util.find_spec("softflow.solve.batched") is not None:
         ways["batched"] = lambda: sf.sweep(sim, variants, engine="batched", **end)
     else:
         print("batched: softflow.solve.batched is not in this tree\n")
-
-    walls = {name: [] for name in ways}
-    cpus = {name: [] for name in ways}
     ends = {}
-    for r in range(args.repeat):
-        for name, way in ways.items():
-            c = cpu_seconds()
-            t = time.perf_counter()
-            out = way()
-            walls[name].append(time.perf_counter() - t)
-            cpus[name].append(cpu_seconds() - c)
-            if r == 0:
-                ends[name] = (out if isinstance(out, np.ndarray) else out.data[:, 0, -1])
-                if not isinstance(out, np.ndarray) and out.failed:
-                    print(f"  {name}: {len(out.failed)} variants failed")
-            print(f"  repeat {r + 1}: {name:38s} {walls[name][-1]:7.2f} s wall, "
-                  f"{cpus[name][-1]:7.2f} s CPU, load {os.getloadavg()[0]:.1f}", flush=True)
+    print("phase 1: no Dask cluster in this process")
+    walls, cpus = take_turns(ways, args.repeat, ends)
+
+    t0 = time.perf_counter()
+    cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    client = Client(cluster)
+    print(f"\nphase 2: LocalCluster ({args.workers} worker processes) started in "
+          f"{time.perf_counter() - t0:.1f} s (not counted), timed in turns with the serial loop")
+    dask = f"dask LocalCluster ({args.workers} workers)"
+    beside = {serial + " (beside Dask)": ways[serial],
+              dask: lambda: sf.sweep(sim, variants, engine="dask", client=client, **end)}
+    walls2, cpus2 = take_turns(beside, args.repeat, ends)
     client.close()
     cluster.close()
 
-    serial = "serial: loop of run(params=)"
-    base = statistics.median(walls[serial])
-    cpu_base = statistics.median(cpus[serial])
     print("\n| way | variants/s, wall (median) | range | ratio to serial | CPU ms per "
           "variant | variants/s on its cores alone (est.) | ratio |")
     print("|---|---|---|---|---|---|---|")
-    for name, w in walls.items():
-        rates = [args.variants / x for x in w]
-        cpu = statistics.median(cpus[name])
-        cores = args.workers if ("workers" in name) else 1
-        print(f"| {name} | {args.variants / statistics.median(w):.1f} | "
-              f"{min(rates):.1f}-{max(rates):.1f} | {base / statistics.median(w):.2f}x | "
-              f"{1e3 * cpu / args.variants:.1f} | {cores * args.variants / cpu:.1f} | "
-              f"{cores * cpu_base / cpu:.2f}x |")
+    for table, reference in ((walls, serial), (walls2, serial + " (beside Dask)")):
+        cpu_of = cpus if table is walls else cpus2
+        base = statistics.median(table[reference])
+        cpu_base = statistics.median(cpu_of[reference])
+        for name, w in table.items():
+            rates = [args.variants / x for x in w]
+            cpu = statistics.median(cpu_of[name])
+            cores = args.workers if ("workers" in name) else 1
+            print(f"| {name} | {args.variants / statistics.median(w):.1f} | "
+                  f"{min(rates):.1f}-{max(rates):.1f} | {base / statistics.median(w):.2f}x | "
+                  f"{1e3 * cpu / args.variants:.1f} | {cores * args.variants / cpu:.1f} | "
+                  f"{cores * cpu_base / cpu:.2f}x |")
     ref = ends[serial]
     rise = ref - sf.pressure_atmospheric
     # a tight reference (rtol 1e-8) for every 50th variant
