@@ -215,6 +215,42 @@ def test_together_takes_the_trailing_clear_cut_probes_and_the_free_ones():
     assert _together([probe("tube law"), other, clear]) == []   # near: measured
 
 
+@pytest.mark.parametrize("scene", ["near_choking", "syringe", "laminar_water"])
+def test_a_run_at_another_rtol_on_the_compiled_models_is_a_fresh_simulations(scene):
+    """The time tolerance's runs (the models chosen at 10 rtol0) reuse the
+    Simulation compiled for those models at rtol0, set to the new rtol: each
+    run is bitwise the one a Simulation built at its rtol makes."""
+    import numpy as np
+    s, duration, outputs = getattr(scenes, scene)()
+    a = sf.assess(s, duration, tolerance=TOL, outputs=outputs)
+    configs = [(r.config.fluid_level, r.config.overrides, r.config.thermal) for r in a.runs]
+    assert len(set(configs)) < len(configs)          # some models ran at two rtols
+    for done in a.runs:
+        cfg = done.config
+        sim = sf.Simulation(variant_system(s, cfg.fluid_level, cfg.overrides_dict()), duration,
+                            thermal=cfg.thermal, rtol=cfg.rtol)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            fresh = sim.run(raise_on_failure=False)
+        assert fresh.status == done.result.status
+        assert np.array_equal(fresh.times, done.result.times)
+        assert fresh.columns() == done.result.columns()
+        for column in fresh.columns():
+            assert np.array_equal(fresh[column], done.result[column]), column
+        assert fresh.stats["steps"] == done.result.stats["steps"]
+        assert fresh.stats["rtol"] == done.result.stats["rtol"] == cfg.rtol
+
+
+def test_set_rtol_keeps_the_atol_given():
+    """_set_rtol: the absolute tolerances not given follow rtol (the
+    Simulation's rule), those given stay."""
+    from softflow.assess import _set_rtol
+    sim = sf.Simulation(syringe(), 1.0, rtol=1e-3, atol={"pressure": 5.0})
+    fresh = sf.Simulation(syringe(), 1.0, rtol=1e-2, atol={"pressure": 5.0})
+    _set_rtol(sim, 1e-2, {"pressure": 5.0})
+    assert sim.rtol == 1e-2 and sim.atol == fresh.atol and sim.atol["pressure"] == 5.0
+
+
 def _axis(a, axis):
     rows = a.table[a.table["axis"] == axis]
     assert len(rows) == 1, a.table

@@ -379,6 +379,7 @@ class _Assessor:
         self.outputs, self.options = outputs, options
         self.runs = []
         self._systems = {}
+        self._simulations = {}
 
     def run(self, config):
         from .solve.simulation import Simulation
@@ -393,8 +394,15 @@ class _Assessor:
             if key not in self._systems:
                 self._systems[key] = variant_system(self.system, config.fluid_level,
                                                     config.overrides_dict())
-            sim = Simulation(self._systems[key], self.duration, thermal=config.thermal,
-                             rtol=config.rtol, **self.options)
+            # the same models at another rtol (the time tolerance's runs): the
+            # Simulation compiled for them, set to that rtol, not a new one
+            sim = self._simulations.get((key, config.thermal))
+            if sim is None:
+                sim = Simulation(self._systems[key], self.duration, thermal=config.thermal,
+                                 rtol=config.rtol, **self.options)
+                self._simulations[(key, config.thermal)] = sim
+            else:
+                _set_rtol(sim, config.rtol, self.options.get("atol"))
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ModelWarning)
                 result = sim.run(raise_on_failure=False, progress=False)
@@ -405,6 +413,21 @@ class _Assessor:
         done = Run(config, result, error, time.process_time() - t0)
         self.runs.append(done)
         return done
+
+
+def _set_rtol(sim, rtol, given_atol=None):
+    """Set the Simulation ``sim`` to run at ``rtol`` as ``Simulation(...,
+    rtol=rtol)`` would: its absolute tolerances not given (``given_atol``,
+    the ``atol=`` it was built with) are DEFAULT_ATOL times rtol/1e-3, the
+    Simulation's own rule; those given stay. What a run reads of rtol is read
+    at the run (Newton's tolerance, the integrator's, the consistent start's
+    key), so the run is the one a Simulation built at ``rtol`` makes, without
+    compiling the models again (a test checks it bitwise)."""
+    from .solve.simulation import DEFAULT_ATOL
+    given = set(given_atol or ())
+    sim.atol = {q: (v if q in given or q not in DEFAULT_ATOL else DEFAULT_ATOL[q] * rtol / 1e-3)
+                for q, v in sim.atol.items()}
+    sim.rtol = float(rtol)
 
 
 def _check_tolerance(tolerance):
