@@ -73,8 +73,21 @@ run and a tube-law probe).
 
 Variants are built from a copy of the System (components rebuilt from their
 recorded constructor arguments, with the overrides); the user's System is
-never changed. Costs are CPU times (``time.process_time``) of building and
-running each Simulation.
+never changed. The same models at another rtol (the time tolerance's runs)
+run on the Simulation compiled for them, set to that rtol (``_set_rtol``:
+bitwise the run of a Simulation built at it). Costs are CPU times
+(``time.process_time``) of building and running each Simulation.
+
+What it costs: the base run, one run per probe, and the models chosen at
+``rtol0`` and ``10 rtol0`` (the latter is the cheapest adequate
+configuration where it is recommended). Where the models chosen differ from
+the base, the floor is therefore the base run plus about 1.3-1.5 runs of the
+cheapest adequate configuration (``rtol0``'s) plus one (``10 rtol0``'s):
+near 3 such runs where the base costs half of one (turbulent air: 2.93x by
+instruction count, a failed cheapest run, the Haaland base, heat transfer at
+``rtol0`` and at ``10 rtol0``). The time tolerance needs the pair: a model's
+time error is not another's (laminar water: ``10 rtol0`` is 0.51 % from
+``rtol0`` in the base models, 0.77 % in the models chosen).
 """
 from __future__ import annotations
 
