@@ -10,9 +10,9 @@ each pass, each running variant proposes its next step; the kernels evaluate
 all variants in one vectorized call, each instance at its own variant's time
 and with its own step coefficient (``kernel(V, S, t, dt)`` with t an array
 (n,) and dt a column (n, 1), see :mod:`softflow.solve.discretize`); Newton
-solves each variant's block (small ones by their dense inverses, made in one
-call for the variants whose step coefficient moved; large ones by the
-batch's sparse factors) and judges each variant's convergence on its own;
+solves each variant's block (small ones by their dense inverses, made afresh
+at every pass in one call; large ones by the batch's sparse factors, kept
+while they serve) and judges each variant's convergence on its own;
 and each variant's step is accepted or
 rejected, and its next step and order chosen, by its own error test, exactly
 as :class:`softflow.solve.bdf.BDF` does for one network (same formulas,
@@ -501,15 +501,13 @@ class VariantBDF:
 
     def _stale(self, cv, live):
         """The variants among ``live`` whose factors do not serve their step
-        coefficient now (sparse factors: all of them where one does not)."""
+        coefficient now: the batch's sparse factors, all of them where one
+        does not (dense blocks are factored at every pass, see NEWTON_MAX)."""
         lo, hi = NEWTON_REUSE
         ref = self._lu_c
         with np.errstate(invalid="ignore"):
             ok = (cv >= lo * ref) & (cv <= hi * ref) & (self._lu_age < NEWTON_MAX_AGE)
-        stale = live & ~ok
-        if not self.dense and stale.any():
-            return live.copy()
-        return stale
+        return live.copy() if (live & ~ok).any() else live & ~ok
 
     def _factor(self, cv, which):
         """Factors of the Jacobian just evaluated (asm.raw) for the variants
@@ -567,10 +565,13 @@ class VariantBDF:
         r = np.arange(ids.size)
         Ds[kk + 2, r] = delta - Ds[kk + 1, r]
         Ds[kk + 1, r] = delta
-        for i in range(self.kmax, -1, -1):
-            m = i <= kk
-            Ds[i, m] += Ds[i + 1, m]
-        D[:, ids] = Ds
+        # rows k, k - 1, ..., 0 each add the (updated) row below: row i becomes
+        # the sum of rows i..k + 1, a reversed cumulative sum over the rows up
+        # to k + 1 (the same additions in the same order as the row-by-row loop)
+        rows = np.arange(self.kmax + 3)[:, None]
+        upto = (rows <= kk + 1)[:, :, None]
+        sums = np.cumsum(np.where(upto, Ds, 0.0)[::-1], axis=0)[::-1]
+        D[:, ids] = np.where(rows[:, :, None] <= kk[:, None], sums, Ds)
 
     # -- restarts -----------------------------------------------------------------------
     def _probe(self, ids, x, S, Xv_from, hv):
