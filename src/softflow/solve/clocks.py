@@ -569,13 +569,10 @@ class VariantBDF:
         r = np.arange(ids.size)
         Ds[kk + 2, r] = delta - Ds[kk + 1, r]
         Ds[kk + 1, r] = delta
-        # rows k, k - 1, ..., 0 each add the (updated) row below: row i becomes
-        # the sum of rows i..k + 1, a reversed cumulative sum over the rows up
-        # to k + 1 (the same additions in the same order as the row-by-row loop)
-        rows = np.arange(self.kmax + 3)[:, None]
-        upto = (rows <= kk + 1)[:, :, None]
-        sums = np.cumsum(np.where(upto, Ds, 0.0)[::-1], axis=0)[::-1]
-        D[:, ids] = np.where(rows[:, :, None] <= kk[:, None], sums, Ds)
+        for i in range(self.kmax, -1, -1):
+            m = i <= kk
+            Ds[i, m] += Ds[i + 1, m]
+        D[:, ids] = Ds
 
     # -- restarts -----------------------------------------------------------------------
     def _probe(self, ids, x, S, Xv_from, hv):
