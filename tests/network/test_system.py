@@ -587,3 +587,50 @@ def test_fixed_stepping_without_a_step_is_refused():
     s.connect("tube", "acc")
     with pytest.raises(ValueError, match="adaptive=False needs a step"):
         sf.Simulation(s, duration=0.1, adaptive=False)
+
+
+def _small_tank_scene():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=1.2e5)
+    s += sf.CircularTube("tube", sf.water, length=0.1, diameter=1e-3)
+    s += sf.Container("tank", sf.water, volume=1e-6)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    return s
+
+
+def test_a_dropped_scene_is_freed_after_its_run():
+    """The link Component.get reads does not keep a scene alive: once the
+    System, its Simulation and the Result are dropped (and RECENT_RESULTS
+    runs came after), they are freed."""
+    import gc
+    import weakref
+
+    from softflow.network import component
+    s = _small_tank_scene()
+    sim = sf.Simulation(s, duration=0.01, step=1e-3)
+    sim.run()
+    gone = [weakref.ref(s.get("tank")), weakref.ref(sim)]
+    del s, sim
+    other = sf.Simulation(_small_tank_scene(), duration=0.01, step=1e-3)
+    for _ in range(component.RECENT_RESULTS):
+        other.run()
+    gc.collect()
+    assert all(r() is None for r in gone)
+
+
+def test_a_one_line_run_leaves_its_result_readable_until_it_is_dropped():
+    from softflow.network import component
+    s = _small_tank_scene()
+    sf.Simulation(s, duration=0.01, step=1e-3).run()     # neither kept
+    assert s.get("tank").get("pressure")[-1] > 1.0e5
+    other = sf.Simulation(_small_tank_scene(), duration=0.01, step=1e-3)
+    for _ in range(component.RECENT_RESULTS):
+        other.run()
+    with pytest.raises(RuntimeError, match="no longer held.*keep the Simulation"):
+        s.get("tank").get("pressure")
+    kept = sf.Simulation(s, duration=0.01, step=1e-3)
+    kept.run()
+    for _ in range(component.RECENT_RESULTS):
+        other.run()
+    assert s.get("tank").get("pressure")[-1] > 1.0e5       # kept through kept.result

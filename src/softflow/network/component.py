@@ -13,6 +13,7 @@ Jacobians.
 """
 from __future__ import annotations
 
+import collections
 import inspect
 import weakref
 from typing import TYPE_CHECKING, Any, Callable, Iterable
@@ -25,14 +26,27 @@ if TYPE_CHECKING:
 
 #: The last Result a Simulation computed for each component, for the FONS
 #: paper's ``system.get(label).get(name)``: kept here, weakly keyed by the
-#: component, so that running a Simulation never writes into the System.
+#: component, so that running a Simulation never writes into the System. The
+#: values are weak references too: a Result refers to its compiled network and
+#: so to the components, and a strong value would keep its own key (every
+#: component ever run, its Simulation and its last Result) alive for good
+#: (~120 objects and the result arrays per Simulation built and dropped).
 _LAST_RESULT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+#: The last results are also held here, so that a Simulation built, run and
+#: dropped in one line (``sf.Simulation(system, ...).run()``) leaves its result
+#: readable through the System; an older one lives as long as its Simulation
+#: (``sim.result``) or the Result itself is referenced.
+RECENT_RESULTS = 8
+_RECENT: "collections.deque" = collections.deque(maxlen=RECENT_RESULTS)
 
 
 def remember_result(components: Iterable[Component], result: Result) -> None:
     """Make ``result`` the one :meth:`Component.get` reads for ``components``."""
+    ref = weakref.ref(result)
     for c in components:
-        _LAST_RESULT[c] = result
+        _LAST_RESULT[c] = ref
+    _RECENT.append(result)
 
 
 class AutoFunction:
@@ -189,11 +203,21 @@ class Component:
         give ``terminal`` when the name occurs at several terminals. The last
         run is the last ``Simulation.run()`` of a System holding this component
         (softflow keeps that link itself; the component is not changed by a
-        run, and a pickled or copied component has no results).
+        run, and a pickled or copied component has no results). The link does
+        not keep that Result alive: it lasts while the Simulation
+        (``sim.result``) or the Result is referenced, or for the next
+        :data:`RECENT_RESULTS` runs otherwise.
         """
-        result = _LAST_RESULT.get(self)
-        if result is None:
+        ref = _LAST_RESULT.get(self)
+        if ref is None:
             raise RuntimeError(f"{self.describe()}: no results yet; run a Simulation first")
+        result = ref()
+        if result is None:
+            raise RuntimeError(
+                f"{self.describe()}: its last result is no longer held (the Simulation "
+                f"that ran it and its Result were dropped, and {RECENT_RESULTS} runs or "
+                "more came after it); keep the Simulation (sim.result) or the Result that "
+                "run() returns")
         return result.get(self.label, name, terminal=terminal, as_quantity=as_quantity)
 
     def __repr__(self) -> str:
