@@ -342,17 +342,25 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
             outcomes = _dask(sim, variants, outputs, times, bar, client,
                              workers or os.cpu_count() or 1)
         else:
+            from .solve.simulation import _collector_paused
             from .solve.validity import ModelWarning
-            with warnings.catch_warnings():
+            # the batch (a System of every variant's copy, compiled, and its
+            # results) is ~30 objects a variant that live until the outputs are
+            # read and are garbage then: with the collector paused they are
+            # freed by the next young collection, where otherwise they were
+            # promoted on the way and set off full collections of the whole
+            # heap (~50-150 ms each, every sweep or two of 1 000 variants)
+            with warnings.catch_warnings(), _collector_paused():
                 warnings.simplefilter("ignore", ModelWarning)
                 # one run of all the variants: its own bar, in simulated time
                 assert batched is not None
                 results = (batched(sim, variants, progress=progress) if prepared is None
                            else batched(sim, variants, progress=progress, prepared=prepared))
-            if len(results) != n:
-                raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
-                                   f"results for {n} variants")
-            outcomes = [_outcome(r, outputs, times) for r in results]
+                if len(results) != n:
+                    raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
+                                       f"results for {n} variants")
+                outcomes = [_outcome(r, outputs, times) for r in results]
+                del results
     finally:
         if bar is not None:
             bar.close()
