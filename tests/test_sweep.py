@@ -144,6 +144,33 @@ def test_batched_engine_within_tolerance_of_serial(adaptive):
     np.testing.assert_allclose(batched.data, serial.data, rtol=3e-3)
 
 
+@pytest.mark.skipif(importlib.util.find_spec("softflow.solve.batched") is None,
+                    reason="the batched engine is not in this tree")
+@pytest.mark.parametrize("was_enabled", [True, False])
+def test_batched_sweep_leaves_the_garbage_collector_as_it_was(adaptive, was_enabled,
+                                                             monkeypatch):
+    """The batched engine pauses the collector while its batch lives (sweep.py):
+    it is restored as the caller had it, enabled or not, also on an error."""
+    import gc
+
+    from softflow.solve import batched
+    variants = {"tube.diameter": sf.Q_([0.7, 1.1], "mm")}
+    (gc.enable if was_enabled else gc.disable)()
+    try:
+        sf.sweep(adaptive, variants, engine="batched", outputs=["tank.pressure"])
+        assert gc.isenabled() is was_enabled
+
+        def broken(*args, **kwargs):
+            assert not gc.isenabled()          # paused while the batch runs
+            raise RuntimeError("batch broke")
+        monkeypatch.setattr(batched, "_run_batched", broken)
+        with pytest.raises(RuntimeError, match="batch broke"):
+            sf.sweep(adaptive, variants, engine="batched")
+        assert gc.isenabled() is was_enabled
+    finally:
+        gc.enable()
+
+
 # -- failures ------------------------------------------------------------------------------
 @pytest.mark.parametrize("engine", ["serial", "processes"])
 def test_a_failed_variant_is_recorded_and_the_sweep_goes_on(fixed, engine):
