@@ -427,7 +427,10 @@ class VariantBDF:
                 Fv[~finite] = 0.0
                 F[~np.isfinite(F)] = 0.0
             if dense:
-                dXv = np.matmul(self._inv, Fv[:, :, None])[:, :, 0]
+                # np.einsum's loop, not np.matmul: that calls BLAS's gemv once
+                # per variant (~200 instructions of call and zeroing each, 6 %
+                # of a 1 000-variant sweep)
+                dXv = np.einsum("vij,vj->vi", self._inv, Fv)
             else:
                 dXv = lay.to_v(self.lin.solve(F))
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
