@@ -431,14 +431,15 @@ class _Assessor:
 def _set_rtol(sim, rtol, given_atol=None):
     """Set the Simulation ``sim`` to run at ``rtol`` as ``Simulation(...,
     rtol=rtol)`` would: its absolute tolerances not given (``given_atol``,
-    the ``atol=`` it was built with) are DEFAULT_ATOL times rtol/1e-3, the
-    Simulation's own rule; those given stay. What a run reads of rtol is read
-    at the run (Newton's tolerance, the integrator's, the consistent start's
-    key), so the run is the one a Simulation built at ``rtol`` makes, without
-    compiling the models again (a test checks it bitwise)."""
-    from .solve.simulation import DEFAULT_ATOL
+    the ``atol=`` it was built with) are the Simulation's own defaults at
+    that rtol (``default_atol``); those given stay. What a run reads of rtol
+    is read at the run (Newton's tolerance, the integrator's, the consistent
+    start's key), so the run is the one a Simulation built at ``rtol`` makes,
+    without compiling the models again (a test checks it bitwise)."""
+    from .solve.simulation import default_atol
     given = set(given_atol or ())
-    sim.atol = {q: (v if q in given or q not in DEFAULT_ATOL else DEFAULT_ATOL[q] * rtol / 1e-3)
+    defaults = default_atol(rtol)
+    sim.atol = {q: (v if q in given or q not in defaults else defaults[q])
                 for q, v in sim.atol.items()}
     sim.rtol = float(rtol)
 

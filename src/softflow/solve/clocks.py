@@ -511,7 +511,8 @@ class VariantBDF:
         ref = self._lu_c
         with np.errstate(invalid="ignore"):
             ok = (cv >= lo * ref) & (cv <= hi * ref) & (self._lu_age < NEWTON_MAX_AGE)
-        return live.copy() if (live & ~ok).any() else live & ~ok
+        stale = live & ~ok
+        return live.copy() if stale.any() else stale
 
     def _factor(self, cv, which):
         """Factors of the Jacobian just evaluated (asm.raw) for the variants

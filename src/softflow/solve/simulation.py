@@ -211,9 +211,7 @@ class Simulation:
         for name, v in (("rtol", self.rtol), ("newton_rtol", self.newton_rtol)):
             if not (v > 0 and math.isfinite(v)):
                 raise ValueError(f"Simulation: {name} must be a finite number > 0, got {v}")
-        # default floors are set for rtol = 1e-3 and follow rtol (tolerance
-        # proportionality: rtol = 1e-8 with 1 Pa floors would stop at 1 Pa)
-        self.atol = {q: v * self.rtol / 1e-3 for q, v in DEFAULT_ATOL.items()}
+        self.atol = default_atol(self.rtol)
         # every variable's quantity, looked up only where an atol names one
         known = _quantities(system) if atol else ()
         for q, v in (atol or {}).items():
@@ -589,6 +587,13 @@ def _collector_paused():
     finally:
         if enabled:
             gc.enable()
+
+
+def default_atol(rtol):
+    """{quantity: absolute tolerance} a Simulation at ``rtol`` takes where atol=
+    names none: DEFAULT_ATOL, set for rtol = 1e-3, times rtol/1e-3 (tolerance
+    proportionality: rtol = 1e-8 with 1 Pa floors would stop at 1 Pa)."""
+    return {q: v * rtol / 1e-3 for q, v in DEFAULT_ATOL.items()}
 
 
 def _quantities(system):
