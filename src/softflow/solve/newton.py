@@ -166,6 +166,9 @@ class Newton:
         self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
         self._solves = 0
         self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
+        #: whether a solve may enter the damped full stage (a stepper that cuts its
+        #: step on a failed solve may prefer the cut: see BDF.run)
+        self.full_stage = True
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -351,6 +354,8 @@ class Newton:
             self._set_scale(x0)
         if last is None or not last.reason.startswith(("singular", "absolute pressure")):
             for stage in ("fresh", "full"):
+                if stage == "full" and not self.full_stage:
+                    break
                 self.fluid_error = None       # each stage reports its own fluid-range error
                 if stage == "fresh":
                     out = self._chord(x0, S, t, dt, stage)
