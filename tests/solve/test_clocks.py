@@ -268,7 +268,7 @@ def test_recorded_components_only_are_kept():
 
 
 def test_newton_failures_cut_the_steps_of_the_variants_own_runs():
-    """As BDF.run: a step whose Newton fails is cut to a quarter (the retry may
+    """As BDF: a step whose Newton fails is cut to a quarter (the retry may
     take Newton's full stage), so the batch's Newton rejections are its
     variants' own runs' Newton failures, variant by variant in steps."""
     sim = sf.Simulation(filling_tank(sf.PressureSource("src", pressure=sf.Q_(1.5, "bar"))),

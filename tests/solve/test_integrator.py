@@ -272,3 +272,56 @@ def test_turbulent_start_converges_from_zero_flow():
     Re = res.get("tube", "massflow", "a")[0] * 1e-3 / (sf.water.mu * math.pi * 0.25e-6)
     assert Re > 1e4
     assert res.get("acc", "pressure")[-1] == pytest.approx(P0 + 5e4, rel=1e-6)
+
+
+def test_one_loop_serves_every_stepper_and_a_controller_written_against_it():
+    """Integrator.run is the integration loop of every stepper (none writes its
+    own); a controller of one's own, backward Euler at a plain fixed step in a
+    few lines of the stepper interface, runs on it and agrees with
+    ImplicitEuler to Newton's tolerance."""
+    from softflow.solve.bdf import BDF
+    from softflow.solve.integrator import ImplicitEuler, Integrator, StepFailure
+    from softflow.solve.linalg import make_linear_solver
+    from softflow.solve.newton import Newton, Stats
+    assert all("run" not in vars(cls) for cls in (BDF, ImplicitEuler))
+
+    class PlainEuler(Integrator):
+        def __init__(self, asm, newton, stats, duration, step):
+            super().__init__(asm, newton, stats, duration=duration)
+            self.h = step
+
+        def _setup(self, x, S):
+            pass
+
+        def _propose(self, t, x, S):
+            t_new = min(t + self.h, self.T)
+            return x, S, t_new, t_new, t_new - t      # Newton from x; psi = S, c = h
+
+        def _newton_failed(self, t, t_new, out):
+            raise StepFailure(t_new, t_new - t, out)
+
+        def _judge(self, t, x, S, x_new, S_new, t_new):
+            return t_new
+
+        def _take(self, t, x, S, x_new, psi, c, S_new, t_new):
+            self.rec.add(t_new, x_new, S_new)
+            return x_new, S_new, t_new
+
+    s, _ = rc_system()
+    sim = sf.Simulation(s, duration=0.05, step=1e-3)
+    ref = sim.run()
+    asm, stats = sim.asm, Stats()
+    newton = Newton(asm, make_linear_solver(asm, "dense"), stats, rtol=sim.newton_rtol,
+                    atol=sim._atol_vector(asm.x_quantity, 1e-3))
+    mine = PlainEuler(asm, newton, stats, 0.05, 1e-3)
+    mine.run()
+    t, X, S = mine.rec.arrays()
+    assert stats.steps == 50 and len(t) == 51
+    np.testing.assert_allclose(t, ref.times, rtol=0, atol=1e-15)
+    # the accumulator's pressure: the node pressure that moves
+    p = max((j for j, q in enumerate(asm.x_quantity) if q == "pressure"),
+            key=lambda j: np.ptp(ref.X[:, j]))
+    swing = np.ptp(ref.X[:, p])
+    assert swing > 1e3
+    np.testing.assert_allclose(X[:, p], ref.X[:, p], rtol=0, atol=1e-6 * swing)
+    np.testing.assert_allclose(S, ref.S, rtol=1e-6, atol=0)

@@ -126,7 +126,11 @@ PEAK_FACTOR = 3.0
 
 
 class BDF(Integrator):
-    """Variable-order (1 to ``max_order``), variable-step BDF on the states.
+    """Variable-order (1 to ``max_order``), variable-step BDF on the states: a
+    controller of the one integration loop (:meth:`Integrator.run`), whose
+    steps it proposes (:meth:`_propose`), judges (its error test and the
+    location of a mode switch, :meth:`_judge`) and takes (the difference
+    tables, the order and the next step, :meth:`_take`).
 
     Newton solves for the unknowns at each step with the kernels' states
     replaced by psi and the step by c (module docstring), reusing LU factors
@@ -333,215 +337,219 @@ class BDF(Integrator):
                     "a rate (e.g. {'mass': mass + mf * dt}), or run with step= for "
                     "fixed-step backward Euler, which takes any update_state.")
 
-    # -- the loop --------------------------------------------------------------------
-    def run(self):
-        x, S = self.initial()
+    # -- the loop's controller (Integrator.run) --------------------------------------------
+    def _setup(self, x, S):
         self._check_affine_updates(x, S)
-        asm, newton, stats, rec = self.asm, self.newton, self.stats, self.rec
-        solve, update = newton.solve, asm.update_states
-        begin = asm.begin_step if asm.has_begin_step else None
-        if begin is not None:
-            begin(x, S)
-        disc = asm.s_discrete if asm.has_discrete else None
-        report = self.progress
-        T, kmax = self.T, self.max_order
-        t_stop = T * (1 - 1e-14)
-        ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
+        asm = self.asm
+        self._disc = asm.s_discrete if asm.has_discrete else None
         ns, n = S.size, x.size
-        qs = self._q_sel
-        Q = np.zeros(x[qs].size)
+        self._Q = np.zeros(x[self._q_sel].size)
         # one difference table for the states, the unknowns and the quadratures
-        # (one NumPy call per operation instead of three); views name the parts.
+        # (one NumPy call per operation instead of three); slices name the parts.
         # The error test's entries are the first ns + n columns
-        D = np.zeros((kmax + 3, ns + n + Q.size))
-        iS, iX, iQ = slice(0, ns), slice(ns, ns + n), slice(ns + n, None)
-        iErr = slice(0, ns + n)
-        DS, DX, DQ, DErr = D[:, iS], D[:, iX], D[:, iQ], D[:, iErr]
-        tables = (D,)
+        self._D = np.zeros((self.max_order + 3, ns + n + self._Q.size))
+        self._iS, self._iX = slice(0, ns), slice(ns, ns + n)
+        self._iQ, self._iErr = slice(ns + n, None), slice(0, ns + n)
         # the states' sensitivities keep their own table, differenced and
         # rescaled with the states' (softflow.solve.sensitivity)
-        sens = self.sens
-        delta = np.empty(D.shape[1])
-        t = 0.0
-        restart = True
-        h_cap, cap_hold = math.inf, 0     # while a mode switch is being located
+        self._tables = (self._D,)
+        self._delta = np.empty(self._D.shape[1])
+        self._ib, self._next = 0, (self.breaks[0] if self.breaks else math.inf)
+        self._restart_due = True
+        self._h = 0.0
+        self._k = self._n_equal = self._fails = 0
+        self._newton_fails = 0     # Newton failures of the step being tried
+        self._h_cap, self._cap_hold = math.inf, 0     # while a mode switch is being located
         # below a step that failed the error test, for a while: without it a step
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
         # fails, halves, doubles and fails again every third step
-        fail_cap, fail_hold = math.inf, 0
-        secant_tries = 0       # secant placements of the current switch
-        newton_fails = 0
-        jump = None            # a switch's left side, for the sensitivities
-        while t < t_stop:
-            if next_break <= t * (1 + 1e-14) + 1e-300:
-                ib, next_break = self._next_break(t, ib)
-            limit = next_break if next_break < T else T
-            if restart:
-                x_right, r0, xdot, h = self._restart(x, S, t, limit)
-                report.restarted(t, h)
-                D[:] = 0.0
-                DS[0], DS[1] = S, h * r0
-                DX[0], DX[1] = x_right, h * xdot
-                DQ[0], DQ[1] = Q, h * x_right[qs]
-                if sens is not None:      # order 1: psi is the value alone
-                    if jump is not None:  # a located switch: the jump of s_S there
-                        sens.switch(*jump, r0)
-                        jump = None
-                    sens.restart(kmax)
-                k, n_equal, fails = 1, 0, 0
-                restart = False
-            # the step: no overshoot of the limit, no sliver left before it
-            h_try = min(h, self.step_max, h_cap, fail_cap)
-            if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
-                h_try = limit - t
-            if h_try != h:
-                self._rescale(tables, k, h_try / h)
-                h = h_try
-                n_equal = 0
-            end = t + h
-            at_break = end == next_break
-            t_new = end
-            pred, psi_all = _PRED_PSI[k] @ D[:k + 1]
-            S_pred, x_pred, psi = pred[iS], pred[iX], psi_all[iS]
-            c = h / _G[k]
-            t_eval = math.nextafter(t_new, -math.inf) if at_break else t_new
-            # as IDA: a step whose Newton fails is cut to a quarter, not rescued
-            # by Newton's damped full stage (a Jacobian at every iterate); its
-            # retries may take that stage (a fold where the solution must jump,
-            # which no smaller step avoids). Nine paper scenes: Fig. 5 air
-            # 190 -> 149 ms, hysteretic 101 -> 91 ms, the others alike
-            newton.full_stage = newton_fails > 0
-            out = solve(x_pred, psi, t_eval, c)
-            newton.full_stage = True
-            if not out.converged:
-                newton_fails += 1
+        self._fail_cap, self._fail_hold = math.inf, 0
+        self._secant_tries = 0     # secant placements of the current switch
+        self._jump = None          # a switch's left side, for the sensitivities
+
+    def _propose(self, t, x, S):
+        if self._next <= t * (1 + 1e-14) + 1e-300:
+            self._ib, self._next = self._next_break(t, self._ib)
+        next_break, T = self._next, self.T
+        limit = next_break if next_break < T else T
+        D, iS, iX, iQ = self._D, self._iS, self._iX, self._iQ
+        if self._restart_due:
+            x_right, r0, xdot, h = self._restart(x, S, t, limit)
+            self.progress.restarted(t, h)
+            D[:] = 0.0
+            D[0, iS], D[1, iS] = S, h * r0
+            D[0, iX], D[1, iX] = x_right, h * xdot
+            D[0, iQ], D[1, iQ] = self._Q, h * x_right[self._q_sel]
+            sens = self.sens
+            if sens is not None:      # order 1: psi is the value alone
+                if self._jump is not None:  # a located switch: the jump of s_S there
+                    sens.switch(*self._jump, r0)
+                    self._jump = None
+                sens.restart(self.max_order)
+            self._k, self._n_equal, self._fails = 1, 0, 0
+            self._restart_due = False
+            self._h = h
+        h, k = self._h, self._k
+        # the step: no overshoot of the limit, no sliver left before it
+        h_try = min(h, self.step_max, self._h_cap, self._fail_cap)
+        if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
+            h_try = limit - t
+        if h_try != h:
+            self._rescale(self._tables, k, h_try / h)
+            self._h = h = h_try
+            self._n_equal = 0
+        t_new = t + h
+        self._at_break = at_break = t_new == next_break
+        pred, psi_all = self._pred, self._psi_all = _PRED_PSI[k] @ D[:k + 1]
+        c = h / _G[k]
+        self._t_eval = t_eval = math.nextafter(t_new, -math.inf) if at_break else t_new
+        # as IDA: a step whose Newton fails is cut to a quarter, not rescued by
+        # Newton's damped full stage (a Jacobian at every iterate); its retries
+        # may take that stage (a fold where the solution must jump, which no
+        # smaller step avoids). Nine paper scenes: Fig. 5 air 190 -> 149 ms,
+        # hysteretic 101 -> 91 ms, the others alike
+        self.newton.full_stage = self._newton_fails > 0
+        return pred[iX], psi_all[iS], t_new, t_eval, c
+
+    def _newton_failed(self, t, t_new, out):
+        self.newton.full_stage = True
+        self._newton_fails += 1
+        h = self._h
+        self.progress.rejected(t_new, h, "newton", out)
+        if h <= self.step_min * 1.0000001:
+            raise StepFailure(t_new, h, out)
+        factor = max(0.25, self.step_min / h)
+        self._rescale(self._tables, self._k, factor)
+        self._h = h * factor
+        self._n_equal = 0
+
+    def _shrink(self, factor):
+        """The next try at ``factor`` times the step (a rejected step)."""
+        self._rescale(self._tables, self._k, factor)
+        self._h *= factor
+        self._n_equal = 0
+
+    def _judge(self, t, x, S, x_new, S_new, t_new):
+        self.newton.full_stage = True
+        delta, iS, iX, pred = self._delta, self._iS, self._iX, self._pred
+        np.subtract(S_new, pred[iS], out=delta[iS])
+        np.subtract(x_new, pred[iX], out=delta[iX])
+        w = self._weights(S, S_new, x_new)
+        k, h = self._k, self._h
+        err = self._err = _ERR[k] * self._enorm(delta[self._iErr], w)
+        smin = self.step_min * 1.0000001
+        if err > 1.0:
+            if h > smin:
+                stats = self.stats
                 stats.rejected_steps += 1
-                report.rejected(t_new, h, "newton", out)
-                if h <= self.step_min * 1.0000001:
-                    raise StepFailure(t_new, h, out)
-                factor = max(0.25, self.step_min / h)
-                self._rescale(tables, k, factor)
-                h *= factor
-                n_equal = 0
-                continue
-            S_new = update(out.x, psi, c)
-            np.subtract(S_new, S_pred, out=delta[iS])
-            np.subtract(out.x, x_pred, out=delta[iX])
-            w = self._weights(S, S_new, out.x)
-            err = _ERR[k] * self._enorm(delta[iErr], w)
-            if err > 1.0:
-                if h > self.step_min * 1.0000001:
-                    stats.rejected_steps += 1
-                    stats.error_test_failures += 1
-                    report.rejected(t_new, h, "error", err)
-                    fails += 1
-                    fail_cap, fail_hold = 0.9 * h, FAIL_HOLD
-                    # as IDA: the first failure shrinks the step from twice the
-                    # estimate (the failures here are mostly at kinks of PV curves,
-                    # where the error falls slower than h^(k+1): from the estimate
-                    # alone a second failure followed; on the nine paper scenes
-                    # 582 -> 522 rejections, 11 100 -> 10 600 Newton iterations),
-                    # the second by at least 4, later ones restart at order 1
-                    factor = max(MIN_FACTOR, SAFETY * (2 * err + 1e-4) ** (-1.0 / (k + 1)))
-                    if fails == 2:
-                        factor = min(factor, 0.25)
-                    elif fails >= 3:
-                        factor = 0.25
-                        if k > 1:
-                            self._reset_order(tables, k, 1)
-                            k = 1
-                    factor = max(factor, self.step_min / h)
-                    self._rescale(tables, k, factor)
-                    h *= factor
-                    n_equal = 0
-                    continue
-                self.forced_steps += 1
-            switched = disc is not None and bool((S_new[disc] != S[disc]).any())
-            if switched and h > self.step_min * 1.0000001:
-                motion = self._norm(S_new - S, w, out.x - x)
-                theta = (self._crossing(x, S, out.x, S_new)
-                         if motion > 1.0 and secant_tries < SECANT_TRIES else None)
-                # the part of the step past the switch ran in the old mode: accepted
-                # where the motion over that part is within the tolerance
-                past = 1.0 if theta is None else 1.0 - theta
-                if motion * past > 1.0:
-                    stats.rejected_steps += 1
-                    report.rejected(t_new, h, "switch")
-                    if theta is not None:
-                        # end the step just past the crossing (a secant of the
-                        # switching functions between the step's ends), by a
-                        # part whose motion stays within half the tolerance
-                        secant_tries += 1
-                        past = min(SWITCH_PAST, 0.5 / max(motion * theta, 1.0))
-                        factor = max(theta * (1.0 + past), self.step_min / h)
-                    else:
-                        # no switching function (or the secant did not settle):
-                        # bisect until the switching step is that short
-                        factor = max(0.5, self.step_min / h)
-                        h_cap, cap_hold = h * factor, FAIL_HOLD
-                    self._rescale(tables, k, factor)
-                    h *= factor
-                    n_equal = 0
-                    continue
-            secant_tries = 0
-            # accepted
-            fails = newton_fails = 0
-            if fail_hold:
-                fail_hold -= 1
-                if not fail_hold:
-                    fail_cap = math.inf
-            if cap_hold:              # the switch did not come back: stop locating it
-                cap_hold -= 1
-                if not cap_hold:
-                    h_cap = math.inf
-            stats.steps += 1
-            self.order_counts[k] += 1
-            Q_new = psi_all[iQ] + c * out.x[qs]
+                stats.error_test_failures += 1
+                self.progress.rejected(t_new, h, "error", err)
+                self._fails = fails = self._fails + 1
+                self._fail_cap, self._fail_hold = 0.9 * h, FAIL_HOLD
+                # as IDA: the first failure shrinks the step from twice the
+                # estimate (the failures here are mostly at kinks of PV curves,
+                # where the error falls slower than h^(k+1): from the estimate
+                # alone a second failure followed; on the nine paper scenes
+                # 582 -> 522 rejections, 11 100 -> 10 600 Newton iterations),
+                # the second by at least 4, later ones restart at order 1
+                factor = max(MIN_FACTOR, SAFETY * (2 * err + 1e-4) ** (-1.0 / (k + 1)))
+                if fails == 2:
+                    factor = min(factor, 0.25)
+                elif fails >= 3:
+                    factor = 0.25
+                    if k > 1:
+                        self._reset_order(self._tables, k, 1)
+                        self._k = 1
+                self._shrink(max(factor, self.step_min / h))
+                return None
+            self.forced_steps += 1
+        disc = self._disc
+        switched = self._switched = disc is not None and bool((S_new[disc] != S[disc]).any())
+        if switched and h > smin:
+            motion = self._norm(S_new - S, w, x_new - x)
+            theta = (self._crossing(x, S, x_new, S_new)
+                     if motion > 1.0 and self._secant_tries < SECANT_TRIES else None)
+            # the part of the step past the switch ran in the old mode: accepted
+            # where the motion over that part is within the tolerance
+            past = 1.0 if theta is None else 1.0 - theta
+            if motion * past > 1.0:
+                self.stats.rejected_steps += 1
+                self.progress.rejected(t_new, h, "switch")
+                if theta is not None:
+                    # end the step just past the crossing (a secant of the
+                    # switching functions between the step's ends), by a
+                    # part whose motion stays within half the tolerance
+                    self._secant_tries += 1
+                    past = min(SWITCH_PAST, 0.5 / max(motion * theta, 1.0))
+                    factor = max(theta * (1.0 + past), self.step_min / h)
+                else:
+                    # no switching function (or the secant did not settle):
+                    # bisect until the switching step is that short
+                    factor = max(0.5, self.step_min / h)
+                    self._h_cap, self._cap_hold = h * factor, FAIL_HOLD
+                self._shrink(factor)
+                return None
+        self._secant_tries = 0
+        return t_new
+
+    def _take(self, t, x, S, x_new, psi, c, S_new, t_new):
+        self._fails = self._newton_fails = 0
+        if self._fail_hold:
+            self._fail_hold -= 1
+            if not self._fail_hold:
+                self._fail_cap = math.inf
+        if self._cap_hold:              # the switch did not come back: stop locating it
+            self._cap_hold -= 1
+            if not self._cap_hold:
+                self._h_cap = math.inf
+        k, h, D = self._k, self._h, self._D
+        self.order_counts[k] += 1
+        iQ, delta, sens = self._iQ, self._delta, self.sens
+        Q_new = self._psi_all[iQ] + c * x_new[self._q_sel]
+        if sens is not None:
+            sens.step(x_new, psi, self._t_eval, c, k)
+        np.subtract(Q_new, self._pred[iQ], out=delta[iQ])
+        self._difference_update(D, delta, k)
+        switched = self._switched
+        if switched:
+            self.progress.switched(t_new, S, S_new, self._disc)
             if sens is not None:
-                sens.step(out.x, psi, t_eval, c, k)
-            np.subtract(Q_new, pred[iQ], out=delta[iQ])
-            self._difference_update(D, delta, k)
-            if switched:
-                report.switched(t_new, S, S_new, disc)
-                if sens is not None:
-                    # the unknowns' rate at the switch from the table (order k)
-                    xdot = (1.0 / np.arange(1, k + 1)) @ DX[1:k + 1] / h
-                    jump = (x, S, out.x, S_new, psi, c, xdot)
-            x, S, t, Q = out.x, S_new, t_new, Q_new
-            rec.add(t, x, S, Q)
-            report.step(t)
-            if begin is not None:
-                begin(x, S)
-            if at_break or switched:
-                restart = True
-                h_cap = fail_cap = math.inf
-                fail_hold = cap_hold = 0
-                newton.invalidate()
-                continue
-            n_equal += 1
-            if n_equal < k + 1:
-                continue
-            # order and step: estimates at k - 1, k, k + 1
-            w = self._weights(S, S, x)
-            err_k = max(err, 1e-16)
-            cands = [(SAFETY * err_k ** (-1.0 / (k + 1)), k)]
-            if k > 1:
-                e_lo = max(_ERR[k - 1] * self._enorm(DErr[k], w), 1e-16)
-                cands.append((SAFETY * e_lo ** (-1.0 / k), k - 1))
-            if k < kmax:
-                e_hi = max(_ERR[k + 1] * self._enorm(DErr[k + 2], w), 1e-16)
-                cands.append((SAFETY * e_hi ** (-1.0 / (k + 2)), k + 1))
-            factor, k_new = max(cands)
-            factor = min(MAX_FACTOR, factor)
-            if 1.0 <= factor < GROW_MIN:
-                if k_new == k:
-                    continue          # not worth a new step size
-                factor = 1.0          # an order change alone
-            k = k_new
-            factor = max(MIN_FACTOR, factor)
-            self._rescale(tables, k, factor)
-            h *= factor
-            n_equal = 0
+                # the unknowns' rate at the switch from the table (order k)
+                xdot = (1.0 / np.arange(1, k + 1)) @ D[1:k + 1, self._iX] / h
+                self._jump = (x, S, x_new, S_new, psi, c, xdot)
+        self._Q = Q_new
+        self.rec.add(t_new, x_new, S_new, Q_new)
+        if self._at_break or switched:
+            self._restart_due = True
+            self._h_cap = self._fail_cap = math.inf
+            self._fail_hold = self._cap_hold = 0
+            self.newton.invalidate()
+            return x_new, S_new, t_new
+        self._n_equal += 1
+        if self._n_equal < k + 1:
+            return x_new, S_new, t_new
+        # order and step: estimates at k - 1, k, k + 1
+        w = self._weights(S_new, S_new, x_new)
+        DErr, kmax = D[:, self._iErr], self.max_order
+        err_k = max(self._err, 1e-16)
+        cands = [(SAFETY * err_k ** (-1.0 / (k + 1)), k)]
+        if k > 1:
+            e_lo = max(_ERR[k - 1] * self._enorm(DErr[k], w), 1e-16)
+            cands.append((SAFETY * e_lo ** (-1.0 / k), k - 1))
+        if k < kmax:
+            e_hi = max(_ERR[k + 1] * self._enorm(DErr[k + 2], w), 1e-16)
+            cands.append((SAFETY * e_hi ** (-1.0 / (k + 2)), k + 1))
+        factor, k_new = max(cands)
+        factor = min(MAX_FACTOR, factor)
+        if 1.0 <= factor < GROW_MIN:
+            if k_new == k:
+                return x_new, S_new, t_new     # not worth a new step size
+            factor = 1.0          # an order change alone
+        self._k = k_new
+        self._rescale(self._tables, k_new, max(MIN_FACTOR, factor))
+        self._h = h * max(MIN_FACTOR, factor)
+        self._n_equal = 0
+        return x_new, S_new, t_new
 
     # -- difference table ------------------------------------------------------------
     @staticmethod

@@ -78,7 +78,7 @@ from .newton import Newton, Stats
 #: NEWTON_MAX is Newton's max_iter, the limit of its fresh stage
 NEWTON_MAX = 10
 #: a variant retrying a step whose Newton failed, whose chord iterations fail
-#: again on fresh factors, goes on as Newton.solve's full stage goes on (BDF.run
+#: again on fresh factors, goes on as Newton.solve's full stage goes on (BDF
 #: allows that stage on retries only): a fresh Jacobian at every iterate (not
 #: damped), for at most this many iterations (Newton's max_iter * 2), before
 #: its step is cut again
@@ -394,7 +394,7 @@ class VariantBDF:
         iterate, from its iterate where the chord iterations contracted, else
         from its start, for NEWTON_FULL_STAGE iterations, not damped), and
         fails only where that fails, where ``retry`` (per variant) says this is
-        a retry of a step that Newton failed at before (as BDF.run allows
+        a retry of a step that Newton failed at before (as BDF allows
         Newton's full stage: the first failure cuts the step). ``full``: a fresh Jacobian at every
         iterate, converged where the update is within the tolerance (the
         consistent point at t = 0);
@@ -684,7 +684,7 @@ class VariantBDF:
         self.newton_fails = np.zeros(K, dtype=np.int64)
         self.fail_cap = np.full(K, math.inf)
         self.fail_hold = np.zeros(K, dtype=np.int64)
-        # while a mode switch is being located (as BDF.run)
+        # while a mode switch is being located (as BDF)
         self.h_cap = np.full(K, math.inf)
         self.cap_hold = np.zeros(K, dtype=np.int64)
         self.secant_tries = np.zeros(K, dtype=np.int64)
@@ -709,7 +709,7 @@ class VariantBDF:
             done[ids] = True
 
         # per-step coefficients (heat-transfer correlations) frozen at the point
-        # where each variant's step starts, as BDF.run freezes them
+        # where each variant's step starts, as BDF freezes them
         begin = asm.begin_step if asm.has_begin_step else None
         if begin is not None:
             begin(x, S)
@@ -867,7 +867,7 @@ class VariantBDF:
 
     def _locate(self, switched, x, S, x_new, S_new_b, S_new, X_new, w, h):
         """The variants among ``switched`` (a mode switched at the end of their
-        step) whose step is rejected to place the switch (as BDF.run: the step
+        step) whose step is rejected to place the switch (as BDF: the step
         retried to end just past the secant crossing of the switching functions,
         or bisected where there is none, until the part past the switch moves
         the solution by no more than the tolerance); their steps are cut."""
@@ -948,7 +948,7 @@ class VariantBDF:
 
     def _choose(self, ids, err):
         """Order and next step of the variants ``ids`` after k + 1 steps at one step
-        size: estimates at k - 1, k and k + 1 (as BDF.run)."""
+        size: estimates at k - 1, k and k + 1 (as BDF)."""
         lay = self.lay
         ns, nx = lay.ns, lay.nx
         kmax = self.kmax

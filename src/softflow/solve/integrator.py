@@ -1,6 +1,27 @@
-"""Time integrators: the shared base, and backward Euler at a fixed step.
+"""Time integrators: the one integration loop, and backward Euler at a fixed step.
 
-The adaptive, variable-order integrator is :mod:`softflow.solve.bdf`.
+Every stepper runs the same loop, :meth:`Integrator.run`: from the consistent
+point at t = 0, each step is *proposed* by the stepper (the start of Newton,
+the step equations' start-of-step states psi and step coefficient c, the
+time the step ends at), *solved* by Newton (:mod:`softflow.solve.newton`:
+F(x; psi, c) = 0, the equations of :mod:`softflow.solve.discretize`), its
+states *updated* (psi + c r(x)), and then *judged* by the stepper (its error
+test, a mode switch's location): accepted, it is *taken* (recorded, the
+stepper's own bookkeeping: sensitivities, difference tables, order and next
+step); rejected, the stepper has shrunk its step and the loop proposes
+again. A failed Newton solve goes to the stepper too (a smaller step, or
+:class:`StepFailure` at ``step_min``).
+
+The steppers are the controllers of that loop:
+
+* :class:`ImplicitEuler`: backward Euler at a fixed step (the FONS paper's
+  scheme): psi = X_n, c = h on a grid, every converged step accepted;
+* :class:`softflow.solve.bdf.BDF`: variable-order, variable-step BDF (orders
+  1-5; ``method='euler'`` is its order 1), with its error test, order and
+  step selection, restarts and mode-switch location.
+
+(Batched variants on clocks of their own run the BDF's controller vectorized
+over the variants, :mod:`softflow.solve.clocks`.)
 """
 from __future__ import annotations
 
@@ -66,22 +87,26 @@ class Recorder:
         return None if self._Q is None else self._Q[:len(self.t)]
 
 
-class FixedStep:
-    """Constant step h0 on a grid t_k = k·h0, landing on breakpoints in between.
-    A failed Newton solve cuts the step by 4 (substeps are recorded too) until
-    ``step_min``; the next step aims at the grid again. The stepping itself is
-    written into :meth:`ImplicitEuler._run_fixed`; this holds its settings and
-    the index of the last grid point reached."""
-
-    def __init__(self, step, step_min, duration):
-        self.h0, self.step_min, self.T = step, step_min, duration
-        self.n_grid = max(1, int(math.ceil(duration / step - 1e-9)))
-        self.k = 0            # index of the last grid point reached
-
-
 class Integrator:
-    """What every time integrator shares: the breakpoints (sorted, searched with
-    a pointer), the recorder, the consistent start at t = 0."""
+    """The integration loop (:meth:`run`) and what every stepper shares: the
+    breakpoints (sorted, searched with a pointer), the recorder, the
+    consistent start at t = 0. A stepper (a subclass) is the loop's
+    controller: it states
+
+    ``_setup(x, S)``
+        its state at the consistent point at t = 0;
+    ``_propose(t, x, S)``
+        the next step: (Newton's start, psi, the time t_new the step ends at,
+        the time the equations are evaluated at, c);
+    ``_newton_failed(t, t_new, out)``
+        after a failed solve: a smaller step (or :class:`StepFailure`);
+    ``_judge(t, x, S, x_new, S_new, t_new)``
+        whether the solved step is accepted: the time it ends at, or None
+        where it is rejected (the stepper having shrunk its step);
+    ``_take(t, x, S, x_new, psi, c, S_new, t_new)``
+        the accepted step recorded and the stepper's own bookkeeping; returns
+        the new point (x, S, t).
+    """
 
     def __init__(self, asm, newton, stats, *, duration, breakpoints=(), record=None,
                  expected_steps=256):
@@ -102,6 +127,37 @@ class Integrator:
     #: says whether the run should stop there (a model past its own maximum from
     #: the start: Simulation.run refuses every later point anyway)
     stop_at_start = None
+
+    def run(self):
+        """Integrate from the consistent point at t = 0 to the end (module
+        docstring): the one loop of every stepper."""
+        x, S = self.initial()
+        self._setup(x, S)
+        asm, stats = self.asm, self.stats
+        solve, update = self.newton.solve, asm.update_states
+        begin = asm.begin_step if asm.has_begin_step else None
+        if begin is not None:
+            begin(x, S)
+        propose, failed, judge, take = self._propose, self._newton_failed, self._judge, self._take
+        tick = self.progress.step
+        t, t_stop = 0.0, self.T * (1 - 1e-14)
+        while t < t_stop:
+            x_pred, psi, t_new, t_eval, c = propose(t, x, S)
+            out = solve(x_pred, psi, t_eval, c)
+            if not out.converged:
+                stats.rejected_steps += 1
+                failed(t, t_new, out)
+                continue
+            x_new = out.x
+            S_new = update(x_new, psi, c)
+            t_new = judge(t, x, S, x_new, S_new, t_new)
+            if t_new is None:
+                continue
+            stats.steps += 1
+            x, S, t = take(t, x, S, x_new, psi, c, S_new, t_new)
+            tick(t)
+            if begin is not None:
+                begin(x, S)
 
     def _next_break(self, t, ib):
         """(index, time) of the first breakpoint after t, searching from index ib
@@ -182,10 +238,13 @@ class Integrator:
 
 
 class ImplicitEuler(Integrator):
-    """Backward Euler at a fixed step (the FONS paper's scheme) on a
-    :class:`FixedStep` grid. Newton starts from a linear extrapolation of the
-    last two points; after a breakpoint, a mode switch of a discrete state or a
-    failed solve it starts from the last point instead. (Adaptive steps:
+    """Backward Euler at a fixed step (the FONS paper's scheme): psi = X_n,
+    c = h, on a grid t_k = k·h0 that lands on the breakpoints in between.
+    Every converged step is accepted. A failed Newton solve cuts the step by
+    4 (substeps are recorded too) until ``step_min``; the next step aims at the
+    grid again. Newton starts from a linear extrapolation of the last two
+    points; after a breakpoint, a mode switch of a discrete state or a failed
+    solve it starts from the last point instead. (Adaptive steps:
     :class:`softflow.solve.bdf.BDF`, whose order 1 is backward Euler.)"""
 
     def __init__(self, asm, newton, stats, *, duration, step, step_min, breakpoints=(),
@@ -199,82 +258,73 @@ class ImplicitEuler(Integrator):
         super().__init__(asm, newton, stats, duration=duration, breakpoints=snapped,
                          record=record,
                          expected_steps=int(duration / step) + 2 + len(set(snapped)))
-        self.ctrl = FixedStep(step, step_min, duration)
+        self.h0, self.step_min = step, step_min
+        self.n_grid = max(1, int(math.ceil(duration / step - 1e-9)))
+        self.k = 0            # index of the last grid point reached
 
-    def run(self):
-        x, S = self.initial()
-        return self._run_fixed(x, S)
+    def _setup(self, x, S):
+        self._disc = self.asm.s_discrete if self.asm.has_discrete else None
+        self._ib, self._next = 0, (self.breaks[0] if self.breaks else math.inf)
+        self._h_cut = None            # the step after a failed solve
+        self._x_prev = self._h_prev = None
+        self._extrapolate = True
 
-    def _run_fixed(self, x, S):
-        """The loop of :meth:`run` for a :class:`FixedStep` controller: the grid,
-        the breakpoints (a pointer into the sorted list) and the step cut after
-        a failed solve written in, on local variables (on the paper's
-        three-component scene the calls of a generic loop into the controller
-        cost ~1.5 us of each step). Same steps and arithmetic as that loop."""
-        asm, ctrl, stats, rec = self.asm, self.ctrl, self.stats, self.rec
-        solve, update, T = self.newton.solve, asm.update_states, self.T
-        begin = asm.begin_step if asm.has_begin_step else None
-        if begin is not None:
-            begin(x, S)
-        disc = asm.s_discrete if asm.has_discrete else None
-        h0, n_grid, step_min = ctrl.h0, ctrl.n_grid, ctrl.step_min
-        break_set = self._break_set
-        ib, next_break = 0, (self.breaks[0] if self.breaks else math.inf)
-        rec_add, tick = rec.add, self.progress.step
-        t, k, h_cut = 0.0, 0, None
-        t_stop = T * (1 - 1e-14)
-        x_prev = h_prev = None
-        extrapolate = True
-        while t < t_stop:
-            if next_break <= t * (1 + 1e-14) + 1e-300:
-                ib, next_break = self._next_break(t, ib)
-            grid_next = T if k + 1 >= n_grid else min((k + 1) * h0, T)
-            end = next_break if next_break < grid_next else grid_next
-            h = end - t
-            if h_cut is not None and h_cut < h:
-                h = h_cut
-                end = t + h
-            if x_prev is None or not extrapolate:
-                x_pred = x
-            else:
-                r = h / h_prev
-                x_pred = x + (x - x_prev) if r == 1.0 else x + (x - x_prev) * r
-            t_new = t + h
-            # at a breakpoint the step sees the inputs' left limit
-            at_break = t_new in break_set
-            out = solve(x_pred, S, math.nextafter(t_new, -math.inf) if at_break else t_new, h)
-            if not out.converged:
-                stats.rejected_steps += 1
-                self.progress.rejected(t_new, h, "newton", out)
-                if h / 4 < step_min:
-                    ctrl.k = k
-                    raise StepFailure(t + h, h, out)
-                h_cut = h / 4
-                extrapolate = False
-                continue
-            S_new = update(out.x, S, h)
-            if t_new != end and abs(t_new - end) <= 1e-12 * max(1.0, end):
-                t_new = end
-                at_break = t_new in break_set
-            stats.steps += 1
-            if disc is not None and not at_break:
-                at_break = bool((S_new[disc] != S[disc]).any())
-                if at_break:
-                    self.progress.switched(t_new, S, S_new, disc)
-            if self.sens is not None:      # backward Euler: psi = S_n, c = h
-                self.sens.step(out.x, S, math.nextafter(t_new, -math.inf)
-                               if at_break and t_new in break_set else t_new, h)
-            x_prev, h_prev = x, h
-            x, S, t = out.x, S_new, t_new
-            rec_add(t, x, S)
-            tick(t)
-            if begin is not None:
-                begin(x, S)
-            h_cut = None
-            if t == grid_next:
-                k += 1
-            extrapolate = True
+    def _propose(self, t, x, S):
+        if self._next <= t * (1 + 1e-14) + 1e-300:
+            self._ib, self._next = self._next_break(t, self._ib)
+        T, k = self.T, self.k
+        grid_next = T if k + 1 >= self.n_grid else min((k + 1) * self.h0, T)
+        next_break = self._next
+        end = next_break if next_break < grid_next else grid_next
+        h = end - t
+        h_cut = self._h_cut
+        if h_cut is not None and h_cut < h:
+            h = h_cut
+            end = t + h
+        x_prev = self._x_prev
+        if x_prev is None or not self._extrapolate:
+            x_pred = x
+        else:
+            r = h / self._h_prev
+            x_pred = x + (x - x_prev) if r == 1.0 else x + (x - x_prev) * r
+        t_new = t + h
+        # at a breakpoint the step sees the inputs' left limit
+        at_break = t_new in self._break_set
+        self._h, self._end, self._grid_next, self._at_break = h, end, grid_next, at_break
+        return x_pred, S, t_new, math.nextafter(t_new, -math.inf) if at_break else t_new, h
+
+    def _newton_failed(self, t, t_new, out):
+        h = self._h
+        self.progress.rejected(t_new, h, "newton", out)
+        if h / 4 < self.step_min:
+            raise StepFailure(t + h, h, out)
+        self._h_cut = h / 4
+        self._extrapolate = False
+
+    def _judge(self, t, x, S, x_new, S_new, t_new):
+        end = self._end
+        if t_new != end and abs(t_new - end) <= 1e-12 * max(1.0, end):
+            t_new = end
+            self._at_break = t_new in self._break_set
+        return t_new
+
+    def _take(self, t, x, S, x_new, psi, c, S_new, t_new):
+        at_break, disc = self._at_break, self._disc
+        if disc is not None and not at_break:
+            at_break = bool((S_new[disc] != S[disc]).any())
             if at_break:
-                x_prev = None
-                self.newton.invalidate()
-        ctrl.k = k
+                self.progress.switched(t_new, S, S_new, disc)
+        if self.sens is not None:      # backward Euler: psi = S_n, c = h
+            self.sens.step(x_new, S, math.nextafter(t_new, -math.inf)
+                           if at_break and t_new in self._break_set else t_new, c)
+        self.rec.add(t_new, x_new, S_new)
+        self._h_cut = None
+        if t_new == self._grid_next:
+            self.k += 1
+        self._extrapolate = True
+        if at_break:
+            self._x_prev = None
+            self.newton.invalidate()
+        else:
+            self._x_prev, self._h_prev = x, self._h
+        return x_new, S_new, t_new

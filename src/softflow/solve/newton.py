@@ -167,7 +167,7 @@ class Newton:
         self._solves = 0
         self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
         #: whether a solve may enter the damped full stage (a stepper that cuts its
-        #: step on a failed solve may prefer the cut: see BDF.run)
+        #: step on a failed solve may prefer the cut: see BDF._propose)
         self.full_stage = True
 
     def invalidate(self):
