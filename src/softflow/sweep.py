@@ -359,7 +359,9 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
                 if len(results) != n:
                     raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
                                        f"results for {n} variants")
-                outcomes = [_outcome(r, outputs, times) for r in results]
+                from .solve.batched import sample
+                outcomes = [(r.status, r.message, v, [str(w) for w in getattr(r, "warnings", [])])
+                            for r, v in zip(results, sample(results, outputs, times))]
                 del results
     finally:
         if bar is not None:

