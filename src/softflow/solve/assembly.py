@@ -481,9 +481,12 @@ class Assembly:
         if isinstance(across_named, tuple):      # (nodes, the quantities of each)
             quantities = list(across_named[1]) * across_named[0]
             self.n_node_rows = len(node_through[1]) * node_through[0]
+            #: the quantity each node row conserves (massflow, energyflow)
+            self.node_row_quantities = list(node_through[1]) * node_through[0]
         else:
             quantities = [q for _, q in across_named]
             self.n_node_rows = len(node_through)
+            self.node_row_quantities = [q for _, q in node_through]
         #: node across unknowns (pressures, temperatures) are x[:n_across]
         self.n_across = len(quantities)
 

@@ -358,7 +358,6 @@ class BDF(Integrator):
         self._restart_due = True
         self._h = 0.0
         self._k = self._n_equal = self._fails = 0
-        self._newton_fails = 0     # Newton failures of the step being tried
         self._h_cap, self._cap_hold = math.inf, 0     # while a mode switch is being located
         # below a step that failed the error test, for a while: without it a step
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
@@ -403,25 +402,14 @@ class BDF(Integrator):
         pred, psi_all = self._pred, self._psi_all = _PRED_PSI[k] @ D[:k + 1]
         c = h / _G[k]
         self._t_eval = t_eval = math.nextafter(t_new, -math.inf) if at_break else t_new
-        # as IDA: a step whose Newton fails is cut to a quarter, not rescued by
-        # Newton's damped full stage (a Jacobian at every iterate); its retries
-        # may take that stage (a fold where the solution must jump, which no
-        # smaller step avoids). Nine paper scenes: Fig. 5 air 190 -> 149 ms,
-        # hysteretic 101 -> 91 ms, the others alike
-        self.newton.full_stage = self._newton_fails > 0
         return pred[iX], psi_all[iS], t_new, t_eval, c
 
     def _newton_failed(self, t, t_new, out):
-        self.newton.full_stage = True
-        self._newton_fails += 1
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)
         if h <= self.step_min * 1.0000001:
             raise StepFailure(t_new, h, out)
-        factor = max(0.25, self.step_min / h)
-        self._rescale(self._tables, self._k, factor)
-        self._h = h * factor
-        self._n_equal = 0
+        self._shrink(max(0.25, self.step_min / h))
 
     def _shrink(self, factor):
         """The next try at ``factor`` times the step (a rejected step)."""
@@ -430,7 +418,6 @@ class BDF(Integrator):
         self._n_equal = 0
 
     def _judge(self, t, x, S, x_new, S_new, t_new):
-        self.newton.full_stage = True
         delta, iS, iX, pred = self._delta, self._iS, self._iX, self._pred
         np.subtract(S_new, pred[iS], out=delta[iS])
         np.subtract(x_new, pred[iX], out=delta[iX])
@@ -493,7 +480,7 @@ class BDF(Integrator):
         return t_new
 
     def _take(self, t, x, S, x_new, psi, c, S_new, t_new):
-        self._fails = self._newton_fails = 0
+        self._fails = 0
         if self._fail_hold:
             self._fail_hold -= 1
             if not self._fail_hold:

@@ -74,14 +74,13 @@ from .newton import Newton, Stats
 #: sparse factors (variants of more than DENSE_BLOCK_MAX unknowns) are kept
 #: while every variant's step coefficient stays within NEWTON_REUSE of the one
 #: they were made for (and for at most NEWTON_MAX_AGE passes), with at most
-#: NEWTON_REUSE_ITER iterations on kept factors, then fresh ones at the iterate.
-#: NEWTON_MAX is Newton's max_iter, the limit of its fresh stage
-NEWTON_MAX = 10
-#: a variant retrying a step whose Newton failed, whose chord iterations fail
-#: again on fresh factors, goes on as Newton.solve's full stage goes on (BDF
-#: allows that stage on retries only): a fresh Jacobian at every iterate (not
+#: NEWTON_REUSE_ITER iterations on kept factors, then fresh ones at the iterate
+NEWTON_MAX = 7
+#: a variant whose chord iterations fail on fresh factors goes on as
+#: Newton.solve's full stage goes on: a fresh Jacobian at every iterate (not
 #: damped), for at most this many iterations (Newton's max_iter * 2), before
-#: its step is cut again
+#: its step is rejected (1 000 source-tube-tank variants: the most attempts
+#: any variant makes, which sets the number of passes, 76 -> 71)
 NEWTON_FULL_STAGE = 2 * NEWTON_MAX
 #: iterations of a full Newton solve (fresh Jacobian at every iterate: the
 #: consistent point at t = 0 and the restart probes, from a point across a jump)
@@ -377,7 +376,7 @@ class VariantBDF:
         return np.maximum(rms, peak / PEAK_FACTOR)
 
     # -- Newton on the batch ------------------------------------------------------------
-    def _newton(self, x0, S, tv, cv, live, tight=False, full=False, retry=None):
+    def _newton(self, x0, S, tv, cv, live, tight=False, full=False):
         """Solve the step equations of the variants ``live`` (the others are held:
         zero step, their own point). Returns (x, converged per variant).
 
@@ -393,9 +392,7 @@ class VariantBDF:
         :meth:`Newton.solve`'s full stage goes on (a fresh Jacobian at every
         iterate, from its iterate where the chord iterations contracted, else
         from its start, for NEWTON_FULL_STAGE iterations, not damped), and
-        fails only where that fails, where ``retry`` (per variant) says this is
-        a retry of a step that Newton failed at before (as BDF allows
-        Newton's full stage: the first failure cuts the step). ``full``: a fresh Jacobian at every
+        fails only where that fails. ``full``: a fresh Jacobian at every
         iterate, converged where the update is within the tolerance (the
         consistent point at t = 0);
         ``tight``: that, held to 1e-12 (the restart probes)."""
@@ -480,8 +477,6 @@ class VariantBDF:
                     # failed on fresh factors: the full stage, from the iterate
                     # where the chord iterations contracted, else from the start
                     enter = trouble & fresh & ~stage
-                    if retry is not None:
-                        enter &= retry
                     bad |= trouble & fresh & ~enter
                     if enter.any():
                         back = enter & (~(prev < np.inf) | (rate >= 1.0))
@@ -680,8 +675,6 @@ class VariantBDF:
         self.k = np.ones(K, dtype=np.int64)
         self.n_equal = np.zeros(K, dtype=np.int64)
         self.fails = np.zeros(K, dtype=np.int64)
-        # Newton failures of the current step (its retries may take the full stage)
-        self.newton_fails = np.zeros(K, dtype=np.int64)
         self.fail_cap = np.full(K, math.inf)
         self.fail_hold = np.zeros(K, dtype=np.int64)
         # while a mode switch is being located (as BDF)
@@ -760,14 +753,12 @@ class VariantBDF:
                 fail(over, f"more than max_steps = {self.max_steps} steps")
                 continue
             S_b = lay.s_from_v(psi, S.copy())
-            x_new, conv = self._newton(lay.from_v(x_pred, x.copy()), S_b, tv, cv, live,
-                                       retry=self.newton_fails > 0)
+            x_new, conv = self._newton(lay.from_v(x_pred, x.copy()), S_b, tv, cv, live)
             self._lu_age += 1
             # Newton failures: a quarter of the step, down to step_min
             nf = live & ~conv
             if nf.any():
                 ids = np.flatnonzero(nf)
-                self.newton_fails[ids] += 1
                 self.rejected[ids] += 1
                 self.stats.rejected_steps += ids.size
                 gone = ids[h[ids] <= smin]
@@ -822,7 +813,6 @@ class VariantBDF:
                 continue
             ids = np.flatnonzero(acc)
             self.fails[ids] = 0
-            self.newton_fails[ids] = 0
             held = ids[self.fail_hold[ids] > 0]
             self.fail_hold[held] -= 1
             self.fail_cap[held[self.fail_hold[held] == 0]] = math.inf

@@ -14,7 +14,11 @@ Three stages, each tried only if the cheaper one before it fails:
 2. *fresh*: a new Jacobian at the predictor, then chord iterations;
 3. *full*: a new Jacobian every iteration, with backtracking on the scaled
    residual norm (damped Newton), from where a contracting but too slow chord
-   stage stopped, else from the predictor.
+   stage stopped, else from the predictor;
+4. *flows first* (thermal scenes, where the others failed): the pressures and
+   flows solved with the node temperatures held, then the full stage from
+   there (:meth:`Newton._flows_first`: a pump that starts to draw gas from a
+   node at rest).
 
 Convergence is judged on the scaled update max_i |dx_i| / tol_i with
 tol_i = atol_i + rtol · max(|x_i|, max |x_j| over unknowns j of the same
@@ -103,7 +107,10 @@ def _network_setup(asm):
     # [-50 %, +100 %] of its value, the other unknowns are left as they are.
     # Convergence is judged on the unclipped update.
     T_idx = np.array([i for i, q in nodal if q == "temperature"], dtype=np.int64)
-    return q_bounds, q_sorted, p_idx, p_sel, T_idx
+    # the node rows that conserve energy (the equations that set node temperatures)
+    E_rows = np.array([r for r, q in enumerate(getattr(asm, "node_row_quantities", ()))
+                       if q == "energyflow"], dtype=np.int64)
+    return q_bounds, q_sorted, p_idx, p_sel, T_idx, E_rows
 
 
 class Newton:
@@ -122,7 +129,8 @@ class Newton:
         setup = asm.__dict__.get("_newton_setup")
         if setup is None:
             setup = asm._newton_setup = _network_setup(asm)
-        (self._q_bounds, self._q_sorted, self._p_idx, self._p_sel, self._T_idx) = setup
+        (self._q_bounds, self._q_sorted, self._p_idx, self._p_sel, self._T_idx,
+         self._E_rows) = setup
         # small systems: per-quantity maxima on Python lists (see SMALL)
         self._small = 0 < asm.n <= SMALL
         # atol as one value per quantity, if it is that (the small-system path needs it)
@@ -166,9 +174,6 @@ class Newton:
         self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
         self._solves = 0
         self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
-        #: whether a solve may enter the damped full stage (a stepper that cuts its
-        #: step on a failed solve may prefer the cut: see BDF._propose)
-        self.full_stage = True
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -354,8 +359,6 @@ class Newton:
             self._set_scale(x0)
         if last is None or not last.reason.startswith(("singular", "absolute pressure")):
             for stage in ("fresh", "full"):
-                if stage == "full" and not self.full_stage:
-                    break
                 self.fluid_error = None       # each stage reports its own fluid-range error
                 if stage == "fresh":
                     out = self._chord(x0, S, t, dt, stage)
@@ -371,6 +374,11 @@ class Newton:
                     return out
                 if last.reason.startswith(("singular", "absolute pressure")):
                     break
+        if (self._E_rows.size == self._T_idx.size > 0
+                and not last.reason.startswith("absolute pressure")):
+            out = self._flows_first(x0, S, t, dt)
+            if out is not None and out.converged and self._accept(out) is None:
+                return out
         self.stats.newton_failures += 1
         self.stale = True
         return last
@@ -615,6 +623,57 @@ class Newton:
                 self._eval(x, S, t, dt, jac=True)   # Jacobian at the damped iterate
         return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
                        self._worst_row(F))
+
+    def _flows_first(self, x0, S, t, dt):
+        """The last stage of a thermal solve: the pressures and flows first,
+        with the node temperatures held, then the full damped Newton from
+        there; None where it does not apply (a system too large for a dense
+        solve). From a point at rest, the node temperatures are set by the
+        zero-flow conductance alone (ZERO_FLOW_CONDUCTANCE, 1e-6 W/K) and the
+        upwind blend's mean enthalpy: a pump that starts to draw gas out of a
+        node at rest makes the first Newton update move that node's
+        temperature by thousands of kelvin, and each later one doubles it
+        (Fig. 3's architecture filled with air, adiabatic: at the pump's
+        reversal). With the temperatures held, the pressures and flows
+        converge (they depend on temperature only through densities); with
+        the flows out of the blend's band, the upwind enthalpies make the
+        temperatures well determined."""
+        asm, n = self.asm, self.asm.n
+        if n > 256:
+            return None
+        keep = np.setdiff1d(np.arange(n), self._T_idx)
+        rows = np.setdiff1d(np.arange(n), self._E_rows)
+        flat = asm.pattern_rows * n + asm.pattern_cols
+        x = x0.copy()
+        for k in range(self.max_iter):
+            self.fluid_error = None
+            F = self._eval(x, S, t, dt, jac=True)
+            if not all_finite(F):
+                return None
+            J = np.bincount(flat, weights=asm.raw, minlength=n * n).reshape(n, n)
+            try:
+                step = np.linalg.solve(J[np.ix_(rows, keep)], F[rows])
+            except np.linalg.LinAlgError:
+                return None
+            self.stats.newton_iterations += 1
+            self.stats.factorizations += 1
+            dx = np.zeros(n)
+            dx[keep] = -step
+            lam = 1.0
+            for _ in range(6):         # damped only to keep the residual finite
+                xn = x + lam * dx
+                if (not self._has_p or self._positive(xn)) and all_finite(
+                        self._eval(xn, S, t, dt, jac=False)):
+                    break
+                lam *= 0.25
+            else:
+                return None
+            x = xn
+            if lam == 1.0 and self._norm(dx) <= 1.0:
+                break
+        self.fluid_error = None
+        self._F_at_x0 = None
+        return self._full(x, S, t, dt)
 
     def _singular(self, x, iterations, err):
         """The failed Outcome of a singular Jacobian: names the component whose scale
