@@ -626,54 +626,77 @@ class Newton:
 
     def _flows_first(self, x0, S, t, dt):
         """The last stage of a thermal solve: the pressures and flows first,
-        with the node temperatures held, then the full damped Newton from
-        there; None where it does not apply (a system too large for a dense
-        solve). From a point at rest, the node temperatures are set by the
-        zero-flow conductance alone (ZERO_FLOW_CONDUCTANCE, 1e-6 W/K) and the
-        upwind blend's mean enthalpy: a pump that starts to draw gas out of a
-        node at rest makes the first Newton update move that node's
-        temperature by thousands of kelvin, and each later one doubles it
-        (Fig. 3's architecture filled with air, adiabatic: at the pump's
-        reversal). With the temperatures held, the pressures and flows
-        converge (they depend on temperature only through densities); with
-        the flows out of the blend's band, the upwind enthalpies make the
-        temperatures well determined."""
+        with the node temperatures held, then all unknowns; None where it
+        does not apply (a system too large for dense solves). From a point
+        at rest, the node temperatures are set by the zero-flow conductance
+        alone (ZERO_FLOW_CONDUCTANCE, 1e-6 W/K) and the upwind blend's mean
+        enthalpy: a pump that starts to draw gas out of a node at rest makes
+        the first Newton update move that node's temperature by thousands of
+        kelvin, and each later one doubles it (Fig. 3's architecture filled
+        with air, adiabatic: at the pump's reversal). With the temperatures
+        held, the pressures and flows converge (they depend on temperature
+        only through densities); with the flows out of the blend's band, the
+        upwind enthalpies make the temperatures well determined.
+
+        Both parts solve dense systems with every row and column scaled to a
+        largest entry of 1 (equilibrated): at such a point a gas volume's
+        dm/dp (~1e-10 kg/Pa) and a tube's dp/dmf (~1e6 Pa s/kg) stand alone
+        in their rows, and the factors' pivots of the unscaled matrix, which
+        the other stages judge singular below 1e-14 of the largest, span more
+        than that."""
         asm, n = self.asm, self.asm.n
         if n > 256:
             return None
-        keep = np.setdiff1d(np.arange(n), self._T_idx)
-        rows = np.setdiff1d(np.arange(n), self._E_rows)
         flat = asm.pattern_rows * n + asm.pattern_cols
+        held = (np.setdiff1d(np.arange(n), self._E_rows),
+                np.setdiff1d(np.arange(n), self._T_idx))
         x = x0.copy()
-        for k in range(self.max_iter):
+        first, held_for = True, 0          # first: the temperatures held
+        for k in range(3 * self.max_iter):
+            if first and held_for == self.max_iter:
+                first = False
+            held_for += 1
             self.fluid_error = None
             F = self._eval(x, S, t, dt, jac=True)
             if not all_finite(F):
                 return None
             J = np.bincount(flat, weights=asm.raw, minlength=n * n).reshape(n, n)
+            rows, cols = held if first else (slice(None), slice(None))
+            A = J[np.ix_(rows, cols)] if first else J
+            r = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-300)
+            c = 1.0 / np.maximum(np.abs(A * r[:, None]).max(axis=0), 1e-300)
             try:
-                step = np.linalg.solve(J[np.ix_(rows, keep)], F[rows])
+                step = c * np.linalg.solve(A * r[:, None] * c, F[rows] * r)
             except np.linalg.LinAlgError:
                 return None
             self.stats.newton_iterations += 1
             self.stats.factorizations += 1
             dx = np.zeros(n)
-            dx[keep] = -step
-            lam = 1.0
-            for _ in range(6):         # damped only to keep the residual finite
-                xn = x + lam * dx
-                if (not self._has_p or self._positive(xn)) and all_finite(
-                        self._eval(xn, S, t, dt, jac=False)):
-                    break
-                lam *= 0.25
-            else:
+            dx[cols] = -step
+            if not all_finite(dx):
                 return None
+            if not first and self._norm(dx) <= 1.0:
+                return Outcome(True, x + dx, k + 1)
+            if self._T_idx.size:
+                dx = self._clip_temperature(x, dx)
+            # backtracking on the scaled residual (temperatures held: only to keep
+            # it finite and the pressures positive)
+            f0 = float(np.linalg.norm(F[rows] * r))
+            lam = 1.0
+            while True:
+                xn = x + lam * dx
+                if not self._has_p or self._positive(xn):
+                    Fn = self._eval(xn, S, t, dt, jac=False)
+                    if all_finite(Fn) and (first or np.linalg.norm(Fn[rows] * r)
+                                           <= (1 - 1e-4 * lam) * f0):
+                        break
+                lam *= 0.5
+                if lam < 1e-4:
+                    return None
             x = xn
-            if lam == 1.0 and self._norm(dx) <= 1.0:
-                break
-        self.fluid_error = None
-        self._F_at_x0 = None
-        return self._full(x, S, t, dt)
+            if first and lam == 1.0 and self._norm(dx) <= 1.0:
+                first = False       # converged with the temperatures held
+        return None
 
     def _singular(self, x, iterations, err):
         """The failed Outcome of a singular Jacobian: names the component whose scale
