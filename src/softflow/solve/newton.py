@@ -16,9 +16,10 @@ Three stages, each tried only if the cheaper one before it fails:
    residual norm (damped Newton), from where a contracting but too slow chord
    stage stopped, else from the predictor;
 4. *flows first* (thermal scenes, where the others failed): the pressures and
-   flows solved with the node temperatures held, then the full stage from
-   there (:meth:`Newton._flows_first`: a pump that starts to draw gas from a
-   node at rest).
+   flows solved with the node temperatures held, then all unknowns from
+   there, by damped Newton on equilibrated dense systems
+   (:meth:`Newton._flows_first`: a pump that starts to draw gas from a node
+   at rest, a flow source that reverses).
 
 Convergence is judged on the scaled update max_i |dx_i| / tol_i with
 tol_i = atol_i + rtol · max(|x_i|, max |x_j| over unknowns j of the same
