@@ -676,8 +676,12 @@ class Newton:
             dx[cols] = -step
             if not all_finite(dx):
                 return None
-            if not first and self._norm(dx) <= 1.0:
-                return Outcome(True, x + dx, k + 1)
+            if not first:
+                # tolerances from the iterate: flows that were at rest at the
+                # start (the scale of a solve's first point) are not now
+                self._set_scale(x)
+                if self._norm(dx) <= 1.0:
+                    return Outcome(True, x + dx, k + 1)
             if self._T_idx.size:
                 dx = self._clip_temperature(x, dx)
             # backtracking on the scaled residual (temperatures held: only to keep
