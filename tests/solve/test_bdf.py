@@ -344,3 +344,42 @@ def test_switches_are_placed_by_their_switching_functions(rtol, monkeypatch):
     assert (err_secant <= 5 * rtol * ref).all() and (err_bisect <= 5 * rtol * ref).all()
     assert err_secant.max() <= 3 * err_bisect.max()
     assert n_secant * 3 <= n_bisect
+
+
+def test_a_mode_that_chatters_stops_the_run_naming_its_component():
+    """A mass-flow source pushing into a snapping valve with no volume between
+    them: the valve opens, the node's pressure falls below its closing
+    pressure at once, it closes, and so on, each switch at the smallest step.
+    The run stops after CHATTER_SWITCHES such steps saying so and naming the
+    valve (it ran into the default step limit of 10 million tries before,
+    ~25 minutes), with the points it computed."""
+    from softflow.solve import bdf
+    s = sf.System()
+    s += sf.MassFlowSource("src", massflow=2e-5)
+    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
+                          closed_conductance=1e-12)
+    s += sf.Container("tank", sf.air, 20e-6)
+    s.connect("src", "valve")
+    s.connect("valve", "tank")
+    sim = sf.Simulation(s, duration=3.0)
+    with pytest.raises(sf.SimulationError) as info:
+        sim.run()
+    err = info.value
+    assert err.component == "valve" and 0 < err.time < 0.01
+    assert "SnappingValve 'valve' switched its mode at each of the last " \
+           f"{bdf.CHATTER_SWITCHES} steps" in str(err) and "chatters" in str(err)
+    res = err.result
+    assert res.status == "failed" and res.times[-1] == pytest.approx(err.time)
+    assert res.stats["steps"] < 20 * bdf.CHATTER_SWITCHES
+
+
+def test_a_snapping_valve_that_switches_often_but_not_at_once_runs():
+    """The chatter guard counts only switches at the smallest steps: the paper's
+    Fig. 4 snapping valve bursts open and shut 18 times over its run, each
+    switch located to the tolerance, and runs to its end."""
+    import warnings
+    from softflow.paper_scenes import duration, fig4
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        res = sf.Simulation(fig4("snapping"), duration=duration(4)).run()
+    assert res.success and np.abs(np.diff(res.get("R2", "open"))).sum() >= 10

@@ -66,6 +66,7 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from .integrator import Integrator, StepFailure
+from .newton import Outcome
 
 MAX_ORDER = 5
 #: g_j = sum_{i<=j} 1/i, the BDF coefficients in backward-difference form
@@ -89,6 +90,13 @@ SECANT_TRIES = 4
 #: accepted steps for which a step stays below 0.9 x the last one that failed
 #: the error test (or below the bisected step while a mode switch is located)
 FAIL_HOLD = 10
+#: a run stops where this many accepted steps in a row each switched a mode at
+#: a step of at most CHATTER_STEP x step_min: a mode that undoes itself as soon
+#: as it is taken (a flow source pushing into a snapping valve with no volume
+#: between them: ~20 step tries a switch, 10 million steps, the default limit,
+#: in ~25 minutes before)
+CHATTER_SWITCHES = 50
+CHATTER_STEP = 4.0
 
 
 @functools.lru_cache(maxsize=256)
@@ -370,6 +378,7 @@ class BDF(Integrator):
         self._fail_cap, self._fail_hold = math.inf, 0
         self._secant_tries = 0     # secant placements of the current switch
         self._jump = None          # a switch's left side, for the sensitivities
+        self._chatter = 0          # accepted steps in a row that switched at the smallest steps
 
     def _propose(self, t, x, S):
         if self._next <= t * (1 + 1e-14) + 1e-300:
@@ -415,6 +424,28 @@ class BDF(Integrator):
         if h <= self.step_min * 1.0000001:
             raise StepFailure(t_new, h, out)
         self._shrink(max(0.25, self.step_min / h))
+
+    def _chattering(self, S, S_new, x_new, h):
+        """The failed Outcome of a run whose modes chatter (CHATTER_SWITCHES), on
+        the first equation of the component whose mode switched last."""
+        asm = self.asm
+        # (the discrete states: a mask over the states)
+        i = int(np.flatnonzero(S_new[self._disc] != S[self._disc])[0])
+        state = int(np.flatnonzero(self._disc)[i])
+        row, name = None, "a component"
+        for g in asm.groups:
+            if g.ns and g.s0 <= state < g.s1:
+                k = (state - g.s0) // g.ns
+                row = g.r0 + k * ((g.r1 - g.r0) // g.n)
+                name = g.comps[k].describe()
+                break
+        reason = (f"{name} switched its mode at each of the last {CHATTER_SWITCHES} steps, "
+                  f"all of at most {CHATTER_STEP:g} x step_min ({h:.3g} s): the mode undoes "
+                  "itself as soon as it is taken (it chatters), and time no longer "
+                  "advances. Typically a flow source pushes into (or draws from) a valve "
+                  "with no volume between them: give that node a volume (a Container), "
+                  "or the valve a wider band between its opening and closing pressures")
+        return Outcome(False, x_new, 0, reason, row)
 
     def _shrink(self, factor):
         """The next try at ``factor`` times the step (a rejected step)."""
@@ -511,6 +542,12 @@ class BDF(Integrator):
                 self._jump = (x, S, x_new, S_new, psi, c, xdot)
         self._Q = Q_new
         self.rec.add(t_new, x_new, S_new, Q_new)
+        if switched and h <= CHATTER_STEP * self.step_min:
+            self._chatter += 1
+            if self._chatter >= CHATTER_SWITCHES:
+                raise StepFailure(t_new, h, self._chattering(S, S_new, x_new, h))
+        else:
+            self._chatter = 0
         if self._at_break or switched:
             self._restart_due = True
             self._h_cap = self._fail_cap = math.inf
