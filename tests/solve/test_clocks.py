@@ -287,3 +287,24 @@ def test_newton_goes_on_to_its_full_stage_before_a_step_is_rejected(monkeypatch)
     assert newton_rejections() == 0
     monkeypatch.setattr(clocks, "NEWTON_FULL_STAGE", 0)
     assert newton_rejections() > 0
+
+
+def test_a_variant_whose_mode_chatters_fails_alone_and_says_so():
+    """As BDF: a mass-flow source pushing into a snapping valve with no volume
+    between them chatters; on their own clocks the variants fail after
+    CHATTER_SWITCHES such steps (not at the step limit) and run alone, whose
+    results name the valve."""
+    from softflow.solve import bdf
+    s = sf.System()
+    s += sf.MassFlowSource("src", massflow=2e-5)
+    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
+                          closed_conductance=1e-12)
+    s += sf.Container("tank", sf.air, 20e-6)
+    s.connect("src", "valve")
+    s.connect("valve", "tank")
+    sim = sf.Simulation(s, duration=0.5)
+    out = _run(sim, [{"src.massflow": m} for m in (1e-5, 2e-5)])
+    for r in out:
+        assert r.status == "failed"
+        assert "SnappingValve 'valve' switched its mode at each of the last " \
+               f"{bdf.CHATTER_SWITCHES} steps" in r.message

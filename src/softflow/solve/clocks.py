@@ -57,8 +57,8 @@ import numpy as np
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .batched import _variant_of
-from .bdf import (_ERR, _G, FAIL_HOLD, GROW_MIN, MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR,
-                  SAFETY, SECANT_TRIES, SWITCH_PAST, _rescale_matrix)
+from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, GROW_MIN, MAX_FACTOR,
+                  MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST, _rescale_matrix)
 from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
@@ -675,6 +675,7 @@ class VariantBDF:
         self.k = np.ones(K, dtype=np.int64)
         self.n_equal = np.zeros(K, dtype=np.int64)
         self.fails = np.zeros(K, dtype=np.int64)
+        self.chatter = np.zeros(K, dtype=np.int64)     # as BDF._chatter, per variant
         self.fail_cap = np.full(K, math.inf)
         self.fail_hold = np.zeros(K, dtype=np.int64)
         # while a mode switch is being located (as BDF)
@@ -833,6 +834,12 @@ class VariantBDF:
             S = lay.s_from_v(self.Sv, S)
             if begin is not None:
                 begin(x, S)
+            # a mode that chatters (as BDF): its variant fails, and runs alone,
+            # where its result says so
+            swi = (switched[ids] if switched is not None else np.zeros(ids.size, dtype=bool)) \
+                & (h[ids] <= CHATTER_STEP * self.step_min)
+            self.chatter[ids] = np.where(swi, self.chatter[ids] + 1, 0)
+            fail(ids[self.chatter[ids] >= CHATTER_SWITCHES], "its mode chatters")
             fin = ids[self.t[ids] >= t_stop]
             done[fin] = True
             brk = ids[at_break[ids] & ~done[ids]]
