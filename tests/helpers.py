@@ -79,6 +79,21 @@ def snapping_valve_scene(pressure=None):
     return s
 
 
+def chattering_valve_scene():
+    """A mass-flow source (2e-5 kg/s) pushing into a snapping valve with no
+    volume between them, a 20 mL tank behind: an ill-posed model whose valve
+    chatters (opens, the node's pressure falls below its closing pressure at
+    once, it closes, ...), each switch at the smallest step."""
+    s = sf.System()
+    s += sf.MassFlowSource("src", massflow=2e-5)
+    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
+                          closed_conductance=1e-12)
+    s += sf.Container("tank", sf.air, 20e-6)
+    s.connect("src", "valve")
+    s.connect("valve", "tank")
+    return s
+
+
 def filling_tank(source=None, fluid=sf.air, friction="Haaland"):
     """A 10 mL tank of ``fluid`` filled through 0.5 m of 1 mm tube (``friction``)
     from ``source`` (default a PressureSource at 1.3 bar): the batched-variant

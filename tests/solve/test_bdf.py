@@ -7,7 +7,7 @@ import pytest
 
 import softflow as sf
 from softflow.paper_scenes import curve_peak_valley
-from helpers import UserChamber, rc_circuit
+from helpers import UserChamber, chattering_valve_scene, rc_circuit
 from softflow.solve.bdf import _rescale_matrix
 from softflow.solve.thermal import energy_balance
 
@@ -354,14 +354,7 @@ def test_a_mode_that_chatters_stops_the_run_naming_its_component():
     valve (it ran into the default step limit of 10 million tries before,
     ~25 minutes), with the points it computed."""
     from softflow.solve import bdf
-    s = sf.System()
-    s += sf.MassFlowSource("src", massflow=2e-5)
-    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
-                          closed_conductance=1e-12)
-    s += sf.Container("tank", sf.air, 20e-6)
-    s.connect("src", "valve")
-    s.connect("valve", "tank")
-    sim = sf.Simulation(s, duration=3.0)
+    sim = sf.Simulation(chattering_valve_scene(), duration=3.0)
     with pytest.raises(sf.SimulationError) as info:
         sim.run()
     err = info.value

@@ -8,8 +8,8 @@ import softflow as sf
 from softflow.solve import clocks
 from softflow.solve.batched import _run_batched, build_batch
 from softflow.solve.bdf import _rescale_matrix
-from helpers import (UserChamber, filling_tank, gauge_error, gauge_reference,
-                     snapping_valve_scene)
+from helpers import (UserChamber, chattering_valve_scene, filling_tank, gauge_error,
+                     gauge_reference, snapping_valve_scene)
 
 P0 = sf.pressure_atmospheric
 
@@ -295,14 +295,7 @@ def test_a_variant_whose_mode_chatters_fails_alone_and_says_so():
     CHATTER_SWITCHES such steps (not at the step limit) and run alone, whose
     results name the valve."""
     from softflow.solve import bdf
-    s = sf.System()
-    s += sf.MassFlowSource("src", massflow=2e-5)
-    s += sf.SnappingValve("valve", sf.air, opening_pressure=2e4, closing_pressure=5e3,
-                          closed_conductance=1e-12)
-    s += sf.Container("tank", sf.air, 20e-6)
-    s.connect("src", "valve")
-    s.connect("valve", "tank")
-    sim = sf.Simulation(s, duration=0.5)
+    sim = sf.Simulation(chattering_valve_scene(), duration=0.5)
     out = _run(sim, [{"src.massflow": m} for m in (1e-5, 2e-5)])
     for r in out:
         assert r.status == "failed"
