@@ -360,7 +360,7 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
                     raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
                                        f"results for {n} variants")
                 from .solve.batched import sample
-                outcomes = [(r.status, r.message, v, [str(w) for w in getattr(r, "warnings", [])])
+                outcomes = [_outcome(r, outputs, times, v)
                             for r, v in zip(results, sample(results, outputs, times))]
                 del results
     finally:
@@ -618,16 +618,15 @@ def _bar(n: int, progress: bool | None, engine: str) -> Any:
 
 # ----------------------------------------------------------------------------------------
 # running one variant (in this process or a worker)
-def _outcome(result: Result, outputs: list[str], times: Array) -> Outcome:
-    """(status, message, values (n_outputs, n_times), warnings) of one run."""
-    values = np.full((len(outputs), len(times)), np.nan)
-    t = result.times
-    if len(t):
-        reached = times <= t[-1] * (1 + 1e-12) if result.status != "success" else slice(None)
-        at = times[reached]
-        for k, column in enumerate(outputs):
-            label, _, name = column.rpartition(".")
-            values[k, reached] = np.interp(at, t, result.get(label, name))
+def _outcome(result: Result, outputs: list[str], times: Array,
+             values: Array | None = None) -> Outcome:
+    """(status, message, values (n_outputs, n_times), warnings) of one run;
+    ``values``: its outputs already sampled (the batched engine samples all
+    its variants at once), else sampled here, the same way
+    (:func:`softflow.solve.batched.sample`)."""
+    if values is None:
+        from .solve.batched import sample
+        values = sample([result], outputs, times)[0]
     return (result.status, result.message, values,
             [str(w) for w in getattr(result, "warnings", [])])
 

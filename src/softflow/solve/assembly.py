@@ -716,8 +716,7 @@ class Assembly:
             self.residual(self.x0, self.S0, 0.0, dt, jac=True)
         n = self.n
         if n <= DENSE_CHECK_MAX:      # the usual answer for small systems, without sparse matrices
-            J = np.bincount(self.pattern_rows * n + self.pattern_cols, weights=self.raw,
-                            minlength=n * n).reshape(n, n)
+            J = self.dense_jacobian()
             if not np.isfinite(J).all():
                 return
             if _is_regular_dense(J):
@@ -1154,3 +1153,12 @@ class Assembly:
 
     def jacobian_csc(self):
         return csc_matrix((self.jacobian_data(), self.indices, self.indptr), shape=(self.n, self.n))
+
+    def dense_jacobian(self):
+        """The Jacobian of the last ``residual(..., jac=True)`` as a dense (n, n)
+        array (entries of one place summed), for small systems."""
+        n = self.n
+        flat = self.__dict__.get("_dense_flat")
+        if flat is None:
+            flat = self._dense_flat = self.pattern_rows * n + self.pattern_cols
+        return np.bincount(flat, weights=self.raw, minlength=n * n).reshape(n, n)

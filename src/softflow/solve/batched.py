@@ -104,14 +104,15 @@ class VariantResult:
 
 
 def sample(results, outputs, times):
-    """Each result's ``outputs`` (``'label.variable'``) at ``times``, as the
-    sweep reads them: ``np.interp`` between the result's own points, NaN past
-    the end of a run that stopped early; a list of arrays (n_outputs,
-    n_times). The variants of one batch have their outputs' columns found
-    once for all of them (:meth:`Result._columns`) and read in one gather
-    per variant, where ``get`` per output and variant resolved each label
-    anew (1 000 variants, 10 outputs: 55 -> 43 ms). Results of variants run
-    alone and derived outputs are read with ``get``."""
+    """Each result's ``outputs`` (``'label.variable'``) at ``times``, as every
+    sweep engine reads them: ``np.interp`` between the result's own points,
+    NaN past the end of a run that stopped early; a list of arrays
+    (n_outputs, n_times). The variants of one batch have their outputs'
+    columns found once for all of them (:meth:`Result._columns`) and read in
+    one gather per variant, where ``get`` per output and variant resolved
+    each label anew (1 000 variants, 10 outputs: 55 -> 43 ms). Other results
+    (a serial run, variants of a batch run alone) and derived outputs are
+    read with ``get``."""
     values = [np.full((len(outputs), len(times)), np.nan) for _ in results]
     split = [column.rpartition(".") for column in outputs]
     groups = {}

@@ -436,7 +436,7 @@ class BDF(Integrator):
         for g in asm.groups:
             if g.ns and g.s0 <= state < g.s1:
                 k = (state - g.s0) // g.ns
-                row = g.r0 + k * ((g.r1 - g.r0) // g.n)
+                row = g.r0 + k * g.neq
                 name = g.comps[k].describe()
                 break
         reason = (f"{name} switched its mode at each of the last {CHATTER_SWITCHES} steps, "

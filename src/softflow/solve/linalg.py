@@ -60,12 +60,11 @@ class DenseLU:
     def __init__(self, asm):
         self.asm = asm
         self.n = asm.n
-        self.flat = asm.pattern_rows * asm.n + asm.pattern_cols
         self.lu = None
 
     def factor(self):
         n = self.n
-        J = np.bincount(self.flat, weights=self.asm.raw, minlength=n * n).reshape(n, n)
+        J = self.asm.dense_jacobian()
         if not all_finite(J.ravel()):
             raise SingularJacobian("Jacobian contains NaN or inf")
         # LAPACK getrf directly: scipy.linalg.lu_factor's wrapper, and the warning

@@ -648,7 +648,6 @@ class Newton:
         asm, n = self.asm, self.asm.n
         if n > 256:
             return None
-        flat = asm.pattern_rows * n + asm.pattern_cols
         held = (np.setdiff1d(np.arange(n), self._E_rows),
                 np.setdiff1d(np.arange(n), self._T_idx))
         x = x0.copy()
@@ -661,7 +660,7 @@ class Newton:
             F = self._eval(x, S, t, dt, jac=True)
             if not all_finite(F):
                 return None
-            J = np.bincount(flat, weights=asm.raw, minlength=n * n).reshape(n, n)
+            J = asm.dense_jacobian()
             rows, cols = held if first else (slice(None), slice(None))
             A = J[np.ix_(rows, cols)] if first else J
             r = 1.0 / np.maximum(np.abs(A).max(axis=1), 1e-300)

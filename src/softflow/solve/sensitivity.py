@@ -679,8 +679,7 @@ class Sensitivities(DeferredSteps):
         """The step Jacobian of the last ``residual(..., jac=True)``, for products."""
         asm = self.asm
         if self._dense:
-            n = asm.n
-            return np.bincount(self._flat, weights=asm.raw, minlength=n * n).reshape(n, n)
+            return asm.dense_jacobian()
         return asm.jacobian_csc()
 
     def _linearize(self, x, psi, t, c):
