@@ -301,3 +301,34 @@ def test_a_variant_whose_mode_chatters_fails_alone_and_says_so():
         assert r.status == "failed"
         assert "SnappingValve 'valve' switched its mode at each of the last " \
                f"{bdf.CHATTER_SWITCHES} steps" in r.message
+
+
+def test_dense_blocks_by_planned_elimination_or_lapack_alike(monkeypatch):
+    """The dense blocks are factored by one planned sparse elimination
+    (blocklu); a variant whose multipliers leave threshold pivoting's bound is
+    factored by LAPACK's inverse instead. With the bound at 0 every variant
+    goes to LAPACK (after the replans allowed): the same steps, values within
+    round-off. A snapping valve's blocks change their entries as it switches."""
+    from softflow.solve import blocklu
+    sim = sf.Simulation(snapping_valve_scene(), duration=0.2)
+    variants = [{"valve.opening_pressure": p, "tube.diameter": d}
+                for p in (1.2e4, 2.4e4) for d in (0.8e-3, 1.3e-3)]
+    served = []
+    real = clocks.VariantBDF._block_factor
+
+    def spy(self, J, ids, start):
+        out = real(self, J, ids, start)
+        served.append((ids.size, out.size, self._replans))
+        return out
+    monkeypatch.setattr(clocks.VariantBDF, "_block_factor", spy)
+    planned = _run(sim, variants)
+    assert sum(s - f for s, f, _ in served) > 0.9 * sum(s for s, _, _ in served)
+    served.clear()
+    monkeypatch.setattr(blocklu, "PIVOT_THRESHOLD", np.inf)
+    lapack = _run(sim, variants)
+    spent = next(i for i, (_, _, r) in enumerate(served) if r == clocks.REPLANS_MAX)
+    assert all(f == s for s, f, _ in served[spent:])    # all to LAPACK from there on
+    for a, b in zip(planned, lapack):
+        assert a.stats["steps"] == b.stats["steps"]
+        np.testing.assert_allclose(a.get("out", "pressure"), b.get("out", "pressure"),
+                                   rtol=1e-9, atol=1e-6)

@@ -10,9 +10,10 @@ each pass, each running variant proposes its next step; the kernels evaluate
 all variants in one vectorized call, each instance at its own variant's time
 and with its own step coefficient (``kernel(V, S, t, dt)`` with t an array
 (n,) and dt a column (n, 1), see :mod:`softflow.solve.discretize`); Newton
-solves each variant's block (small ones by their dense inverses, made afresh
-at every pass in one call; large ones by the batch's sparse factors, kept
-while they serve) and judges each variant's convergence on its own;
+solves each variant's block (small ones factored afresh at every pass, all
+in a few vector operations by one planned sparse elimination,
+:mod:`softflow.solve.blocklu`, with LAPACK's inverse for a variant it does
+not serve; large ones by the batch's sparse factors, kept while they serve) and judges each variant's convergence on its own;
 and each variant's step is accepted or
 rejected, and its next step and order chosen, by its own error test, exactly
 as :class:`softflow.solve.bdf.BDF` does for one network (same formulas,
@@ -60,6 +61,7 @@ from .batched import _variant_of
 from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, GROW_MIN, MAX_FACTOR,
                   MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST, _rescale_matrix)
 from .discretize import linearizable
+from .blocklu import BlockLU, Factors, PlanError
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 
@@ -92,6 +94,9 @@ DENSE_BLOCK_MAX = 24
 NEWTON_REUSE_ITER = 4
 NEWTON_REUSE = (0.6, 1.67)
 NEWTON_MAX_AGE = 50
+#: Row orders the planned elimination of the dense blocks may choose anew
+#: (blocklu), where most variants factored have left the last one's bound
+REPLANS_MAX = 3
 
 
 class Unsupported(Exception):
@@ -270,6 +275,15 @@ class VariantBDF:
         self._lin_kind = sim.linear_solver_kind
         self._lin = None
         self._inv = np.zeros((K, lay.nx, lay.nx)) if self.dense else None
+        # the dense blocks by one planned sparse elimination (blocklu), LAPACK's
+        # inverse for the variants it does not serve (self._fb)
+        self._blu = None
+        if self.dense:
+            local = lay.block_pos % (lay.nx * lay.nx)
+            self._blu = BlockLU(local // lay.nx, local % lay.nx, lay.nx)
+            self._blu_f = None
+            self._fb = np.zeros(K, dtype=bool)
+            self._replans = 0
         # tolerances, variant-major (every variant has the same)
         atol_s = np.broadcast_to(sim._atol_vector(asm.s_quantity), (len(asm.S0),))
         atol_x = np.broadcast_to(sim._atol_vector(asm.x_quantity), (asm.n,))
@@ -289,7 +303,9 @@ class VariantBDF:
         self.newton_rtol = min(sim.newton_rtol, sim.rtol / 20)
         names = sorted(set(lay.x_quantity))
         self.qid = np.array([names.index(q) for q in lay.x_quantity], dtype=np.int64)
-        self.q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]
+        q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]
+        self._q_order = np.concatenate(q_cols)
+        self._q_starts = np.cumsum([0] + [c.size for c in q_cols[:-1]])
         self.offset = np.where(np.array(lay.x_quantity, dtype=object) == "pressure",
                                pressure_atmospheric, 0.0)
         # absolute node pressures (the first n_across unknowns) must stay positive
@@ -380,9 +396,8 @@ class VariantBDF:
     def _quantity_max(self, v):
         """(K, quantities): each variant's largest entry of ``v`` (K, nx, not
         negative) per quantity (as Assembly.quantity_max for one network)."""
-        vt = np.ascontiguousarray(v.T)
-        return np.stack([vt[c].max(axis=0) if c.size else np.zeros(self.K)
-                         for c in self.q_cols], axis=1)
+        # the columns grouped by quantity, then one reduction per group
+        return np.maximum.reduceat(v.T[self._q_order], self._q_starts, axis=0).T
 
     def _norms(self, dS, dX, w):
         """Each variant's weighted RMS of (dS, dX) (continuous states only), or its
@@ -430,7 +445,7 @@ class VariantBDF:
         fresh = live.copy() if (full or self.dense) else self._stale(cv, live)
         F = self._residual(x, S, tv, cv, bool(fresh.any()))
         if fresh.any():
-            bad |= self._factor(cv, fresh) & live
+            bad |= self._factor(cv, fresh, start=bool((fresh == live).all())) & live
         eta = self.eta
         prev = np.full(K, np.nan)
         limit = np.where(fresh, NEWTON_FULL_MAX if full else NEWTON_MAX, NEWTON_REUSE_ITER)
@@ -449,10 +464,7 @@ class VariantBDF:
                 Fv[~finite] = 0.0
                 F[~np.isfinite(F)] = 0.0
             if dense:
-                # np.einsum's loop, not np.matmul: that calls BLAS's gemv once
-                # per variant (~200 instructions of call and zeroing each, 6 %
-                # of a 1 000-variant sweep)
-                dXv = np.einsum("vij,vj->vi", self._inv, Fv)
+                dXv = self._block_solve(Fv)
             else:
                 dXv = lay.to_v(self.lin.solve(F))
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -536,10 +548,13 @@ class VariantBDF:
         stale = live & ~ok
         return live.copy() if stale.any() else stale
 
-    def _factor(self, cv, which):
+    def _factor(self, cv, which, start=False):
         """Factors of the Jacobian just evaluated (asm.raw) for the variants
         ``which`` (dense blocks) or all (sparse). Returns the variants whose
-        block is singular (all of them where the sparse factors fail)."""
+        block is singular (all of them where the sparse factors fail).
+        ``start``: ``which`` are all the variants Newton is solving (the
+        pass's first factors), so the dense blocks' planned elimination may
+        choose its row order anew (:meth:`_block_factor`)."""
         K = self.K
         singular = np.zeros(K, dtype=bool)
         self.stats.factorizations += 1
@@ -550,10 +565,11 @@ class VariantBDF:
             J = np.bincount(lay.block_pos, weights=self.asm.raw,
                             minlength=K * nx * nx).reshape(K, nx, nx)
             ids = np.flatnonzero(which)
+            inverse = self._block_factor(J, ids, start)
             try:
-                self._inv[ids] = np.linalg.inv(J[ids])
+                self._inv[inverse] = np.linalg.inv(J[inverse])
             except np.linalg.LinAlgError:
-                for v in ids:          # find the singular ones
+                for v in inverse:          # find the singular ones
                     try:
                         self._inv[v] = np.linalg.inv(J[v])
                     except np.linalg.LinAlgError:
@@ -570,6 +586,62 @@ class VariantBDF:
         self._lu_age[done] = 0
         self._lu_c[singular] = np.nan
         return singular
+
+    def _block_factor(self, J, ids, start):
+        """Factor the dense blocks ``J[ids]`` by the planned elimination
+        (:class:`~softflow.solve.blocklu.BlockLU`); returns the variants it does
+        not serve (a pivot that threshold pivoting refuses, or a plan that
+        failed), which LAPACK's inverse then serves. The row order is chosen
+        on the first block factored; where more than half of the blocks of a
+        pass's first factors (``start``: the factors of every variant in use)
+        leave it, it is chosen anew on one of them (at most REPLANS_MAX times;
+        the factors of the variants not in use are then void, and made at
+        their next pass)."""
+        blu = self._blu
+        if blu is None or not ids.size:
+            return ids
+        if blu.perm is None:
+            if not self._plan_blocks(J[ids[0]]):
+                return ids
+        f, ok = blu.factor(J[ids])
+        if (start and not ok.all() and (~ok).sum() > 0.5 * ids.size
+                and self._replans < REPLANS_MAX):
+            # the row order no longer suits most of them: another, from one of them
+            self._replans += 1
+            self._blu_f = None
+            if not self._plan_blocks(J[ids[np.argmin(ok)]]):
+                return ids
+            f, ok = blu.factor(J[ids])
+        if self._blu_f is None:
+            self._blu_f = Factors.empty(blu, self.K)
+        blu.take(self._blu_f, ids, f)
+        self._fb[ids] = ~ok
+        return ids[~ok]
+
+    def _plan_blocks(self, A):
+        try:
+            self._blu.plan(A)
+        except PlanError:
+            self._blu = None       # LAPACK's inverses from here on
+            self._fb[:] = True
+            return False
+        return True
+
+    def _block_solve(self, Fv):
+        """Each variant's Newton update from its dense block's factors."""
+        if self._blu is None:
+            return self._inverse_solve(Fv)
+        dXv = self._blu.solve(self._blu_f, Fv)
+        fb = self._fb
+        if fb.any():
+            dXv[fb] = self._inverse_solve(Fv[fb], fb)
+        return dXv
+
+    def _inverse_solve(self, Fv, which=None):
+        # np.einsum's loop, not np.matmul: that calls BLAS's gemv once per
+        # variant (~200 instructions of call and zeroing each)
+        inv = self._inv if which is None else self._inv[which]
+        return np.einsum("vij,vj->vi", inv, Fv)
 
     # -- the difference tables --------------------------------------------------------
     def _rescale(self, ids, factors):
@@ -590,16 +662,19 @@ class VariantBDF:
         D[1:kmax + 1, ids] = np.matmul(M, rows).transpose(1, 0, 2)
 
     def _difference_update(self, ids, delta):
+        """The tables of the variants ``ids`` after their accepted steps (the
+        corrections ``delta``), as BDF's: each row i <= k of a variant's table
+        gains row i + 1, from the highest down. In place, the rows of the
+        other variants left out by ``where=`` (a gather and scatter of the
+        variants' tables took ~6x as long: 0.87 against 0.15 ms for 1 000)."""
         D = self.D
         kk = self.k[ids]
-        Ds = D[:, ids]
-        r = np.arange(ids.size)
-        Ds[kk + 2, r] = delta - Ds[kk + 1, r]
-        Ds[kk + 1, r] = delta
+        D[kk + 2, ids] = delta - D[kk + 1, ids]
+        D[kk + 1, ids] = delta
+        k_of = np.full(self.K, -1, dtype=np.int64)
+        k_of[ids] = kk
         for i in range(self.kmax, -1, -1):
-            m = i <= kk
-            Ds[i, m] += Ds[i + 1, m]
-        D[:, ids] = Ds
+            np.add(D[i], D[i + 1], out=D[i], where=(i <= k_of)[:, None])
 
     # -- restarts -----------------------------------------------------------------------
     def _probe(self, ids, x, S, Xv_from, hv):
