@@ -379,19 +379,26 @@ class VariantBDF:
         return out
 
     # -- norms, per variant -----------------------------------------------------------
-    def _weights(self, Sa, Sb, Xv):
+    def _weights(self, Sa, Sb, Xv, ids=None):
         """Error weights (continuous states', unknowns') of each variant for a step
-        from Sa to Sb (as BDF._weights)."""
+        from Sa to Sb (as BDF._weights), which updates the run's largest values.
+        ``ids``: the rows given are those variants' (the largest values read,
+        not updated)."""
         c = self.cont
         if c is not None:
             Sa, Sb = Sa[:, c], Sb[:, c]
-        wS = self.atol_s_c + self.rtol * np.maximum(np.abs(Sa), np.abs(Sb))
+        atol_s, atol_x, run = self.atol_s_c, self.atol_x, self._qmax_run
+        if ids is not None:
+            atol_s, atol_x = atol_s[ids], atol_x[ids]
+            run = None if run is None else run[ids]
+        wS = atol_s + self.rtol * np.maximum(np.abs(Sa), np.abs(Sb))
         v = np.abs(Xv - self.offset)
         qmax = self._quantity_max(v)
-        if self._qmax_run is not None:
-            qmax = np.maximum(qmax, self._qmax_run)
-        self._qmax_run = qmax
-        return wS, self.atol_x + self.rtol * qmax[:, self.qid]
+        if run is not None:
+            qmax = np.maximum(qmax, run)
+        if ids is None:
+            self._qmax_run = qmax
+        return wS, atol_x + self.rtol * qmax[:, self.qid]
 
     def _quantity_max(self, v):
         """(K, quantities): each variant's largest entry of ``v`` (K, nx, not
@@ -1048,8 +1055,8 @@ class VariantBDF:
         ns, nx = lay.ns, lay.nx
         kmax = self.kmax
         D, k = self.D, self.k[ids]
-        w_all = self._weights(self.Sv, self.Sv, self.Xv)
-        w = (w_all[0][ids], w_all[1][ids])
+        Sv = self.Sv[ids]
+        w = self._weights(Sv, Sv, self.Xv[ids], ids)
         err_k = np.maximum(err[ids], 1e-16)
         cands = np.full((3, ids.size), -np.inf)     # orders k + 1, k, k - 1
         cands[1] = SAFETY * err_k ** (-1.0 / (k + 1))
