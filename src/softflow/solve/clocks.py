@@ -567,20 +567,18 @@ class VariantBDF:
         self.stats.factorizations += 1
         self.stats.jacobian_evaluations += 1
         if self.dense:
-            lay = self.lay
-            nx = lay.nx
-            J = np.bincount(lay.block_pos, weights=self.asm.raw,
-                            minlength=K * nx * nx).reshape(K, nx, nx)
             ids = np.flatnonzero(which)
-            inverse = self._block_factor(J, ids, start)
-            try:
-                self._inv[inverse] = np.linalg.inv(J[inverse])
-            except np.linalg.LinAlgError:
-                for v in inverse:          # find the singular ones
-                    try:
-                        self._inv[v] = np.linalg.inv(J[v])
-                    except np.linalg.LinAlgError:
-                        singular[v] = True
+            inverse = self._block_factor(ids, start)
+            if inverse.size:
+                J = self._dense_blocks()
+                try:
+                    self._inv[inverse] = np.linalg.inv(J[inverse])
+                except np.linalg.LinAlgError:
+                    for v in inverse:          # find the singular ones
+                        try:
+                            self._inv[v] = np.linalg.inv(J[v])
+                        except np.linalg.LinAlgError:
+                            singular[v] = True
             done = which & ~singular
         else:
             try:
@@ -594,44 +592,65 @@ class VariantBDF:
         self._lu_c[singular] = np.nan
         return singular
 
-    def _block_factor(self, J, ids, start):
-        """Factor the dense blocks ``J[ids]`` by the planned elimination
-        (:class:`~softflow.solve.blocklu.BlockLU`); returns the variants it does
-        not serve (a pivot that threshold pivoting refuses, or a plan that
-        failed), which LAPACK's inverse then serves. The row order is chosen
-        on the first block factored; where more than half of the blocks of a
-        pass's first factors (``start``: the factors of every variant in use)
-        leave it, it is chosen anew on one of them (at most REPLANS_MAX times;
-        the factors of the variants not in use are then void, and made at
-        their next pass)."""
+    def _dense_blocks(self):
+        """Each variant's dense block (K, nx, nx) of the Jacobian just evaluated."""
+        K, nx = self.K, self.lay.nx
+        return np.bincount(self.lay.block_pos, weights=self.asm.raw,
+                           minlength=K * nx * nx).reshape(K, nx, nx)
+
+    def _block_factor(self, ids, start):
+        """Factor the dense blocks of the variants ``ids`` by the planned
+        elimination (:class:`~softflow.solve.blocklu.BlockLU`); returns the
+        variants it does not serve (a pivot that threshold pivoting refuses, or
+        a plan that failed), which LAPACK's inverse then serves. The row order
+        is chosen on the first block factored; where more than half of the
+        blocks of a pass's first factors (``start``: the factors of every
+        variant in use) leave it, it is chosen anew on one of them (at most
+        REPLANS_MAX times; the factors of the variants not in use are then
+        void, and made at their next pass)."""
         blu = self._blu
         if blu is None or not ids.size:
             return ids
         if blu.perm is None:
-            if not self._plan_blocks(J[ids[0]]):
+            if not self._plan_blocks(self._dense_blocks()[ids[0]]):
                 return ids
-        f, ok = blu.factor(J[ids])
+        f, ok = blu.factor_values(self._block_values()[:, ids])
         if (start and not ok.all() and (~ok).sum() > 0.5 * ids.size
                 and self._replans < REPLANS_MAX):
             # the row order no longer suits most of them: another, from one of them
             self._replans += 1
             self._blu_f = None
-            if not self._plan_blocks(J[ids[np.argmin(ok)]]):
+            if not self._plan_blocks(self._dense_blocks()[ids[np.argmin(ok)]]):
                 return ids
-            f, ok = blu.factor(J[ids])
+            f, ok = blu.factor_values(self._block_values()[:, ids])
         if self._blu_f is None:
             self._blu_f = Factors.empty(blu, self.K)
         blu.take(self._blu_f, ids, f)
         self._fb[ids] = ~ok
         return ids[~ok]
 
+    def _block_values(self):
+        """The planned elimination's entries of every variant's block (entries,
+        K), summed from the Jacobian's raw entries in one pass."""
+        n_src = self._blu.source.size
+        return np.bincount(self._blu_index, weights=self.asm.raw,
+                           minlength=n_src * self.K).reshape(n_src, self.K)
+
     def _plan_blocks(self, A):
+        """Plan the dense blocks' elimination on the block ``A``, and where each
+        raw Jacobian entry goes among its values; on failure LAPACK's inverses
+        from here on."""
         try:
             self._blu.plan(A)
         except PlanError:
-            self._blu = None       # LAPACK's inverses from here on
+            self._blu = None
             self._fb[:] = True
             return False
+        nn = self.lay.nx * self.lay.nx
+        slot_at = np.full(nn, -1, dtype=np.int64)
+        slot_at[self._blu.source] = np.arange(self._blu.source.size)
+        pos = self.lay.block_pos
+        self._blu_index = slot_at[pos % nn] * self.K + pos // nn
         return True
 
     def _block_solve(self, Fv):
