@@ -189,13 +189,18 @@ class System:
                 raise NetworkError(f"connect: terminal {t.name!r} is given twice; a component "
                                    "cannot be connected to itself through one terminal")
             taken.append(key)
+        return self._join(taken)
+
+    def _join(self, keys: list) -> Self:
+        """Join the terminals ``keys`` ((component label, terminal index) of this
+        system's terminals, checked by the caller) into one node."""
         find, parent = self._find, self._parent
-        root = find(taken[0])
-        for tid in taken[1:]:
+        root = find(keys[0])
+        for tid in keys[1:]:
             r = find(tid)
             if r != root:
                 parent[r] = root
-        self._connected.update(taken)
+        self._connected.update(keys)
         return self
 
     # -- topology -----------------------------------------------------------------

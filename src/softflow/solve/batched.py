@@ -234,7 +234,11 @@ def build_batch(system, variants, labels, built=None):
 
 def _build(system, variants, labels, built):
     batch = System(f"{system.label} x {len(variants)}")
-    nodes = [[(t.component.label, t.label) for t in nd.terminals]
+    # each node of the scene as its terminals' (label, index): a variant's
+    # copies are joined by those keys, relabelled (System._join: the scene's
+    # own connections, nothing to look up or check again)
+    nodes = [[(t.component.label, next(k for k, o in enumerate(t.component.terminals)
+                                       if o is t)) for t in nd.terminals]
              for nd in system.nodes() if len(nd.terminals) > 1]
     for k, params in enumerate(variants):
         prefix = PREFIX.format(k)
@@ -254,7 +258,7 @@ def _build(system, variants, labels, built):
                 else:
                     batch.add(_copy(c, prefix + c.label))
         for nd in nodes:
-            batch.connect(*[(prefix + label, term) for label, term in nd])
+            batch._join([(prefix + label, k) for label, k in nd])
     return batch
 
 
