@@ -387,3 +387,16 @@ def test_progress_bar_counts_variants(fixed, capsys):
     assert "3/3" in err and "variant" in err
     sf.sweep(fixed, {"tube.diameter": D}, outputs="tank.pressure", progress=False)
     assert capsys.readouterr().err == ""
+
+
+def test_outputs_as_label_variable_pairs(fixed):
+    """('tank', 'pressure'), as sf.assess and Result.get take it, names the
+    column 'tank.pressure'; a pair that names no column says which exist."""
+    grid = {"tube.diameter": [1e-3]}
+    by_pair = sf.sweep(fixed, grid, outputs=[("tank", "pressure"), "tube.massflow_b"])
+    assert by_pair.outputs == ["tank.pressure", "tube.massflow_b"]
+    one = sf.sweep(fixed, grid, outputs=("tank", "pressure"))
+    assert one.outputs == ["tank.pressure"]
+    np.testing.assert_array_equal(one.data[:, 0], by_pair.data[:, 0])
+    with pytest.raises(KeyError, match="unknown output 'tank.presure'.*tank.pressure"):
+        sf.sweep(fixed, grid, outputs=[("tank", "presure")])

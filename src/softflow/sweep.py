@@ -267,8 +267,8 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
         variants themselves ``[{'label.parameter': value, ...}, ...]``. Keys
         and values as in ``Simulation.run(params=...)``: Quantities or SI.
     outputs : sequence of str, optional
-        ``'label.variable'`` columns of the runs' Results (``Result.columns()``);
-        default all.
+        ``'label.variable'`` columns of the runs' Results (``Result.columns()``),
+        or ``(label, variable)`` pairs; default all.
     engine : {'serial', 'processes', 'dask', 'batched'}
         See :mod:`softflow.sweep`.
     times : array_like [s] or Quantity, optional
@@ -492,12 +492,17 @@ def _columns(sim: Simulation) -> tuple[list[str], dict[str, str]]:
     return probe.columns(), units
 
 
+def _is_label_pair(o: object) -> bool:
+    return isinstance(o, tuple) and len(o) == 2 and all(isinstance(x, str) for x in o)
+
+
 def _outputs(outputs: str | Sequence[str] | None, columns: Sequence[str]) -> list[str]:
     if outputs is None:
         return list(columns)
-    if isinstance(outputs, str):
+    if isinstance(outputs, str) or _is_label_pair(outputs):
         outputs = [outputs]
-    outputs = list(outputs)
+    # ('tank', 'pressure'), as sf.assess and Result.get take it, is 'tank.pressure'
+    outputs = [".".join(o) if _is_label_pair(o) else o for o in outputs]
     if not outputs:
         raise ValueError("sweep: outputs is empty; give 'label.variable' names, or None "
                          "for all")
