@@ -67,8 +67,8 @@ from .newton import Newton, Stats
 
 #: Newton on the batch: chord iterations, at most NEWTON_MAX on fresh factors.
 #: Dense blocks get fresh factors at every pass: one Jacobian evaluation of the
-#: batch costs about one residual evaluation, and one batched inversion ~0.7 ms
-#: for 1 000 6 x 6 blocks, where factors kept across passes (as Newton keeps its LU
+#: batch costs about one residual evaluation, and factoring 1 000 6 x 6 blocks
+#: ~0.05 ms (blocklu; LAPACK's inversions took ~0.7 ms), where factors kept across passes (as Newton keeps its LU
 #: across steps, serially) make most passes iterate on until some variants
 #: find them too old and refresh them at their iterate anyway (1 000
 #: source-tube-tank variants: 359 residual evaluations and 174 factorizations
@@ -87,9 +87,9 @@ NEWTON_FULL_STAGE = 2 * NEWTON_MAX
 #: iterations of a full Newton solve (fresh Jacobian at every iterate: the
 #: consistent point at t = 0 and the restart probes, from a point across a jump)
 NEWTON_FULL_MAX = 20
-#: variants of up to this many unknowns solve by their dense blocks' inverses
-#: (one batched inversion per factorization, a batched product per iteration);
-#: larger ones by the batch's sparse factors
+#: variants of up to this many unknowns solve by their dense blocks (factored
+#: all at once by blocklu's planned elimination, LAPACK's inverse for a block
+#: it does not serve); larger ones by the batch's sparse factors
 DENSE_BLOCK_MAX = 24
 NEWTON_REUSE_ITER = 4
 NEWTON_REUSE = (0.6, 1.67)
@@ -270,7 +270,7 @@ class VariantBDF:
         self.first_step = sim.step      # adaptive runs: the first step, if given
         self.max_steps = sim.max_steps
         self.stats = Stats()
-        # small variants: each one's dense block inverted, all in one call
+        # small variants: each one's dense block factored, all in one pass
         self.dense = lay.nx <= DENSE_BLOCK_MAX
         self._lin_kind = sim.linear_solver_kind
         self._lin = None
