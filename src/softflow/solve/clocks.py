@@ -13,9 +13,9 @@ and with its own step coefficient (``kernel(V, S, t, dt)`` with t an array
 solves each variant's block (small ones factored afresh at every pass, all
 in a few vector operations by one planned sparse elimination,
 :mod:`softflow.solve.blocklu`, with LAPACK's inverse for a variant it does
-not serve; large ones by the batch's sparse factors, kept while they serve) and judges each variant's convergence on its own;
-and each variant's step is accepted or
-rejected, and its next step and order chosen, by its own error test, exactly
+not serve; large ones by the batch's sparse factors, kept while they serve)
+and judges each variant's convergence on its own; and each variant's step is
+accepted or rejected, and its next step and order chosen, by its own error test, exactly
 as :class:`softflow.solve.bdf.BDF` does for one network (same formulas,
 constants and controller; vectorized over the variants). A variant that
 finishes, or waits, is held at its last point (a zero step) while the others
@@ -60,17 +60,18 @@ from ..fluids.base import FluidError
 from .batched import _variant_of
 from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, GROW_MIN, MAX_FACTOR,
                   MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST, _rescale_matrix)
-from .discretize import linearizable
 from .blocklu import BlockLU, Factors, PlanError
+from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
 
 #: Newton on the batch: chord iterations, at most NEWTON_MAX on fresh factors.
 #: Dense blocks get fresh factors at every pass: one Jacobian evaluation of the
 #: batch costs about one residual evaluation, and factoring 1 000 6 x 6 blocks
-#: ~0.05 ms (blocklu; LAPACK's inversions took ~0.7 ms), where factors kept across passes (as Newton keeps its LU
-#: across steps, serially) make most passes iterate on until some variants
-#: find them too old and refresh them at their iterate anyway (1 000
+#: ~0.05 ms (blocklu; LAPACK's inversions took ~0.7 ms), where factors kept
+#: across passes (as Newton keeps its LU across steps, serially) make most
+#: passes iterate on until some variants find them too old and refresh them at
+#: their iterate anyway (1 000
 #: source-tube-tank variants: 359 residual evaluations and 174 factorizations
 #: of the batch when kept, 244 and 133 fresh, ~10 % less time). The batch's
 #: sparse factors (variants of more than DENSE_BLOCK_MAX unknowns) are kept
@@ -172,7 +173,6 @@ class Layout:
     def s_from_v(self, Sv, out):
         out[self.sperm] = Sv.ravel()
         return out
-
 
 
 # -- per-variant reductions -------------------------------------------------------------
@@ -664,6 +664,7 @@ class VariantBDF:
         return dXv
 
     def _inverse_solve(self, Fv, which=None):
+        """The Newton updates from LAPACK's inverses (all variants, or ``which``)."""
         # np.einsum's loop, not np.matmul: that calls BLAS's gemv once per
         # variant (~200 instructions of call and zeroing each)
         inv = self._inv if which is None else self._inv[which]
