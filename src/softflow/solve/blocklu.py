@@ -2,8 +2,8 @@
 
 The batched engine (:mod:`softflow.solve.clocks`) solves K variants of one
 scene, each with the same small Jacobian block (n x n, the same entries
-structurally non-zero). LAPACK inverts such a stack matrix by matrix (~0.8 us
-a 6 x 6 block, ~0.8 ms for 1 000 of them), whatever their sparsity. Here the
+structurally non-zero). LAPACK inverts such a stack matrix by matrix (~0.7 us
+a 6 x 6 block, ~0.7 ms for 1 000 of them), whatever their sparsity. Here the
 elimination is planned once, for the pattern, with one row order (partial
 pivoting on one of the matrices), and then run on all K at once: each step
 of the elimination is one NumPy operation on the (entries, K) array of the
@@ -16,12 +16,12 @@ One row order for all matrices is partial pivoting only for the matrix it
 was chosen on. Each matrix's multipliers are therefore held to threshold
 pivoting's bound (``|l_ik| <= 1 / PIVOT_THRESHOLD``, the test of sparse
 direct solvers that keep a pivot order for sparsity): a matrix whose
-multipliers pass it, or whose pivot is zero or not finite, is reported, and
+multipliers exceed it, or whose pivot is zero or not finite, is reported, and
 its caller factors it another way (the batched engine: LAPACK's inverse, which
 pivots afresh and says whether it is singular).
 
 References: I. S. Duff, A. M. Erisman, J. K. Reid, *Direct Methods for Sparse
-Matrices*, 2nd ed., OUP 2017 (threshold pivoting, sec. 5.4, 9.3).
+Matrices*, 2nd ed., Oxford University Press, 2017 (threshold pivoting).
 """
 from __future__ import annotations
 
@@ -35,8 +35,8 @@ PIVOT_THRESHOLD = 1e-3
 
 
 class PlanError(ValueError):
-    """No row order serves: the matrix offered has a zero pivot in every
-    order partial pivoting finds, or a pivot that is structurally zero."""
+    """No elimination can be planned on the matrix offered: it is singular or
+    not finite, or partial pivoting's row order puts a pivot off the pattern."""
 
 
 class BlockLU:
@@ -117,7 +117,7 @@ class BlockLU:
         """Factors of m matrices given by their pattern's entries ``values``
         (entries, m), in the order of :attr:`source`. Returns (factors, ok):
         ok[v] False where matrix v's pivot is zero or not finite, or a
-        multiplier passes threshold pivoting's bound (factor it another way)."""
+        multiplier exceeds threshold pivoting's bound (factor it another way)."""
         m = values.shape[1]
         W = np.empty((self.n_slots, m))
         n_src = self.source.size
