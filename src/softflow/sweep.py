@@ -72,7 +72,7 @@ import types
 import uuid
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Callable, List, Tuple
+from typing import TYPE_CHECKING, Any, Callable, List, Tuple, TypeGuard, Union
 
 import numpy as np
 
@@ -88,6 +88,8 @@ if TYPE_CHECKING:
     Outcome = Tuple[str, str, Array, List[str]]
 
 ENGINES = ("serial", "processes", "dask", "batched")
+#: An output of a sweep: 'label.variable', or (label, variable)
+OutputSpec = Union[str, Tuple[str, str]]
 
 #: points of the default time grid of adaptive runs
 DEFAULT_POINTS = 201
@@ -252,7 +254,7 @@ class SweepResult:
 # ----------------------------------------------------------------------------------------
 # sweep
 def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any]],
-          outputs: str | Sequence[str] | None = None, engine: str = "serial",
+          outputs: OutputSpec | Sequence[OutputSpec] | None = None, engine: str = "serial",
           times: ArrayLike | None = None, progress: bool | None = None, client: Any = None,
           workers: int | None = None) -> SweepResult:
     """Run ``sim`` once per parameter variant and collect the outputs.
@@ -492,26 +494,29 @@ def _columns(sim: Simulation) -> tuple[list[str], dict[str, str]]:
     return probe.columns(), units
 
 
-def _is_label_pair(o: object) -> bool:
+
+def _is_label_pair(o: object) -> TypeGuard[tuple[str, str]]:
     return isinstance(o, tuple) and len(o) == 2 and all(isinstance(x, str) for x in o)
 
 
-def _outputs(outputs: str | Sequence[str] | None, columns: Sequence[str]) -> list[str]:
+def _outputs(outputs: OutputSpec | Sequence[OutputSpec] | None,
+             columns: Sequence[str]) -> list[str]:
     if outputs is None:
         return list(columns)
-    if isinstance(outputs, str) or _is_label_pair(outputs):
-        outputs = [outputs]
+    given: Sequence[OutputSpec] = (
+        [outputs] if isinstance(outputs, str) or _is_label_pair(outputs)
+        else outputs)  # type: ignore[assignment]
     # ('tank', 'pressure'), as sf.assess and Result.get take it, is 'tank.pressure'
-    outputs = [".".join(o) if _is_label_pair(o) else o for o in outputs]
-    if not outputs:
+    names = [".".join(o) if _is_label_pair(o) else str(o) for o in given]
+    if not names:
         raise ValueError("sweep: outputs is empty; give 'label.variable' names, or None "
                          "for all")
-    for o in outputs:
+    for o in names:
         if o not in columns:
             raise KeyError(f"sweep: unknown output {o!r}; the outputs are {_listing(columns)}")
-    if len(set(outputs)) != len(outputs):
-        raise ValueError(f"sweep: outputs repeat a name: {outputs}")
-    return outputs
+    if len(set(names)) != len(names):
+        raise ValueError(f"sweep: outputs repeat a name: {names}")
+    return names
 
 
 def _times(sim: Simulation, times: ArrayLike | None) -> Array:
