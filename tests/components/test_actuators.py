@@ -478,3 +478,85 @@ def test_pressure_scale_scales_the_curves_gauge_pressure():
     np.testing.assert_allclose(a.get("act", "volume"), b.get("act", "volume"), rtol=1e-6)
     with pytest.raises(ValueError, match="pressure_scale must be > 0"):
         sf.Actuator("bad", sf.air, base, pressure_scale=0.0)
+
+
+# ---------------------------------------------------------------------------------------
+# Snaps of a gas-filled actuator at a fold of its mass (BDF's fold jump)
+# ---------------------------------------------------------------------------------------
+def _held_mass(pressure_of, fluid, volumes):
+    """m(V) = rho(p(V)) V, the mass a gas-filled actuator holds at each volume."""
+    return fluid.density(pressure_of(volumes)) * volumes
+
+
+def test_fold_pressure_is_the_far_volume_holding_the_same_mass():
+    """Air in Fig. 3's hysteretic actuator: the mass it holds peaks at a fold
+    just past the curve's peak (the curve then falls faster than the gas
+    expands); from just before the fold, rising, it snaps to the far volume
+    past the valley that holds the same mass. Away from a fold, or going the
+    other way, there is none."""
+    from softflow import paper_scenes as ps
+    from softflow.components.actuators import FOLD_NEAR, fold_pressure
+    loop = HysteresisLoop(*ps.loop_hysteretic())
+
+    def inflating(v):
+        return loop.fdf_volume(v, True)[0]
+    grid = np.linspace(5.5 * ML, 8.0 * ML, 200_001)
+    held = _held_mass(inflating, sf.air, grid)
+    f = int(np.argmax(held[grid < 6.3 * ML]))            # the fold: m's local maximum
+    v_fold, m_fold = grid[f], held[f]
+    assert 6.0 * ML < v_fold < 6.1 * ML
+    near = grid[f - 50]                                    # just before it, on the way up
+    p = fold_pressure(inflating, sf.air, near, held[f - 50], rising=True)
+    v_far = held[f - 50] / sf.air.density(p)
+    assert v_far > 6.3 * ML                                # past the snap
+    assert p == pytest.approx(inflating(np.array([v_far]))[0], rel=1e-6)   # Newton's start
+    beyond = grid > v_far - 0.01 * ML
+    first = grid[beyond][np.argmax(held[beyond] >= held[f - 50])]
+    assert v_far == pytest.approx(first, rel=1e-4)         # the first volume back at m
+    # no fold at hand: on the rising part well before it, or going down there
+    v = 3.0 * ML
+    assert np.isnan(fold_pressure(inflating, sf.air, v, _held_mass(inflating, sf.air, v),
+                                  rising=True))
+    assert np.isnan(fold_pressure(inflating, sf.air, near, held[f - 50], rising=False))
+    # water holds a mass proportional to its volume: no fold anywhere
+    assert np.isnan(fold_pressure(inflating, sf.water, near,
+                                  _held_mass(inflating, sf.water, near), rising=True))
+    assert m_fold > held[f - 50] and FOLD_NEAR == 0.02
+
+
+@pytest.mark.parametrize("rtol", [1e-2, 1e-4])
+def test_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
+    """Fig. 3's hysteretic architecture filled with air: Newton failed at the
+    fold at rtol 1e-2 and 1e-4 ('line search failed', at the smallest step).
+    The actuator now snaps there, at the mass it holds, to the far volume:
+    the point recorded twice at the snap time, the mass within 1e-4 of the
+    fold's (the curve's, on a fine grid), the far volume the first past the
+    snap that holds it; at rtol 1e-2, the end volumes within 1 % of their
+    range from rtol 1e-4's, the snap within 0.05 s (a tighter run approaches
+    the fold in ever smaller steps: 44 000 at 1e-5)."""
+    from softflow import paper_scenes as ps
+    loop = HysteresisLoop(*ps.loop_hysteretic())
+
+    def run(r):
+        return sf.Simulation(ps.fig3("hysteretic", fluid=sf.air), duration=ps.duration(3),
+                             rtol=r, beyond_limits="warn").run()
+    res = run(rtol)
+    t, vol, mass = res.times, res.get("act1", "volume"), res.get("act1", "mass")
+    snaps = np.flatnonzero(np.diff(t) == 0.0)
+    assert snaps.size == 1
+    i = snaps[0]
+    assert mass[i + 1] == mass[i]
+    grid = np.linspace(5.5 * ML, 8.0 * ML, 200_001)
+    held = _held_mass(lambda v: loop.fdf_volume(v, True)[0], sf.air, grid)
+    m_fold = held[grid < 6.3 * ML].max()
+    assert mass[i] == pytest.approx(m_fold, rel=1e-4)
+    assert vol[i] < 6.1 * ML < 6.3 * ML < vol[i + 1]
+    past = grid > 6.3 * ML
+    assert vol[i + 1] == pytest.approx(grid[past][np.argmax(held[past] >= mass[i])], rel=1e-4)
+    if rtol != 1e-2:
+        return
+    tight = run(1e-4)
+    for label in ("act1", "act2"):
+        mine, ref = res.get(label, "volume"), tight.get(label, "volume")
+        assert abs(mine[-1] - ref[-1]) <= 0.01 * np.ptp(ref)
+    assert abs(t[i] - tight.times[np.flatnonzero(np.diff(tight.times) == 0.0)[0]]) < 0.05

@@ -130,7 +130,10 @@ class Actuator(LibraryComponent):
 
     The fluid volume V = m / rho(p) of the stored mass m (state) sets the
     absolute pressure p = curve(V). Results: ``pressure``, ``massflow``, the
-    state ``mass`` and the output ``volume`` [m^3].
+    state ``mass`` and the output ``volume`` [m^3]. Filled with a gas, where
+    the curve falls more steeply than the gas expands, the mass it holds
+    folds: the adaptive BDF snaps it there to the far volume that holds the
+    same mass (:meth:`fold_pressure`; README, Solver).
 
     Parameters
     ----------
@@ -253,14 +256,15 @@ class Actuator(LibraryComponent):
         return P
 
     @staticmethod
-    def curve_pressure(P, vol, jac):
-        """(p, dp/dV or None) of the group's curve at ``vol``, gauge part scaled."""
+    def curve_pressure(P, vol, jac, scale=None):
+        """(p, dp/dV or None) of the group's curve at ``vol``, gauge part scaled
+        (by each instance's pressure_scale, or by ``scale``)."""
         if jac:
             pc, dpc = P.curve.fdf(vol)
         else:
             pc, dpc = P.curve.value(vol), None
         if P.scaled:
-            s = P.pressure_scale
+            s = P.pressure_scale if scale is None else scale
             pc = pressure_atmospheric + s * (pc - pressure_atmospheric)
             dpc = None if dpc is None else s * dpc
         return pc, dpc
@@ -280,6 +284,20 @@ class Actuator(LibraryComponent):
     def scale_jacobian(P, vol):
         """d(p - p_curve)/d pressure_scale at the volume vol: p_atm - curve(vol)."""
         return pressure_atmospheric - P.curve.value(vol)
+
+    @classmethod
+    def fold_pressure(cls, P, V, S, rising):
+        """(n,) the absolute pressure each actuator snaps to at a fold of its
+        gas's mass (:func:`fold_pressure`), nan where it is at none; ``rising``
+        (n,): whether its mass rises."""
+        _, _, vol = _volume(P, V, S)
+        out = np.full(P.n, np.nan)
+        scales = np.broadcast_to(P.pressure_scale, (P.n,))
+        for k in range(P.n):
+            def pressure_of(v, s=scales[k]):
+                return cls.curve_pressure(P, v, False, scale=s)[0]
+            out[k] = fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising[k])
+        return out
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -339,6 +357,49 @@ def _volume(P, V, S):
     return p, rho, S[:, 0] / rho
 
 
+#: A fold's far state (:func:`fold_pressure`) is searched over volumes from
+#: the current one up to FOLD_SPAN times it (mass rising) or down to
+#: 1 / FOLD_SPAN of it (falling), at FOLD_POINTS volumes
+FOLD_SPAN = 3.0
+FOLD_POINTS = 3001
+#: ... and only where the fold is at hand: the stored mass leaves the
+#: curve's reach within FOLD_NEAR of the current volume
+FOLD_NEAR = 0.02
+
+
+def fold_pressure(pressure_of, fluid, vol, mass, rising):
+    """The absolute pressure [Pa] an actuator snaps to at a fold, or nan.
+
+    A gas-filled actuator holds the mass m = rho(p(V)) V: where its PV curve
+    p(V) falls more steeply than the gas expands (a snap), m(V) has a local
+    maximum (a fold, for a rising mass; a minimum for a falling one) beyond
+    which no volume nearby holds a larger (smaller) mass; the actuator then
+    jumps, at the mass it holds, to the next volume that does, past the
+    snap. ``pressure_of(V)``: the curve's absolute pressure at the volumes V
+    (an array); ``vol``, ``mass``: the current volume and mass; ``rising``:
+    whether the mass rises. nan where there is no fold within FOLD_NEAR of
+    ``vol`` or no volume past it within FOLD_SPAN."""
+    step = (FOLD_SPAN if rising else 1.0 / FOLD_SPAN) - 1.0
+    grid = vol * (1.0 + step * np.linspace(0.0, 1.0, FOLD_POINTS)[1:])
+    try:
+        with np.errstate(all="ignore"):
+            d = fluid.density(pressure_of(grid)) * grid - mass
+    except (FluidError, ValueError):
+        return np.nan
+    if not rising:
+        d = -d
+    short = np.flatnonzero(~(d >= 0.0))        # out of the curve's reach (or not finite)
+    if not short.size or abs(grid[short[0]] - vol) > FOLD_NEAR * vol:
+        return np.nan
+    back = np.flatnonzero(d[short[0]:] >= 0.0)
+    if not back.size:
+        return np.nan
+    j = short[0] + back[0]
+    f = d[j - 1] / (d[j - 1] - d[j]) if np.isfinite(d[j - 1]) else 1.0
+    v = grid[j - 1] + f * (grid[j] - grid[j - 1])
+    return float(pressure_of(np.array([v]))[0])
+
+
 def _residual(P, p, rho, vol, pc, dpc):
     """p - p_curve(V) with V = m / rho(p), and its derivatives in p and m."""
     J = np.empty((P.n, 2))
@@ -382,7 +443,8 @@ class HystereticActuator(LibraryComponent):
     discrete state ``branch`` (1 = inflation, 0 = deflation): each step uses
     the branch it started on, and the branch changes between steps. Residuals
     and results as for :class:`Actuator` (``pressure``, ``mass``, ``branch`` and
-    the output ``volume``).
+    the output ``volume``); filled with a gas it snaps at a fold of the mass
+    it holds as :class:`Actuator` does (:meth:`fold_pressure`).
 
     Parameters
     ----------
@@ -499,6 +561,18 @@ class HystereticActuator(LibraryComponent):
     def switching(cls, P, V, S):
         _, _, vol = _volume(P, V, S)
         return P.loop.switching(vol, S[:, 1] > 0.5)[:, None]
+
+    @classmethod
+    def fold_pressure(cls, P, V, S, rising):
+        """As :meth:`Actuator.fold_pressure`, along the branch each actuator is
+        on (past its end, the other one: the branches meet there)."""
+        _, _, vol = _volume(P, V, S)
+        out = np.full(P.n, np.nan)
+        for k in range(P.n):
+            def pressure_of(v, inflating=bool(S[k, 1] > 0.5)):
+                return P.loop.fdf_volume(v, inflating)[0]
+            out[k] = fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising[k])
+        return out
 
     @classmethod
     def switching_jacobian(cls, P, V, S):

@@ -571,6 +571,12 @@ class _ThermalVolume:
     local_spec: tuple = ()
 
     @classmethod
+    def fold_pressure(cls, P, V, S, rising):
+        """No fold jump (softflow.solve.bdf) here: the gas's temperature is an
+        unknown of its own, which the isothermal search does not vary (nan)."""
+        return np.full(P.n, np.nan)
+
+    @classmethod
     def make_params(cls, components):
         P = super().make_params(components)
         P.hA = np.array([c._hA for c in components], dtype=float)

@@ -157,6 +157,7 @@ class Group:
         self.has_states = has_states
         self.begin = None  # begin_step(V, S) hook, or None
         self.switching = None  # switching(V, S): the discrete states' switching functions
+        self.fold = None   # fold(V, S, rising): the pressures a fold snaps to (actuators)
         self.row = None    # a single user component's kernel (1-D calls), or None
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
@@ -191,7 +192,7 @@ def _fluid_failure(g, err):
 
 #: What _library_group makes of a class's Params: Assembly.replace takes all of
 #: them from a group made anew (one left behind would keep the old numbers).
-_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching")
+_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold")
 
 
 def _library_group(cls, comps):
@@ -210,6 +211,9 @@ def _library_group(cls, comps):
     sw = getattr(cls, "switching", None)
     if sw is not None and cls.discrete_states:
         g.switching = partial(sw, P)
+    fold = getattr(cls, "fold_pressure", None)
+    if fold is not None:
+        g.fold = partial(fold, P)
     # per-step coefficients (e.g. heat-transfer correlations), frozen over each step
     wants = getattr(cls, "wants_begin_step", None)
     if wants is not None and wants(P):

@@ -379,8 +379,10 @@ class BDF(Integrator):
         self._secant_tries = 0     # secant placements of the current switch
         self._jump = None          # a switch's left side, for the sensitivities
         self._chatter = 0          # accepted steps in a row that switched at the smallest steps
+        self._fold_at = None       # the time of the last fold jump (_fold_jump)
 
     def _propose(self, t, x, S):
+        self._point = (x, S)       # for a fold jump (_fold_jump)
         if self._next <= t * (1 + 1e-14) + 1e-300:
             self._ib, self._next = self._next_break(t, self._ib)
         next_break, T = self._next, self.T
@@ -422,8 +424,62 @@ class BDF(Integrator):
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)
         if h <= self.step_min * 1.0000001:
-            raise StepFailure(t_new, h, out)
+            x_far = self._fold_jump(t, out)
+            if x_far is None:
+                raise StepFailure(t_new, h, out)
+            return x_far
         self._shrink(max(0.25, self.step_min / h))
+        return None
+
+    def _fold_jump(self, t, out):
+        """The point at t past a fold, or None: where Newton fails at the
+        smallest step on the equation of an actuator whose gas's mass has
+        reached a fold of its PV curve (a snap: no volume nearby holds the mass
+        it is taking in, or giving out; ``fold_pressure`` of its class), the
+        actuator snaps, at the mass it holds, to the volume past the snap that
+        does (a gas-filled actuator whose curve falls more steeply than its
+        gas expands). The unknowns at t are solved for anew
+        from that actuator's pressure there (states held, as at t = 0), the
+        point recorded at t beside the one before the snap, and the method
+        restarted from it. At most once at one time; not with sensitivities
+        (a jump of the unknowns at fixed states, which they do not carry)."""
+        if out.row is None or self.sens is not None or self._fold_at == t:
+            return None
+        asm = self.asm
+        for g in asm.groups:
+            if g.r0 <= out.row < g.r1:
+                break
+        else:
+            return None
+        if g.fold is None or not g.ns:
+            return None
+        k = (out.row - g.r0) // g.neq
+        x, S = self._point
+        mass = g.s0 + k * g.ns                      # the mass: its first state
+        rate = self._D[1, self._iS][mass]           # h m'(t), the direction it goes
+        if not rate:
+            return None
+        V = x[g.col]
+        Sg = S[g.s0:g.s1].reshape(g.n, g.ns)
+        rising = np.zeros(g.n, dtype=bool)
+        rising[k] = rate > 0
+        p_far = g.fold(V, Sg, rising)[k]
+        if not np.isfinite(p_far) or p_far <= 0.0:
+            return None
+        guess = x.copy()
+        guess[g.col[k, 0]] = p_far                   # its pressure: terminal a's
+        newton = self.newton
+        snapped = newton.solve(guess, S, t, 0.0)
+        newton.invalidate()
+        if not snapped.converged:
+            return None
+        self._fold_at = t
+        x_far = snapped.x
+        self.rec.add(t, x_far, S, self._Q)
+        self._restart_due = True
+        self._h_cap = self._fail_cap = math.inf
+        self._fail_hold = self._cap_hold = 0
+        return x_far
 
     def _chattering(self, S, S_new, x_new, h):
         """The failed Outcome of a run whose modes chatter (CHATTER_SWITCHES), on

@@ -99,7 +99,9 @@ class Integrator:
         the next step: (Newton's start, psi, the time t_new the step ends at,
         the time the equations are evaluated at, c);
     ``_newton_failed(t, t_new, out)``
-        after a failed solve: a smaller step (or :class:`StepFailure`);
+        after a failed solve: a smaller step (or :class:`StepFailure`), and
+        None, or the unknowns of another point at t to go on from (BDF past
+        an actuator's fold);
     ``_judge(t, x, S, x_new, S_new, t_new)``
         whether the solved step is accepted: the time it ends at, or None
         where it is rejected (the stepper having shrunk its step);
@@ -146,7 +148,11 @@ class Integrator:
             out = solve(x_pred, psi, t_eval, c)
             if not out.converged:
                 stats.rejected_steps += 1
-                failed(t, t_new, out)
+                # a controller may go on from another point at t (BDF: past an
+                # actuator's fold)
+                jumped = failed(t, t_new, out)
+                if jumped is not None:
+                    x = jumped
                 continue
             x_new = out.x
             S_new = update(x_new, psi, c)
