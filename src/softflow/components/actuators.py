@@ -286,18 +286,16 @@ class Actuator(LibraryComponent):
         return pressure_atmospheric - P.curve.value(vol)
 
     @classmethod
-    def fold_pressure(cls, P, V, S, rising):
-        """(n,) the absolute pressure each actuator snaps to at a fold of its
-        gas's mass (:func:`fold_pressure`), nan where it is at none; ``rising``
-        (n,): whether its mass rises."""
+    def fold_pressure(cls, P, V, S, k, rising):
+        """The absolute pressure [Pa] actuator ``k`` of the group snaps to at a
+        fold of its gas's mass (:func:`fold_pressure`), nan where it is at
+        none; ``rising``: whether its mass rises."""
         _, _, vol = _volume(P, V, S)
-        out = np.full(P.n, np.nan)
-        scales = np.broadcast_to(P.pressure_scale, (P.n,))
-        for k in range(P.n):
-            def pressure_of(v, s=scales[k]):
-                return cls.curve_pressure(P, v, False, scale=s)[0]
-            out[k] = fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising[k])
-        return out
+        scale = np.broadcast_to(P.pressure_scale, (P.n,))[k]
+
+        def pressure_of(v):
+            return cls.curve_pressure(P, v, False, scale=scale)[0]
+        return fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising)
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -563,16 +561,15 @@ class HystereticActuator(LibraryComponent):
         return P.loop.switching(vol, S[:, 1] > 0.5)[:, None]
 
     @classmethod
-    def fold_pressure(cls, P, V, S, rising):
-        """As :meth:`Actuator.fold_pressure`, along the branch each actuator is
+    def fold_pressure(cls, P, V, S, k, rising):
+        """As :meth:`Actuator.fold_pressure`, along the branch actuator ``k`` is
         on (past its end, the other one: the branches meet there)."""
         _, _, vol = _volume(P, V, S)
-        out = np.full(P.n, np.nan)
-        for k in range(P.n):
-            def pressure_of(v, inflating=bool(S[k, 1] > 0.5)):
-                return P.loop.fdf_volume(v, inflating)[0]
-            out[k] = fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising[k])
-        return out
+        inflating = bool(S[k, 1] > 0.5)
+
+        def pressure_of(v):
+            return P.loop.fdf_volume(v, inflating)[0]
+        return fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising)
 
     @classmethod
     def switching_jacobian(cls, P, V, S):

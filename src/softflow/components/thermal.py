@@ -571,10 +571,10 @@ class _ThermalVolume:
     local_spec: tuple = ()
 
     @classmethod
-    def fold_pressure(cls, P, V, S, rising):
+    def fold_pressure(cls, P, V, S, k, rising):
         """No fold jump (softflow.solve.bdf) here: the gas's temperature is an
         unknown of its own, which the isothermal search does not vary (nan)."""
-        return np.full(P.n, np.nan)
+        return np.nan
 
     @classmethod
     def make_params(cls, components):

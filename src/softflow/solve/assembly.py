@@ -157,7 +157,7 @@ class Group:
         self.has_states = has_states
         self.begin = None  # begin_step(V, S) hook, or None
         self.switching = None  # switching(V, S): the discrete states' switching functions
-        self.fold = None   # fold(V, S, rising): the pressures a fold snaps to (actuators)
+        self.fold = None   # fold(V, S, k, rising): the pressure instance k snaps to at a fold
         self.row = None    # a single user component's kernel (1-D calls), or None
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable

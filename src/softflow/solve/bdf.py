@@ -459,11 +459,7 @@ class BDF(Integrator):
         rate = self._D[1, self._iS][mass]           # h m'(t), the direction it goes
         if not rate:
             return None
-        V = x[g.col]
-        Sg = S[g.s0:g.s1].reshape(g.n, g.ns)
-        rising = np.zeros(g.n, dtype=bool)
-        rising[k] = rate > 0
-        p_far = g.fold(V, Sg, rising)[k]
+        p_far = g.fold(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns), k, bool(rate > 0))
         if not np.isfinite(p_far) or p_far <= 0.0:
             return None
         guess = x.copy()
