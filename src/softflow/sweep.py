@@ -494,7 +494,6 @@ def _columns(sim: Simulation) -> tuple[list[str], dict[str, str]]:
     return probe.columns(), units
 
 
-
 def _is_label_pair(o: object) -> TypeGuard[tuple[str, str]]:
     return isinstance(o, tuple) and len(o) == 2 and all(isinstance(x, str) for x in o)
 

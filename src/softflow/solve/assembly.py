@@ -913,11 +913,18 @@ class Assembly:
     def describe_row(self, row):
         return self.row_names[row]
 
-    def component_of_row(self, row):
+    def group_of_row(self, row):
+        """(group, instance) whose equation ``row`` is, or (None, None)."""
         for g in self.groups:
             if g.r0 <= row < g.r1:
-                return g.comps[(row - g.r0) // g.neq].label, (row - g.r0) % g.neq
+                return g, (row - g.r0) // g.neq
         return None, None
+
+    def component_of_row(self, row):
+        g, k = self.group_of_row(row)
+        if g is None:
+            return None, None
+        return g.comps[k].label, (row - g.r0) % g.neq
 
     # -- evaluation ------------------------------------------------------------------------
     def _compile_plans(self):
@@ -1158,11 +1165,16 @@ class Assembly:
     def jacobian_csc(self):
         return csc_matrix((self.jacobian_data(), self.indices, self.indptr), shape=(self.n, self.n))
 
+    def dense_index(self):
+        """Each raw Jacobian entry's place in the flattened dense (n, n) matrix."""
+        flat = self.__dict__.get("_dense_flat")
+        if flat is None:
+            flat = self._dense_flat = self.pattern_rows * self.n + self.pattern_cols
+        return flat
+
     def dense_jacobian(self):
         """The Jacobian of the last ``residual(..., jac=True)`` as a dense (n, n)
         array (entries of one place summed), for small systems."""
         n = self.n
-        flat = self.__dict__.get("_dense_flat")
-        if flat is None:
-            flat = self._dense_flat = self.pattern_rows * n + self.pattern_cols
-        return np.bincount(flat, weights=self.raw, minlength=n * n).reshape(n, n)
+        return np.bincount(self.dense_index(), weights=self.raw,
+                           minlength=n * n).reshape(n, n)

@@ -445,15 +445,9 @@ class BDF(Integrator):
         (a jump of the unknowns at fixed states, which they do not carry)."""
         if out.row is None or self.sens is not None or self._fold_at == t:
             return None
-        asm = self.asm
-        for g in asm.groups:
-            if g.r0 <= out.row < g.r1:
-                break
-        else:
+        g, k = self.asm.group_of_row(out.row)
+        if g is None or g.fold is None or not g.ns:
             return None
-        if g.fold is None or not g.ns:
-            return None
-        k = (out.row - g.r0) // g.neq
         x, S = self._point
         mass = g.s0 + k * g.ns                      # the mass: its first state
         rate = self._D[1, self._iS][mass]           # h m'(t), the direction it goes

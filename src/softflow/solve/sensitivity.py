@@ -397,7 +397,7 @@ class Sensitivities(DeferredSteps):
                        for g, *_ in self.parameters]
         self._dense = self.asm.n <= DENSE_MAX
         if self._dense:
-            self._flat = self.asm.pattern_rows * self.asm.n + self.asm.pattern_cols
+            self._flat = self.asm.dense_index()
 
     # -- the integrators' side ----------------------------------------------------------
     def initial(self, x0, S0, t0=0.0):
