@@ -331,7 +331,8 @@ def test_air_at_temperatures_from_minus_40_to_150_C(celsius, level, method):
     assert_finite(res)
     m = res.get("hi", "mass") + res.get("lo", "mass")
     assert np.max(np.abs(m - m[0])) < 1e-9 * m[0]
-    assert res.get("hi", "pressure")[-1] == pytest.approx(res.get("lo", "pressure")[-1], rel=1e-5)
+    # equalized, to within a tenth of the run's rtol (1e-3)
+    assert res.get("hi", "pressure")[-1] == pytest.approx(res.get("lo", "pressure")[-1], rel=1e-4)
 
 
 def _two_air_tanks(air):

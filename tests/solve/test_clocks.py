@@ -92,7 +92,7 @@ def test_a_stiff_variant_does_not_set_the_others_steps():
         warnings.simplefilter("ignore", sf.ModelWarning)
         shared = _run_batch(sim, variants, False, own_clocks=False)
     assert shared[0].stats["clocks"] == "shared"
-    assert shared[0].stats["steps"] > 2 * max(b.stats["steps"] for b in out)
+    assert shared[0].stats["steps"] > 1.3 * max(b.stats["steps"] for b in out)
     assert out[0].stats["steps"] < 0.2 * shared[0].stats["steps"]
 
 
@@ -179,7 +179,7 @@ def test_snapping_valves_switch_on_their_own_clocks():
         np.testing.assert_allclose(b.get("out", "pressure")[-1], serial.get("out", "pressure")[-1],
                                    rtol=0, atol=1e-3 * 3e4)
     assert shared[0].stats["clocks"] == "shared"
-    assert shared[0].stats["steps"] > 2 * max(b.stats["steps"] for b in out)
+    assert shared[0].stats["steps"] > 1.3 * max(b.stats["steps"] for b in out)
     assert shared[0].stats["steps"] > 3 * np.median([b.stats["steps"] for b in out])
 
 

@@ -311,6 +311,11 @@ class VariantBDF:
         # absolute node pressures (the first n_across unknowns) must stay positive
         self.p_cols = np.flatnonzero((np.array(lay.x_quantity, dtype=object) == "pressure")
                                      & (lay.xperm[:lay.nx] < asm.n_across))
+        # the error test's unknowns (as BDF's): the node across unknowns, a slice
+        # where they come first (they do, in variant order, as in the System's)
+        xe = np.flatnonzero(lay.xperm[:lay.nx] < asm.n_across)
+        self.x_err = (slice(0, xe.size) if np.array_equal(xe, np.arange(xe.size))
+                      else xe)
         self._qmax_run = None
         # the breakpoints of every variant: one barrier list
         breaks = set(float(b) for b in sim.breakpoints)
@@ -406,12 +411,17 @@ class VariantBDF:
         # the columns grouped by quantity, then one reduction per group
         return np.maximum.reduceat(v.T[self._q_order], self._q_starts, axis=0).T
 
-    def _norms(self, dS, dX, w):
-        """Each variant's weighted RMS of (dS, dX) (continuous states only), or its
-        largest weighted entry over PEAK_FACTOR where that is larger (as BDF._norm)."""
+    def _norms(self, dS, dX, w, every=False):
+        """Each variant's weighted RMS of (dS, dX) (continuous states only; of
+        dX the error test's columns, ``every``: all), or its largest weighted
+        entry over PEAK_FACTOR where that is larger (as BDF._norm)."""
         if self.cont is not None:
             dS = dS[:, self.cont]
-        e, ex = dS / w[0], dX / w[1]
+        if every:
+            e, ex = dS / w[0], dX / w[1]
+        else:
+            xe = self.x_err
+            e, ex = dS / w[0], dX[:, xe] / w[1][:, xe]
         size = e.shape[1] + ex.shape[1]
         if not size:
             return np.zeros(len(e))
@@ -997,7 +1007,7 @@ class VariantBDF:
         locate = switched & (h > smin)
         if not locate.any():
             return np.zeros(self.K, dtype=bool)
-        motion = self._norms(S_new - self.Sv, X_new - self.Xv, w)
+        motion = self._norms(S_new - self.Sv, X_new - self.Xv, w, every=True)
         theta = self._crossings(x, S, x_new, S_new_b)
         secant = locate & (motion > 1.0) & (self.secant_tries < SECANT_TRIES) & np.isfinite(theta)
         past = np.where(secant, 1.0 - theta, 1.0)

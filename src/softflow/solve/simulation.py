@@ -95,8 +95,11 @@ class Simulation:
         taken, so a smooth scene at loose rtol has few).
     rtol : float, default 1e-3
         Relative tolerance of the adaptive error test: the local error of each
-        state per step, in the weighted RMS norm with weights
-        ``atol + rtol·|state|``.
+        state and node pressure (and temperature) per step, in the weighted
+        RMS norm with weights ``atol + rtol·|state|`` (pressures: rtol times
+        the largest gauge pressure of the network); flows follow from those
+        through their components' equations and are not tested themselves
+        (:mod:`softflow.solve.bdf`).
     atol : dict, optional
         Absolute tolerances per quantity name, SI. Those not given are
         DEFAULT_ATOL (set for rtol = 1e-3) times rtol/1e-3, so that the error
