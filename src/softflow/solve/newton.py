@@ -260,6 +260,18 @@ class Newton:
         else:
             self._itol = 1.0 / self.atol
 
+    def _raise_scale(self, x):
+        """Raise this solve's tolerances (never lower them) to what
+        :meth:`_set_scale` gives at x."""
+        if self._small:
+            old = self._qtol
+            self._set_scale(x)
+            self._qtol = [max(a, b) for a, b in zip(old, self._qtol)]
+        elif x.size:
+            old = self._itol
+            self._set_scale(x)
+            self._itol = np.minimum(old, self._itol)
+
     def _norm(self, dx):
         """max_i |dx_i| / tol_i (NaN if dx holds a NaN)"""
         if self._small:
@@ -579,6 +591,14 @@ class Newton:
             dx = -self.lin.solve(F)
             self.stats.newton_iterations += 1
             nrm = self._norm(dx)
+            if nrm > 1.0 and k:
+                # the tolerances were set from x0's magnitudes; where the
+                # iterates have grown past them (flows starting from rest at
+                # a jump of a source) they are raised to the iterate's, else
+                # round-off of the solve alone (1e-15 kg/s on a 0.07 kg/s
+                # flow) never meets a tolerance of atol = 1e-15 kg/s
+                self._raise_scale(x)
+                nrm = self._norm(dx)
             if nrm <= 1.0:
                 return Outcome(True, x + dx, k + 1)
             if self._T_idx.size:
