@@ -332,3 +332,15 @@ def test_dense_blocks_by_planned_elimination_or_lapack_alike(monkeypatch):
         assert a.stats["steps"] == b.stats["steps"]
         np.testing.assert_allclose(a.get("out", "pressure"), b.get("out", "pressure"),
                                    rtol=1e-9, atol=1e-6)
+
+
+def test_refine_keeps_the_shared_sequence():
+    """refine= records points inside the one-network BDF's steps; the own-clock
+    engine says so and the batch keeps one shared step sequence (each
+    variant's result then has the refined points)."""
+    sim = sf.Simulation(scene(), duration=0.05, refine=2)
+    assert "refine" in clocks.reason_not(sim)
+    out = _run(sim, [{"tube.diameter": d} for d in (1e-3, 2e-3)])
+    for b in out:
+        assert b.success and b.stats["clocks"] == "shared"
+        assert len(b.times) == 2 * b.stats["steps"] + 1

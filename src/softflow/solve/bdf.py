@@ -162,7 +162,8 @@ class BDF(Integrator):
 
     def __init__(self, asm, newton, stats, *, duration, rtol, atol_states, atol_unknowns,
                  step_min, step_max,
-                 max_order=MAX_ORDER, first_step=None, breakpoints=(), record=None):
+                 max_order=MAX_ORDER, first_step=None, breakpoints=(), record=None,
+                 refine=1):
         super().__init__(asm, newton, stats, duration=duration, breakpoints=breakpoints,
                          record=record, expected_steps=256)
         self.rtol = rtol
@@ -170,6 +171,7 @@ class BDF(Integrator):
         self.step_min, self.step_max = step_min, step_max
         self.max_order = max_order
         self.first_step = first_step
+        self.refine = int(refine)      # points recorded per step (_interior)
         # a jump declared at the end point: the last step sees its left limit too
         # (else the error test, seeing the new value, would never let it land)
         if any(b == duration for b in breakpoints):
@@ -607,6 +609,8 @@ class BDF(Integrator):
                 xdot = (1.0 / np.arange(1, k + 1)) @ D[1:k + 1, self._iX] / h
                 self._jump = (x, S, x_new, S_new, psi, c, xdot)
         self._Q = Q_new
+        if self.refine > 1:
+            self._interior(t_new, h, k, S)
         self.rec.add(t_new, x_new, S_new, Q_new)
         if switched and h <= CHATTER_STEP * self.step_min:
             self._chatter += 1
@@ -645,6 +649,27 @@ class BDF(Integrator):
         self._h = h * max(MIN_FACTOR, factor)
         self._n_equal = 0
         return x_new, S_new, t_new
+
+    def _interior(self, t_new, h, k, S):
+        """Record refine - 1 points evenly inside the step just taken, on the
+        method's own interpolating polynomial: the difference table at the new
+        point, order k (Newton's backward formula, p(t) = D0 + sum_j Dj
+        prod_{m<j} (t - t_new + m h) / ((m + 1) h); as scipy's BDF dense
+        output). Discrete states keep their values at the step's start (a
+        switch takes effect at its end)."""
+        r = self.refine
+        tau = t_new - h + h * np.arange(1, r) / r
+        m = np.arange(k)
+        coef = np.cumprod((tau[:, None] - t_new + m * h) / ((m + 1) * h), axis=1)
+        D = self._D
+        Y = D[0] + coef @ D[1:k + 1]
+        iS, iX, iQ = self._iS, self._iX, self._iQ
+        disc = self._disc
+        for i in range(r - 1):
+            Si = Y[i, iS]
+            if disc is not None:
+                Si[disc] = S[disc]
+            self.rec.add(float(tau[i]), Y[i, iX], Si, Y[i, iQ])
 
     # -- difference table ------------------------------------------------------------
     @staticmethod

@@ -208,6 +208,8 @@ def reason_not(sim):
     asm = sim.asm
     if not sim.adaptive:
         return "fixed steps (step=) share one grid"
+    if sim.refine > 1:
+        return "refine= records points inside each step on the one-network BDF only"
     from ..components.base import LibraryComponent
     for g in asm.groups:
         c0 = g.comps[0]

@@ -37,6 +37,9 @@ if TYPE_CHECKING:
 #: that asks for more is refused at construction, and a run stops past it.
 MAX_STEPS = 10_000_000
 
+#: Largest ``refine=`` (points recorded per adaptive step).
+MAX_REFINE = 64
+
 #: Default absolute tolerances of the adaptive error test, per quantity [SI].
 DEFAULT_ATOL = {"pressure": 1.0, "massflow": 1e-9, "mass": 1e-12, "volume": 1e-12,
                 "volumeflow": 1e-12, "temperature": 1e-3, "energy": 1e-7, "energyflow": 1e-4}
@@ -116,6 +119,17 @@ class Simulation:
     breakpoints : sequence of float [s]
         Extra times the integrator must land on (input discontinuities);
         components' waveforms declare theirs themselves.
+    refine : int, default 1
+        Points recorded per adaptive step: ``refine - 1`` more, evenly inside
+        each step, from the BDF's own interpolating polynomial (its
+        difference table; as MATLAB's ``Refine`` and scipy's dense output).
+        BDF's steps are long where the solution is smooth, and a result read
+        linearly between them carries the linear interpolation's error on top
+        of the method's (the RC circuit at the default rtol: 17 steps, 0.07 %
+        at the points, 0.45 % read linearly; 0.07 % with ``refine=4``).
+        Discrete states keep their values at each step's start inside it.
+        Not with fixed steps, nor with sensitivities; a batched sweep with it
+        runs its variants on one shared step sequence.
     allow_unconnected : bool, default False
         Treat unconnected terminals as closed ends instead of raising.
     thermal : {'isothermal', 'adiabatic', 'heat_transfer'}, default 'isothermal'
@@ -162,7 +176,8 @@ class Simulation:
                  breakpoints: Iterable[Scalar] = (), allow_unconnected: bool = False,
                  record: str | Iterable[str] | None = None, thermal: str = "isothermal",
                  max_steps: int = MAX_STEPS, beyond_limits: str = "error",
-                 model: str | None = None, tolerance: float | None = None) -> None:
+                 model: str | None = None, tolerance: float | None = None,
+                 refine: int = 1) -> None:
         if model is not None or tolerance is not None:    # let softflow choose: softflow.assess
             system, thermal, rtol, model, tolerance, self.assessment = resolve_auto(locals())
         # what the Simulation is made of, for pickling: its compiled model holds
@@ -228,6 +243,15 @@ class Simulation:
                                  f"got {self.atol[q]}")
         self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
                                  for b in breakpoints)
+        if (isinstance(refine, bool) or not isinstance(refine, (int, np.integer))
+                or not 1 <= refine <= MAX_REFINE):
+            raise ValueError(f"Simulation: refine must be an integer from 1 to {MAX_REFINE} "
+                             f"(points recorded per step), got {refine!r}")
+        if refine > 1 and not self.adaptive:
+            raise ValueError(f"Simulation: refine={refine} records points inside the adaptive "
+                             "BDF's steps from its interpolating polynomial; fixed steps "
+                             "(step=) record every step already: pass a smaller step instead")
+        self.refine = int(refine)
         # a pure compile: the System is only read. A thermal scene adds variables
         # and per-scene data to its components, so it is compiled from a copy
         # (fluids and curves are shared, being values); an isothermal one
@@ -421,13 +445,18 @@ class Simulation:
                         atol_states=self._atol_vector(asm.s_quantity),
                         atol_unknowns=self._atol_vector(asm.x_quantity), step_min=self.step_min,
                         step_max=self.step_max, max_order=self.max_order,
-                        first_step=self.step, breakpoints=breaks, record=self.record)
+                        first_step=self.step, breakpoints=breaks, record=self.record,
+                        refine=self.refine)
         else:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
         integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
         sens: Sensitivities | None = None
         if sensitivities:
+            if self.refine > 1:
+                raise ValueError(f"Simulation.run: sensitivities are computed at the steps; "
+                                 f"this Simulation records refine={self.refine} points a "
+                                 "step: build it with refine=1 for sensitivities")
             from .sensitivity import Sensitivities
             names = [sensitivities] if isinstance(sensitivities, str) else list(sensitivities)
             sens = Sensitivities(asm, newton, names,
