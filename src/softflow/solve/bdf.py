@@ -40,15 +40,15 @@ nearly stagnant tube (a drop of 0.08 Pa against a pressure tolerance of
 0.05 Pa) failed the test at every step size (Fig. 3's hysteretic scene
 with air at rtol 1e-5: 44 307 steps, 2 253 of them forced at the smallest
 step; 516 now). A step in which a mode switches is still judged on every
-unknown (:meth:`BDF._judge`: how far the part past the switch moves). Local error: (1/(k+1)) (X_{n+1} - X_pred,
-x_{n+1} - x_pred) over those entries in the weighted RMS norm, weights
-atol + rtol |X_i| for the states and atol + rtol max_j |x_j| over the
-unknowns j of the same quantity for the unknowns (pressures as gauge
-pressures: the largest |p - p_atm|). A network made of
-independent sub-networks (the variants of a batched sweep) is tested per
-sub-network: the error is the largest of their own norms, each with its own
-quantity scales, so every one of them meets the tolerance. After k + 1 steps at one step size
-the estimates of orders k - 1 and k + 1 (from nabla^k and nabla^(k+2)) choose
+unknown (:meth:`BDF._judge`: how far the part past the switch moves).
+Local error: (1/(k+1)) (X_{n+1} - X_pred, x_{n+1} - x_pred) over those
+entries in the weighted RMS norm, weights atol + rtol |X_i| for the states
+and atol + rtol max_j |x_j| over the unknowns j of the same quantity for
+the unknowns (pressures as gauge pressures: the largest |p - p_atm|). A
+network made of independent sub-networks (the variants of a batched sweep)
+is tested per sub-network: the error is the largest of their own norms,
+each with its own quantity scales, so every one of them meets the
+tolerance. After k + 1 steps at one step size the estimates of orders k - 1 and k + 1 (from nabla^k and nabla^(k+2)) choose
 the order and the next step. A step size change re-interpolates the
 difference table onto the new spacing ("quasi-constant step size"), which
 is the Nordsieck-array rescaling in difference form.
@@ -381,7 +381,7 @@ class BDF(Integrator):
         self._Q = np.zeros(x[self._q_sel].size)
         # one difference table for the states, the unknowns and the quadratures
         # (one NumPy call per operation instead of three); slices name the parts.
-        # The error test's entries are the first ns + n columns
+        # The error test's entries are the first ns + n_across columns
         self._D = np.zeros((self.max_order + 3, ns + n + self._Q.size))
         self._iS, self._iX = slice(0, ns), slice(ns, ns + n)
         self._iQ, self._iErr = slice(ns + n, None), slice(0, self._m_err)
