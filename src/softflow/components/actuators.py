@@ -374,14 +374,17 @@ def fold_pressure(pressure_of, fluid, vol, mass, rising):
     which no volume nearby holds a larger (smaller) mass; the actuator then
     jumps, at the mass it holds, to the next volume that does, past the
     snap. ``pressure_of(V)``: the curve's absolute pressure at the volumes V
-    (an array); ``vol``, ``mass``: the current volume and mass; ``rising``:
+    (an array); ``fluid``: the gas, or a function of the pressures giving
+    its densities (a thermal volume's at its gas's temperature); ``vol``,
+    ``mass``: the current volume and mass; ``rising``:
     whether the mass rises. nan where there is no fold within FOLD_NEAR of
     ``vol`` or no volume past it within FOLD_SPAN."""
     step = (FOLD_SPAN if rising else 1.0 / FOLD_SPAN) - 1.0
     grid = vol * (1.0 + step * np.linspace(0.0, 1.0, FOLD_POINTS)[1:])
+    density = getattr(fluid, "density", fluid)
     try:
         with np.errstate(all="ignore"):
-            d = fluid.density(pressure_of(grid)) * grid - mass
+            d = density(pressure_of(grid)) * grid - mass
     except (FluidError, ValueError):
         return np.nan
     if not rising:

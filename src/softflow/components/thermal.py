@@ -572,9 +572,24 @@ class _ThermalVolume:
 
     @classmethod
     def fold_pressure(cls, P, V, S, k, rising):
-        """No fold jump (softflow.solve.bdf) here: the gas's temperature is an
-        unknown of its own, which the isothermal search does not vary (nan)."""
-        return np.nan
+        """The pressure volume ``k`` snaps to at a fold of its gas's mass
+        (:func:`softflow.components.actuators.fold_pressure`), searched at the
+        gas's present temperature, or nan (no curve wall, no fold near). For a
+        free gas (adiabatic, wall heat) it is the start of the jump, not its
+        end: the snap holds the mass and the stored energy (the gas's and the
+        wall's work), and Newton, with the states held, then finds the
+        temperature and the volume that hold both (softflow.solve.bdf)."""
+        curve = getattr(cls, "_fold_curve", None)
+        if curve is None:
+            return np.nan
+        from .actuators import fold_pressure
+        T = float(V[k, 2])
+        m = float(S[k, 0])
+
+        def density(p):
+            return _parts(P.fluid, "density", p, np.full_like(p, T), False)[0]
+        vol = m / float(density(np.array([float(V[k, 0])]))[0])
+        return fold_pressure(lambda v: curve(P, v, S, k), density, vol, m, rising)
 
     @classmethod
     def make_params(cls, components):
@@ -773,6 +788,12 @@ class _PlainCurve(_CurveWall):
         return Actuator.curve_pressure(P, vol, jac)
 
     @classmethod
+    def _fold_curve(cls, P, vol, S, k):
+        """The curve's pressure of volume ``k`` at the volumes ``vol`` (an array)."""
+        scale = np.broadcast_to(P.pressure_scale, (P.n,))[k]
+        return Actuator.curve_pressure(P, vol, False, scale=scale)[0]
+
+    @classmethod
     def _curve_work(cls, P, vol):
         """The integral of the (scaled) curve pressure over volume, up to a constant."""
         w = P.curve.work(vol)
@@ -794,6 +815,11 @@ class _LoopCurve(_CurveWall):
     def _curve(cls, P, vol, S, jac):
         pc, dpc = P.loop.fdf_volume(vol, S[:, cls._branch] > 0.5)
         return pc, (dpc if jac else None)
+
+    @classmethod
+    def _fold_curve(cls, P, vol, S, k):
+        """The pressure of the branch volume ``k`` is on, at the volumes ``vol``."""
+        return P.loop.fdf_volume(vol, bool(S[k, cls._branch] > 0.5))[0]
 
     @classmethod
     def _work(cls, P, vol, S):
