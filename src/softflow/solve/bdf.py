@@ -239,6 +239,12 @@ class BDF(Integrator):
         if self._qmax_run is not None:
             qmax = np.maximum(qmax, self._qmax_run)
         self._qmax_run = qmax
+        newton = self.newton
+        if newton is not None and self._n_blocks == 1:
+            # Newton's tolerances too are relative to the run's magnitudes: a
+            # settled network's flows (1e-9 kg/s after 0.1) are resolved to the
+            # network's flow scale, as round-off allows
+            newton.scale_floor = qmax.tolist() if newton._small else qmax
         return np.concatenate((wS, self.atol_x + self.rtol * qmax[key]))
 
     def _norm(self, v, w, vx):

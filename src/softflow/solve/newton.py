@@ -175,6 +175,10 @@ class Newton:
         self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
         self._solves = 0
         self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
+        #: per quantity (q_names order), magnitudes the tolerances are at least
+        #: relative to (BDF: the largest of the run so far; a list on small
+        #: systems), or None: x0's alone (:meth:`_set_scale`)
+        self.scale_floor = None
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -245,6 +249,9 @@ class Newton:
             qmax = []
             for a, b in self._q_bounds:
                 qmax.append(max(map(abs, v[a:b])))
+            floor = self.scale_floor
+            if floor is not None:
+                qmax = [max(a, b) for a, b in zip(qmax, floor)]
             for q, base, factor in self._links:
                 qmax[q] = max(qmax[q], factor * qmax[base])
             rtol, qtol = self.rtol, []
@@ -253,6 +260,8 @@ class Newton:
             self._qtol = qtol
         elif x.size:
             qmax = self.asm.quantity_max(x)
+            if self.scale_floor is not None:
+                qmax = np.maximum(qmax, self.scale_floor)
             for q, base, factor in self._links:
                 qmax[q] = max(qmax[q], factor * qmax[base])
             # max(|x_i|, the largest |x_j| of its quantity) is that largest one
