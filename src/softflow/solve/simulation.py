@@ -109,8 +109,11 @@ class Simulation:
         follows rtol down to tight tolerances.
     newton_rtol : float, default 1e-6
         Relative tolerance of the Newton iteration, with respect to the typical
-        magnitude of each quantity in the network (absolute floors atol·1e-3);
-        adaptive runs tighten it to rtol/20 where that is smaller.
+        magnitude of each quantity in the network (absolute floors atol·1e-3;
+        adaptive runs: at least the largest magnitude of the run so far, so
+        that a settled network's vanishing flows are not asked for more than
+        round-off resolves); adaptive runs tighten it to rtol/20 where that
+        is smaller.
     linear_solver : {'auto', 'dense', 'sparse', 'condensed'}
         'auto' uses dense LU up to 128 unknowns; above, 'condensed' (the
         components' own unknowns eliminated, SuperLU on the node system; see
