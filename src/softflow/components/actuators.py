@@ -291,11 +291,15 @@ class Actuator(LibraryComponent):
         fold of its gas's mass (:func:`fold_pressure`), nan where it is at
         none; ``rising``: whether its mass rises."""
         _, _, vol = _volume(P, V, S)
-        scale = np.broadcast_to(P.pressure_scale, (P.n,))[k]
+        return fold_pressure(lambda v: cls._fold_curve(P, v, S, k), P.fluid, vol[k], S[k, 0],
+                             rising)
 
-        def pressure_of(v):
-            return cls.curve_pressure(P, v, False, scale=scale)[0]
-        return fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising)
+    @classmethod
+    def _fold_curve(cls, P, vol, S, k):
+        """The curve's absolute pressure of actuator ``k`` at the volumes ``vol``
+        (an array; the fold search's, here and in thermal scenes)."""
+        scale = np.broadcast_to(P.pressure_scale, (P.n,))[k]
+        return Actuator.curve_pressure(P, vol, False, scale=scale)[0]
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -568,11 +572,17 @@ class HystereticActuator(LibraryComponent):
         """As :meth:`Actuator.fold_pressure`, along the branch actuator ``k`` is
         on (past its end, the other one: the branches meet there)."""
         _, _, vol = _volume(P, V, S)
-        inflating = bool(S[k, 1] > 0.5)
+        return fold_pressure(lambda v: cls._fold_curve(P, v, S, k), P.fluid, vol[k], S[k, 0],
+                             rising)
 
-        def pressure_of(v):
-            return P.loop.fdf_volume(v, inflating)[0]
-        return fold_pressure(pressure_of, P.fluid, vol[k], S[k, 0], rising)
+    #: the column of the branch state (1 = inflation) among the states
+    _branch = 1
+
+    @classmethod
+    def _fold_curve(cls, P, vol, S, k):
+        """The pressure of the branch actuator ``k`` is on, at the volumes ``vol``
+        (the fold search's, here and in thermal scenes)."""
+        return P.loop.fdf_volume(vol, bool(S[k, cls._branch] > 0.5))[0]
 
     @classmethod
     def switching_jacobian(cls, P, V, S):

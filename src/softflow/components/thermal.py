@@ -788,12 +788,6 @@ class _PlainCurve(_CurveWall):
         return Actuator.curve_pressure(P, vol, jac)
 
     @classmethod
-    def _fold_curve(cls, P, vol, S, k):
-        """The curve's pressure of volume ``k`` at the volumes ``vol`` (an array)."""
-        scale = np.broadcast_to(P.pressure_scale, (P.n,))[k]
-        return Actuator.curve_pressure(P, vol, False, scale=scale)[0]
-
-    @classmethod
     def _curve_work(cls, P, vol):
         """The integral of the (scaled) curve pressure over volume, up to a constant."""
         w = P.curve.work(vol)
@@ -815,11 +809,6 @@ class _LoopCurve(_CurveWall):
     def _curve(cls, P, vol, S, jac):
         pc, dpc = P.loop.fdf_volume(vol, S[:, cls._branch] > 0.5)
         return pc, (dpc if jac else None)
-
-    @classmethod
-    def _fold_curve(cls, P, vol, S, k):
-        """The pressure of the branch volume ``k`` is on, at the volumes ``vol``."""
-        return P.loop.fdf_volume(vol, bool(S[k, cls._branch] > 0.5))[0]
 
     @classmethod
     def _work(cls, P, vol, S):

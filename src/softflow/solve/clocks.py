@@ -311,11 +311,12 @@ class VariantBDF:
         self.offset = np.where(np.array(lay.x_quantity, dtype=object) == "pressure",
                                pressure_atmospheric, 0.0)
         # absolute node pressures (the first n_across unknowns) must stay positive
+        across = lay.xperm[:lay.nx] < asm.n_across
         self.p_cols = np.flatnonzero((np.array(lay.x_quantity, dtype=object) == "pressure")
-                                     & (lay.xperm[:lay.nx] < asm.n_across))
+                                     & across)
         # the error test's unknowns (as BDF's): the node across unknowns, a slice
         # where they come first (they do, in variant order, as in the System's)
-        xe = np.flatnonzero(lay.xperm[:lay.nx] < asm.n_across)
+        xe = np.flatnonzero(across)
         self.x_err = (slice(0, xe.size) if np.array_equal(xe, np.arange(xe.size))
                       else xe)
         self._qmax_run = None
