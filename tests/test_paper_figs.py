@@ -88,12 +88,16 @@ def test_fig3_peak_valley_snap_moves_volume_from_actuator_2_to_1(fig3):
 
 # -- Fig. 4 ------------------------------------------------------------------------------
 def _half_times(res, t_in):
-    """When V2 passes half its range on inflation and on deflation."""
+    """When V2 passes half its range on inflation and on deflation (linear
+    between the points either side: the adaptive steps are ~0.1 s long)."""
     t = res.times
     v2 = ps.volumes(res)[1]
     half = 0.5 * (v2.max() + v2[0])
-    up = t[np.flatnonzero(v2 >= half)[0]]
-    down = t[np.flatnonzero((v2 <= half) & (t > t_in))[0]]
+
+    def crossing(i):
+        return t[i - 1] + (half - v2[i - 1]) / (v2[i] - v2[i - 1]) * (t[i] - t[i - 1])
+    up = crossing(np.flatnonzero(v2 >= half)[0])
+    down = crossing(np.flatnonzero((v2 <= half) & (t > t_in))[0])
     return up, down
 
 

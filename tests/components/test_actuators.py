@@ -323,9 +323,15 @@ def test_actuators_with_different_curves_keep_their_own():
     sim = sf.Simulation(s, duration=3.0)
     res = sim.run()
     assert res.success
+    # each on its own curve, to Newton's tolerance (rtol / 20 of the gauge
+    # pressures; a first chord update may be accepted at several times that):
+    # within the run's rtol (1e-3) of the largest gauge pressure, where another
+    # curve would be kPa off
+    gauge = max(res.get(a.label, "pressure").max() for a in acts) - P0
     for a, curve in zip(acts, (soft, BALLOON, soft)):
         np.testing.assert_allclose(res.get(a.label, "pressure"),
-                                   curve(res.get(a.label, "volume")), rtol=1e-5)  # Newton's
+                                   curve(res.get(a.label, "volume")), rtol=0,
+                                   atol=1e-3 * gauge)
     keys = {a.group_key() for a in acts}
     assert len(keys) == 2
     # the stiffer balloon takes less of the flow than the soft plateau actuators
@@ -451,7 +457,11 @@ def test_every_volume_reports_its_volume():
     res = sf.Simulation(s, duration=0.05).run()
     np.testing.assert_allclose(res.get("tank", "volume"), 1e-5)
     v_acc = res.get("acc", "volume")
-    np.testing.assert_allclose(v_acc, 1e-5 + 1e-10 * (res.get("acc", "pressure") - P0), rtol=1e-6)
+    # its volume follows its pressure, to Newton's tolerance (rtol / 20 of the
+    # gauge pressure): within 1e-4 of its 0.85 mL swing
+    np.testing.assert_allclose(v_acc, 1e-5 + 1e-10 * (res.get("acc", "pressure") - P0), rtol=0,
+                               atol=1e-4 * np.ptp(v_acc))
+    assert np.ptp(v_acc) > 0.8e-6
     assert res.get("tank", "volume", as_quantity=True)[0].to("mL").magnitude == pytest.approx(10)
 
 
@@ -585,7 +595,9 @@ def test_adiabatic_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
     on the wall (5.3 K; (gamma - 1) dV/V of its temperature, 5.5 K, to
     first order in dV/V = 4.7 %), and the run goes on to the end, its end
     volumes within 1 % of their range from rtol 1e-4's (0.43 % / 0.069 %
-    measured at rtol 1e-2 / 1e-3)."""
+    measured at rtol 1e-2 / 1e-3). At rtol 1e-2 the snap is the fold jump; at
+    1e-3 Newton's watchdog may find the far volume itself, in a smallest step
+    (it does since Newton's tolerance follows rtol: rtol / 20)."""
     from softflow import paper_scenes as ps
 
     def run(r):
@@ -598,8 +610,13 @@ def test_adiabatic_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
     snaps = _snap_steps(res)
     assert snaps.size == 1
     i = snaps[0]
-    assert t[i + 1] == t[i]                                   # the fold jump
-    assert mass[i + 1] == mass[i] and energy[i + 1] == energy[i]
+    if rtol == 1e-2:
+        assert t[i + 1] == t[i]                               # the fold jump
+        assert mass[i + 1] == mass[i] and energy[i + 1] == energy[i]
+    else:
+        assert t[i + 1] - t[i] <= 1.0000001 * ps.duration(3) * 1e-9   # the default step_min
+        assert mass[i + 1] == pytest.approx(mass[i], rel=1e-5)
+        assert energy[i + 1] == pytest.approx(energy[i], rel=1e-5)
     gamma = 1.4
     cooling = (gamma - 1.0) * (vol[i + 1] - vol[i]) / vol[i] * T[i]
     assert T[i] - T[i + 1] == pytest.approx(cooling, rel=0.1)

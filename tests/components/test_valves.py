@@ -527,8 +527,10 @@ def test_snapping_valve_is_a_tight_restrictor_on_deflation():
     # backflow through the closed valve follows the tight linear law
     mf = res.get("sv", "massflow", "a")
     rho_m = sf.air.density(0.5 * (pa + pb))
-    # (to the Newton tolerance on pressure, 1e-6 of 1.6 bar against dp ~ 0.1 bar)
-    np.testing.assert_allclose(mf[late], rho_m[late] * 2e-12 * dp[late], rtol=1e-4)
+    # (to the Newton tolerance, rtol / 20 of the gauge pressures: within 1e-3 of
+    # the largest backflow)
+    want = rho_m[late] * 2e-12 * dp[late]
+    np.testing.assert_allclose(mf[late], want, rtol=0, atol=1e-3 * np.abs(want).max())
     # so the chamber lags far behind the source when it deflates
     assert pb[-1] - pa[-1] > 3e4
 

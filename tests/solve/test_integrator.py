@@ -311,7 +311,7 @@ def test_one_loop_serves_every_stepper_and_a_controller_written_against_it():
     sim = sf.Simulation(s, duration=0.05, step=1e-3)
     ref = sim.run()
     asm, stats = sim.asm, Stats()
-    newton = Newton(asm, make_linear_solver(asm, "dense"), stats, rtol=sim.newton_rtol,
+    newton = Newton(asm, make_linear_solver(asm, "dense"), stats, rtol=sim._newton_rtol(),
                     atol=sim._atol_vector(asm.x_quantity, 1e-3))
     mine = PlainEuler(asm, newton, stats, 0.05, 1e-3)
     mine.run()

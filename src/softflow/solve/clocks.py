@@ -59,7 +59,8 @@ from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .batched import _variant_of
 from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, GROW_MIN, MAX_FACTOR,
-                  MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST, _rescale_matrix)
+                  MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST,
+                  _rescale_matrix, newton_floor_factor)
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
 from .linalg import make_linear_solver
@@ -302,7 +303,10 @@ class VariantBDF:
         self._sw_var = None        # the variant of each switching function's entry
         self.atol_x = lay.to_v(np.asarray(atol_x, dtype=float))
         self.newton_atol = 1e-3 * self.atol_x
-        self.newton_rtol = min(sim.newton_rtol, sim.rtol / 20)
+        # as Simulation's Newton in an adaptive run: rtol / 20, pressures by their
+        # gauge magnitude, the run's magnitudes a floor (newton_floor_factor)
+        self.newton_rtol = sim._newton_rtol()
+        self._floor_factor = newton_floor_factor(self.newton_rtol)
         names = sorted(set(lay.x_quantity))
         self.qid = np.array([names.index(q) for q in lay.x_quantity], dtype=np.int64)
         q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]
@@ -457,7 +461,9 @@ class VariantBDF:
         rtol = min(self.newton_rtol, 1e-12) if tight else self.newton_rtol
         full = full or tight
         X0 = lay.to_v(x0)
-        qmax = self._quantity_max(np.abs(X0))
+        qmax = self._quantity_max(np.abs(X0 - self.offset))
+        if self._qmax_run is not None:
+            qmax = np.maximum(qmax, self._floor_factor * self._qmax_run)
         itol = 1.0 / (self.newton_atol + rtol * qmax[:, self.qid])
         x = x0.copy()
         conv = ~live

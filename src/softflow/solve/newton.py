@@ -179,6 +179,9 @@ class Newton:
         #: relative to (BDF: the largest of the run so far; a list on small
         #: systems), or None: x0's alone (:meth:`_set_scale`)
         self.scale_floor = None
+        #: (quantity index of 'pressure', offset) and the offsets per unknown,
+        #: or None: magnitudes of absolute values (:meth:`set_gauge`)
+        self._gauge = self._x_gauge = None
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -246,20 +249,12 @@ class Newton:
         one per quantity, as a list; else per unknown, kept as reciprocals."""
         if self._small:
             v = (x if self._q_sorted else x[self._q_order]).tolist()
-            qmax = []
-            for a, b in self._q_bounds:
-                qmax.append(max(map(abs, v[a:b])))
-            floor = self.scale_floor
-            if floor is not None:
-                qmax = [max(a, b) for a, b in zip(qmax, floor)]
-            for q, base, factor in self._links:
-                qmax[q] = max(qmax[q], factor * qmax[base])
             rtol, qtol = self.rtol, []
-            for at, m in zip(self._q_atol, qmax):
+            for at, m in zip(self._q_atol, self._small_qmax(v)):
                 qtol.append(at + rtol * m)
             self._qtol = qtol
         elif x.size:
-            qmax = self.asm.quantity_max(x)
+            qmax = self.asm.quantity_max(x if self._x_gauge is None else x - self._x_gauge)
             if self.scale_floor is not None:
                 qmax = np.maximum(qmax, self.scale_floor)
             for q, base, factor in self._links:
@@ -268,6 +263,39 @@ class Newton:
             self._itol = 1.0 / (self.atol + self.rtol * qmax[self._qid])
         else:
             self._itol = 1.0 / self.atol
+
+    def _small_qmax(self, v):
+        """Per quantity, the magnitude the tolerances of a small system are
+        relative to, from the unknowns' values ``v`` (a list, in quantity
+        order): the largest |v| of the quantity (of the gauge pressure, where
+        :meth:`set_gauge` was called), at least ``scale_floor``, and at least
+        the linked quantities' (:meth:`set_magnitude_link`)."""
+        qmax = [max(map(abs, v[a:b])) for a, b in self._q_bounds]
+        gauge = self._gauge
+        if gauge is not None:
+            q, off = gauge
+            a, b = self._q_bounds[q]
+            seg = v[a:b]
+            qmax[q] = max(max(seg) - off, off - min(seg))
+        floor = self.scale_floor
+        if floor is not None:
+            qmax = [max(a, b) for a, b in zip(qmax, floor)]
+        for q, base, factor in self._links:
+            qmax[q] = max(qmax[q], factor * qmax[base])
+        return qmax
+
+    def set_gauge(self, offset):
+        """Take the magnitude of the quantity 'pressure' as |p - offset| (the
+        gauge pressure, with ``offset`` the atmosphere), as the adaptive error
+        test weighs it, instead of |p|: at a tolerance that follows rtol (an
+        adaptive run's rtol / 20), an air network's 0.1 bar swing on 1 bar
+        would otherwise be resolved to a tenth of that."""
+        names = self._q_names
+        if "pressure" not in names:
+            return
+        q = names.index("pressure")
+        self._gauge = (q, float(offset))
+        self._x_gauge = np.where(self._qid == q, float(offset), 0.0)
 
     def _raise_scale(self, x):
         """Raise this solve's tolerances (never lower them) to what
@@ -440,11 +468,8 @@ class Newton:
         if total - total != 0.0:      # NaN or inf
             return F, None
         rtol, nrm, qtol = self.rtol, 0.0, []
-        if self._links:
-            qmax = [max(map(abs, v[a:b])) for a, b in self._q_bounds]
-            for q, base, factor in self._links:
-                qmax[q] = max(qmax[q], factor * qmax[base])
-            for (a, b), at, m in zip(self._q_bounds, self._q_atol, qmax):
+        if self._links or self._gauge is not None or self.scale_floor is not None:
+            for (a, b), at, m in zip(self._q_bounds, self._q_atol, self._small_qmax(v)):
                 tq = at + rtol * m
                 qtol.append(tq)
                 m = max(map(abs, w[a:b])) / tq
