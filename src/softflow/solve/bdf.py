@@ -101,13 +101,6 @@ SAFETY = 0.9
 #: bench_speed_accuracy's 12 -> 18 MPa scene, settled at rtol 1e-8, stops
 #: without a floor.
 NEWTON_FLOOR, NEWTON_FLOOR_FRACTION = 1e-6, 0.2
-
-
-def newton_floor_factor(newton_rtol):
-    """The run's magnitudes times this are the floor of Newton's (its
-    tolerances at least NEWTON_FLOOR of them, or NEWTON_FLOOR_FRACTION of
-    Newton's rtol where that is smaller)."""
-    return min(NEWTON_FLOOR / newton_rtol, NEWTON_FLOOR_FRACTION)
 MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
 #: a step is only lengthened by at least this factor (each change costs a
 #: re-interpolation and, past Newton's reuse window, a factorization)
@@ -127,6 +120,13 @@ FAIL_HOLD = 10
 #: in ~25 minutes before)
 CHATTER_SWITCHES = 50
 CHATTER_STEP = 4.0
+
+
+def newton_floor_factor(newton_rtol):
+    """The run's magnitudes times this are the floor of Newton's (its
+    tolerances at least NEWTON_FLOOR of them, or NEWTON_FLOOR_FRACTION of
+    Newton's rtol where that is smaller)."""
+    return min(NEWTON_FLOOR / newton_rtol, NEWTON_FLOOR_FRACTION)
 
 
 @functools.lru_cache(maxsize=256)
