@@ -13,7 +13,7 @@ from softflow.solve.linalg import DenseLU
 P0 = sf.pressure_atmospheric
 
 
-def _scene(fluid=sf.water, thermal="isothermal"):
+def _scene(fluid=sf.water, thermal="isothermal", step=2e-3):
     s = sf.System()
     s += sf.PressureSource("src", pressure=lambda t: P0 + (3e4 if t < 0.3 else 1e4))
     s += sf.CircularTube("tube", fluid, length=0.5, diameter=1e-3)
@@ -26,13 +26,16 @@ def _scene(fluid=sf.water, thermal="isothermal"):
     s.connect("tube", "tank")
     s.connect(("tank", "a"), "tube2")
     s.connect("tube2", "tank2")
-    return sf.Simulation(s, duration=0.6, step=2e-3, thermal=thermal)
+    return sf.Simulation(s, duration=0.6, step=step, thermal=thermal)
 
 
+@pytest.mark.parametrize("step", [2e-3, None])
 @pytest.mark.parametrize("fluid, thermal", [(sf.water, "isothermal"), (sf.air, "isothermal"),
                                             (sf.air, "adiabatic")])
-def test_small_system_path_matches_the_general_one(monkeypatch, fluid, thermal):
-    fast = _scene(fluid, thermal)
+def test_small_system_path_matches_the_general_one(monkeypatch, fluid, thermal, step):
+    """At fixed steps, and adaptive (Newton at rtol / 20 with the pressures'
+    gauge magnitudes and the run's magnitudes as a floor, on either path)."""
+    fast = _scene(fluid, thermal, step)
     assert fast.asm.n <= newton_module.SMALL
     a = fast.run()
     # the general path: NumPy scale and norm, and no written-out step at all
@@ -44,7 +47,7 @@ def test_small_system_path_matches_the_general_one(monkeypatch, fluid, thermal):
         self._quick_ok = False
 
     monkeypatch.setattr(newton_module.Newton, "__init__", general)
-    b = _scene(fluid, thermal).run()
+    b = _scene(fluid, thermal, step).run()
     assert a.stats["steps"] == b.stats["steps"]
     assert abs(a.stats["newton_iterations"] - b.stats["newton_iterations"]) <= 2
     for label in ("tank", "tank2"):
@@ -145,3 +148,47 @@ def test_user_state_arrays_are_copied():
         runs.append(sf.Simulation(s, duration=0.2, step=1e-2).run())
     np.testing.assert_array_equal(runs[0].get("act", "mass"), runs[1].get("act", "mass"))
     assert runs[1].stats == runs[0].stats
+
+
+def test_newton_tolerance_follows_rtol_in_adaptive_runs():
+    """newton_rtol: 1e-6 at fixed steps; adaptive runs rtol / 20, or the value
+    given where smaller; the floor of the run's magnitudes at 1e-6 of them, or
+    a fifth of Newton's rtol where that is smaller."""
+    from softflow.solve.bdf import newton_floor_factor
+    sim = _scene(step=None)
+    assert sim.newton_rtol is None and sim._newton_rtol() == pytest.approx(1e-3 / 20)
+    sim = _scene()
+    assert sim._newton_rtol() == 1e-6
+    s = sim.system
+    assert sf.Simulation(s, duration=0.6, rtol=1e-5)._newton_rtol() == pytest.approx(5e-7)
+    assert sf.Simulation(s, duration=0.6, newton_rtol=1e-9)._newton_rtol() == 1e-9
+    assert sf.Simulation(s, duration=0.6, newton_rtol=1e-2)._newton_rtol() == pytest.approx(5e-5)
+    assert sf.Simulation(s, duration=0.6, step=1e-3, newton_rtol=1e-8)._newton_rtol() == 1e-8
+    for bad in (0.0, -1e-6, float("nan")):
+        with pytest.raises(ValueError, match="newton_rtol must be a finite number > 0"):
+            sf.Simulation(s, duration=0.6, newton_rtol=bad)
+    assert newton_floor_factor(5e-5) == pytest.approx(0.02)         # 1e-6 of the run's
+    assert newton_floor_factor(5e-9) == pytest.approx(0.2)          # a fifth of 5e-9
+
+
+def test_newton_weighs_pressures_by_their_gauge_magnitude_in_adaptive_runs():
+    """The tolerance of the pressures: rtol / 20 of the largest gauge pressure
+    (|p - 1 atm|), on the small path and the general one alike."""
+    sim = _scene(sf.air, step=None)
+    res = sim.run()
+    from softflow.solve.linalg import make_linear_solver
+    from softflow.solve.newton import Stats
+    asm = sim.asm
+    x = res.X[-1]
+    p = np.array([q == "pressure" for q in asm.x_quantity])
+    gauge = np.abs(x[p] - P0).max()
+    for small in (True, False):
+        nt = newton_module.Newton(asm, make_linear_solver(asm, "dense"), Stats(), rtol=5e-5,
+                                  atol=sim._atol_vector(asm.x_quantity, 1e-3))
+        nt._small = small and nt._small
+        nt.set_gauge(P0)
+        nt._set_scale(x)
+        tol = nt.tol[p]
+        np.testing.assert_allclose(tol, sim._atol_vector(asm.x_quantity, 1e-3)[p]
+                                   + 5e-5 * gauge, rtol=1e-12)
+        assert tol.max() < 0.2 * 5e-5 * x[p].max()    # of the absolute pressure: 5x looser
