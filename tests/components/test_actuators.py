@@ -299,9 +299,10 @@ def test_mass_conservation_with_air(cls):
         want = BALLOON(vol)
     else:
         want = LOOP.fdf_volume(vol, res.get("act", "branch") > 0.5)[0]
-    # to the Newton tolerance (its first chord update may be accepted at ~100x
-    # newton_rtol when earlier solves contracted fast)
-    np.testing.assert_allclose(p, want, rtol=1e-4)
+    # to Newton's tolerance (rtol / 20 of the gauge pressure; a first chord
+    # update may be accepted at several times that where earlier solves
+    # contracted fast): within the run's rtol (1e-3) of the largest gauge
+    np.testing.assert_allclose(p, want, rtol=0, atol=1e-3 * (p.max() - P0))
     assert vol.max() > 1.5 * vol[0]
 
 
@@ -595,9 +596,10 @@ def test_adiabatic_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
     on the wall (5.3 K; (gamma - 1) dV/V of its temperature, 5.5 K, to
     first order in dV/V = 4.7 %), and the run goes on to the end, its end
     volumes within 1 % of their range from rtol 1e-4's (0.43 % / 0.069 %
-    measured at rtol 1e-2 / 1e-3). At rtol 1e-2 the snap is the fold jump; at
-    1e-3 Newton's watchdog may find the far volume itself, in a smallest step
-    (it does since Newton's tolerance follows rtol: rtol / 20)."""
+    measured at rtol 1e-2 / 1e-3). The snap is the fold jump, or Newton's
+    watchdog finds the far volume itself in a smallest step (at both rtol
+    since Newton's tolerance follows rtol, rtol / 20, and the first step
+    after a restart aims at a tenth of the tolerance)."""
     from softflow import paper_scenes as ps
 
     def run(r):
@@ -610,13 +612,9 @@ def test_adiabatic_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
     snaps = _snap_steps(res)
     assert snaps.size == 1
     i = snaps[0]
-    if rtol == 1e-2:
-        assert t[i + 1] == t[i]                               # the fold jump
-        assert mass[i + 1] == mass[i] and energy[i + 1] == energy[i]
-    else:
-        assert t[i + 1] - t[i] <= 1.0000001 * ps.duration(3) * 1e-9   # the default step_min
-        assert mass[i + 1] == pytest.approx(mass[i], rel=1e-5)
-        assert energy[i + 1] == pytest.approx(energy[i], rel=1e-5)
+    assert t[i + 1] - t[i] <= 1.0000001 * ps.duration(3) * 1e-9   # the default step_min
+    assert mass[i + 1] == pytest.approx(mass[i], rel=1e-5)           # (equal: a fold jump)
+    assert energy[i + 1] == pytest.approx(energy[i], rel=1e-5)
     gamma = 1.4
     cooling = (gamma - 1.0) * (vol[i + 1] - vol[i]) / vol[i] * T[i]
     assert T[i] - T[i + 1] == pytest.approx(cooling, rel=0.1)

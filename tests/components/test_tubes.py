@@ -264,9 +264,9 @@ def test_inertial_tube_reaches_the_steady_flow_of_the_plain_tube(method):
     assert mf[0] == 0.0
     # the steady flow, to the run's tolerance (rtol 1e-3 for BDF's last, long steps)
     assert mf[-1] == pytest.approx(mf_plain, rel=1e-4 if method == "euler" else 1e-3)
-    # overdamped: a monotone rise; backward Euler keeps it exactly, higher BDF
-    # orders within the tolerance (rtol 1e-3)
-    dip = 1e-12 if method == "euler" else 1e-3
+    # overdamped: a monotone rise; backward Euler keeps it to Newton's tolerance
+    # (rtol / 20), higher BDF orders within the tolerance (rtol 1e-3)
+    dip = 5e-5 if method == "euler" else 1e-3
     assert np.all(np.diff(mf) >= -dip * mf_plain)
 
 

@@ -393,11 +393,13 @@ def test_check_valve_blocks_reverse_flow(fluid):
     res = sf.Simulation(s, duration=0.6).run()
     mf = res.get("cv", "massflow", "a")
     assert mf.max() > 1e-6
-    # no backflow (no leakage) beyond the Newton tolerance (1e-6 of the largest flow)
-    assert mf.min() >= -1e-6 * mf.max()
+    # no backflow (no leakage) beyond Newton's tolerance (rtol / 20 = 5e-5 of
+    # the largest flow)
+    assert mf.min() >= -5e-5 * mf.max()
     m = res.get("c", "mass")
-    # the chamber only fills (higher BDF orders: within the tolerance, rtol 1e-3)
-    assert (np.diff(m) >= -1e-3 * (m.max() - m[0])).all()
+    # the chamber only fills (higher BDF orders overshoot where the valve closes:
+    # within the error test's tolerance, rtol 1e-3 of the mass)
+    assert (np.diff(m) >= -1e-3 * m.max()).all()
     # it ends within the opening band below the source's peak minus the cracking pressure
     p_end = res.get("c", "pressure")[-1]
     assert P0 + 3e4 - 2e3 - 1e3 <= p_end <= P0 + 3e4 - 2e3

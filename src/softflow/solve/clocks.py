@@ -58,8 +58,8 @@ import numpy as np
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .batched import _variant_of
-from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, GROW_MIN, MAX_FACTOR,
-                  MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST,
+from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_ESTIMATE, GROW_MIN,
+                  MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST,
                   _rescale_matrix, newton_floor_factor)
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
@@ -307,6 +307,7 @@ class VariantBDF:
         # gauge magnitude, the run's magnitudes a floor (newton_floor_factor)
         self.newton_rtol = sim._newton_rtol()
         self._floor_factor = newton_floor_factor(self.newton_rtol)
+        self._first_max = max(sim.rtol / self.newton_rtol, 1.0)
         names = sorted(set(lay.x_quantity))
         self.qid = np.array([names.index(q) for q in lay.x_quantity], dtype=np.int64)
         q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]
@@ -503,8 +504,9 @@ class VariantBDF:
                     done = nrm <= 1.0
                     trouble = np.isinf(nrm)
                 else:
-                    done = np.where(first, (nrm <= 1.0) | (nrm * np.maximum(eta, 1e-3) ** 0.8
-                                                           <= 1.0), nrm * new_eta <= 1.0)
+                    predicted = (nrm <= self._first_max) & (nrm * np.maximum(eta, 1e-3) ** 0.8
+                                                            <= 1.0)
+                    done = np.where(first, (nrm <= 1.0) | predicted, nrm * new_eta <= 1.0)
                     diverge = rate >= 0.9                # (False where first: NaN)
                     slow = ~done & ~diverge & (
                         nrm * rate ** np.maximum(limit - 1 - it, 0) / (1.0 - rate) > 1.0)
@@ -771,7 +773,7 @@ class VariantBDF:
             with np.errstate(all="ignore"):
                 ddx = 2 * (X3 - x_right - h0[:, None] * xdot) / (h0 ** 2)[:, None]
                 d2 = self._norms((r3 - r0) / h0[:, None], ddx, w)
-                h1 = np.where(d2 > 1e-15, np.sqrt(0.5 / d2),
+                h1 = np.where(d2 > 1e-15, np.sqrt(2 * FIRST_ESTIMATE / d2),
                               np.maximum(1e-6 * span_all, 1e3 * h0))
             h = np.where(ok3, np.minimum(100 * h0, h1), 0.1 * h0)
             h = np.maximum(np.minimum(np.minimum(h, span_all), self.step_max), self.step_min)

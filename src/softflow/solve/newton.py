@@ -179,6 +179,12 @@ class Newton:
         #: relative to (BDF: the largest of the run so far; a list on small
         #: systems), or None: x0's alone (:meth:`_set_scale`)
         self.scale_floor = None
+        #: the largest first update (in tolerances) the predicted contraction
+        #: alone may accept (:meth:`_first_done`); adaptive runs: rtol over
+        #: Newton's rtol, so that where the prediction fails (a chord Jacobian
+        #: from before a kink of a PV curve) the error left is within the
+        #: error test's tolerance
+        self.first_max = math.inf
         #: (quantity index of 'pressure', offset) and the offsets per unknown,
         #: or None: magnitudes of absolute values (:meth:`set_gauge`)
         self._gauge = self._x_gauge = None
@@ -324,6 +330,14 @@ class Newton:
             return nrm
         return float(_max(np.abs(dx) * self._itol)) if dx.size else 0.0
 
+    def _first_done(self, nrm):
+        """Whether a solve's first update, of norm ``nrm`` (in tolerances),
+        converges it: within the tolerance, or where the contraction seen in
+        earlier solves predicts the error left after it to be (Hairer &
+        Wanner), for an update of at most ``first_max`` tolerances."""
+        return nrm <= 1.0 or (nrm <= self.first_max
+                              and nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0)
+
     def _positive(self, x):
         """All absolute node pressures of x > 0."""
         p = x[self._p_sel]
@@ -456,7 +470,7 @@ class Newton:
                 return F, None
             self._set_scale(x0)
             nrm = self._norm(step)
-            if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
+            if not self._first_done(nrm):
                 self._one_iteration = False
                 return F, (step, nrm)
             return self._quick_accept(x0, step) or (F, (step, nrm))
@@ -483,7 +497,7 @@ class Newton:
                 if m > nrm:
                     nrm = m
         self._qtol = qtol
-        if not (nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0):
+        if not self._first_done(nrm):
             return F, (step, nrm)
         return self._quick_accept(x0, step) or (F, (step, nrm))
 
@@ -565,7 +579,7 @@ class Newton:
             else:
                 # Hairer & Wanner: the contraction seen before predicts the error
                 # left after this first update
-                done = nrm <= 1.0 or nrm * max(self.eta, 1e-3) ** 0.8 <= 1.0
+                done = self._first_done(nrm)
             if done:
                 return Outcome(True, x - step, k + 1)
             # damp only to keep the residual finite (e.g. negative pressure in a gas)
