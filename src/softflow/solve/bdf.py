@@ -276,7 +276,7 @@ class BDF(Integrator):
             # Newton's tolerances too are relative to the run's magnitudes: a
             # settled network's flows (1e-9 kg/s after 0.1) are resolved to the
             # network's flow scale, as round-off allows
-            floor = qmax * self._floor_factor if self._floor_factor != 1.0 else qmax
+            floor = qmax * self._floor_factor
             newton.scale_floor = floor.tolist() if newton._small else floor
         return np.concatenate((wS, self.atol_x + self.rtol * qmax[key]))
 
