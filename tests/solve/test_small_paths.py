@@ -192,3 +192,50 @@ def test_newton_weighs_pressures_by_their_gauge_magnitude_in_adaptive_runs():
         np.testing.assert_allclose(tol, sim._atol_vector(asm.x_quantity, 1e-3)[p]
                                    + 5e-5 * gauge, rtol=1e-12)
         assert tol.max() < 0.2 * 5e-5 * x[p].max()    # of the absolute pressure: 5x looser
+
+
+class _Matrix:
+    """What DenseLU reads of an Assembly: a dense Jacobian, and the scale
+    diagnosis (None: no component of extreme scale)."""
+
+    def __init__(self, J, diagnosis=None):
+        self.n, self._J, self._diagnosis = J.shape[0], J, diagnosis
+
+    def dense_jacobian(self):
+        return self._J.copy()
+
+    def diagnose_scale(self):
+        return self._diagnosis, None
+
+
+@pytest.mark.parametrize("n", [12, 90])          # the inverse's path, and getrs'
+def test_dense_lu_equilibrates_a_jacobian_singular_only_in_its_units(n):
+    """Rows 1e-8 and columns 1e-8 apart (the units: a gas volume's rho V = m at
+    18 MPa against a tube's pressure drop): the unscaled pivots span more than
+    1e14, R J C is well conditioned, and the solves are J's, one vector or
+    several; where the scale diagnosis names a component, J stays singular."""
+    from softflow.solve.linalg import SingularJacobian
+    rng = np.random.default_rng(5)
+    A = rng.standard_normal((n, n)) + n * np.eye(n)
+    rows = np.where(np.arange(n) % 2, 1e-8, 1.0)
+    cols = np.where(np.arange(n) % 3, 1.0, 1e-8)
+    J = rows[:, None] * A * cols
+    d = np.abs(np.diag(lu_factor(J)[0]))
+    assert d.min() < 1e-14 * d.max()               # the plain test calls it singular
+    lin = DenseLU(_Matrix(J))
+    lin.factor()
+    b = rng.standard_normal(n) * rows
+    np.testing.assert_allclose(J @ lin.solve(b), b, rtol=0, atol=1e-12 * np.abs(b).max())
+    B = rng.standard_normal((n, 3)) * rows[:, None]
+    np.testing.assert_allclose(J @ lin.solve(B), B, rtol=0, atol=1e-12 * np.abs(B).max())
+    with pytest.raises(SingularJacobian, match="singular"):
+        DenseLU(_Matrix(J, diagnosis="the scale of X is extreme")).factor()
+    # a well-scaled matrix afterwards is solved on its own factors again
+    lin2 = DenseLU(_Matrix(A))
+    lin2.factor()
+    lin2.asm._J = J
+    lin2.factor()
+    lin2.asm._J = A
+    lin2.factor()
+    c = rng.standard_normal(n)
+    np.testing.assert_allclose(A @ lin2.solve(c), c, rtol=0, atol=1e-10)

@@ -81,10 +81,14 @@ class DenseLU:
         else:
             d_min, d_max = d.min(), d.max()
         if not d_min > 1e-14 * max(d_max, 1e-300):
-            raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))
+            if not self._factor_equilibrated(J):
+                raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))
+            return
         self.lu = (lu, piv)
         self._J = J
-        if n <= INVERSE_MAX:
+        if n > INVERSE_MAX:
+            self.__dict__.pop("solve", None)      # an equilibrated factor's, if any
+        else:
             # the inverse from these factors (getri): a solve is then one
             # product. Not getrs on the identity: scipy's getrs with n right-hand
             # sides was measured at 1.1 ms for 14 unknowns (against 7 us) on
@@ -94,6 +98,50 @@ class DenseLU:
                 raise SingularJacobian("Jacobian is singular", info - 1)
             self._inv = inv
             self.solve = inv.dot
+
+    def _factor_equilibrated(self, J):
+        """Factor R J C (rows, then columns, scaled to a largest entry of 1)
+        where J's own pivots fail the singularity test but the network's
+        scales are not extreme by :meth:`Assembly.diagnose_scale`'s measure
+        (no coefficient lost to round-off within an equation, the components'
+        equations within 1e12 of each other): the unscaled pivots then only
+        reflect the units. Two air tanks settled at 18 MPa weigh a volume's
+        pressure by V/(R T) ~ 2e-11 against a tube's 1: J's pivots span more
+        than 1e14 where R J C has a condition number of ~2e5 ('singular
+        Jacobian' at t = 16 ms, adiabatic, rtol <= 1e-6, before). Where the
+        diagnosis names a component, that is the answer, and J stays
+        singular. Returns whether R J C was factored; solves are then
+        C (R J C)^-1 R."""
+        r = np.abs(J).max(axis=1)
+        if not (r > 0.0).all():
+            return False
+        Jr = J / r[:, None]
+        c = np.abs(Jr).max(axis=0)
+        if not (c > 0.0).all():
+            return False
+        lu, piv, info = dgetrf(Jr / c)
+        if info < 0:
+            return False
+        d = np.abs(lu.diagonal())
+        if not d.min() > 1e-14 * max(d.max(), 1e-300):
+            return False
+        if self.asm.diagnose_scale()[0] is not None:
+            return False
+        ir, ic = 1.0 / r, 1.0 / c
+        if self.n <= INVERSE_MAX:
+            inv, info = dgetri(lu, piv)
+            if info != 0:
+                return False
+            self._inv = inv = (ic[:, None] * inv) * ir
+            self.solve = inv.dot
+        else:
+            def solve(b):
+                x, _ = dgetrs(lu, piv, ir[:, None] * b if b.ndim > 1 else ir * b)
+                return ic[:, None] * x if x.ndim > 1 else ic * x
+            self.solve = solve
+        self.lu = (lu, piv)
+        self._J = J
+        return True
 
     @property
     def row_scale(self):
