@@ -140,3 +140,11 @@ class UserChamber(sf.Component):
                 lambda dt, mass, mf: {"mass": mass + mf * dt + 1e3 * (mf * dt) ** 2})
         else:
             self.update_state = self.auto_state(lambda dt, mass, mf: {"mass": mass + mf * dt})
+
+
+def crossing_time(t, y, level, i):
+    """When y passes ``level`` between the points i - 1 and i (linear between
+    them, not t[i]: two runs' adaptive steps differ)."""
+    if i == 0:
+        return t[0]
+    return t[i - 1] + (level - y[i - 1]) / (y[i] - y[i - 1]) * (t[i] - t[i - 1])

@@ -9,6 +9,7 @@ import pytest
 
 import softflow as sf
 from softflow import paper_scenes as ps
+from helpers import crossing_time
 
 ML = ps.ML
 PUMP = ps.FLOW / ML           # mL/s
@@ -93,11 +94,8 @@ def _half_times(res, t_in):
     t = res.times
     v2 = ps.volumes(res)[1]
     half = 0.5 * (v2.max() + v2[0])
-
-    def crossing(i):
-        return t[i - 1] + (half - v2[i - 1]) / (v2[i] - v2[i - 1]) * (t[i] - t[i - 1])
-    up = crossing(np.flatnonzero(v2 >= half)[0])
-    down = crossing(np.flatnonzero((v2 <= half) & (t > t_in))[0])
+    up = crossing_time(t, v2, half, np.flatnonzero(v2 >= half)[0])
+    down = crossing_time(t, v2, half, np.flatnonzero((v2 <= half) & (t > t_in))[0])
     return up, down
 
 

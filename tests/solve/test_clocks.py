@@ -8,8 +8,8 @@ import softflow as sf
 from softflow.solve import clocks
 from softflow.solve.batched import _run_batched, build_batch
 from softflow.solve.bdf import _rescale_matrix
-from helpers import (UserChamber, chattering_valve_scene, filling_tank, gauge_error,
-                     gauge_reference, snapping_valve_scene)
+from helpers import (UserChamber, chattering_valve_scene, crossing_time, filling_tank,
+                     gauge_error, gauge_reference, snapping_valve_scene)
 
 P0 = sf.pressure_atmospheric
 
@@ -160,10 +160,7 @@ def _first_rise(res, label="out", by=1e3):
     p = res.get(label, "pressure") - P0
     if p.max() <= by:
         return np.nan
-    i, t = int(np.argmax(p > by)), res.times
-    if i == 0:
-        return t[0]
-    return t[i - 1] + (by - p[i - 1]) / (p[i] - p[i - 1]) * (t[i] - t[i - 1])
+    return crossing_time(res.times, p, by, int(np.argmax(p > by)))
 
 
 def test_snapping_valves_switch_on_their_own_clocks():

@@ -154,7 +154,7 @@ def test_newton_tolerance_follows_rtol_in_adaptive_runs():
     """newton_rtol: 1e-6 at fixed steps; adaptive runs rtol / 20, or the value
     given where smaller; the floor of the run's magnitudes at 1e-6 of them, or
     a fifth of Newton's rtol where that is smaller."""
-    from softflow.solve.bdf import newton_floor_factor
+    from softflow.solve.bdf import newton_limits
     sim = _scene(step=None)
     assert sim.newton_rtol is None and sim._newton_rtol() == pytest.approx(1e-3 / 20)
     sim = _scene()
@@ -167,8 +167,9 @@ def test_newton_tolerance_follows_rtol_in_adaptive_runs():
     for bad in (0.0, -1e-6, float("nan")):
         with pytest.raises(ValueError, match="newton_rtol must be a finite number > 0"):
             sf.Simulation(s, duration=0.6, newton_rtol=bad)
-    assert newton_floor_factor(5e-5) == pytest.approx(0.02)         # 1e-6 of the run's
-    assert newton_floor_factor(5e-9) == pytest.approx(0.2)          # a fifth of 5e-9
+    assert newton_limits(1e-3, 5e-5) == pytest.approx((0.02, 20.0))   # 1e-6 of the run's
+    assert newton_limits(1e-7, 5e-9) == pytest.approx((0.2, 20.0))    # a fifth of 5e-9
+    assert newton_limits(1e-3, 1e-9)[1] == pytest.approx(1e6)        # a tighter Newton given
 
 
 def test_newton_weighs_pressures_by_their_gauge_magnitude_in_adaptive_runs():

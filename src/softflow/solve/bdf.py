@@ -128,11 +128,14 @@ CHATTER_STEP = 4.0
 FIRST_ESTIMATE = 0.1
 
 
-def newton_floor_factor(newton_rtol):
-    """The run's magnitudes times this are the floor of Newton's (its
+def newton_limits(rtol, newton_rtol):
+    """(floor factor, first_max) of Newton in an adaptive run at ``rtol``: the
+    run's magnitudes times the factor are the floor of Newton's scale (its
     tolerances at least NEWTON_FLOOR of them, or NEWTON_FLOOR_FRACTION of
-    Newton's rtol where that is smaller)."""
-    return min(NEWTON_FLOOR / newton_rtol, NEWTON_FLOOR_FRACTION)
+    Newton's rtol where that is smaller); first_max, the largest first update
+    (in tolerances) a predicted contraction alone may accept, rtol of the scale."""
+    return (min(NEWTON_FLOOR / newton_rtol, NEWTON_FLOOR_FRACTION),
+            max(rtol / newton_rtol, 1.0))
 
 
 @functools.lru_cache(maxsize=256)
@@ -221,13 +224,12 @@ class BDF(Integrator):
                                   pressure_atmospheric, 0.0)
         self._qmax_run = None
         # Newton weighs pressures alike, takes the run's magnitudes, scaled, as
-        # a floor (_weights; newton_floor_factor), and accepts a first update
-        # on its predicted contraction alone only up to rtol of the scale
+        # a floor (_weights), and accepts a first update on its predicted
+        # contraction alone only up to rtol of the scale (newton_limits)
         self._floor_factor = 1.0
         if newton is not None:
             newton.set_gauge(pressure_atmospheric)
-            self._floor_factor = newton_floor_factor(newton.rtol)
-            newton.first_max = max(rtol / newton.rtol, 1.0)
+            self._floor_factor, newton.first_max = newton_limits(rtol, newton.rtol)
         # independent sub-networks (e.g. the variants of a batched sweep) each
         # meet the tolerance: the error is the largest of their own norms, and
         # an unknown's scale is that of its quantity in its own sub-network

@@ -60,7 +60,7 @@ from ..fluids.base import FluidError
 from .batched import _variant_of
 from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_ESTIMATE, GROW_MIN,
                   MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST,
-                  _rescale_matrix, newton_floor_factor)
+                  _rescale_matrix, newton_limits)
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
 from .linalg import make_linear_solver
@@ -304,10 +304,9 @@ class VariantBDF:
         self.atol_x = lay.to_v(np.asarray(atol_x, dtype=float))
         self.newton_atol = 1e-3 * self.atol_x
         # as Simulation's Newton in an adaptive run: rtol / 20, pressures by their
-        # gauge magnitude, the run's magnitudes a floor (newton_floor_factor)
+        # gauge magnitude, the run's magnitudes a floor, the first update bound
         self.newton_rtol = sim._newton_rtol()
-        self._floor_factor = newton_floor_factor(self.newton_rtol)
-        self._first_max = max(sim.rtol / self.newton_rtol, 1.0)
+        self._floor_factor, self._first_max = newton_limits(sim.rtol, self.newton_rtol)
         names = sorted(set(lay.x_quantity))
         self.qid = np.array([names.index(q) for q in lay.x_quantity], dtype=np.int64)
         q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]

@@ -48,6 +48,9 @@ def all_finite(a):
 #: accuracy far coarser than the inverse's round-off, and checks convergence on it.
 INVERSE_MAX = 64
 
+#: A dense LU whose smallest pivot is at most this times its largest is singular.
+PIVOT_RTOL = 1e-14
+
 #: Up to this many unknowns the pivots' extremes are taken on a Python list
 SMALL_PIVOTS = 32
 
@@ -80,7 +83,7 @@ class DenseLU:
             d_min, d_max = min(v), max(v)
         else:
             d_min, d_max = d.min(), d.max()
-        if not d_min > 1e-14 * max(d_max, 1e-300):
+        if not d_min > PIVOT_RTOL * max(d_max, 1e-300):
             if not self._factor_equilibrated(J):
                 raise SingularJacobian("Jacobian is singular", int(np.argmin(d)))
             return
@@ -123,7 +126,7 @@ class DenseLU:
         if info < 0:
             return False
         d = np.abs(lu.diagonal())
-        if not d.min() > 1e-14 * max(d.max(), 1e-300):
+        if not d.min() > PIVOT_RTOL * max(d.max(), 1e-300):
             return False
         if self.asm.diagnose_scale()[0] is not None:
             return False

@@ -146,17 +146,16 @@ def tube_reynolds(g, result):
     for j in np.flatnonzero(fractions >= NEAR_FRACTION):
         c, k = comps[j], int(peak_at[j])
         re = re_all[:, j]
-        fraction = float(fractions[j])
-        if grade(fraction):
-            out.append(_record(
-                c, "tube_reynolds", re[k], c.Re_laminar, "", fraction,
-                "use a turbulent correlation (friction='Haaland', the default, blends "
-                "laminar and turbulent flow)",
-                f"Reynolds number reached {re[k]:.4g} at t = {tt[k, j]:.6g} s, "
-                f"{_past(fraction, f'Re_laminar = {c.Re_laminar:g}')} of its "
-                "friction='laminar' law" + (", which then under-predicts the pressure drop."
-                                            if fraction > 1 else "."),
-                time=float(tt[k, j])))
+        fraction = float(fractions[j])         # graded 'near' or 'beyond' by the filter
+        out.append(_record(
+            c, "tube_reynolds", re[k], c.Re_laminar, "", fraction,
+            "use a turbulent correlation (friction='Haaland', the default, blends "
+            "laminar and turbulent flow)",
+            f"Reynolds number reached {re[k]:.4g} at t = {tt[k, j]:.6g} s, "
+            f"{_past(fraction, f'Re_laminar = {c.Re_laminar:g}')} of its "
+            "friction='laminar' law" + (", which then under-predicts the pressure drop."
+                                        if fraction > 1 else "."),
+            time=float(tt[k, j])))
     return out
 
 
