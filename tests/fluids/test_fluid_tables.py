@@ -38,6 +38,42 @@ def test_bicubic_reproduces_a_bicubic_polynomial_with_its_gradient():
     assert np.allclose(vb, fb(a, b), rtol=0, atol=1e-10)
 
 
+@pytest.mark.parametrize("shape", [(), (1,), (3,), (2, 2), (5,), (40,)])
+def test_few_point_path_gives_the_array_paths_numbers_bitwise(shape, monkeypatch):
+    """Up to hermite.FEW_POINTS points are evaluated on Python floats: the same
+    numbers, types and shapes as the array path, at cell borders, past the
+    axis ends (the end cells extended) and for the 1-D slice too."""
+    from softflow.fluids import hermite
+    x, y = UniformAxis(-1.0, 2.0, 7), UniformAxis(0.0, 5.0, 9)
+    rng = np.random.default_rng(11)
+    interp = Bicubic(x, y, rng.normal(size=(7, 9)))
+    line = interp.slice_at_y(1.7)
+    a = rng.uniform(-1.5, 2.5, shape)
+    b = rng.uniform(-0.5, 5.5, shape)
+    if a.size:
+        a.flat[0], b.flat[0] = x.nodes[3], y.nodes[4]          # on a border
+    outs = {}
+    for few in (hermite.FEW_POINTS, -1):
+        monkeypatch.setattr(hermite, "FEW_POINTS", few)
+        outs[few] = [interp(a, b), *interp(a, b, grad=True), line(a), *line(a, grad=True)]
+    for got, want in zip(*outs.values()):
+        assert type(got) is type(want) and np.shape(got) == np.shape(want)
+        assert np.array_equal(got, want)
+
+
+def test_few_point_path_leaves_non_finite_points_to_the_array_path(monkeypatch):
+    from softflow.fluids import hermite
+    x, y = UniformAxis(0.0, 1.0, 5), UniformAxis(0.0, 1.0, 5)
+    interp = Bicubic(x, y, np.arange(25.0).reshape(5, 5))
+    calls = []
+    array_path = UniformAxis.locate
+    monkeypatch.setattr(UniformAxis, "locate", lambda self, v: calls.append(v) or array_path(self, v))
+    interp(np.array([0.5]), np.array([0.5]))
+    assert not calls                                    # one finite point: floats
+    interp(np.array([np.nan]), np.array([0.5]))         # whatever the array path gives
+    assert calls
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_value_and_first_derivatives_continuous_across_cell_borders(name):
     table = _table(name)
@@ -236,3 +272,29 @@ def test_table_from_another_coolprop_patch_release_is_used_with_a_warning(table_
     with pytest.warns(UserWarning, match=rf"built with CoolProp {major}\.{minor}\.999"):
         water = sf.Fluid("water", level="table", tables_dir=table_copy)
     assert water.density(2e5) > 990
+
+
+@pytest.mark.parametrize("name", ["air", "water"])
+@pytest.mark.parametrize("n", [1, 3, 12])
+@pytest.mark.parametrize("out_of_range", ["raise", "eos"])
+def test_thermal_parts_from_one_lookup_equal_the_public_methods(name, n, out_of_range):
+    """The thermal kernels' (value, d/dp, d/dT) of enthalpy, internal energy and
+    density come from one interpolation at the table level: bitwise the numbers
+    of the three public methods each (and the per-property path with the
+    CoolProp fallback, or at the fluid's own temperature)."""
+    fluid = getattr(sf, name).with_level("table", out_of_range=out_of_range)
+    rng = np.random.default_rng(n)
+    (p_lo, p_hi), (T_lo, T_hi) = fluid.p_range, fluid.T_range
+    p = rng.uniform(max(p_lo, 1e5), min(p_hi, 5e6), n)
+    T = rng.uniform(T_lo + 5, min(T_hi, 360.0) - 5, n)
+    for prop in ("enthalpy", "internal_energy", "density"):
+        parts = getattr(fluid, f"_{prop}_parts")
+        want = [getattr(fluid, prop)(p, T), getattr(fluid, f"{prop}_dp")(p, T),
+                getattr(fluid, f"{prop}_dT")(p, T)]
+        for got, w in zip(parts(p, T, True), want):
+            assert np.array_equal(got, w), prop
+        value, none_p, none_T = parts(p, T, False)
+        assert np.array_equal(value, want[0]) and none_p is None and none_T is None
+    if out_of_range == "raise":
+        with pytest.raises(sf.FluidError, match="outside the table range"):
+            fluid._enthalpy_parts(np.full(n, 2 * p_hi), T, True)

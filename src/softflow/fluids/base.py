@@ -228,8 +228,10 @@ def broadcast_state(fluid, p, T):
     """(p, T, scalar?) as float arrays of one shape; T None means the fluid's temperature."""
     if T is None:
         T = fluid.temperature
-    scalar = np.ndim(p) == 0 and np.ndim(T) == 0
-    p, T = np.broadcast_arrays(np.asarray(p, dtype=float), np.asarray(T, dtype=float))
+    p, T = np.asarray(p, dtype=float), np.asarray(T, dtype=float)
+    scalar = p.ndim == 0 and T.ndim == 0
+    if p.shape != T.shape:      # (broadcast_arrays returns arrays of one shape as they are)
+        p, T = np.broadcast_arrays(p, T)
     return p, T, scalar
 
 

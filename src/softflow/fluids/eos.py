@@ -78,31 +78,43 @@ def _distinct(value: float, *bounds: float) -> str:
     return f"{value:.12g}" if short in (f"{b:g}" for b in bounds) else short
 
 
-def check_state_range(owner: str, p: Array, T: Array, T_range: tuple[float, float],
+def check_state_range(owner: object, p: Array, T: Array, T_range: tuple[float, float],
                       p_range: tuple[float, float], what: str) -> None:
-    """Raise a FluidError naming the first bad quantity, its value and the valid range."""
+    """Raise a FluidError naming the first bad quantity, its value and the valid range.
+    ``owner``: a name, or the fluid (its repr is made only for a message)."""
     p_lo, p_hi = p_range
     T_lo, T_hi = T_range
     if p.size == 0:
         return
-    pmin, pmax = p.min(), p.max()
+    if p.size == 1:       # the usual call of a small network's group: no reductions
+        pmin = pmax = p.item()
+        Tmin = Tmax = T.item()
+    else:
+        pmin, pmax = p.min(), p.max()
+        Tmin, Tmax = T.min(), T.max()
+    # a hair of slack: unit conversions round (-40 degC is 233.14999999999998 K)
+    slack_p, slack_T = (1e-9 * abs(p_lo), 1e-9 * abs(p_hi)), (1e-9 * abs(T_lo), 1e-9 * abs(T_hi))
+    if (pmin > 0 and Tmin > 0 and pmin >= p_lo - slack_p[0] and pmax <= p_hi + slack_p[1]
+            and Tmin >= T_lo - slack_T[0] and Tmax <= T_hi + slack_T[1]
+            and np.isfinite(pmax) and np.isfinite(Tmax)):
+        return
+    name_of = owner if isinstance(owner, str) else repr(owner)
     if not pmin > 0:
-        raise FluidError(f"{owner}: pressure {pmin:g} Pa is not a positive absolute pressure "
+        raise FluidError(f"{name_of}: pressure {pmin:g} Pa is not a positive absolute pressure "
                          f"(softflow pressures are absolute; valid {what} range "
                          f"{p_lo:g} ... {p_hi:g} Pa)")
-    Tmin, Tmax = T.min(), T.max()
     if not Tmin > 0:
-        raise FluidError(f"{owner}: temperature {Tmin:g} K is not a positive absolute "
+        raise FluidError(f"{name_of}: temperature {Tmin:g} K is not a positive absolute "
                          f"temperature (valid {what} range {T_lo:g} ... {T_hi:g} K)")
-    for name, unit, lo, hi, vmin, vmax in (("pressure", "Pa", p_lo, p_hi, pmin, pmax),
-                                           ("temperature", "K", T_lo, T_hi, Tmin, Tmax)):
-        # a hair of slack: unit conversions round (-40 degC is 233.14999999999998 K)
-        if vmin < lo - 1e-9 * abs(lo) or vmax > hi + 1e-9 * abs(hi):
+    for name, unit, lo, hi, vmin, vmax, (s_lo, s_hi) in (
+            ("pressure", "Pa", p_lo, p_hi, pmin, pmax, slack_p),
+            ("temperature", "K", T_lo, T_hi, Tmin, Tmax, slack_T)):
+        if vmin < lo - s_lo or vmax > hi + s_hi:
             bad = vmin if vmin < lo else vmax
-            raise FluidError(f"{owner}: {name} {_distinct(bad, lo, hi)} {unit} is outside the {what} range "
-                             f"{lo:g} ... {hi:g} {unit}")
+            raise FluidError(f"{name_of}: {name} {_distinct(bad, lo, hi)} {unit} is outside "
+                             f"the {what} range {lo:g} ... {hi:g} {unit}")
         if not (np.isfinite(vmin) and np.isfinite(vmax)):
-            raise FluidError(f"{owner}: {name} is not finite")
+            raise FluidError(f"{name_of}: {name} is not finite")
 
 
 class EosFluid(Fluid):
@@ -156,7 +168,7 @@ class EosFluid(Fluid):
     def _eval(self, prop: str, p: Any, T: Any) -> Any:   # p, T: SIArrayLike
         getter = self._getters[prop]
         p, T, scalar = broadcast_state(self, p, T)
-        check_state_range(repr(self), p, T, self.T_range, self.p_range, "CoolProp")
+        check_state_range(self, p, T, self.T_range, self.p_range, "CoolProp")
         out = np.empty(p.shape)
         flat = out.reshape(-1)
         update, PT = self._state.update, self._PT

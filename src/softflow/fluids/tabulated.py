@@ -107,7 +107,7 @@ class TableFluid(Fluid):
                 return compute(pa, None) if pa.ndim else float(compute(pa, None))
         p, T, scalar = broadcast_state(self, p, T)
         if self.out_of_range == "raise":
-            check_state_range(repr(self), p, T, self.T_range, self.p_range, "table")
+            check_state_range(self, p, T, self.T_range, self.p_range, "table")
             out = compute(p, T)
         else:
             (p_lo, p_hi), (T_lo, T_hi) = self.p_range, self.T_range
@@ -163,6 +163,56 @@ class TableFluid(Fluid):
 
     def density_dT(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("density_dT", self._density_dT, p, T)
+
+    # -- value and derivatives from one lookup (components.thermal._parts) ----------------
+    def _lookup3(self, key: str, p: Any, T: Any, jac: bool) -> tuple[Any, Any, Any] | None:
+        """(value, d/dp, d/dT) of tabulated ``key`` at states within the table,
+        from one interpolation (the public methods make one each), or None where
+        the per-property methods decide (an out-of-range fallback to CoolProp,
+        the fluid's own temperature, scalars)."""
+        if self.out_of_range != "raise" or T is None:
+            return None
+        p, T, scalar = broadcast_state(self, p, T)
+        if scalar:
+            return None
+        check_state_range(self, p, T, self.T_range, self.p_range, "table")
+        if key not in self.table.values:
+            raise NotImplementedError(self._missing(key))
+        interp = self.table.interpolant(key)
+        return interp(p, T, grad=True) if jac else (interp(p, T), None, None)
+
+    def _public_parts(self, name: str, p: Any, T: Any, jac: bool) -> tuple[Any, Any, Any]:
+        value = getattr(self, name)(p, T)
+        if not jac:
+            return value, None, None
+        return value, getattr(self, f"{name}_dp")(p, T), getattr(self, f"{name}_dT")(p, T)
+
+    def _enthalpy_parts(self, p: Any, T: Any, jac: bool) -> tuple[Any, Any, Any]:
+        """(h, dh/dp, dh/dT) (None, None without ``jac``), the same numbers as
+        :meth:`enthalpy`, :meth:`enthalpy_dp` and :meth:`enthalpy_dT`."""
+        got = self._lookup3("enthalpy", p, T, jac)
+        return self._public_parts("enthalpy", p, T, jac) if got is None else got
+
+    def _internal_energy_parts(self, p: Any, T: Any, jac: bool) -> tuple[Any, Any, Any]:
+        """(u, du/dp, du/dT) as :meth:`_enthalpy_parts`."""
+        got = self._lookup3("internal_energy", p, T, jac)
+        return self._public_parts("internal_energy", p, T, jac) if got is None else got
+
+    def _density_parts(self, p: Any, T: Any, jac: bool) -> tuple[Any, Any, Any]:
+        """(rho, drho/dp, drho/dT) as :meth:`_enthalpy_parts`; a gas's from Z and
+        its gradient by the formulas of :meth:`_density` and its derivatives."""
+        got = self._lookup3("density" if self.liquid else "Z", p, T, jac)
+        if got is None:
+            return self._public_parts("density", p, T, jac)
+        if self.liquid:
+            return got
+        Z, Zp, ZT = got
+        p, T = broadcast_state(self, p, T)[:2]
+        rho = p / (Z * self.R * T)
+        if not jac:
+            return rho, None, None
+        return (rho, (1.0 - p * Zp / Z) / (Z * self.R * T),
+                -p / (Z * self.R * T) * (1.0 / T + ZT / Z))
 
     def viscosity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("viscosity", lambda p, T: self._get("viscosity", p, T), p, T)
