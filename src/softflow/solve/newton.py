@@ -189,6 +189,11 @@ class Newton:
         #: or None: magnitudes of absolute values (:meth:`set_gauge`)
         self._gauge = self._x_gauge = None
 
+    #: whether a solve whose chord iterations fail on fresh factors goes on to
+    #: the damped full stage (:meth:`_full`); BDF turns it off on steps it
+    #: would rather cut (:data:`softflow.solve.bdf.FULL_STAGE_STEPS`)
+    full_stage = True
+
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
         self.stale = True
@@ -424,6 +429,8 @@ class Newton:
         if last is None or not last.reason.startswith(("singular", "absolute pressure")):
             for stage in ("fresh", "full"):
                 self.fluid_error = None       # each stage reports its own fluid-range error
+                if stage == "full" and not self.full_stage:
+                    break
                 if stage == "fresh":
                     out = self._chord(x0, S, t, dt, stage)
                 elif last is not None and last.contracting:
