@@ -76,9 +76,8 @@ import math
 
 import numpy as np
 
-from ..constants import pressure_atmospheric
 from .integrator import Integrator, StepFailure
-from .newton import Outcome
+from .newton import Outcome, gauge_offsets
 
 MAX_ORDER = 5
 #: g_j = sum_{i<=j} 1/i, the BDF coefficients in backward-difference form
@@ -231,15 +230,14 @@ class BDF(Integrator):
         # pressures are scaled by their gauge magnitude: what a network of soft
         # actuators does is set by pressure differences of a fraction of an
         # atmosphere, which rtol of the absolute pressure would hold 3-10x looser
-        self._x_offset = np.where(np.asarray(asm.x_quantity) == "pressure",
-                                  pressure_atmospheric, 0.0)
+        self._x_offset = gauge_offsets(asm.x_quantity)
         self._qmax_run = None
         # Newton weighs pressures alike, takes the run's magnitudes, scaled, as
         # a floor (_weights), and accepts a first update on its predicted
         # contraction alone only up to rtol of the scale (newton_limits)
         self._floor_factor = 1.0
         if newton is not None:
-            newton.set_gauge(pressure_atmospheric)
+            newton.set_gauge()
             self._floor_factor, newton.first_max = newton_limits(rtol, newton.rtol)
         # independent sub-networks (e.g. the variants of a batched sweep) each
         # meet the tolerance: the error is the largest of their own norms, and

@@ -55,7 +55,6 @@ import math
 
 import numpy as np
 
-from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .batched import _variant_of
 from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_ESTIMATE, GROW_MIN,
@@ -64,7 +63,7 @@ from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_EST
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
 from .linalg import make_linear_solver
-from .newton import Newton, Stats
+from .newton import Newton, Stats, gauge_offsets
 
 #: Newton on the batch: chord iterations, at most NEWTON_MAX on fresh factors.
 #: Dense blocks get fresh factors at every pass: one Jacobian evaluation of the
@@ -315,8 +314,7 @@ class VariantBDF:
         q_cols = [np.flatnonzero(self.qid == q) for q in range(len(names))]
         self._q_order = np.concatenate(q_cols)
         self._q_starts = np.cumsum([0] + [c.size for c in q_cols[:-1]])
-        self.offset = np.where(np.array(lay.x_quantity, dtype=object) == "pressure",
-                               pressure_atmospheric, 0.0)
+        self.offset = gauge_offsets(lay.x_quantity)
         # absolute node pressures (the first n_across unknowns) must stay positive
         across = lay.xperm[:lay.nx] < asm.n_across
         self.p_cols = np.flatnonzero((np.array(lay.x_quantity, dtype=object) == "pressure")

@@ -35,9 +35,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .linalg import DOT_MAX, SingularJacobian, all_finite  # noqa: F401 (DOT_MAX: re-exported)
 
+
+
+def gauge_offsets(quantities, offset=pressure_atmospheric):
+    """Per unknown, what its magnitude is counted from: ``offset`` (the
+    atmosphere) for a pressure, 0 for any other quantity. Newton's scale
+    (:meth:`Newton.set_gauge`), BDF's error weights and the batched engine's
+    take a pressure's magnitude as its gauge |p - offset|."""
+    return np.where(np.asarray(quantities, dtype=object) == "pressure", float(offset), 0.0)
 
 @dataclass
 class Stats:
@@ -295,18 +304,20 @@ class Newton:
             qmax[q] = max(qmax[q], factor * qmax[base])
         return qmax
 
-    def set_gauge(self, offset):
+    def set_gauge(self, offset=None):
         """Take the magnitude of the quantity 'pressure' as |p - offset| (the
         gauge pressure, with ``offset`` the atmosphere), as the adaptive error
         test weighs it, instead of |p|: at a tolerance that follows rtol (an
         adaptive run's rtol / 20), an air network's 0.1 bar swing on 1 bar
-        would otherwise be resolved to a tenth of that."""
+        would otherwise be resolved to a tenth of that. ``offset``: default
+        the atmosphere (:func:`gauge_offsets`)."""
         names = self._q_names
         if "pressure" not in names:
             return
         q = names.index("pressure")
-        self._gauge = (q, float(offset))
-        self._x_gauge = np.where(self._qid == q, float(offset), 0.0)
+        offset = pressure_atmospheric if offset is None else float(offset)
+        self._gauge = (q, offset)
+        self._x_gauge = gauge_offsets(self.asm.x_quantity, offset)
 
     def _raise_scale(self, x):
         """Raise this solve's tolerances (never lower them) to what
