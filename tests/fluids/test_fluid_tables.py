@@ -67,7 +67,8 @@ def test_few_point_path_leaves_non_finite_points_to_the_array_path(monkeypatch):
     interp = Bicubic(x, y, np.arange(25.0).reshape(5, 5))
     calls = []
     array_path = UniformAxis.locate
-    monkeypatch.setattr(UniformAxis, "locate", lambda self, v: calls.append(v) or array_path(self, v))
+    monkeypatch.setattr(UniformAxis, "locate",
+                        lambda self, v: calls.append(v) or array_path(self, v))
     interp(np.array([0.5]), np.array([0.5]))
     assert not calls                                    # one finite point: floats
     interp(np.array([np.nan]), np.array([0.5]))         # whatever the array path gives

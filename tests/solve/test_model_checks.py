@@ -192,3 +192,25 @@ def test_a_run_refused_from_its_start_stops_at_once():
         warned = sf.Simulation(scene(), duration=0.5, beyond_limits="warn").run()
     assert warned.status == "success" and warned.stats["steps"] > 10
     assert any(w.check == "tube_choked" for w in warned.warnings)
+
+
+def test_largest_on_ranges_is_the_per_range_search():
+    """gas_compressibility's Z - 1 of largest magnitude over each volume's own
+    pressure range, found for all the volumes at once, equals the search made
+    range by range (ends interpolated, grid points strictly inside)."""
+    from softflow.solve.model_checks import _largest_on_ranges
+    rng = np.random.default_rng(5)
+    grid = np.unique(np.geomspace(1e5, 2e7, 12))
+    rows = rng.normal(scale=0.02, size=(2, grid.size))
+    lo = rng.uniform(5e4, 2e7, 40)
+    hi = np.minimum(lo * rng.uniform(1.0, 50.0, 40), 3e7)
+    lo[0] = hi[0] = grid[2]                              # one point, a grid point
+    lo[1], hi[1] = grid[2], grid[5]                      # ends on grid points
+    lo[3], hi[3] = np.nan, np.nan                        # a volume without pressures
+    got = _largest_on_ranges(grid, rows, lo, hi)
+    for j in range(lo.size):
+        inside = grid[(grid > lo[j]) & (grid < hi[j])]
+        at = np.concatenate([[lo[j], hi[j]], inside])
+        z = np.concatenate([np.interp(at, grid, row) for row in rows])
+        want = z[np.argmax(np.abs(z))]
+        assert got[j] == want or (np.isnan(want) and np.isnan(got[j])), j

@@ -191,8 +191,8 @@ class BDF(Integrator):
     replaced by psi and the step by c (module docstring), reusing LU factors
     as in backward Euler; where its chord iterations fail on fresh factors,
     the step is cut by 4 (its damped full stage only on the shortest steps,
-    :data:`FULL_STAGE_STEPS`). The error test covers the continuous states and the
-    nodes' across unknowns (pressures, temperatures; module docstring);
+    :data:`FULL_STAGE_STEPS`). The error test covers the continuous states
+    and the nodes' across unknowns (pressures, temperatures; module docstring);
     discrete states are left out (a switch restarts the method).
     Alongside, the integrals of the recorded unknowns are integrated by the
     same formula (:meth:`softflow.solve.result.Result.integral`)."""

@@ -314,6 +314,19 @@ def compressibility_bound(name, t_low, t_high, p):
     return bound if one else np.max(bound, axis=-1)
 
 
+def _largest_on_ranges(grid, rows, lo, hi):
+    """Per range [lo_j, hi_j], the value of largest magnitude of the piecewise
+    linear functions ``rows`` (each sampled on ``grid``, ascending) over it: at
+    its two ends and at the grid points strictly between them, every row
+    (the first such value where magnitudes tie). One array operation for all
+    the ranges (a loop over them cost ~8 us a range)."""
+    inside = (grid > lo[:, None]) & (grid < hi[:, None])
+    z = np.concatenate([part for row in rows for part in (
+        np.interp(lo, grid, row)[:, None], np.interp(hi, grid, row)[:, None],
+        np.where(inside, row, 0.0))], axis=1)
+    return z[np.arange(lo.size), np.argmax(np.abs(z), axis=1)]
+
+
 def gas_compressibility(g, result):
     """One record per gas volume of group ``g`` whose ideal-gas density is off
     by ``|Z - 1|`` near or past the limit over its own pressures (volumes at
@@ -367,15 +380,7 @@ def gas_compressibility(g, result):
                             for tt in T])
     except Exception:        # a state outside CoolProp's range
         return []
-    # per volume asked, the Z - 1 of largest magnitude over its own pressure range:
-    # at its two ends and at the grid points between them, at each temperature
-    # (one array operation for all the volumes: a loop cost ~8 us a volume)
-    lo_j, hi_j = p_min[asked], p_max[asked]
-    inside = (grid > lo_j[:, None]) & (grid < hi_j[:, None])
-    z = np.concatenate([part for row in dz_grid for part in (
-        np.interp(lo_j, grid, row)[:, None], np.interp(hi_j, grid, row)[:, None],
-        np.where(inside, row, 0.0))], axis=1)
-    dz_j = z[np.arange(asked.size), np.argmax(np.abs(z), axis=1)]
+    dz_j = _largest_on_ranges(grid, dz_grid, p_min[asked], p_max[asked])
     out = []
     for j, dz in zip(asked.tolist(), dz_j.tolist()):
         fraction = abs(dz) / limit

@@ -40,13 +40,13 @@ from ..fluids.base import FluidError
 from .linalg import DOT_MAX, SingularJacobian, all_finite  # noqa: F401 (DOT_MAX: re-exported)
 
 
-
 def gauge_offsets(quantities, offset=pressure_atmospheric):
     """Per unknown, what its magnitude is counted from: ``offset`` (the
     atmosphere) for a pressure, 0 for any other quantity. Newton's scale
     (:meth:`Newton.set_gauge`), BDF's error weights and the batched engine's
     take a pressure's magnitude as its gauge |p - offset|."""
     return np.where(np.asarray(quantities, dtype=object) == "pressure", float(offset), 0.0)
+
 
 @dataclass
 class Stats:
