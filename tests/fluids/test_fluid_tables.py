@@ -61,6 +61,23 @@ def test_few_point_path_gives_the_array_paths_numbers_bitwise(shape, monkeypatch
         assert np.array_equal(got, want)
 
 
+def test_few_point_path_leaves_other_queries_to_the_array_path(monkeypatch):
+    """Queries of two shapes (broadcast) and float32 ones (computed in float32
+    there) keep the array path's answer."""
+    from softflow.fluids import hermite
+    x, y = UniformAxis(0.0, 1.0, 6), UniformAxis(0.0, 2.0, 7)
+    interp = Bicubic(x, y, np.random.default_rng(2).normal(size=(6, 7)))
+    queries = [(0.3, np.array([0.1, 0.9, 1.7])), (np.array([0.3]), np.array([0.1, 0.9])),
+               (np.float32([0.3, 0.7]), np.float32([0.4, 1.1]))]
+    outs = {}
+    for few in (hermite.FEW_POINTS, -1):
+        monkeypatch.setattr(hermite, "FEW_POINTS", few)
+        outs[few] = [v for xq, yq in queries for v in interp(xq, yq, grad=True)]
+    for got, want in zip(*outs.values()):
+        assert got.dtype == want.dtype and got.shape == want.shape
+        assert np.array_equal(got, want)
+
+
 def test_few_point_path_leaves_non_finite_points_to_the_array_path(monkeypatch):
     from softflow.fluids import hermite
     x, y = UniformAxis(0.0, 1.0, 5), UniformAxis(0.0, 1.0, 5)
@@ -299,3 +316,14 @@ def test_thermal_parts_from_one_lookup_equal_the_public_methods(name, n, out_of_
     if out_of_range == "raise":
         with pytest.raises(sf.FluidError, match="outside the table range"):
             fluid._enthalpy_parts(np.full(n, 2 * p_hi), T, True)
+
+
+def test_range_check_names_the_bad_state_for_one_pressure_and_several_temperatures():
+    from softflow.fluids.eos import check_state_range
+    with pytest.raises(sf.FluidError, match=r"^F: temperature 5000 K is outside the table "
+                                             r"range 200 \.\.\. 400 K"):
+        check_state_range("F", np.array([1e5]), np.array([300.0, 5000.0]), (200.0, 400.0),
+                          (1e3, 1e7), "table")
+    air = sf.air.with_level("table")
+    with pytest.raises(sf.FluidError, match=r"^<.*air.*>: pressure 3e\+07 Pa is outside"):
+        air.density(np.array([3e7]), np.array([300.0]))    # the fluid's repr, made for the message

@@ -86,7 +86,7 @@ def check_state_range(owner: object, p: Array, T: Array, T_range: tuple[float, f
     T_lo, T_hi = T_range
     if p.size == 0:
         return
-    if p.size == 1:       # the usual call of a small network's group: no reductions
+    if p.size == 1 and T.size == 1:   # a small network's usual call: no reductions
         pmin = pmax = p.item()
         Tmin = Tmax = T.item()
     else:

@@ -80,7 +80,8 @@ class Bicubic:
 
     def __call__(self, xq, yq, *, grad=False):
         """Value at (xq, yq) (arrays of one shape); with ``grad`` also d/dx and d/dy."""
-        if np.size(xq) <= FEW_POINTS:
+        if np.size(xq) <= FEW_POINTS and np.shape(xq) == np.shape(yq) and \
+                _as_float64(xq) and _as_float64(yq):
             few = self._few(xq, yq, grad)
             if few is not None:
                 return few
@@ -139,7 +140,7 @@ class Cubic:
         self.coef = np.ascontiguousarray(coef)
 
     def __call__(self, xq, *, grad=False):
-        if np.size(xq) <= FEW_POINTS:
+        if np.size(xq) <= FEW_POINTS and _as_float64(xq):
             few = self._few(xq, grad)
             if few is not None:
                 return few
@@ -166,6 +167,13 @@ class Cubic:
         if not grad:
             return _shaped(fs, shape)
         return _shaped(fs, shape), _shaped(fxs, shape)
+
+
+def _as_float64(v):
+    """Whether the array path computes ``v`` in float64 (as the float path
+    does): Python numbers, float64, integer and boolean arrays; not float32."""
+    dt = getattr(v, "dtype", None)
+    return dt is None or dt == np.float64 or dt.kind in "iub"
 
 
 def _locate(axis, v):

@@ -126,13 +126,16 @@ CHATTER_STEP = 4.0
 #: first two steps 0.02 s each), 0.047 % at 1/10 (104 steps against 99)
 FIRST_ESTIMATE = 0.1
 #: Newton's damped full stage (a fresh Jacobian at every iterate, a line
-#: search) is tried only on steps of at most this many step_min; on a longer
-#: step whose chord iterations fail on fresh factors the step is rejected and
-#: cut by 4 at once, as IDA does (a shorter step is the cheaper cure: its
-#: predictor is closer). Measured on the nine paper scenes at the default
-#: rtol: factorizations 1 445 -> 1 123, residual evaluations 7 556 -> 5 988,
-#: steps 2 089 -> 2 243; Fig. 5 with air 481 -> 257 factorizations (its
-#: snaps: a failing full stage cost ~12 factorizations each).
+#: search) and, in thermal scenes, its flows-first stage are tried only on
+#: steps of at most this many step_min; on a longer step whose chord
+#: iterations fail on fresh factors the step is rejected and cut by 4 at
+#: once, as IDA does (a shorter step is the cheaper cure: its predictor is
+#: closer). Measured on the nine paper scenes at the default rtol:
+#: factorizations 1 445 -> 1 123, residual evaluations 7 556 -> 5 988, steps
+#: 2 089 -> 2 243; Fig. 5 with air 481 -> 257 factorizations (its snaps: a
+#: failing full stage cost ~12 factorizations each); Fig. 3's three scenes
+#: with air, adiabatic: factorizations 1 331 -> 542, residual evaluations
+#: 6 679 -> 2 333, steps 726 -> 723.
 FULL_STAGE_STEPS = 4.0
 
 

@@ -199,7 +199,8 @@ class Newton:
         self._gauge = self._x_gauge = None
 
     #: whether a solve whose chord iterations fail on fresh factors goes on to
-    #: the damped full stage (:meth:`_full`); BDF turns it off on steps it
+    #: the damped full stage (:meth:`_full`) and, in thermal scenes, the
+    #: flows-first stage (:meth:`_flows_first`); BDF turns it off on steps it
     #: would rather cut (:data:`softflow.solve.bdf.FULL_STAGE_STEPS`)
     full_stage = True
 
@@ -456,7 +457,7 @@ class Newton:
                     return out
                 if last.reason.startswith(("singular", "absolute pressure")):
                     break
-        if (self._E_rows.size == self._T_idx.size > 0
+        if (self.full_stage and self._E_rows.size == self._T_idx.size > 0
                 and not last.reason.startswith("absolute pressure")):
             out = self._flows_first(x0, S, t, dt)
             if out is not None and out.converged and self._accept(out) is None:
