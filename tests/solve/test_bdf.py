@@ -556,3 +556,36 @@ def test_newton_full_stage_only_on_the_shortest_steps(monkeypatch):
     for a, b in ((a1, b1), (a2, b2)):
         assert a.max() == pytest.approx(b.max(), rel=1e-3)
         assert a.min() == pytest.approx(b.min(), rel=1e-3)
+
+
+def test_newton_flows_first_stage_only_on_the_shortest_steps(monkeypatch):
+    """In a thermal scene the last Newton stage (the flows with the node
+    temperatures held) is also kept to the shortest steps: Fig. 3's peak-valley
+    scene with air, adiabatic, with fewer than 0.6x the factorizations of the
+    stages at every step and the same sequence."""
+    from softflow import paper_scenes as ps
+    from softflow.solve import bdf
+    from softflow.solve.newton import Newton
+    entered = []
+    flows_first = Newton._flows_first
+
+    def spy(self, *args):
+        entered.append(self.full_stage)
+        return flows_first(self, *args)
+    monkeypatch.setattr(Newton, "_flows_first", spy)
+
+    def run():
+        res, _ = ps.run(ps.fig3("peak-valley", fluid=sf.air), 3, thermal="adiabatic")
+        assert res.success
+        return res
+    cut = run()
+    assert all(entered)                   # only where allowed
+    entered.clear()
+    monkeypatch.setattr(bdf, "FULL_STAGE_STEPS", math.inf)
+    always = run()
+    assert entered                        # the scene does reach that stage
+    assert cut.stats["factorizations"] < 0.6 * always.stats["factorizations"]
+    (a1, a2), (b1, b2) = ps.volumes(cut), ps.volumes(always)
+    assert ps.enclosed_area(a1, a2) == pytest.approx(ps.enclosed_area(b1, b2), rel=1e-2)
+    for a, b in ((a1, b1), (a2, b2)):
+        assert a.max() == pytest.approx(b.max(), rel=1e-3)
