@@ -554,6 +554,19 @@ def test_work_is_the_integral_of_the_pressure(extrapolate):
     h = 1e-12
     np.testing.assert_allclose((c.work(vols + h) - c.work(vols - h)) / (2 * h), c(vols),
                                rtol=1e-6)
+    # one volume at a time (the list path of an actuator alone in its group):
+    # bitwise the numbers of the array path
+    for V, w in zip(vols, c.work(vols)):
+        one = c.work(np.array([V]))
+        assert one.shape == (1,) and one[0] == w
+
+
+def test_work_of_one_volume_beyond_the_data_is_refused():
+    from softflow.curves.pvcurve import CurveRangeError
+    c = sf.PVCurve(volume=[1e-6, 2e-6, 3e-6], pressure=[1e5, 1.2e5, 1.3e5], extrapolate="error")
+    for bad in ([0.5e-6], [3.5e-6], [0.5e-6, 2e-6]):
+        with pytest.raises(CurveRangeError, match="beyond its data"):
+            c.work(np.array(bad))
 
 
 def test_hysteresis_work_is_continuous_through_the_handover():

@@ -182,6 +182,7 @@ class PVCurve:
         self._w0 = np.concatenate([[0.0, 0.0], np.cumsum(full)])
         # the scalar path (one volume per call, as in a user component) runs on lists
         self._vl = v.tolist()
+        self._wl = self._w0.tolist()
         self._tl = list(zip(self._base.tolist(), self._c0.tolist(), self._c1.tolist(),
                             self._c2.tolist(), self._c3.tolist()))
 
@@ -210,6 +211,16 @@ class PVCurve:
         as it follows the curve, exact for the curve's pieces and its extensions
         (its derivative in volume is the pressure)."""
         x = np.asarray(volume, dtype=float)
+        if x.shape == (1,):
+            # one volume (an actuator alone in its group): the list path of
+            # fdf_volume, the same arithmetic
+            v = float(x[0])
+            if self._refuse and not self._lo <= v <= self._hi:
+                self._beyond(v)
+            k = bisect.bisect_right(self._vl, v)
+            b, c0, c1, c2, c3 = self._tl[k]
+            v -= b
+            return np.array([self._wl[k] + v * (c0 + v * (c1 / 2 + v * (c2 / 3 + v * c3 / 4)))])
         if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
             self._beyond(x)
         k = np.searchsorted(self.volume, x, side="right")
