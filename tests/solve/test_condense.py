@@ -199,3 +199,26 @@ def test_columnwise_solve_matches_superlu():
         x[columnwise] = lu.solve(b)
     np.testing.assert_allclose(x[True], x[False], rtol=1e-12)
     np.testing.assert_allclose(Ap @ x[True], b, rtol=1e-12)
+
+
+def test_block_regularity_test_agrees_with_scipys_matching():
+    """A group is condensed where its own-unknown block is structurally regular:
+    the small augmenting-path matching says so exactly where SciPy's maximum
+    bipartite matching matches every row (random patterns up to 7 x 7)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import maximum_bipartite_matching
+    from softflow.solve.condense import _perfect_matching
+    rng = np.random.default_rng(0)
+    seen = set()
+    for _ in range(2000):
+        n = int(rng.integers(1, 8))
+        density = rng.uniform(0.1, 0.9)
+        cells = {(r, c) for r in range(n) for c in range(n) if rng.random() < density}
+        if not cells:
+            continue
+        r, c = np.array(sorted(cells)).T
+        block = csr_matrix((np.ones(len(r)), (r, c)), shape=(n, n))
+        want = bool((maximum_bipartite_matching(block, perm_type="column") >= 0).all())
+        assert _perfect_matching(cells, n) == want
+        seen.add(want)
+    assert seen == {True, False}

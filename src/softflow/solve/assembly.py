@@ -439,6 +439,7 @@ class Assembly:
         node_of, n_nodes = system.terminal_nodes(n_terminals)
         # the nodes' terminals, as Node objects on first use (self.nodes)
         self._node_comps, self._node_of, self._nodes = comps, node_of, None
+        self.n_nodes = int(n_nodes)     # (nodes: the Node objects, made on first use)
         _check_fluids_at_nodes(self, comps)
 
         # groups, in first-appearance order (with each member's position in comps)
