@@ -522,40 +522,52 @@ def test_a_settled_network_keeps_newton_within_reach():
         assert res.get(label, "pressure")[-1] == pytest.approx(18e6, rel=1e-7)
 
 
-def test_newton_full_stage_only_on_the_shortest_steps(monkeypatch):
-    """A step whose chord iterations fail on fresh factors is cut (by 4) rather
-    than solved by the damped full stage, unless it is within
-    FULL_STAGE_STEPS x step_min: on the paper's Fig. 5 with air (two snaps),
-    fewer factorizations than with the stage at every step, and the same
-    volumes within the tolerance."""
-    from softflow import paper_scenes as ps
+def _stage_cut_and_always(monkeypatch, stage, run):
+    """Run ``run()`` (a paper scene: (Result, wall)) as BDF does by default and
+    with Newton's last stages at every step (FULL_STAGE_STEPS = inf); checks
+    that Newton's ``stage`` method is entered only where allowed by default,
+    and reached with the stages at every step. Returns (default, always)."""
     from softflow.solve import bdf
     from softflow.solve.newton import Newton
     entered = []
-    full = Newton._full
+    method = getattr(Newton, stage)
 
     def spy(self, *args):
         entered.append(self.full_stage)
-        return full(self, *args)
-    monkeypatch.setattr(Newton, "_full", spy)
-
-    def run():
-        res, _ = ps.run(dict(ps.figure(5))["air"], 5)
-        assert res.success
-        return res
-    cut = run()
-    assert all(entered)                   # the stage only where allowed
+        return method(self, *args)
+    monkeypatch.setattr(Newton, stage, spy)
+    cut = run()[0]
+    assert cut.success and all(entered)          # the stage only where allowed
+    entered.clear()
     monkeypatch.setattr(bdf, "FULL_STAGE_STEPS", math.inf)
-    always = run()
-    assert cut.stats["factorizations"] < 0.7 * always.stats["factorizations"]
-    assert cut.stats["residual_evaluations"] < 0.7 * always.stats["residual_evaluations"]
-    # the paper's measure of the sequence (the enclosed area of V2 over V1),
-    # and each actuator's range
+    always = run()[0]
+    assert always.success and entered            # the scene does reach that stage
+    return cut, always
+
+
+def _same_sequence(cut, always):
+    """The paper's measure of a sequence (the enclosed area of V2 over V1) within
+    1 %, and each actuator's range within 0.1 %."""
+    from softflow import paper_scenes as ps
     (a1, a2), (b1, b2) = ps.volumes(cut), ps.volumes(always)
     assert ps.enclosed_area(a1, a2) == pytest.approx(ps.enclosed_area(b1, b2), rel=1e-2)
     for a, b in ((a1, b1), (a2, b2)):
         assert a.max() == pytest.approx(b.max(), rel=1e-3)
         assert a.min() == pytest.approx(b.min(), rel=1e-3)
+
+
+def test_newton_full_stage_only_on_the_shortest_steps(monkeypatch):
+    """A step whose chord iterations fail on fresh factors is cut (by 4) rather
+    than solved by the damped full stage, unless it is within
+    FULL_STAGE_STEPS x step_min: on the paper's Fig. 5 with air (two snaps),
+    fewer factorizations and residuals than with the stage at every step, and
+    the same sequence."""
+    from softflow import paper_scenes as ps
+    cut, always = _stage_cut_and_always(
+        monkeypatch, "_full", lambda: ps.run(dict(ps.figure(5))["air"], 5))
+    assert cut.stats["factorizations"] < 0.7 * always.stats["factorizations"]
+    assert cut.stats["residual_evaluations"] < 0.7 * always.stats["residual_evaluations"]
+    _same_sequence(cut, always)
 
 
 def test_newton_flows_first_stage_only_on_the_shortest_steps(monkeypatch):
@@ -564,28 +576,8 @@ def test_newton_flows_first_stage_only_on_the_shortest_steps(monkeypatch):
     scene with air, adiabatic, with fewer than 0.6x the factorizations of the
     stages at every step and the same sequence."""
     from softflow import paper_scenes as ps
-    from softflow.solve import bdf
-    from softflow.solve.newton import Newton
-    entered = []
-    flows_first = Newton._flows_first
-
-    def spy(self, *args):
-        entered.append(self.full_stage)
-        return flows_first(self, *args)
-    monkeypatch.setattr(Newton, "_flows_first", spy)
-
-    def run():
-        res, _ = ps.run(ps.fig3("peak-valley", fluid=sf.air), 3, thermal="adiabatic")
-        assert res.success
-        return res
-    cut = run()
-    assert all(entered)                   # only where allowed
-    entered.clear()
-    monkeypatch.setattr(bdf, "FULL_STAGE_STEPS", math.inf)
-    always = run()
-    assert entered                        # the scene does reach that stage
+    cut, always = _stage_cut_and_always(
+        monkeypatch, "_flows_first",
+        lambda: ps.run(ps.fig3("peak-valley", fluid=sf.air), 3, thermal="adiabatic"))
     assert cut.stats["factorizations"] < 0.6 * always.stats["factorizations"]
-    (a1, a2), (b1, b2) = ps.volumes(cut), ps.volumes(always)
-    assert ps.enclosed_area(a1, a2) == pytest.approx(ps.enclosed_area(b1, b2), rel=1e-2)
-    for a, b in ((a1, b1), (a2, b2)):
-        assert a.max() == pytest.approx(b.max(), rel=1e-3)
+    _same_sequence(cut, always)
