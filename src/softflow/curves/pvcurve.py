@@ -217,10 +217,11 @@ class PVCurve:
             v = float(x[0])
             if self._refuse and not self._lo <= v <= self._hi:
                 self._beyond(v)
-            k = bisect.bisect_right(self._vl, v)
-            b, c0, c1, c2, c3 = self._tl[k]
+            piece = bisect.bisect_right(self._vl, v)
+            b, c0, c1, c2, c3 = self._tl[piece]
             v -= b
-            return np.array([self._wl[k] + v * (c0 + v * (c1 / 2 + v * (c2 / 3 + v * c3 / 4)))])
+            return np.array([self._wl[piece] + v * (c0 + v * (c1 / 2 + v * (
+                c2 / 3 + v * c3 / 4)))])
         if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
             self._beyond(x)
         k = np.searchsorted(self.volume, x, side="right")
