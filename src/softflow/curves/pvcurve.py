@@ -178,7 +178,7 @@ class PVCurve:
         self._lo, self._hi = float(v[0]), float(v[-1])
         self._refuse = self.extrapolate == "error"
         # the antiderivative (work) at each piece's base, from the first volume
-        full = h * (p[:-1] + h * (d[:-1] / 2 + h * (c2 / 3 + h * c3 / 4)))
+        full = _antiderivative(0.0, p[:-1], d[:-1], c2, c3, h)
         self._w0 = np.concatenate([[0.0, 0.0], np.cumsum(full)])
         # the scalar path (one volume per call, as in a user component) runs on lists
         self._vl = v.tolist()
@@ -219,15 +219,12 @@ class PVCurve:
                 self._beyond(v)
             piece = bisect.bisect_right(self._vl, v)
             b, c0, c1, c2, c3 = self._tl[piece]
-            v -= b
-            return np.array([self._wl[piece] + v * (c0 + v * (c1 / 2 + v * (
-                c2 / 3 + v * c3 / 4)))])
+            return np.array([_antiderivative(self._wl[piece], c0, c1, c2, c3, v - b)])
         if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
             self._beyond(x)
         k = np.searchsorted(self.volume, x, side="right")
-        x = x - self._base[k]
-        return self._w0[k] + x * (self._c0[k] + x * (self._c1[k] / 2 + x * (
-            self._c2[k] / 3 + x * self._c3[k] / 4)))
+        return _antiderivative(self._w0[k], self._c0[k], self._c1[k], self._c2[k], self._c3[k],
+                               x - self._base[k])
 
     def _beyond(self, x: float | Array) -> NoReturn:
         lo, hi = self._lo, self._hi
@@ -376,6 +373,12 @@ class PVCurve:
 
 
 # -- helpers ------------------------------------------------------------------------------
+def _antiderivative(w0: Any, c0: Any, c1: Any, c2: Any, c3: Any, x: Any) -> Any:
+    """w0 plus the integral from 0 to x of c0 + c1 x + c2 x^2 + c3 x^3 (a piece of
+    the curve in monomial form: the work along it); floats or arrays alike."""
+    return w0 + x * (c0 + x * (c1 / 2 + x * (c2 / 3 + x * c3 / 4)))
+
+
 def _savgol(p: Array, window: int, order: int, where: str) -> Array:
     if (isinstance(window, bool) or not isinstance(window, (int, np.integer))
             or window < 3 or window % 2 == 0 or window > len(p)):

@@ -88,41 +88,21 @@ class Bicubic:
         i, t = self.x.locate(xq)
         j, u = self.y.locate(yq)
         c = np.take(self.coef, i * self._ny_cells + j, axis=1)   # ~4x faster than c[:, k]
-        # r_i(u) = sum_j A_ij u^j for each power i of t
-        r = [((c[4 * k + 3] * u + c[4 * k + 2]) * u + c[4 * k + 1]) * u + c[4 * k]
-             for k in range(4)]
-        f = ((r[3] * t + r[2]) * t + r[1]) * t + r[0]
-        if not grad:
-            return f
-        ft = (3.0 * r[3] * t + 2.0 * r[2]) * t + r[1]
-        dr = [(3.0 * c[4 * k + 3] * u + 2.0 * c[4 * k + 2]) * u + c[4 * k + 1] for k in range(4)]
-        fu = ((dr[3] * t + dr[2]) * t + dr[1]) * t + dr[0]
-        return f, ft / self.x.step, fu / self.y.step
+        return _bicubic(c, t, u, grad, self.x.step, self.y.step)
 
     def _few(self, xq, yq, grad):
         """:meth:`__call__` point by point on floats, or None where a point is
         not finite (the array path then decides what it gives)."""
         X, Y = self.x, self.y
         coef, ny = self.coef, self._ny_cells
-        fs, fxs, fys = [], [], []
+        values = []
         for xv, yv in zip(np.ravel(xq).tolist(), np.ravel(yq).tolist()):
             i, t = _locate(X, xv)
             j, u = _locate(Y, yv)
             if i is None or j is None:
                 return None
-            c = coef[:, i * ny + j].tolist()
-            r = [((c[4 * k + 3] * u + c[4 * k + 2]) * u + c[4 * k + 1]) * u + c[4 * k]
-                 for k in range(4)]
-            fs.append(((r[3] * t + r[2]) * t + r[1]) * t + r[0])
-            if grad:
-                fxs.append(((3.0 * r[3] * t + 2.0 * r[2]) * t + r[1]) / X.step)
-                dr = [(3.0 * c[4 * k + 3] * u + 2.0 * c[4 * k + 2]) * u + c[4 * k + 1]
-                      for k in range(4)]
-                fys.append((((dr[3] * t + dr[2]) * t + dr[1]) * t + dr[0]) / Y.step)
-        shape = np.shape(xq)
-        if not grad:
-            return _shaped(fs, shape)
-        return _shaped(fs, shape), _shaped(fxs, shape), _shaped(fys, shape)
+            values.append(_bicubic(coef[:, i * ny + j].tolist(), t, u, grad, X.step, Y.step))
+        return _shaped_all(values, np.shape(xq), grad)
 
     def slice_at_y(self, y0: float) -> "Cubic":
         """The interpolant restricted to y = y0: a piecewise cubic in x (same values)."""
@@ -145,28 +125,44 @@ class Cubic:
             if few is not None:
                 return few
         i, t = self.x.locate(xq)
-        c = np.take(self.coef, i, axis=1)
-        f = ((c[3] * t + c[2]) * t + c[1]) * t + c[0]
-        if not grad:
-            return f
-        return f, ((3.0 * c[3] * t + 2.0 * c[2]) * t + c[1]) / self.x.step
+        return _cubic(np.take(self.coef, i, axis=1), t, grad, self.x.step)
 
     def _few(self, xq, grad):
         """:meth:`__call__` point by point on floats (as :meth:`Bicubic._few`)."""
         X, coef = self.x, self.coef
-        fs, fxs = [], []
+        values = []
         for xv in np.ravel(xq).tolist():
             i, t = _locate(X, xv)
             if i is None:
                 return None
-            c = coef[:, i].tolist()
-            fs.append(((c[3] * t + c[2]) * t + c[1]) * t + c[0])
-            if grad:
-                fxs.append(((3.0 * c[3] * t + 2.0 * c[2]) * t + c[1]) / X.step)
-        shape = np.shape(xq)
-        if not grad:
-            return _shaped(fs, shape)
-        return _shaped(fs, shape), _shaped(fxs, shape)
+            values.append(_cubic(coef[:, i].tolist(), t, grad, X.step))
+        return _shaped_all(values, np.shape(xq), grad)
+
+
+def _bicubic(c, t, u, grad, sx, sy):
+    """A cell's bicubic at local coordinates (t, u) by Horner's scheme, from
+    its 16 power coefficients ``c`` (row 4 i + j multiplies t^i u^j: rows of
+    arrays, or floats: the same operations either way); with ``grad`` also
+    d/dx and d/dy (sx, sy: the cells' sizes)."""
+    # r_i(u) = sum_j A_ij u^j for each power i of t
+    r = [((c[4 * k + 3] * u + c[4 * k + 2]) * u + c[4 * k + 1]) * u + c[4 * k]
+         for k in range(4)]
+    f = ((r[3] * t + r[2]) * t + r[1]) * t + r[0]
+    if not grad:
+        return f
+    ft = (3.0 * r[3] * t + 2.0 * r[2]) * t + r[1]
+    dr = [(3.0 * c[4 * k + 3] * u + 2.0 * c[4 * k + 2]) * u + c[4 * k + 1] for k in range(4)]
+    fu = ((dr[3] * t + dr[2]) * t + dr[1]) * t + dr[0]
+    return f, ft / sx, fu / sy
+
+
+def _cubic(c, t, grad, sx):
+    """A cell's cubic at local coordinate t from its 4 power coefficients
+    (as :func:`_bicubic`); with ``grad`` also d/dx."""
+    f = ((c[3] * t + c[2]) * t + c[1]) * t + c[0]
+    if not grad:
+        return f
+    return f, ((3.0 * c[3] * t + 2.0 * c[2]) * t + c[1]) / sx
 
 
 def _as_float64(v):
@@ -191,3 +187,11 @@ def _shaped(values, shape):
     if not shape:
         return np.float64(values[0])
     return np.array(values).reshape(shape)
+
+
+def _shaped_all(values, shape, grad):
+    """The points' values (or, with ``grad``, their tuples) as the array path
+    returns them (:func:`_shaped`)."""
+    if not grad:
+        return _shaped(values, shape)
+    return tuple(_shaped(part, shape) for part in zip(*values))

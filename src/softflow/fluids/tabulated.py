@@ -137,23 +137,31 @@ class TableFluid(Fluid):
         return self.temperature if T is None else T
 
     # density: rho = p / (Z R T) for gases
+    def _gas_density(self, p: Any, Tv: Any, Z: Any) -> Any:
+        return p / (Z * self.R * Tv)
+
+    def _gas_density_dp(self, p: Any, Tv: Any, Z: Any, Zp: Any) -> Any:
+        return (1.0 - p * Zp / Z) / (Z * self.R * Tv)
+
+    def _gas_density_dT(self, p: Any, Tv: Any, Z: Any, ZT: Any) -> Any:
+        return -p / (Z * self.R * Tv) * (1.0 / Tv + ZT / Z)
+
     def _density(self, p: float | Array, T: float | Array | None) -> float | Array:
         if self.liquid:
             return self._get("density", p, T)
-        return p / (self._get("Z", p, T) * self.R * self._Tv(T))
+        return self._gas_density(p, self._Tv(T), self._get("Z", p, T))
 
     def _density_dp(self, p: float | Array, T: float | Array | None) -> float | Array:
         if self.liquid:
             return self._get("density", p, T, grad=True)[1]
         Z, Zp = self._get("Z", p, T, grad=True)[:2]
-        return (1.0 - p * Zp / Z) / (Z * self.R * self._Tv(T))
+        return self._gas_density_dp(p, self._Tv(T), Z, Zp)
 
     def _density_dT(self, p: float | Array, T: float | Array | None) -> float | Array:
         if self.liquid:
             return self._grad2("density", p, T)[2]
         Z, _, ZT = self._grad2("Z", p, T)
-        Tv = self._Tv(T)
-        return -p / (Z * self.R * Tv) * (1.0 / Tv + ZT / Z)
+        return self._gas_density_dT(p, self._Tv(T), Z, ZT)
 
     def density(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("density", self._density, p, T)
@@ -200,7 +208,7 @@ class TableFluid(Fluid):
 
     def _density_parts(self, p: Any, T: Any, jac: bool) -> tuple[Any, Any, Any]:
         """(rho, drho/dp, drho/dT) as :meth:`_enthalpy_parts`; a gas's from Z and
-        its gradient by the formulas of :meth:`_density` and its derivatives."""
+        its gradient by the laws :meth:`_density` and its derivatives use."""
         got = self._lookup3("density" if self.liquid else "Z", p, T, jac)
         if got is None:
             return self._public_parts("density", p, T, jac)
@@ -208,11 +216,10 @@ class TableFluid(Fluid):
             return got
         Z, Zp, ZT = got
         p, T = broadcast_state(self, p, T)[:2]
-        rho = p / (Z * self.R * T)
+        rho = self._gas_density(p, T, Z)
         if not jac:
             return rho, None, None
-        return (rho, (1.0 - p * Zp / Z) / (Z * self.R * T),
-                -p / (Z * self.R * T) * (1.0 / T + ZT / Z))
+        return rho, self._gas_density_dp(p, T, Z, Zp), self._gas_density_dT(p, T, Z, ZT)
 
     def viscosity(self, p: SIArrayLike, T: SIArrayLike | None = None) -> Array:
         return self._evaluate("viscosity", lambda p, T: self._get("viscosity", p, T), p, T)
