@@ -581,3 +581,32 @@ def test_newton_flows_first_stage_only_on_the_shortest_steps(monkeypatch):
         lambda: ps.run(ps.fig3("peak-valley", fluid=sf.air), 3, thermal="adiabatic"))
     assert cut.stats["factorizations"] < 0.6 * always.stats["factorizations"]
     _same_sequence(cut, always)
+
+
+def test_damped_stage_refactors_where_a_full_step_only_contracts_linearly(monkeypatch):
+    """The damped stage keeps its factors only after a full step that cut the
+    residual by 1/FULL_KEEP_CUT (100x): Fig. 4's snapping valve opens onto a
+    flow law dp ~ mdot^2, where chord steps contract by only ~10x each. Its
+    restart probes (held to 1e-12) then take fewer damped iterations than with
+    the factors kept after a 10x cut, for the same run."""
+    from softflow import paper_scenes as ps
+    from softflow.solve import newton
+    from softflow.solve.newton import Newton
+    calls = []
+    full = Newton._full
+
+    def spy(self, *args):
+        out = full(self, *args)
+        calls.append(out.iterations)
+        return out
+    monkeypatch.setattr(Newton, "_full", spy)
+    default = ps.run(ps.fig4("snapping"), 4)[0]
+    by_default, calls[:] = list(calls), []
+    monkeypatch.setattr(newton, "FULL_KEEP_CUT", 0.1)
+    kept = ps.run(ps.fig4("snapping"), 4)[0]
+    assert default.success and kept.success and len(by_default) == len(calls) >= 10
+    assert sum(by_default) < 0.8 * sum(calls)
+    assert default.stats["steps"] == kept.stats["steps"]
+    for label in ("act1", "act2"):
+        np.testing.assert_allclose(default.get(label, "volume"), kept.get(label, "volume"),
+                                   rtol=1e-6)
