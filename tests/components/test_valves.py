@@ -658,3 +658,41 @@ def test_iso_6358_law_on_a_mixed_batch_equals_each_flow_on_its_own():
                                 m[i:i + 1], prl[i:i + 1])
         for whole, alone in zip(batch, one):
             assert whole[i] == alone[0]
+
+
+@pytest.mark.parametrize("fluid", [sf.water, sf.air], ids=["water", "air"])
+def test_one_snapping_valve_on_scalars_is_the_array_law_bitwise(fluid):
+    """A group of one valve evaluates its residual, Jacobian and switch on
+    NumPy scalars (P.one): the array path's numbers, bitwise, in both modes, at
+    flows laminar, in the blend and turbulent, at zero and non-finite values;
+    groups of two keep the array path."""
+    def valve(label):
+        return SnappingValve(label, fluid, opening_pressure=5e3, closing_pressure=1e3,
+                             closed_conductance=1e-10, length=0.05, diameter=4e-3)
+    assert SnappingValve.make_params([valve("v"), valve("w")]).one is None
+    P = SnappingValve.make_params([valve("v")])
+    assert P.one is not None
+    points = [(2.0e5, re / P.re_per_mf[0], 1.9e5) for re in (0.0, 1e3, 2300.0, 3e3, 4000.0,
+                                                              5e3, -2e5)]
+    points += [(1.0e5, 1e-4, 1.0e5 + 3e3), (0.0, 1e-4, 0.0), (np.nan, 1e-4, 1e5),
+               (1e5, np.nan, 1e5), (1e5 + 5e3, 0.0, 1e5), (1e5 + 1e3, 0.0, 1e5)]
+    with np.errstate(all="ignore"):
+        for pa, mf, pb in points:
+            V = np.array([[pa, mf, pb, -0.9 * mf]])
+            for mode in (0.0, 1.0):
+                S = np.array([[mode]])
+                got = [SnappingValve.residual(P, V, S, 0.0, jac) for jac in (False, True)]
+                got.append((SnappingValve.switch(P, V, S), None))
+                P.one, one = None, P.one
+                try:
+                    want = [SnappingValve.residual(P, V, S, 0.0, jac) for jac in (False, True)]
+                    want.append((SnappingValve.switch(P, V, S), None))
+                finally:
+                    P.one = one
+                for (a, da), (b, db) in zip(got, want):
+                    assert a.shape == b.shape and a.dtype == b.dtype
+                    np.testing.assert_array_equal(a, b)
+                    assert (da is None) == (db is None)
+                    if da is not None:
+                        assert da.shape == db.shape and da.dtype == db.dtype
+                        np.testing.assert_array_equal(da, db)

