@@ -622,3 +622,49 @@ def test_adiabatic_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
     for label in ("act1", "act2"):
         mine, ref = res.get(label, "volume"), tight.get(label, "volume")
         assert abs(mine[-1] - ref[-1]) <= 0.01 * np.ptp(ref)
+
+
+@pytest.mark.parametrize("extrapolate", ["linear", "clamp", "error"])
+@pytest.mark.parametrize("fluid", [sf.water, sf.air], ids=["water", "air"])
+def test_one_actuator_on_a_pvcurve_reads_it_on_floats_bitwise(fluid, extrapolate):
+    """An actuator alone in its group, on an unscaled PVCurve, evaluates its
+    residual on floats (P.one_curve): the array path's residual and Jacobian,
+    bitwise, inside the curve, past its ends and at non-finite points (the same
+    error where the curve refuses); scaled curves, callables and groups of two
+    keep the array path."""
+    from softflow.curves.pvcurve import CurveRangeError
+    curve = sf.PVCurve(volume=[1e-6, 3e-6, 6e-6, 1.4e-5], pressure=[1.01e5, 1.3e5, 1.2e5, 1.5e5],
+                       extrapolate=extrapolate)
+    act = Actuator("a", fluid, curve)
+    P = Actuator.make_params([act])
+    assert P.one_curve is curve
+    assert Actuator.make_params([act, Actuator("b", fluid, curve)]).one_curve is None
+    assert Actuator.make_params([Actuator("s", fluid, curve, pressure_scale=2.0)]).one_curve is None
+    assert Actuator.make_params([Actuator("c", fluid, lambda v: 1e5 + 1e9 * v,
+                                          initial_volume=1e-6)]).one_curve is None
+    for vol in (1e-6, 2e-6, 3e-6, 4.5e-6, 1.4e-5, 5e-7, 2e-5, np.nan):
+        for p in (1.1e5, 1.6e5, np.nan):
+            V = np.array([[p, 1e-5]])
+            S = np.array([[float(fluid.density(p)) * vol if np.isfinite(p) else vol]])
+            for jac in (False, True):
+                got = want = None
+                with np.errstate(all="ignore"):
+                    try:
+                        got = Actuator.residual(P, V, S, 0.0, jac)
+                    except CurveRangeError as err:
+                        got = str(err)
+                    P.one_curve = None
+                    try:
+                        want = Actuator.residual(P, V, S, 0.0, jac)
+                    except CurveRangeError as err:
+                        want = str(err)
+                    finally:
+                        P.one_curve = curve
+                if isinstance(want, str):
+                    assert got == want
+                    continue
+                for a, b in zip(got, want):
+                    assert (a is None) == (b is None)
+                    if a is not None:
+                        assert a.shape == b.shape and a.dtype == b.dtype
+                        np.testing.assert_array_equal(a, b)

@@ -253,6 +253,12 @@ class Actuator(LibraryComponent):
         P = Params(components)
         P.curve = components[0]._curve_fn
         P.scaled = bool(np.any(P.pressure_scale != 1.0))
+        # one actuator on a PVCurve, unscaled: its residual reads the curve on
+        # floats (PVCurve's one-volume path, the same arithmetic), ~2x faster
+        curve = components[0].curve
+        P.one_curve = (curve if P.n == 1 and not P.scaled and type(curve) is PVCurve
+                       and cls.residual.__func__ is Actuator.residual.__func__
+                       and cls.curve_pressure is Actuator.curve_pressure else None)
         return P
 
     @staticmethod
@@ -308,6 +314,19 @@ class Actuator(LibraryComponent):
     @classmethod
     def residual(cls, P, V, S, t, jac):
         p, rho, vol = _volume(P, V, S)
+        curve = P.one_curve
+        if curve is not None:
+            # as below on floats: PVCurve.fdf_volume on a (1,) array takes its
+            # float path, and +-*/ are IEEE either way (bitwise the same)
+            v = float(vol[0])
+            pc, dpc = curve._scalar(v)
+            p0 = float(p[0])
+            if not jac:
+                return np.array([[p0 - pc]]), None
+            r = float(rho[0])
+            ddp = float(P.fluid.density_dp(p)[0])
+            return (np.array([[p0 - pc]]),
+                    np.array([[1.0 + dpc * v * (ddp / r), -dpc / r]]))
         try:
             pc, dpc = cls.curve_pressure(P, vol, jac)
             if not jac:
