@@ -584,11 +584,12 @@ def test_newton_flows_first_stage_only_on_the_shortest_steps(monkeypatch):
 
 
 def test_damped_stage_refactors_where_a_full_step_only_contracts_linearly(monkeypatch):
-    """The damped stage keeps its factors only after a full step that cut the
-    residual by 1/FULL_KEEP_CUT (100x): Fig. 4's snapping valve opens onto a
-    flow law dp ~ mdot^2, where chord steps contract by only ~10x each. Its
-    restart probes (held to 1e-12) then take fewer damped iterations than with
-    the factors kept after a 10x cut, for the same run."""
+    """In a solve held to 1e-12 (the restart probes) the damped stage keeps its
+    factors only after a full step that cut the residual by 1/TIGHT_KEEP_CUT
+    (100x): Fig. 4's snapping valve opens onto a flow law dp ~ mdot^2, where
+    chord steps contract by only ~10x each. Its restart probes then take fewer
+    damped iterations than with the factors kept after a 10x cut (the rule at
+    the run's own tolerances), for the same run."""
     from softflow import paper_scenes as ps
     from softflow.solve import newton
     from softflow.solve.newton import Newton
@@ -602,7 +603,7 @@ def test_damped_stage_refactors_where_a_full_step_only_contracts_linearly(monkey
     monkeypatch.setattr(Newton, "_full", spy)
     default = ps.run(ps.fig4("snapping"), 4)[0]
     by_default, calls[:] = list(calls), []
-    monkeypatch.setattr(newton, "FULL_KEEP_CUT", 0.1)
+    monkeypatch.setattr(newton, "TIGHT_KEEP_CUT", newton.FULL_KEEP_CUT)
     kept = ps.run(ps.fig4("snapping"), 4)[0]
     assert default.success and kept.success and len(by_default) == len(calls) >= 10
     assert sum(by_default) < 0.8 * sum(calls)
