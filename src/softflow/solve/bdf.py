@@ -326,10 +326,12 @@ class BDF(Integrator):
         return max(float(math.sqrt(np.max(acc / np.maximum(size, 1.0)))), peak / PEAK_FACTOR)
 
     # -- restarts ------------------------------------------------------------------
-    def _probe(self, x, S, t, h):
+    def _probe(self, x, S, t, h, continuation=True):
         """Backward Euler from (x, S) at t over h, Newton held tight: (x_h, rate at
         x_h), rate = (update(x_h, S, h) - S) / h exactly (discrete states: 0).
-        None if Newton fails."""
+        None if Newton fails, also by continuation (:meth:`Newton.continuation`,
+        with ``continuation``: the probes after a jump of a source, whose
+        point the run cannot go on without)."""
         newton = self.newton
         newton.full_stage = True
         rtol = newton.rtol
@@ -343,6 +345,9 @@ class BDF(Integrator):
             # reach (round-off of an ill-conditioned point: flows starting
             # from rest beside a gas volume's ~1e-10 dm/dp)
             out = newton.solve(x, S, t + h, h)
+        if (not out.converged and continuation
+                and not out.reason.startswith("absolute pressure")):
+            out = newton.continuation(x, S, t + h, h) or out
         if not out.converged:
             return None, out
         r = (self.asm.update_states(out.x, S, h) - S) / h
@@ -376,7 +381,7 @@ class BDF(Integrator):
         d0, d1 = self._norm(S, w, x_right[:na]), self._norm(r0, w, xdot[:na])
         h0 = 1e-6 * span if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
         h0 = min(max(h0, 4 * h_p), span, self.step_max)
-        p3, _ = self._probe(x_right, S, t, h0)
+        p3, _ = self._probe(x_right, S, t, h0, continuation=False)
         if p3 is None:
             h = 0.1 * h0
         else:

@@ -99,9 +99,12 @@ class Integrator:
         the next step: (Newton's start, psi, the time t_new the step ends at,
         the time the equations are evaluated at, c);
     ``_newton_failed(t, t_new, out)``
-        after a failed solve: a smaller step (or :class:`StepFailure`), and
-        None, or the unknowns of another point at t to go on from (BDF past
-        an actuator's fold);
+        after a failed solve: a smaller step, and None, or the unknowns of
+        another point at t to go on from (BDF past an actuator's fold); or
+        :class:`StepFailure` at the smallest step, where the loop tries the
+        step's equations once more by continuation
+        (:meth:`softflow.solve.newton.Newton.continuation`) before the run
+        stops;
     ``_judge(t, x, S, x_new, S_new, t_new)``
         whether the solved step is accepted: the time it ends at, or None
         where it is rejected (the stepper having shrunk its step);
@@ -148,12 +151,22 @@ class Integrator:
             out = solve(x_pred, psi, t_eval, c)
             if not out.converged:
                 stats.rejected_steps += 1
-                # a controller may go on from another point at t (BDF: past an
-                # actuator's fold)
-                jumped = failed(t, t_new, out)
-                if jumped is not None:
-                    x = jumped
-                continue
+                try:
+                    # a controller may go on from another point at t (BDF: past
+                    # an actuator's fold)
+                    jumped = failed(t, t_new, out)
+                except StepFailure:
+                    # the smallest step failed: its equations by continuation
+                    # (Newton.continuation) before the run stops
+                    rescued = self._rescue(x_pred, x, psi, t_eval, c, out)
+                    if rescued is None:
+                        raise
+                    stats.rejected_steps -= 1
+                    out = rescued
+                else:
+                    if jumped is not None:
+                        x = jumped
+                    continue
             x_new = out.x
             S_new = update(x_new, psi, c)
             t_new = judge(t, x, S, x_new, S_new, t_new)
@@ -164,6 +177,20 @@ class Integrator:
             tick(t)
             if begin is not None:
                 begin(x, S)
+
+    def _rescue(self, x_pred, x, psi, t_eval, c, out):
+        """The converged Outcome of a step whose Newton solve failed at the
+        smallest step, by continuation from its predictor or, where the
+        residual is not finite there, from the step's start x; or None (also
+        where the solve converged to an absolute pressure <= 0, which
+        continuation would reach again)."""
+        if out.reason.startswith("absolute pressure"):
+            return None
+        for start in (x_pred, x):
+            rescued = self.newton.continuation(start, psi, t_eval, c)
+            if rescued is not None:
+                return rescued if rescued.converged else None
+        return None
 
     def _next_break(self, t, ib):
         """(index, time) of the first breakpoint after t, searching from index ib
@@ -236,6 +263,8 @@ class Integrator:
             newton.lin = lin0
         try:
             out = newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
+            if not out.converged and not out.reason.startswith("absolute pressure"):
+                out = newton.continuation(asm.x0.copy(), asm.S0, 0.0, 0.0) or out
         finally:
             newton.lin = run_lin
         if not out.converged:
