@@ -86,7 +86,8 @@ FULL_KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL = 0.1, 0.01, 1e-10
 
 #: :meth:`Newton.continuation`: its first step in lam, the smallest, and the
 #: most Newton solves it makes (a bound on the cost of a run that fails anyway:
-#: the check-valve scenes of tests/solve/test_integrator.py took 5-27); and the Newton rtol it holds its solves to at
+#: the check-valve scenes of tests/solve/test_integrator.py took up to 27,
+#: 16 in the median); and the Newton rtol it holds its solves to at
 #: most (at a run's rtol 1e-2, Newton at rtol/20 accepted a first update on
 #: its predicted contraction short of a check valve's opening band, and the
 #: continuation stalled there: the fons ideal valve at 72.5 kPa)
