@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..constants import pressure_atmospheric
-from ..correlations.friction import fRe_blended, smoothstep
+from ..correlations.friction import fRe_blended, friction_Haaland, roughness_terms, smoothstep
 from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, dp_at_reynolds,
                                     loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient)
@@ -38,12 +38,13 @@ def _mean_density(fluid, pa, pb):
     return fluid.density(pm), 0.5 * fluid.density_dp(pm)
 
 
-def _tube_fRe(P, mf):
-    """f·Re of the tube law and its derivative in Re, skipping Haaland when all laminar."""
+def _tube_fRe(P, mf, terms=None):
+    """f·Re of the tube law and its derivative in Re, skipping Haaland when all
+    laminar (``terms``: Haaland's roughness terms, made once, or None)."""
     Re = np.abs(mf) * P.re_per_mf
     if Re.max(initial=0.0) <= P.Re_lo:
         return Re, np.full_like(Re, 64.0), np.zeros_like(Re)
-    phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi)
+    phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, terms=terms)
     return Re, phi, dphi
 
 
@@ -621,8 +622,11 @@ class SnappingValve(_TubeLike):
     def make_params(cls, components):
         P = super().make_params(components)
         set_tube_coefficients(P)
+        # Haaland's roughness terms, made once on the group's array: NumPy's **
+        # on a scalar is not its ufunc on an array to the last bit
+        P.friction_terms = roughness_terms(friction_Haaland, P.eD)
         # one valve: the residual and the switch on NumPy scalars, the same
-        # arithmetic as on arrays (bitwise; 8 -> 3 us a residual, measured)
+        # arithmetic as on arrays (bitwise; 8 -> 2 us a residual, measured)
         P.one = one_instance(P)
         return P
 
@@ -672,7 +676,7 @@ class SnappingValve(_TubeLike):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         is_open = S[:, 0] > 0.5
         rho, drho = _mean_density(P.fluid, pa, pb)
-        Re, phi, dphi = _tube_fRe(P, mfa)
+        Re, phi, dphi = _tube_fRe(P, mfa, P.friction_terms)
         # both laws as dp = X(mdot)/rho: open the tube, closed the linear restrictor
         x_open = P.c_mu * phi
         x_closed = 1.0 / P.closed_conductance
@@ -704,7 +708,7 @@ class SnappingValve(_TubeLike):
             if Re <= Q.Re_lo:
                 phi, dphi = 64.0, 0.0
             else:
-                phi, dphi = fRe_blended(Re, Q.eD, Q.Re_lo, Q.Re_hi)
+                phi, dphi = fRe_blended(Re, Q.eD, Q.Re_lo, Q.Re_hi, terms=Q.friction_terms)
             x = Q.c_mu * phi
             dx = Q.c_mu * (phi + Re * dphi) if jac else None
         else:
