@@ -417,3 +417,41 @@ def test_a_step_that_fails_at_the_smallest_step_is_solved_by_continuation(monkey
     failed = sf.Simulation(_check_valve_pulse(47.5e3, False), duration=1.0, rtol=1e-2).run(
         raise_on_failure=False)
     assert failed.status == "failed" and 0.0 < failed.times[-1] < 0.5
+
+
+def test_continuation_solves_do_not_count_as_steps():
+    """max_steps counts steps, not the continuation's solves: with max_steps =
+    5 the check-valve scene gets past its consistent start (reached by
+    continuation) and stops later, at its fifth step."""
+    res = sf.Simulation(_check_valve_pulse(80e3, True), duration=1.0, max_steps=5).run(
+        raise_on_failure=False)
+    assert res.status == "failed" and "max_steps" in res.message
+    assert res.times[-1] > 0.0
+
+
+def test_sensitivity_tiles_groups_of_one_without_their_scalar_view(monkeypatch):
+    """Tiling a group of one's Params over several copies (deferred
+    sensitivities) drops its scalar view (P.one, P.one_curve) instead of
+    rebuilding the Params for all copies (make_params only for the trial with
+    two), and gives what make_params would."""
+    from softflow import paper_scenes as ps
+    from softflow.components.actuators import Actuator
+    from softflow.components.valves import SnappingValve
+    from softflow.solve.sensitivity_deferred import _tile_params
+    s = ps.fig4("snapping")
+    for label, cls, key in (("R2", SnappingValve, "one"), ("act1", Actuator, "one_curve")):
+        comp = next(c for c in s.components if c.label == label)
+        P = cls.make_params([comp])
+        assert getattr(P, key) is not None
+        made = []
+        original = cls.make_params.__func__
+        monkeypatch.setattr(cls, "make_params", classmethod(
+            lambda c, comps: made.append(len(comps)) or original(c, comps)))
+        Q = _tile_params(cls, P, [comp], 3)
+        monkeypatch.undo()
+        assert made == [2]
+        assert Q.n == 3 and getattr(Q, key) is None
+        R = cls.make_params([comp] * 3)
+        for name, value in vars(R).items():
+            if isinstance(value, np.ndarray):
+                np.testing.assert_array_equal(getattr(Q, name), value)

@@ -330,8 +330,9 @@ class BDF(Integrator):
         """Backward Euler from (x, S) at t over h, Newton held tight: (x_h, rate at
         x_h), rate = (update(x_h, S, h) - S) / h exactly (discrete states: 0).
         None if Newton fails, also by continuation (:meth:`Newton.continuation`,
-        with ``continuation``: the probes after a jump of a source, whose
-        point the run cannot go on without)."""
+        with ``continuation``: the first two probes of every restart, at t =
+        0, a breakpoint, a switch or a fold jump, without which the run
+        stops)."""
         newton = self.newton
         newton.full_stage = True
         rtol = newton.rtol

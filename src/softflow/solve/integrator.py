@@ -32,6 +32,11 @@ import numpy as np
 from .linalg import make_linear_solver
 from .progress import SILENT
 
+#: steps in a row the loop solves by continuation where Newton failed at the
+#: smallest step (:meth:`Integrator._rescue`); the next such failure stops the
+#: run (each rescue costs up to 2 x CONTINUATION_SOLVES Newton solves)
+RESCUES_IN_A_ROW = 8
+
 
 class StepFailure(Exception):
     def __init__(self, t, dt, outcome):
@@ -146,6 +151,7 @@ class Integrator:
         propose, failed, judge, take = self._propose, self._newton_failed, self._judge, self._take
         tick = self.progress.step
         t, t_stop = 0.0, self.T * (1 - 1e-14)
+        rescues = 0      # steps in a row solved by continuation (_rescue)
         while t < t_stop:
             x_pred, psi, t_new, t_eval, c = propose(t, x, S)
             out = solve(x_pred, psi, t_eval, c)
@@ -157,16 +163,20 @@ class Integrator:
                     jumped = failed(t, t_new, out)
                 except StepFailure:
                     # the smallest step failed: its equations by continuation
-                    # (Newton.continuation) before the run stops
-                    rescued = self._rescue(x_pred, x, psi, t_eval, c, out)
+                    # (Newton.continuation) before the run stops, unless the
+                    # steps before needed it too (a run that would crawl on)
+                    rescued = (self._rescue(x_pred, x, psi, t_eval, c, out)
+                               if rescues < RESCUES_IN_A_ROW else None)
                     if rescued is None:
                         raise
-                    stats.rejected_steps -= 1
+                    rescues += 1
                     out = rescued
                 else:
                     if jumped is not None:
                         x = jumped
                     continue
+            else:
+                rescues = 0
             x_new = out.x
             S_new = update(x_new, psi, c)
             t_new = judge(t, x, S, x_new, S_new, t_new)
@@ -180,16 +190,17 @@ class Integrator:
 
     def _rescue(self, x_pred, x, psi, t_eval, c, out):
         """The converged Outcome of a step whose Newton solve failed at the
-        smallest step, by continuation from its predictor or, where the
-        residual is not finite there, from the step's start x; or None (also
-        where the solve converged to an absolute pressure <= 0, which
-        continuation would reach again)."""
+        smallest step, by continuation from its predictor and, where that
+        fails, from the step's start x (a predictor whose residual is not
+        finite); or None (also where the solve converged to an absolute
+        pressure <= 0, which continuation would reach again). The failed
+        solve stays counted as a rejected step."""
         if out.reason.startswith("absolute pressure"):
             return None
         for start in (x_pred, x):
             rescued = self.newton.continuation(start, psi, t_eval, c)
             if rescued is not None:
-                return rescued if rescued.converged else None
+                return rescued
         return None
 
     def _next_break(self, t, ib):

@@ -256,8 +256,11 @@ class Newton:
         if not all_finite(F0):
             return None
         x, lam, step = x0, 0.0, CONTINUATION_FIRST
-        rtol = self.rtol
+        rtol, max_solves = self.rtol, self.max_solves
         self.rtol = min(rtol, CONTINUATION_RTOL)
+        # its solves are not steps: Simulation(max_steps=) does not count them
+        # (CONTINUATION_SOLVES bounds them)
+        self.max_solves = None
         try:
             for _ in range(CONTINUATION_SOLVES):
                 target = min(1.0, lam + step)
@@ -274,7 +277,7 @@ class Newton:
             return None
         finally:
             self.offset = None
-            self.rtol = rtol
+            self.rtol, self.max_solves = rtol, max_solves
 
     def _eval(self, x, S, t, dt, jac):
         self.stats.residual_evaluations += 1
