@@ -85,12 +85,12 @@ WATCHDOG = 6
 FULL_KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL = 0.1, 0.01, 1e-10
 
 #: :meth:`Newton.continuation`: its first step in lam, the smallest, and the
-#: most Newton solves it makes (a bound on the cost of a run that fails anyway:
-#: the check-valve scenes of tests/solve/test_integrator.py took up to 27,
-#: 16 in the median); and the Newton rtol it holds its solves to at
-#: most (at a run's rtol 1e-2, Newton at rtol/20 accepted a first update on
-#: its predicted contraction short of a check valve's opening band, and the
-#: continuation stalled there: the fons ideal valve at 72.5 kPa)
+#: most Newton solves it makes (a bound on the cost of a run that fails
+#: anyway: the tests/fons 2 bar pulse through a check valve, cracking 0-92.5
+#: kPa, took up to 27, 16 in the median); and the Newton rtol it holds its
+#: solves to at most (at a run's rtol 1e-2, Newton at rtol/20 accepted a first
+#: update on its predicted contraction short of a check valve's opening band,
+#: and the continuation stalled there: the fons ideal valve at 72.5 kPa)
 CONTINUATION_FIRST, CONTINUATION_MIN, CONTINUATION_SOLVES = 0.125, 1e-4, 64
 CONTINUATION_RTOL = 1e-6
 
