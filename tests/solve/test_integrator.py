@@ -455,3 +455,37 @@ def test_sensitivity_tiles_groups_of_one_without_their_scalar_view(monkeypatch):
         for name, value in vars(R).items():
             if isinstance(value, np.ndarray):
                 np.testing.assert_array_equal(getattr(Q, name), value)
+
+
+def test_at_most_rescues_in_a_row_then_the_run_stops(monkeypatch):
+    """Where every step fails at the smallest step and continuation solves it,
+    the loop rescues RESCUES_IN_A_ROW steps in a row and stops at the next
+    (a run that would crawl on at up to 2 x 64 solves a step), reporting the
+    failure; the points rescued before are kept."""
+    from helpers import rc_circuit
+    from softflow.solve import bdf, integrator
+    from softflow.solve.newton import Newton, Outcome
+    forced = {"on": True}
+    solve = Newton.solve
+
+    def failing(self, x0, S, t, dt):
+        if forced["on"] and t > 0.0:
+            return Outcome(False, x0, 1, "forced failure (test)")
+        return solve(self, x0, S, t, dt)
+
+    def continuation(self, x0, S, t, dt):
+        forced["on"] = False
+        try:
+            out = solve(self, x0, S, t, dt)
+        finally:
+            forced["on"] = True
+        return out if out.converged else None
+
+    def at_smallest(self, t, t_new, out):
+        raise integrator.StepFailure(t_new, self._h, out)
+    monkeypatch.setattr(Newton, "solve", failing)
+    monkeypatch.setattr(Newton, "continuation", continuation)
+    monkeypatch.setattr(bdf.BDF, "_newton_failed", at_smallest)
+    res = sf.Simulation(rc_circuit(), duration=0.5).run(raise_on_failure=False)
+    assert res.status == "failed" and "forced failure" in res.message
+    assert len(res.times) == 1 + integrator.RESCUES_IN_A_ROW
