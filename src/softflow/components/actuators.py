@@ -323,13 +323,10 @@ class Actuator(LibraryComponent):
             # exception, as Newton expects of a trial point)
             v = vol[0]
             pc, dpc = curve._scalar(float(v))
-            p0 = p[0]
             if not jac:
-                return np.array([[p0 - pc]]), None
-            r = rho[0]
-            ddp = P.fluid.density_dp(p)[0]
-            return (np.array([[p0 - pc]]),
-                    np.array([[1.0 + dpc * v * (ddp / r), -dpc / r]]))
+                return np.array([[p[0] - pc]]), None
+            F, d_p, d_m = _curve_law(p[0], rho[0], v, pc, dpc, P.fluid.density_dp(p)[0])
+            return np.array([[F]]), np.array([[d_p, d_m]])
         try:
             pc, dpc = cls.curve_pressure(P, vol, jac)
             if not jac:
@@ -427,12 +424,19 @@ def fold_pressure(pressure_of, fluid, vol, mass, rising):
     return float(pressure_of(np.array([v]))[0])
 
 
+def _curve_law(p, rho, vol, pc, dpc, drho):
+    """p - p_curve(V) with V = m / rho(p), and its derivatives in p and m
+    (``drho``: d rho / dp), on arrays or NumPy scalars alike."""
+    return p - pc, 1.0 + dpc * vol * (drho / rho), -dpc / rho
+
+
 def _residual(P, p, rho, vol, pc, dpc):
-    """p - p_curve(V) with V = m / rho(p), and its derivatives in p and m."""
+    """:func:`_curve_law` of a group: (F (n, 1), J (n, 2))."""
+    F, d_p, d_m = _curve_law(p, rho, vol, pc, dpc, P.fluid.density_dp(p))
     J = np.empty((P.n, 2))
-    J[:, 0] = 1.0 + dpc * vol * (P.fluid.density_dp(p) / rho)
-    J[:, 1] = -dpc / rho
-    return (p - pc)[:, None], J
+    J[:, 0] = d_p
+    J[:, 1] = d_m
+    return F[:, None], J
 
 
 def _volume_output(fluid):

@@ -49,6 +49,19 @@ def _tube_fRe(P, mf, terms=None):
 
 
 
+def _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho):
+    """A snapping valve's equations, mass balance and dp = x(mdot) mdot / rho
+    (``x``: the open tube's or the closed restrictor's coefficient), on arrays
+    or scalars alike: ((F0, F1), the Jacobian entries of F1 in p_a, mf_a, p_b),
+    the entries None without ``dx`` (dx/dmf_a, given for a Jacobian)."""
+    dp_model = x * mfa / rho
+    rows = (mfa + mfb, (pa - pb) - dp_model)
+    if dx is None:
+        return rows, None
+    g = dp_model / rho * drho
+    return rows, (1.0 + g, -dx / rho, -1.0 + g)
+
+
 def _flow_law_jacobian(P, dq):
     """(dF/d theta, dr/d theta) of a two-port whose flow law is F[:, 1] = mf_a - q,
     given dq/d theta (n,); None passes through."""
@@ -681,20 +694,17 @@ class SnappingValve(_TubeLike):
         x_open = P.c_mu * phi
         x_closed = 1.0 / P.closed_conductance
         x = np.where(is_open, x_open, x_closed)
-        dp_model = x * mfa / rho
+        dx = np.where(is_open, P.c_mu * (phi + Re * dphi), x_closed) if jac else None
+        (f0, f1), j = _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho)
         F = np.empty((P.n, 2))
-        F[:, 0] = mfa + mfb
-        F[:, 1] = (pa - pb) - dp_model
+        F[:, 0] = f0
+        F[:, 1] = f1
         if not jac:
             return F, None
-        dx = np.where(is_open, P.c_mu * (phi + Re * dphi), x_closed)
-        g = dp_model / rho * drho
         J = np.empty((P.n, 5))
         J[:, 0] = 1.0
         J[:, 1] = 1.0
-        J[:, 2] = 1.0 + g
-        J[:, 3] = -dx / rho
-        J[:, 4] = -1.0 + g
+        J[:, 2], J[:, 3], J[:, 4] = j
         return F, J
 
     @staticmethod
@@ -712,13 +722,13 @@ class SnappingValve(_TubeLike):
             x = Q.c_mu * phi
             dx = Q.c_mu * (phi + Re * dphi) if jac else None
         else:
-            x = dx = 1.0 / Q.closed_conductance
-        dp_model = x * mfa / rho
-        F = np.array([[mfa + mfb, (pa - pb) - dp_model]])
+            x = 1.0 / Q.closed_conductance
+            dx = x if jac else None
+        (f0, f1), j = _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho)
+        F = np.array([[f0, f1]])
         if not jac:
             return F, None
-        g = dp_model / rho * drho
-        return F, np.array([[1.0, 1.0, 1.0 + g, -dx / rho, -1.0 + g]])
+        return F, np.array([[1.0, 1.0, *j]])
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
