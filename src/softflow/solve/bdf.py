@@ -329,7 +329,7 @@ class BDF(Integrator):
     def _probe(self, x, S, t, h, continuation=True):
         """Backward Euler from (x, S) at t over h, Newton held tight: (x_h, rate at
         x_h), rate = (update(x_h, S, h) - S) / h exactly (discrete states: 0).
-        None if Newton fails, also by continuation (:meth:`Newton.continuation`,
+        None if Newton fails, also by continuation (:meth:`Newton.continued`,
         with ``continuation``: the first two probes of every restart, at t =
         0, a breakpoint, a switch or a fold jump, without which the run
         stops)."""
@@ -346,9 +346,8 @@ class BDF(Integrator):
             # reach (round-off of an ill-conditioned point: flows starting
             # from rest beside a gas volume's ~1e-10 dm/dp)
             out = newton.solve(x, S, t + h, h)
-        if (not out.converged and continuation
-                and not out.reason.startswith("absolute pressure")):
-            out = newton.continuation(x, S, t + h, h) or out
+        if continuation:
+            out = newton.continued(out, x, S, t + h, h)
         if not out.converged:
             return None, out
         r = (self.asm.update_states(out.x, S, h) - S) / h

@@ -190,16 +190,13 @@ class Integrator:
 
     def _rescue(self, x_pred, x, psi, t_eval, c, out):
         """The converged Outcome of a step whose Newton solve failed at the
-        smallest step, by continuation from its predictor and, where that
-        fails, from the step's start x (a predictor whose residual is not
-        finite); or None (also where the solve converged to an absolute
-        pressure <= 0, which continuation would reach again). The failed
-        solve stays counted as a rejected step."""
-        if out.reason.startswith("absolute pressure"):
-            return None
+        smallest step, by continuation (:meth:`Newton.continued`) from its
+        predictor and, where that fails, from the step's start x (a predictor
+        whose residual is not finite); or None. The failed solve stays
+        counted as a rejected step."""
         for start in (x_pred, x):
-            rescued = self.newton.continuation(start, psi, t_eval, c)
-            if rescued is not None:
+            rescued = self.newton.continued(out, start, psi, t_eval, c)
+            if rescued.converged:
                 return rescued
         return None
 
@@ -273,9 +270,8 @@ class Integrator:
         if lin0 is not None:
             newton.lin = lin0
         try:
-            out = newton.solve(asm.x0.copy(), asm.S0, 0.0, 0.0)
-            if not out.converged and not out.reason.startswith("absolute pressure"):
-                out = newton.continuation(asm.x0.copy(), asm.S0, 0.0, 0.0) or out
+            x0 = asm.x0.copy()
+            out = newton.continued(newton.solve(x0, asm.S0, 0.0, 0.0), x0, asm.S0, 0.0, 0.0)
         finally:
             newton.lin = run_lin
         if not out.converged:

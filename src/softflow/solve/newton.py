@@ -248,10 +248,9 @@ class Newton:
         itself. For a point that Newton's steps overshoot from afar (a check
         valve whose cracking pressure a source exceeds or falls below: its
         flow changes over a narrow opening band, and the steps from x0 land
-        far past it). Used where a run would otherwise stop: the consistent
-        start, BDF's probes after a jump, a step that fails at the smallest
-        step. Returns the converged Outcome, or None where the continuation
-        fails too."""
+        far past it). Used where a run would otherwise stop (:meth:`continued`).
+        Returns the converged Outcome, or None where the continuation fails
+        too."""
         F0 = self._eval(x0, S, t, dt, False)
         if not all_finite(F0):
             return None
@@ -278,6 +277,17 @@ class Newton:
         finally:
             self.offset = None
             self.rtol, self.max_solves = rtol, max_solves
+
+    def continued(self, out, x0, S, t, dt):
+        """After the solve from x0 that gave ``out``: ``out`` where it
+        converged, or failed on an absolute pressure <= 0 (a solution that
+        continuation would reach again); else :meth:`continuation`'s Outcome
+        where it converges, else ``out``. Where a run would otherwise stop:
+        the consistent start, the first probes of a BDF restart, a step that
+        fails at the smallest step."""
+        if out.converged or out.reason.startswith("absolute pressure"):
+            return out
+        return self.continuation(x0, S, t, dt) or out
 
     def _eval(self, x, S, t, dt, jac):
         self.stats.residual_evaluations += 1
