@@ -137,6 +137,16 @@ FIRST_ESTIMATE = 0.1
 #: with air, adiabatic: factorizations 1 331 -> 542, residual evaluations
 #: 6 679 -> 2 333, steps 726 -> 723.
 FULL_STAGE_STEPS = 4.0
+#: on longer steps, chord iterations on fresh factors that contract too
+#: slowly go on as undamped full Newton before the step is cut
+#: (:attr:`Newton.undamped_full`). Measured: the 12 -> 18 MPa bottle of
+#: benchmarks/assess_scenes (heat transfer, table air, rtol 1e-3) 31 -> 14
+#: steps, where its turbulent tube's flow dies out; the nine paper scenes
+#: 2 243 -> 2 143 steps, 5 916 -> 6 003 Newton iterations, 1 129 -> 1 162
+#: factorizations (Fig. 5 with air 447 -> 403 steps, 257 -> 289
+#: factorizations; in runs in turns 3-6 % slower, Fig. 3's hysteretic
+#: scene 5-15 % faster).
+UNDAMPED_FULL = True
 
 
 def newton_limits(rtol, newton_rtol):
@@ -194,7 +204,8 @@ class BDF(Integrator):
     replaced by psi and the step by c (module docstring), reusing LU factors
     as in backward Euler; where its chord iterations fail on fresh factors,
     the step is cut by 4 (its damped full stage only on the shortest steps,
-    :data:`FULL_STAGE_STEPS`). The error test covers the continuous states
+    :data:`FULL_STAGE_STEPS`; on longer ones, chord iterations that contract
+    too slowly go on as undamped Newton first, :data:`UNDAMPED_FULL`). The error test covers the continuous states
     and the nodes' across unknowns (pressures, temperatures; module docstring);
     discrete states are left out (a switch restarts the method).
     Alongside, the integrals of the recorded unknowns are integrated by the
@@ -242,6 +253,7 @@ class BDF(Integrator):
         if newton is not None:
             newton.set_gauge()
             self._floor_factor, newton.first_max = newton_limits(rtol, newton.rtol)
+            newton.undamped_full = UNDAMPED_FULL
         # independent sub-networks (e.g. the variants of a batched sweep) each
         # meet the tolerance: the error is the largest of their own norms, and
         # an unknown's scale is that of its quantity in its own sub-network
@@ -523,13 +535,40 @@ class BDF(Integrator):
         gas expands). The unknowns at t are solved for anew
         from that actuator's pressure there (states held, as at t = 0), the
         point recorded at t beside the one before the snap, and the method
-        restarted from it. At most once at one time; not with sensitivities
-        (a jump of the unknowns at fixed states, which they do not carry)."""
-        if out.row is None or self.sens is not None or self._fold_at == t:
+        restarted from it. Where the equation Newton failed on is not an
+        actuator's (a negative pressure at the node of a pump that draws from
+        an actuator at a fold), every actuator whose class states a fold is
+        asked, and the first at one snaps. At most once at one time; not with
+        sensitivities (a jump of the unknowns at fixed states, which they do
+        not carry)."""
+        if self.sens is not None or self._fold_at == t:
             return None
-        g, k = self.asm.group_of_row(out.row)
-        if g is None or g.fold is None or not g.ns:
+        g, k = (None, None) if out.row is None else self.asm.group_of_row(out.row)
+        if g is not None and g.fold is not None and g.ns:
+            candidates = [(g, k)]
+        else:
+            # the failure shows elsewhere (a negative pressure at the node of
+            # a pump that draws from an actuator at a fold): any actuator at one
+            candidates = [(g, k) for g in self.asm.groups if g.fold is not None and g.ns
+                          for k in range(g.n)]
+        for g, k in candidates:
+            snapped = self._snap(g, k, t)
+            if snapped is not None:
+                break
+        else:
             return None
+        self._fold_at = t
+        x_far = snapped.x
+        self.rec.add(t, x_far, self._point[1], self._Q)
+        self._restart_due = True
+        self._h_cap = self._fail_cap = math.inf
+        self._fail_hold = self._cap_hold = 0
+        return x_far
+
+    def _snap(self, g, k, t):
+        """The Outcome of the solve at t with actuator k of group g snapped to
+        the far side of a fold of its curve, or None where it is at none or
+        that solve fails (:meth:`_fold_jump`)."""
         x, S = self._point
         mass = g.s0 + k * g.ns                      # the mass: its first state
         rate = self._D[1, self._iS][mass]           # h m'(t), the direction it goes
@@ -544,15 +583,7 @@ class BDF(Integrator):
         newton.full_stage = True
         snapped = newton.solve(guess, S, t, 0.0)
         newton.invalidate()
-        if not snapped.converged:
-            return None
-        self._fold_at = t
-        x_far = snapped.x
-        self.rec.add(t, x_far, S, self._Q)
-        self._restart_due = True
-        self._h_cap = self._fail_cap = math.inf
-        self._fail_hold = self._cap_hold = 0
-        return x_far
+        return snapped if snapped.converged else None
 
     def _chattering(self, S, S_new, x_new, h):
         """The failed Outcome of a run whose modes chatter (CHATTER_SWITCHES), on

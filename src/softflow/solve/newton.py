@@ -229,6 +229,16 @@ class Newton:
     #: flows-first stage (:meth:`_flows_first`); BDF turns it off on steps it
     #: would rather cut (:data:`softflow.solve.bdf.FULL_STAGE_STEPS`)
     full_stage = True
+    #: where ``full_stage`` is off: whether chord iterations on fresh factors
+    #: that contracted too slowly go on as undamped full Newton (a Jacobian at
+    #: every iterate, at most ``max_iter`` iterations), which fails where it
+    #: would damp (:meth:`_full` with ``undamped``). A law whose slope changes
+    #: by orders of magnitude between the predictor and the solution (a
+    #: turbulent tube, dp ~ mdot^2, whose flow dies out) holds the chord to
+    #: its predictor's slope, and it contracts at ~0.5 an iteration where
+    #: Newton itself converges; a fold (an actuator's snap) needs damping and
+    #: fails at once. BDF turns it on (:data:`softflow.solve.bdf.UNDAMPED_FULL`)
+    undamped_full = False
 
     def invalidate(self):
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
@@ -523,7 +533,9 @@ class Newton:
         if last is None or not last.reason.startswith(("singular", "absolute pressure")):
             for stage in ("fresh", "full"):
                 self.fluid_error = None       # each stage reports its own fluid-range error
-                if stage == "full" and not self.full_stage:
+                undamped = stage == "full" and not self.full_stage
+                if undamped and not (self.undamped_full and last is not None
+                                     and last.contracting):
                     break
                 if stage == "fresh":
                     out = self._chord(x0, S, t, dt, stage)
@@ -531,7 +543,7 @@ class Newton:
                     # a contracting chord iteration got closer than x0: go on from
                     # there (thermal chain N = 1000, second step: 14 -> 10 iterations)
                     self._F_at_x0 = None
-                    out = self._full(last.x, S, t, dt)
+                    out = self._full(last.x, S, t, dt, undamped)
                 else:
                     out = self._full(x0, S, t, dt)
                 last = self._accept(out)
@@ -702,7 +714,7 @@ class Newton:
         return Outcome(False, x, limit, f"no convergence in {limit} iterations ({stage} Jacobian)",
                        self._worst_row(F))
 
-    def _full(self, x0, S, t, dt):
+    def _full(self, x0, S, t, dt, undamped=False):
         """Damped Newton. The factors are kept for the next iteration only when the
         last full step cut the scaled residual by 1/FULL_KEEP_CUT (1/TIGHT_KEEP_CUT
         in a solve held to TIGHT_RTOL) or more (Shamanskii's
@@ -717,7 +729,12 @@ class Newton:
 
         After a failed fresh stage, the factors it made at x0 are this stage's
         first ones: the same Jacobian, one evaluation and factorization fewer
-        (each start-up step of a thermal chain N = 1000 enters this stage)."""
+        (each start-up step of a thermal chain N = 1000 enters this stage).
+
+        With ``undamped`` (:attr:`undamped_full`: a longer BDF step, after
+        chord iterations that contracted too slowly) it is plain Newton: at
+        most ``max_iter`` iterations, and it fails at the first iterate
+        whose full step would need the line search."""
         x = x0.copy()
         F = self._F_at_x0
         factored = F is not None
@@ -729,7 +746,8 @@ class Newton:
                                self._nonfinite_row(F))
         refactor = True
         watch, f_ref, x_ref, F_ref, used = 0, np.inf, x, F, False
-        for k in range(self.max_iter * 2):
+        limit = self.max_iter if undamped else self.max_iter * 2
+        for k in range(limit):
             if refactor:
                 try:
                     if not factored:
@@ -769,6 +787,9 @@ class Newton:
                 lam *= 0.5
                 if lam < 1e-4:
                     break
+            if undamped and lam < 1.0:
+                return Outcome(False, x, k + 1, "full Newton would need damping",
+                               self._worst_row(F))
             if watch or lam < 1e-4:
                 if watch == 1 or (not watch and used):
                     return Outcome(False, x_ref if watch else x, k + 1, "line search failed: no "
@@ -795,7 +816,7 @@ class Newton:
             x, F = xn, Fn
             if refactor and lam < 1.0:
                 self._eval(x, S, t, dt, jac=True)   # Jacobian at the damped iterate
-        return Outcome(False, x, self.max_iter * 2, "no convergence with full Newton",
+        return Outcome(False, x, limit, "no convergence with full Newton",
                        self._worst_row(F))
 
     def _flows_first(self, x0, S, t, dt):
