@@ -714,3 +714,54 @@ def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
     drawn = res.integral("pump", "massflow", "a")
     assert res.success and np.all(np.isfinite(m))
     np.testing.assert_allclose(m - m[0], -drawn, rtol=0, atol=1e-9 * m.max())
+
+
+def test_a_fold_jump_that_lands_back_where_it_started_is_no_snap(monkeypatch):
+    """Where every actuator is asked for a fold (the failure is not on an
+    actuator's equation), a jump counts only where Newton's solve from the
+    far pressure lands nearer to it than to where it started. A second
+    actuator, driven by its own source and at no fold, here claims a far
+    pressure 1 % above its own: it solves straight back to its own point,
+    which is no snap, and the balloon at the fold is asked next and snaps.
+    Taken as a snap, it stopped the run at the first fold."""
+    from importlib import resources
+    from softflow import paper_scenes as ps
+    from softflow.solve.assembly import Assembly
+    from softflow.solve.bdf import BDF
+    raw = sf.PVCurve(str(resources.files("softflow") / "data" / "latex_balloon_60mm_pv.csv"))
+    rng = np.random.default_rng(7)
+    v = np.linspace(raw.volume[0], raw.volume[-1], 400)
+    curve = sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size))
+    s = sf.System()
+    s += sf.PressureSource("drive", sf.waveforms.Sine(2e4, 0.3, offset=1.3e5))
+    s += sf.CircularTube("dtube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Actuator("driven", sf.air, ps.curve_monotonic(20.0))
+    s.connect("drive", "dtube")
+    s.connect("dtube", "driven")
+    s += sf.VolumeFlowSource("pump", volumeflow=2e-6, fluid=sf.air)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    s += sf.Actuator("act", sf.air, curve, initial_volume=v[0])
+    s.connect("pump", "tube")
+    s.connect("tube", "act")
+    asked, snap = [], BDF._snap
+
+    def claimed(self, g, k, t):
+        label = g.comps[k].label
+        if label != "driven":
+            out = snap(self, g, k, t)
+        else:
+            fold = g.fold
+            g.fold = lambda V, S, kk, rising: 1.01 * float(V[kk, 0])
+            try:
+                out = snap(self, g, k, t)
+            finally:
+                g.fold = fold
+        asked.append((label, out is not None))
+        return out
+    monkeypatch.setattr(BDF, "_snap", claimed)
+    # every failure asks every actuator, as where it shows at another node
+    monkeypatch.setattr(Assembly, "group_of_row", lambda self, row: (None, None))
+    res = sf.Simulation(s, duration=5.0).run()
+    assert ("driven", False) in asked and ("act", True) in asked
+    assert ("driven", True) not in asked
+    assert np.any(np.diff(res.times) == 0.0)            # act snapped (a fold jump)

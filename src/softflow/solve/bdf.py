@@ -538,7 +538,9 @@ class BDF(Integrator):
         restarted from it. Where the equation Newton failed on is not an
         actuator's (a negative pressure at the node of a pump that draws from
         an actuator at a fold), every actuator whose class states a fold is
-        asked, and the first at one snaps. At most once at one time; not with
+        asked, and the first at one snaps. A snap lands on the far side:
+        where Newton's solve from the far pressure goes back nearer the
+        pressure it started from, it is none. At most once at one time; not with
         sensitivities (a jump of the unknowns at fixed states, which they do
         not carry)."""
         if self.sens is not None or self._fold_at == t:
@@ -577,13 +579,18 @@ class BDF(Integrator):
         p_far = g.fold(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns), k, bool(rate > 0))
         if not np.isfinite(p_far) or p_far <= 0.0:
             return None
+        i = g.col[k, 0]                              # its pressure: terminal a's
         guess = x.copy()
-        guess[g.col[k, 0]] = p_far                   # its pressure: terminal a's
+        guess[i] = p_far
         newton = self.newton
         newton.full_stage = True
         snapped = newton.solve(guess, S, t, 0.0)
         newton.invalidate()
-        return snapped if snapped.converged else None
+        # a snap lands on the far side: nearer p_far than where it started
+        # (a solve that went back to the near branch is none)
+        if not snapped.converged or abs(snapped.x[i] - p_far) >= abs(snapped.x[i] - x[i]):
+            return None
+        return snapped
 
     def _chattering(self, S, S_new, x_new, h):
         """The failed Outcome of a run whose modes chatter (CHATTER_SWITCHES), on

@@ -230,9 +230,11 @@ class Newton:
     #: would rather cut (:data:`softflow.solve.bdf.FULL_STAGE_STEPS`)
     full_stage = True
     #: where ``full_stage`` is off: whether chord iterations on fresh factors
-    #: that contracted too slowly go on as undamped full Newton (a Jacobian at
-    #: every iterate, at most ``max_iter`` iterations), which fails where it
-    #: would damp (:meth:`_full` with ``undamped``). A law whose slope changes
+    #: that contracted too slowly go on as undamped full Newton (a Jacobian
+    #: at each iterate, its factors kept after a step that cut the residual
+    #: tenfold as in the damped stage; at most ``max_iter`` iterations), which
+    #: fails at the first full step that would need the line search
+    #: (:meth:`_full` with ``undamped``). A law whose slope changes
     #: by orders of magnitude between the predictor and the solution (a
     #: turbulent tube, dp ~ mdot^2, whose flow dies out) holds the chord to
     #: its predictor's slope, and it contracts at ~0.5 an iteration where
@@ -732,9 +734,10 @@ class Newton:
         (each start-up step of a thermal chain N = 1000 enters this stage).
 
         With ``undamped`` (:attr:`undamped_full`: a longer BDF step, after
-        chord iterations that contracted too slowly) it is plain Newton: at
-        most ``max_iter`` iterations, and it fails at the first iterate
-        whose full step would need the line search."""
+        chord iterations that contracted too slowly) it takes full steps
+        only: at most ``max_iter`` iterations, and it fails at the first full
+        step that neither lowers the residual nor contracts (where the line
+        search would begin)."""
         x = x0.copy()
         F = self._F_at_x0
         factored = F is not None
@@ -784,12 +787,12 @@ class Newton:
                     break          # descent, or stale factors: refactor at x first (below)
                 if lam == 1.0 and f1 < np.inf and self._contracts(Fn, dx):
                     break
+                if undamped:        # the full step neither descends nor contracts
+                    return Outcome(False, x, k + 1, "full Newton would need damping",
+                                   self._worst_row(F))
                 lam *= 0.5
                 if lam < 1e-4:
                     break
-            if undamped and lam < 1.0:
-                return Outcome(False, x, k + 1, "full Newton would need damping",
-                               self._worst_row(F))
             if watch or lam < 1e-4:
                 if watch == 1 or (not watch and used):
                     return Outcome(False, x_ref if watch else x, k + 1, "line search failed: no "
