@@ -451,13 +451,8 @@ CASES = [
     ("result plot unknown unit", lambda d: run().plot("tank.pressure", units="barr"),
      sf.UnitError, ["Result.plot", "tank.pressure", "'barr'"]),
     # scale and validity: the run itself says what is wrong where
-    ("1 nm x 1 km tube", lambda d: run(tube_tank(
-        tube=sf.CircularTube("tube", sf.air, length=1e3, diameter=1e-9))),
-     sf.SimulationError, ["CircularTube 'tube'", "length = 1e+03, diameter = 1e-09",
-                          "extreme relative to the rest"]),
-    ("1e-18 m^3 tank", lambda d: run(tube_tank(tank=sf.Container("tank", sf.air,
-                                                                 volume=1e-18))),
-     sf.SimulationError, ["Container 'tank'", "volume = 1e-18", "extreme relative"]),
+    # (a 1 nm x 1 km tube, a 1e-18 m^3 tank: extreme but valid, solved since
+    # 2026-12-03; tests/test_no_silent_answers.py)
     ("1 nm short tube into a 1000 m^3 tank", lambda d: run(tube_tank(
         tube=sf.CircularTube("tube", sf.air, length=1e-9, diameter=1e-2),
         tank=sf.Container("tank", sf.air, volume=1e3))),

@@ -214,7 +214,8 @@ def test_dense_lu_equilibrates_a_jacobian_singular_only_in_its_units(n):
     """Rows 1e-8 and columns 1e-8 apart (the units: a gas volume's rho V = m at
     18 MPa against a tube's pressure drop): the unscaled pivots span more than
     1e14, R J C is well conditioned, and the solves are J's, one vector or
-    several; where the scale diagnosis names a component, J stays singular."""
+    several, also where the scale diagnosis names a component (kept as a
+    note); a singular R J C stays singular."""
     from softflow.solve.linalg import SingularJacobian
     rng = np.random.default_rng(5)
     A = rng.standard_normal((n, n)) + n * np.eye(n)
@@ -229,8 +230,14 @@ def test_dense_lu_equilibrates_a_jacobian_singular_only_in_its_units(n):
     np.testing.assert_allclose(J @ lin.solve(b), b, rtol=0, atol=1e-12 * np.abs(b).max())
     B = rng.standard_normal((n, 3)) * rows[:, None]
     np.testing.assert_allclose(J @ lin.solve(B), B, rtol=0, atol=1e-12 * np.abs(B).max())
+    # a component the scale diagnosis names is no veto: the factors are R J C's,
+    # and the diagnosis is kept for a failure's message
+    named = DenseLU(_Matrix(J, diagnosis="the scale of X is extreme"))
+    named.factor()
+    np.testing.assert_allclose(J @ named.solve(b), b, rtol=0, atol=1e-12 * np.abs(b).max())
+    assert named.scale_note[0] == "the scale of X is extreme" and lin.scale_note == (None, None)
     with pytest.raises(SingularJacobian, match="singular"):
-        DenseLU(_Matrix(J, diagnosis="the scale of X is extreme")).factor()
+        DenseLU(_Matrix(np.zeros((n, n)) + np.eye(n) * (np.arange(n) > 0))).factor()
     # a well-scaled matrix afterwards is solved on its own factors again
     lin2 = DenseLU(_Matrix(A))
     lin2.factor()

@@ -25,6 +25,7 @@ over the variants, :mod:`softflow.solve.clocks`.)
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -275,8 +276,22 @@ class Integrator:
         finally:
             newton.lin = run_lin
         if not out.converged:
-            raise StepFailure(0.0, 0.0, out)
+            raise StepFailure(0.0, 0.0, _with_scale_hint(out, lin0 or run_lin))
         return out.x, lin0
+
+
+def _with_scale_hint(out, lin):
+    """A failed consistent start's Outcome, with the component whose scale
+    :meth:`Assembly.diagnose_scale` found extreme where the dense solver had
+    to equilibrate (``DenseLU.scale_note``) named as the likely cause (a 1 nm
+    long tube between a source and a 1000 m^3 tank: the line search fails on
+    the source's equation). Only a hint: such networks are solved where they
+    can be."""
+    why, row = getattr(lin, "scale_note", (None, None))
+    if why is None or "extreme relative" in out.reason:
+        return out
+    return dataclasses.replace(out, reason=f"{out.reason}; likely cause: {why}", row=row,
+                               unknown=None)
 
 
 class ImplicitEuler(Integrator):
