@@ -676,6 +676,16 @@ def test_one_actuator_on_a_pvcurve_reads_it_on_floats_bitwise(fluid, extrapolate
                                 == np.where(nan, 0.0, b).tobytes()), (vol, p, jac, a, b)
 
 
+def _noisy_balloon():
+    """The latex balloon's measured curve resampled at 400 volumes with 1 kPa
+    of noise (seed 7): locally falling faster than air expands, so it has
+    folds. Returns (curve, its first volume)."""
+    raw = sf.PVCurve(str(BALLOON_CSV))
+    rng = np.random.default_rng(7)
+    v = np.linspace(raw.volume[0], raw.volume[-1], 400)
+    return sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size)), v[0]
+
+
 def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
     """A pump draws air out of a balloon whose measured curve carries 1 kPa
     of noise: where the curve locally rises as the volume falls, the gas
@@ -684,17 +694,13 @@ def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
     actuator's equation; BDF then looks for a fold at every actuator and
     snaps the one at a fold (the run stopped at t = 20.7 s before). The
     mass the pump drew is what the balloon lost (checked at every point)."""
-    from importlib import resources
     from softflow.solve.bdf import BDF
-    raw = sf.PVCurve(str(resources.files("softflow") / "data" / "latex_balloon_60mm_pv.csv"))
-    rng = np.random.default_rng(7)
-    v = np.linspace(raw.volume[0], raw.volume[-1], 400)
-    curve = sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size))
+    curve, v0 = _noisy_balloon()
     s = sf.System()
     s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
                              fluid=sf.air)
     s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
-    s += sf.Actuator("act", sf.air, curve, initial_volume=v[0])
+    s += sf.Actuator("act", sf.air, curve, initial_volume=v0)
     s.connect("pump", "tube")
     s.connect("tube", "act")
     elsewhere = []
@@ -724,14 +730,10 @@ def test_a_fold_jump_that_lands_back_where_it_started_is_no_snap(monkeypatch):
     pressure 1 % above its own: it solves straight back to its own point,
     which is no snap, and the balloon at the fold is asked next and snaps.
     Taken as a snap, it stopped the run at the first fold."""
-    from importlib import resources
     from softflow import paper_scenes as ps
     from softflow.solve.assembly import Assembly
     from softflow.solve.bdf import BDF
-    raw = sf.PVCurve(str(resources.files("softflow") / "data" / "latex_balloon_60mm_pv.csv"))
-    rng = np.random.default_rng(7)
-    v = np.linspace(raw.volume[0], raw.volume[-1], 400)
-    curve = sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size))
+    curve, v0 = _noisy_balloon()
     s = sf.System()
     s += sf.PressureSource("drive", sf.waveforms.Sine(2e4, 0.3, offset=1.3e5))
     s += sf.CircularTube("dtube", sf.air, length=0.3, diameter=1e-3)
@@ -740,7 +742,7 @@ def test_a_fold_jump_that_lands_back_where_it_started_is_no_snap(monkeypatch):
     s.connect("dtube", "driven")
     s += sf.VolumeFlowSource("pump", volumeflow=2e-6, fluid=sf.air)
     s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
-    s += sf.Actuator("act", sf.air, curve, initial_volume=v[0])
+    s += sf.Actuator("act", sf.air, curve, initial_volume=v0)
     s.connect("pump", "tube")
     s.connect("tube", "act")
     asked, snap = [], BDF._snap
