@@ -26,10 +26,10 @@ law E_a, the energy balance E_b), so B^-1 [I | A_er] is a substitution
 vectorized over each component class; other blocks (user components) go
 through LAPACK, batched.
 
-Where a block is singular or nearly so (volumes at dt = 0: the consistent
-initial values, a fold jump), or S is, the whole Jacobian is factored with
-:class:`SparseLU` for that factorization: same results, same singularity
-errors.
+Where a block is singular or nearly so (volumes at dt = 0, the consistent
+initial values), its group stays in the node system for that factorization;
+where S is singular, the whole Jacobian is factored with :class:`SparseLU`:
+same results, same singularity errors as before.
 """
 from __future__ import annotations
 
@@ -41,8 +41,8 @@ from .supernodes import ColumnLU
 
 #: A pivot of a triangular block below this fraction of its row's largest
 #: block entry, or a generic block whose row- and column-equilibrated inverse
-#: has an entry above 1/PIVOT_MIN, counts as (nearly) singular: that
-#: factorization is the whole Jacobian's (:class:`SparseLU`).
+#: has an entry above 1/PIVOT_MIN, counts as (nearly) singular: its group stays
+#: in the node system for that factorization.
 PIVOT_MIN = 1e-12
 
 
@@ -249,17 +249,18 @@ class CondensationPlan:
     """Index maps of the condensation, built once per Assembly: the blocks, the
     pattern of S and those of the back-substitution matrices."""
 
-    def __init__(self, asm):
+    def __init__(self, asm, excluded=frozenset()):
         n = asm.n
         self.blocks = []
         col_elim = np.zeros(n, dtype=bool)
         row_elim = np.zeros(n, dtype=bool)
         xoff = 0
-        for g in asm.groups:
-            parts = _condensable(g)
+        for gi, g in enumerate(asm.groups):
+            parts = _condensable(g) if gi not in excluded else None
             if parts is None:
                 continue
             b = _Block(g, *parts, xoff)
+            b.index = gi
             xoff += b.xsize
             self.blocks.append(b)
             col_elim[g.col[:, b.own].ravel()] = True
@@ -347,22 +348,30 @@ class CondensationPlan:
         X = self.values[b.xoff:b.xoff + b.xsize].reshape(g.n, b.k, b.k + b.m)
         return b.invert(J, X)
 
+    def all_singular(self, raw, groups):
+        """Whether every block of ``groups`` (indices in asm.groups, all
+        condensed in this plan) is (nearly) singular in ``raw``."""
+        return not any(self._invert(b, raw) for b in self.blocks if b.index in groups)
+
     def factor(self, raw):
-        """Condense and factor; False where a block or S is (nearly) singular."""
+        """Condense and factor. Returns None on success, else the indices (in
+        asm.groups) of the groups with (nearly) singular blocks, or an empty set
+        where S is singular."""
         values = self.values
         values[len(values) - 1 - len(raw):-1] = raw
-        if not all(self._invert(b, raw) for b in self.blocks):
-            return False
+        singular = {b.index for b in self.blocks if not self._invert(b, raw)}
+        if singular:
+            return frozenset(singular)
         self.S.fill(values)
         if not np.isfinite(self.S.M.data).all():
-            return False
+            return frozenset()
         try:
             self.lu.factor(self.S.M)
         except RuntimeError:
-            return False
+            return frozenset()
         self.Q.fill(values)
         self.H.fill(values)
-        return True
+        return None
 
     def solve(self, b):
         q = self.Q.M @ b
@@ -376,13 +385,10 @@ class CondensedLU:
     """Static condensation of the components' own unknowns, then SuperLU on the
     node system (see module docstring); same interface as :class:`SparseLU`.
 
-    Where a group's blocks are singular in a factorization (the volumes at
-    dt = 0: the consistent start, a fold jump) or S itself is, the whole
-    Jacobian is factored by :class:`SparseLU` instead. (A second plan with
-    those groups left in the node system took as long to build as ~4 such
-    factorizations, for the one factorization at dt = 0 of a run: air chain
-    N = 200, 0.74 ms against 0.2; adiabatic chains N = 2 000 and 10 000
-    ran as fast with the whole Jacobian.)"""
+    Groups whose blocks are singular in a factorization (volumes at dt = 0)
+    are left in the node system for it: a second plan, kept like the first in
+    the Assembly's solver cache. Where that fails too (S singular), the whole
+    Jacobian is factored by :class:`SparseLU`."""
 
     kind = "condensed"
 
@@ -390,12 +396,17 @@ class CondensedLU:
         self.asm = asm
         self.n = asm.n
         self.full = SparseLU(asm)
-        plans = asm.solver_cache.setdefault("condensation", {})
-        self.plan = plans.get("all")
-        if self.plan is None:
-            self.plan = plans["all"] = CondensationPlan(asm)
+        self._plans = asm.solver_cache.setdefault("condensation", {})
+        self.plan = self._plan(frozenset())
         self.mode = None
+        self._excluded = frozenset()     # groups left out by the last factorization
         self._raw = np.empty(len(asm.raw))
+
+    def _plan(self, excluded):
+        plan = self._plans.get(excluded)
+        if plan is None:
+            plan = self._plans[excluded] = CondensationPlan(self.asm, excluded)
+        return plan
 
     @property
     def worthwhile(self):
@@ -407,9 +418,24 @@ class CondensedLU:
         if not np.isfinite(raw).all():
             raise SingularJacobian("Jacobian contains NaN or inf")
         self._raw[:] = raw
-        if self.plan.blocks and self.plan.factor(self._raw):
-            self.mode, self.active = "condensed", self.plan
-            return
+        # the groups left out last time (volumes through a dt = 0 solve), if all
+        # still singular, are left out at once: the same plan is reached as
+        # through the first one, without condensing every other group twice
+        excluded = self._excluded
+        if excluded and not self.plan.all_singular(self._raw, excluded):
+            excluded = frozenset()
+        while True:
+            plan = self._plan(excluded)
+            if not plan.blocks:
+                break
+            singular = plan.factor(self._raw)
+            if singular is None:
+                self.mode, self.active = "condensed", plan
+                self._excluded = excluded
+                return
+            if not singular:          # S itself: the Jacobian is singular or nearly so
+                break
+            excluded = excluded | singular
         self.mode = "full"
         self.full.factor()
 
