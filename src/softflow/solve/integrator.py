@@ -269,6 +269,7 @@ class Integrator:
         lin0 = make_linear_solver(asm, "dense") if newton.lin.kind == "dense" else None
         run_lin = newton.lin
         if lin0 is not None:
+            lin0.note_scale = True
             newton.lin = lin0
         try:
             x0 = asm.x0.copy()
@@ -276,22 +277,32 @@ class Integrator:
         finally:
             newton.lin = run_lin
         if not out.converged:
-            raise StepFailure(0.0, 0.0, _with_scale_hint(out, lin0 or run_lin))
+            raise StepFailure(0.0, 0.0, _with_scale_hint(out, lin0))
         return out.x, lin0
+
+
+#: failures of a consistent start that say no more than that Newton did not
+#: get there: where the dense solver found a component's scale extreme on
+#: the way, that component is named beside them as the likely cause
+_UNSPECIFIC = ("line search failed", "no convergence", "Newton diverging",
+               "Newton converging too slowly", "residual not finite along")
 
 
 def _with_scale_hint(out, lin):
     """A failed consistent start's Outcome, with the component whose scale
-    :meth:`Assembly.diagnose_scale` found extreme where the dense solver had
-    to equilibrate (``DenseLU.scale_note``) named as the likely cause (a 1 nm
-    long tube between a source and a 1000 m^3 tank: the line search fails on
-    the source's equation). Only a hint: such networks are solved where they
-    can be."""
-    why, row = getattr(lin, "scale_note", (None, None))
-    if why is None or "extreme relative" in out.reason:
+    :meth:`Assembly.diagnose_scale` found extreme where the start's dense
+    solver had to equilibrate (``DenseLU.scale_note``) named as the likely
+    cause (a 1 nm long tube between a source and a 1000 m^3 tank: the line
+    search fails on the source's equation). Only a hint, and only beside an
+    unspecific failure (:data:`_UNSPECIFIC`; not one that names a fluid's
+    range or a negative pressure): such networks are solved where they can
+    be, and the failure's own equation (``row``, the error's component)
+    stays as it is."""
+    why, _ = getattr(lin, "scale_note", (None, None))
+    if (why is None or "extreme relative" in out.reason or "(in " in out.reason
+            or not out.reason.startswith(_UNSPECIFIC)):
         return out
-    return dataclasses.replace(out, reason=f"{out.reason}; likely cause: {why}", row=row,
-                               unknown=None)
+    return dataclasses.replace(out, reason=f"{out.reason}; likely cause: {why}")
 
 
 class ImplicitEuler(Integrator):
