@@ -49,6 +49,13 @@ def _tube_fRe(P, mf, terms=None):
 
 
 
+def _open_coefficients(c_mu, Re, phi, dphi, jac):
+    """An open snapping valve's tube law as dp = x(mdot) mdot / rho: x =
+    c_mu f·Re, and d(x mdot)/d mdot = c_mu (f·Re + Re d(f·Re)/dRe) (None
+    without ``jac``), on arrays or scalars alike."""
+    return c_mu * phi, (c_mu * (phi + Re * dphi) if jac else None)
+
+
 def _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho):
     """A snapping valve's equations, mass balance and dp = x(mdot) mdot / rho
     (``x``: the open tube's or the closed restrictor's coefficient), on arrays
@@ -691,10 +698,10 @@ class SnappingValve(_TubeLike):
         rho, drho = _mean_density(P.fluid, pa, pb)
         Re, phi, dphi = _tube_fRe(P, mfa, P.friction_terms)
         # both laws as dp = X(mdot)/rho: open the tube, closed the linear restrictor
-        x_open = P.c_mu * phi
+        x_open, dx_open = _open_coefficients(P.c_mu, Re, phi, dphi, jac)
         x_closed = 1.0 / P.closed_conductance
         x = np.where(is_open, x_open, x_closed)
-        dx = np.where(is_open, P.c_mu * (phi + Re * dphi), x_closed) if jac else None
+        dx = np.where(is_open, dx_open, x_closed) if jac else None
         (f0, f1), j = _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho)
         F = np.empty((P.n, 2))
         F[:, 0] = f0
@@ -719,8 +726,7 @@ class SnappingValve(_TubeLike):
                 phi, dphi = 64.0, 0.0
             else:
                 phi, dphi = fRe_blended(Re, Q.eD, Q.Re_lo, Q.Re_hi, terms=Q.friction_terms)
-            x = Q.c_mu * phi
-            dx = Q.c_mu * (phi + Re * dphi) if jac else None
+            x, dx = _open_coefficients(Q.c_mu, Re, phi, dphi, jac)
         else:
             x = 1.0 / Q.closed_conductance
             dx = x if jac else None

@@ -298,7 +298,7 @@ def _with_scale_hint(out, lin):
     range or a negative pressure): such networks are solved where they can
     be, and the failure's own equation (``row``, the error's component)
     stays as it is."""
-    why, _ = getattr(lin, "scale_note", (None, None))
+    why = getattr(lin, "scale_note", None)
     if (why is None or "extreme relative" in out.reason or "(in " in out.reason
             or not out.reason.startswith(_UNSPECIFIC)):
         return out

@@ -60,13 +60,13 @@ class DenseLU:
 
     kind = "dense"
 
-    #: (message, row) of :meth:`Assembly.diagnose_scale` at the last
+    #: the message of :meth:`Assembly.diagnose_scale` at the last
     #: factorization that needed equilibrating where it named a component,
-    #: or (None, None); kept only where ``note_scale`` is set (the solver of
-    #: the consistent start, Integrator._solve_initial: a diagnosis costs a
+    #: or None; kept only where ``note_scale`` is set (the solver of the
+    #: consistent start, Integrator._solve_initial: a diagnosis costs a
     #: sparse pass over the Jacobian, 17.5 of 122 ms on a random network
     #: that equilibrated at every step)
-    scale_note: tuple = (None, None)
+    scale_note: str | None = None
     note_scale = False
 
     def __init__(self, asm):
@@ -145,9 +145,9 @@ class DenseLU:
         # kept for a failure's message (Integrator._solve_initial): where the
         # consistent start fails after all, the extreme component is named
         if self.note_scale:
-            note = self.asm.diagnose_scale()
-            if note[0] is not None:
-                self.scale_note = note
+            why = self.asm.diagnose_scale()[0]
+            if why is not None:
+                self.scale_note = why
         ir, ic = 1.0 / r, 1.0 / c
         if self.n <= INVERSE_MAX:
             inv, info = dgetri(lu, piv)
