@@ -712,3 +712,28 @@ def _one_valve_matches_arrays(P):
                     assert (da is None) == (db is None)
                     if da is not None:
                         assert _same_bits(da, db), (pa, mf, pb, mode, da, db)
+
+
+def test_check_valve_regime_marks_the_steep_middle_of_its_opening_band():
+    """CheckValve.regime (the pieces Newton keeps a Jacobian on): closed up to
+    REGIME_EDGE of the band above the cracking pressure (where a valve holding
+    a tank comes to rest), opening in the band's steep middle, open past
+    1 - REGIME_EDGE of it; the thermal variant reads the same pressures from
+    its own columns."""
+    from softflow.components.thermal import thermal_class
+    from softflow.components.valves import REGIME_EDGE
+    v = CheckValve("c", sf.air, diameter=1e-3, cracking_pressure=1e4, opening_band=1e3)
+    P = CheckValve.make_params([v] * 8)
+    band = [-5e4, 0.0, 1e4, 1e4 + 0.9 * REGIME_EDGE * 1e3, 1e4 + 1.1 * REGIME_EDGE * 1e3,
+            1.05e4, 1.1e4 - 1.1 * REGIME_EDGE * 1e3, 2e4]
+    pb = 1e5
+    V = np.array([[pb + dp, 1e-4, pb, -1e-4] for dp in band])
+    assert CheckValve.regime(P, V).tolist() == [0, 0, 0, 0, 1, 1, 1, 2]
+    # the steep piece is where the law's slope in dp is: within a fifth of its peak
+    # on the edges (the smoothstep's 6 s (1 - s) at s = REGIME_EDGE)
+    assert 6 * REGIME_EDGE * (1 - REGIME_EDGE) / 1.5 < 0.2
+    thermal = thermal_class(CheckValve)
+    Vt = np.zeros((len(band), 8))
+    Vt[:, [0, 1, 4, 5]] = V
+    Vt[:, [2, 6]] = 293.15          # temperatures where the isothermal V has p_b
+    assert thermal.regime(P, Vt).tolist() == CheckValve.regime(P, V).tolist()

@@ -21,6 +21,14 @@ every instance of the class in the network:
 ``switching_jacobian(P, V, S)``, ``switching_param_jacobian(P, V, S, name)`` (optional)
     its derivatives in V (n, m, nv) and S (n, m, ns), and in a parameter (n, m),
     for the sensitivities' jump at a located switch (else finite differences).
+``regime(P, V)`` (optional)
+    which piece of a piecewise law each instance is on at V, (n,) integers
+    (a check valve: closed, opening, open). Newton's chord iterations reuse
+    a Jacobian only while every instance stays on the piece it was evaluated
+    on: a slope from one piece (an opening valve's steep one) read on
+    another makes the chord's updates small far from the root, and the
+    update-based convergence test is then fooled
+    (:meth:`softflow.solve.newton.Newton.solve`).
 ``param_jacobian(P, V, S, t, name)`` (optional)
     dF/dtheta of ``residual`` and dr/dtheta of ``rates`` for the numeric
     parameter ``name`` of every instance, or None where the class states none

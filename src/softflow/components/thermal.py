@@ -375,8 +375,9 @@ def _energy_columns(J, k, dE):
 
 def _switching_on_iso_columns(base):
     """A switching element's (a snapping valve's) ``switch``, ``switching`` and
-    their Jacobians for its thermal variant: the isothermal law's, on the
-    isothermal columns of V (in the thermal V, column 2 is T_a, not p_b)."""
+    their Jacobians, and a piecewise law's ``regime`` (a check valve's), for
+    its thermal variant: the isothermal law's, on the isothermal columns of V
+    (in the thermal V, column 2 is T_a, not p_b)."""
     out = {}
     from .base import LibraryComponent
     if base.switch.__func__ is not LibraryComponent.switch.__func__:
@@ -392,6 +393,9 @@ def _switching_on_iso_columns(base):
             GV[:, :, _ISO_COLS] = GV_iso
             return GV, GS
         out["switching_jacobian"] = classmethod(switching_jacobian)
+    if getattr(base, "regime", None) is not None:       # a check valve's pieces
+        out["regime"] = classmethod(lambda cls, P, V: base.regime.__func__(
+            cls, P, V[:, _ISO_COLS]))
     if getattr(base, "switching_param_jacobian", None) is not None:
         out["switching_param_jacobian"] = classmethod(
             lambda cls, P, V, S, name: base.switching_param_jacobian.__func__(

@@ -344,6 +344,11 @@ class Orifice(LibraryComponent):
 
 
 # ---------------------------------------------------------------------------------------
+#: CheckValve.regime: the fraction of the opening band at either end that counts
+#: as closed or open (the smoothstep's slope there is under 0.19 of its peak)
+REGIME_EDGE = 0.05
+
+
 class CheckValve(LibraryComponent):
     """Spring-loaded check valve: flow from ``a`` to ``b`` once dp = p_a - p_b
     exceeds the cracking pressure, none backwards (apart from leakage).
@@ -427,6 +432,17 @@ class CheckValve(LibraryComponent):
         J[:, 3] = 1.0
         J[:, 4] = -(-d_dp + d_rho)
         return F, J
+
+    @classmethod
+    def regime(cls, P, V):
+        """The piece of the law at V (LibraryComponent): 0 closed or nearly
+        (up to the first REGIME_EDGE of the opening band, where the
+        smoothstep's slope is under a fifth of its peak), 1 opening (the
+        steep middle of the band), 2 open or nearly (its last REGIME_EDGE).
+        The edges lie inside the band, not at the cracking pressure, where a
+        valve that holds a tank comes to rest."""
+        s = (V[:, 0] - V[:, 2] - P.cracking_pressure) / P.opening_band
+        return (s >= REGIME_EDGE).astype(np.int8) + (s > 1.0 - REGIME_EDGE)
 
 
     @classmethod

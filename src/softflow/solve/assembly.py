@@ -158,6 +158,7 @@ class Group:
         self.begin = None  # begin_step(V, S) hook, or None
         self.switching = None  # switching(V, S): the discrete states' switching functions
         self.fold = None   # fold(V, S, k, rising): the pressure instance k snaps to at a fold
+        self.regime = None  # regime(V): the piece of a piecewise law each instance is on
         self.row = None    # a single user component's kernel (1-D calls), or None
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
@@ -192,7 +193,7 @@ def _fluid_failure(g, err):
 
 #: What _library_group makes of a class's Params: Assembly.replace takes all of
 #: them from a group made anew (one left behind would keep the old numbers).
-_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold")
+_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold", "regime")
 
 
 def _library_group(cls, comps):
@@ -214,6 +215,9 @@ def _library_group(cls, comps):
     fold = getattr(cls, "fold_pressure", None)
     if fold is not None:
         g.fold = partial(fold, P)
+    regime = getattr(cls, "regime", None)
+    if regime is not None:
+        g.regime = partial(regime, P)
     # per-step coefficients (e.g. heat-transfer correlations), frozen over each step
     wants = getattr(cls, "wants_begin_step", None)
     if wants is not None and wants(P):
@@ -961,6 +965,23 @@ class Assembly:
             self._incidence = inc
         if len(self.groups) <= UNROLL_MAX_GROUPS:
             self.residual = self._unrolled_residual()
+        self._regime_plan = [(g.regime, g.col) for g in self.groups if g.regime is not None]
+
+    @property
+    def has_regimes(self):
+        """Whether any group states the pieces of a piecewise law (``regime``)."""
+        return bool(self._regime_plan)
+
+    def regimes(self, x):
+        """The piece of its piecewise law each instance of every group that
+        states one is on at x (one integer array), or None without any."""
+        plan = self._regime_plan
+        if not plan:
+            return None
+        if len(plan) == 1:
+            fn, col = plan[0]
+            return np.asarray(fn(x[col]))
+        return np.concatenate([np.asarray(fn(x[col])).ravel() for fn, col in plan])
 
     def _bind_group(self, env, i, user_call):
         """Put what generated code calls for group i into ``env`` (k<i>: its

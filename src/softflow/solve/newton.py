@@ -207,6 +207,11 @@ class Newton:
         self.age = 0           # steps since the last factorization
         self.stale = True      # force a fresh Jacobian at the next solve
         self.eta = 1.0         # rate/(1 - rate) seen in earlier solves, for the first test
+        # piecewise laws (a check valve's pieces, Assembly.regimes): the pieces at
+        # the point of the last Jacobian evaluation and of the current factors
+        self._regimes = asm.regimes if asm.has_regimes else None
+        self._jac_x = None
+        self._jac_regime = None
         self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
         self._solves = 0
         self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
@@ -305,6 +310,7 @@ class Newton:
         self.stats.residual_evaluations += 1
         if jac:
             self.stats.jacobian_evaluations += 1
+            self._jac_x = x       # (never written in place: iterates are new arrays)
         try:
             F = self.asm.residual(x, S, t, dt, jac)
             return F if self.offset is None else F - self.offset
@@ -326,11 +332,23 @@ class Newton:
     def _factor(self, dt):
         self.lin.factor()
         self.stats.factorizations += 1
+        if self._regimes is not None:
+            self._jac_regime = self._regimes(self._jac_x)
         self.lu_dt = dt
         # the step sizes these factors serve (see _reusable; 0 serves only 0)
         self._dt_lo, self._dt_hi = self.dt_ratio[0] * dt, self.dt_ratio[1] * dt
         self.age = 0
         self.stale = False
+
+    def _off_piece(self, x):
+        """Whether a piecewise law is at x on another piece than the one the
+        current factors' Jacobian was evaluated on (``regime`` of its class,
+        :mod:`softflow.components.base`): a slope read from the wrong piece
+        (an opening check valve's steep one where the valve has closed)
+        makes the chord's updates small far from the root, and the
+        update-based convergence test is fooled. False without such laws."""
+        return (self._regimes is not None and self._jac_regime is not None
+                and not np.array_equal(self._regimes(x), self._jac_regime))
 
     def set_temperature_range(self, lo, hi):
         """Keep the iterates' node temperatures within [lo, hi] K (the range the
@@ -525,6 +543,9 @@ class Newton:
             if first is None:     # (else _quick set the tolerances for x0)
                 self._set_scale(x0)
             out = self._chord(x0, S, t, dt, "reuse", F0, first)
+            if out.converged and self._regimes is not None and self._off_piece(out.x):
+                out = Outcome(False, out.x, out.iterations, "a piecewise law changed "
+                              "pieces since the Jacobian was evaluated")
             if out.converged and out.iterations >= self.max_reuse_iter:
                 self.stale = True  # convergence slowing: refresh at the next step
             last = self._accept(out)
@@ -541,6 +562,13 @@ class Newton:
                     break
                 if stage == "fresh":
                     out = self._chord(x0, S, t, dt, stage)
+                    if (out.converged and self._regimes is not None
+                            and self._off_piece(out.x)):
+                        # converged on the slope of another piece (a valve that
+                        # closes within the step, its Jacobian evaluated open):
+                        # once more from there, on its own piece's Jacobian
+                        out = self._chord(out.x, S, t, dt, stage)
+                        self._F_at_x0 = None        # (those factors are not x0's)
                 elif last is not None and last.contracting:
                     # a contracting chord iteration got closer than x0: go on from
                     # there (thermal chain N = 1000, second step: 14 -> 10 iterations)
@@ -625,6 +653,9 @@ class Newton:
             step = -self._clip_temperature(x0, -step)
         x = x0 - step
         if self._has_p and not self._positive(x):
+            return None
+        if self._regimes is not None and self._off_piece(x):
+            self.stale = True     # to the fresh stage (Newton.solve)
             return None
         self.stats.newton_iterations += 1
         self.age += 1

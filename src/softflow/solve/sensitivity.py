@@ -754,6 +754,7 @@ class Sensitivities(DeferredSteps):
         linearization and parameter terms the states' update reuses."""
         asm, n_p = self.asm, self.n_p
         asm.residual(x, psi, t, c, jac=True)
+        self.newton._jac_x = x     # where _solve may factor this Jacobian (its pieces)
         lin = self._linearize(x, psi, t, c)
         rhs = np.zeros((asm.n, n_p))
         for g in self._analytic:
