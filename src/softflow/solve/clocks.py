@@ -37,8 +37,10 @@ time, and only the variants that switch pay for the restart.
 What this covers: scenes of library components in rate form, isothermal or
 thermal (a heat-transfer correlation's h A frozen at each variant's own
 step start, as the BDF freezes it), run with the adaptive BDF. Others (user
-components, fixed steps) keep the shared step sequence (:func:`reason_not`
-says why). A variant whose step fails (Newton down to ``step_min``) is reported failed
+components, fixed steps, check valves: the variants' Newton here does not
+refresh a Jacobian where a valve changes pieces, as
+:meth:`softflow.solve.newton.Newton.solve` does) keep the shared step
+sequence (:func:`reason_not` says why). A variant whose step fails (Newton down to ``step_min``) is reported failed
 here and run again on its own by the caller, where its result says why; an
 iterate that leaves a fluid's range sends the whole batch back to the shared
 steps, which find the variant responsible.
@@ -218,6 +220,11 @@ def reason_not(sim):
         c0 = g.comps[0]
         if g.row is not None or not isinstance(c0, LibraryComponent):
             return f"{c0.describe()} is not a library component"
+        if g.regime is not None:
+            # Newton.solve keeps a Jacobian only while such a law stays on its
+            # piece; the variants' own Newton here does not check it
+            return (f"{c0.describe()} has a piecewise law whose pieces Newton checks "
+                    "(regime) on the one-network BDF only")
         cls = c0.kernel_class()
         if not linearizable(cls):
             return f"{c0.describe()} writes its own step equations"
