@@ -714,26 +714,50 @@ def _one_valve_matches_arrays(P):
                         assert _same_bits(da, db), (pa, mf, pb, mode, da, db)
 
 
-def test_check_valve_regime_marks_the_steep_middle_of_its_opening_band():
-    """CheckValve.regime (the pieces Newton keeps a Jacobian on): closed up to
-    REGIME_EDGE of the band above the cracking pressure (where a valve holding
-    a tank comes to rest), opening in the band's steep middle, open past
-    1 - REGIME_EDGE of it; the thermal variant reads the same pressures from
-    its own columns."""
+def test_check_valve_regime_separates_shut_opening_and_open():
+    """CheckValve.regime (the pieces Newton keeps a Jacobian on): shut (s <= 0,
+    s the position in the opening band), the band's bottom REGIME_EDGE in
+    pieces a factor 4 apart in s (the smoothstep's slope grows as 6 s there:
+    a Jacobian from one of them is within 4x of the slope anywhere in it), its
+    steep middle, open past 1 - REGIME_EDGE; the thermal variant reads the
+    same pressures from its own columns."""
     from softflow.components.thermal import thermal_class
-    from softflow.components.valves import REGIME_EDGE
+    from softflow.components.valves import LOW_PIECES, REGIME_EDGE
     v = CheckValve("c", sf.air, diameter=1e-3, cracking_pressure=1e4, opening_band=1e3)
-    P = CheckValve.make_params([v] * 8)
-    band = [-5e4, 0.0, 1e4, 1e4 + 0.9 * REGIME_EDGE * 1e3, 1e4 + 1.1 * REGIME_EDGE * 1e3,
-            1.05e4, 1.1e4 - 1.1 * REGIME_EDGE * 1e3, 2e4]
+    s = np.array([-50.0, 0.0, 1e-11, 1e-9, REGIME_EDGE / 4.1, REGIME_EDGE / 3.9,
+                  0.99 * REGIME_EDGE, REGIME_EDGE, 0.5, 1 - 1.1 * REGIME_EDGE,
+                  1 - 0.9 * REGIME_EDGE, 1.0, 20.0, np.nan])
+    P = CheckValve.make_params([v] * s.size)
     pb = 1e5
-    V = np.array([[pb + dp, 1e-4, pb, -1e-4] for dp in band])
-    assert CheckValve.regime(P, V).tolist() == [0, 0, 0, 0, 1, 1, 1, 2]
-    # the steep piece is where the law's slope in dp is: within a fifth of its peak
-    # on the edges (the smoothstep's 6 s (1 - s) at s = REGIME_EDGE)
-    assert 6 * REGIME_EDGE * (1 - REGIME_EDGE) / 1.5 < 0.2
+    V = np.array([[pb + 1e4 + x * 1e3, 1e-4, pb, -1e-4] for x in s])
+    pieces = CheckValve.regime(P, V)
+    assert pieces.tolist() == [-LOW_PIECES - 1, -LOW_PIECES - 1, -LOW_PIECES, -13, -2, -1,
+                               -1, 0, 0, 0, 1, 1, 1, 0]
+    # each piece of the bottom spans a factor 4 in s, its slope 6 s (1 - s) < 4.2x
+    inside = (s > 0) & (s < REGIME_EDGE)
+    for k in set(pieces[inside].tolist()) - {-LOW_PIECES}:
+        lo, hi = REGIME_EDGE * 4.0 ** k, REGIME_EDGE * 4.0 ** (k + 1)
+        ends = np.array([[pb + 1e4 + x * 1e3, 0.0, pb, 0.0] for x in (1.001 * lo, 0.999 * hi)])
+        assert CheckValve.regime(CheckValve.make_params([v] * 2), ends).tolist() == [k, k]
+        assert (6 * hi * (1 - hi)) / (6 * lo * (1 - lo)) < 4.2
     thermal = thermal_class(CheckValve)
-    Vt = np.zeros((len(band), 8))
+    Vt = np.zeros((s.size, 8))
     Vt[:, [0, 1, 4, 5]] = V
     Vt[:, [2, 6]] = 293.15          # temperatures where the isothermal V has p_b
-    assert thermal.regime(P, Vt).tolist() == CheckValve.regime(P, V).tolist()
+    assert thermal.regime(P, Vt).tolist() == pieces.tolist()
+
+
+def test_check_valve_kinks_are_where_the_smoothstep_ends():
+    """CheckValve.kinks: shut (dp at or below the cracking pressure), inside the
+    opening band, open (at or past its top): the points where the law's
+    second derivative jumps; the thermal variant reads its own columns."""
+    from softflow.components.thermal import thermal_class
+    v = CheckValve("c", sf.air, diameter=1e-3, cracking_pressure=1e4, opening_band=1e3)
+    dp = np.array([-3e4, 1e4, 1e4 + 1e-6, 1.05e4, 1.1e4 - 1e-6, 1.1e4, 5e4])
+    P = CheckValve.make_params([v] * dp.size)
+    V = np.array([[1e5 + d, 0.0, 1e5, 0.0] for d in dp])
+    assert CheckValve.kinks(P, V).tolist() == [0, 0, 1, 1, 1, 2, 2]
+    Vt = np.zeros((dp.size, 8))
+    Vt[:, [0, 1, 4, 5]] = V
+    Vt[:, [2, 6]] = 293.15
+    assert thermal_class(CheckValve).kinks(P, Vt).tolist() == [0, 0, 1, 1, 1, 2, 2]

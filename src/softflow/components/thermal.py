@@ -375,7 +375,8 @@ def _energy_columns(J, k, dE):
 
 def _switching_on_iso_columns(base):
     """A switching element's (a snapping valve's) ``switch``, ``switching`` and
-    their Jacobians, and a piecewise law's ``regime`` (a check valve's), for
+    their Jacobians, and a piecewise law's ``regime`` and ``kinks`` (a check
+    valve's), for
     its thermal variant: the isothermal law's, on the isothermal columns of V
     (in the thermal V, column 2 is T_a, not p_b)."""
     out = {}
@@ -395,6 +396,9 @@ def _switching_on_iso_columns(base):
         out["switching_jacobian"] = classmethod(switching_jacobian)
     if getattr(base, "regime", None) is not None:       # a check valve's pieces
         out["regime"] = classmethod(lambda cls, P, V: base.regime.__func__(
+            cls, P, V[:, _ISO_COLS]))
+    if getattr(base, "kinks", None) is not None:
+        out["kinks"] = classmethod(lambda cls, P, V: base.kinks.__func__(
             cls, P, V[:, _ISO_COLS]))
     if getattr(base, "switching_param_jacobian", None) is not None:
         out["switching_param_jacobian"] = classmethod(

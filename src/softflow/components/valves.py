@@ -344,9 +344,12 @@ class Orifice(LibraryComponent):
 
 
 # ---------------------------------------------------------------------------------------
-#: CheckValve.regime: the fraction of the opening band at either end that counts
-#: as closed or open (the smoothstep's slope there is under 0.19 of its peak)
+#: CheckValve.regime: the fraction of the opening band at either end whose
+#: smoothstep slope is under 0.19 of its peak (the open end: the open law's own
+#: slope takes over; the bottom: cut into LOW_PIECES pieces a factor 4 apart in
+#: the band's position, down to 0.05 / 4^16 = 1.2e-11, below which one piece)
 REGIME_EDGE = 0.05
+LOW_PIECES = 16
 
 
 class CheckValve(LibraryComponent):
@@ -434,15 +437,29 @@ class CheckValve(LibraryComponent):
         return F, J
 
     @classmethod
+    def kinks(cls, P, V):
+        """Where the law's second derivative jumps (LibraryComponent): 0 shut
+        (dp at or below the cracking pressure), 1 inside the opening band
+        (the smoothstep 3 s^2 - 2 s^3), 2 open."""
+        dp = V[:, 0] - V[:, 2]
+        return ((dp > P.cracking_pressure).astype(np.int8)
+                + (dp >= P.cracking_pressure + P.opening_band))
+
+    @classmethod
     def regime(cls, P, V):
-        """The piece of the law at V (LibraryComponent): 0 closed or nearly
-        (up to the first REGIME_EDGE of the opening band, where the
-        smoothstep's slope is under a fifth of its peak), 1 opening (the
-        steep middle of the band), 2 open or nearly (its last REGIME_EDGE).
-        The edges lie inside the band, not at the cracking pressure, where a
-        valve that holds a tank comes to rest."""
+        """The piece of the law at V (LibraryComponent), with s the position
+        in the opening band (0 at the cracking pressure, 1 at its top):
+        -LOW_PIECES - 1 shut (s <= 0: the leakage's slope alone); -LOW_PIECES
+        ... -1 the band's bottom REGIME_EDGE cut into pieces a factor 4 apart
+        in s (the smoothstep's slope grows as 6 s there, from nothing: a
+        Jacobian from s = 0.01 read at s = 0.0001 is 100 times too steep);
+        0 the steep middle of the band; 1 open or nearly (its last
+        REGIME_EDGE, where the open law's own slope takes over)."""
         s = (V[:, 0] - V[:, 2] - P.cracking_pressure) / P.opening_band
-        return (s >= REGIME_EDGE).astype(np.int8) + (s > 1.0 - REGIME_EDGE)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            low = np.maximum(np.floor(np.log2(s / REGIME_EDGE) * 0.5), -LOW_PIECES)
+        return np.where(s <= 0.0, -LOW_PIECES - 1, np.where(
+            s < REGIME_EDGE, low, (s > 1.0 - REGIME_EDGE).astype(float))).astype(np.int8)
 
 
     @classmethod

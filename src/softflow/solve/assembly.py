@@ -159,6 +159,7 @@ class Group:
         self.switching = None  # switching(V, S): the discrete states' switching functions
         self.fold = None   # fold(V, S, k, rising): the pressure instance k snaps to at a fold
         self.regime = None  # regime(V): the piece of a piecewise law each instance is on
+        self.kinks = None  # kinks(V): the side of the law's kinks each instance is on
         self.row = None    # a single user component's kernel (1-D calls), or None
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
@@ -193,7 +194,8 @@ def _fluid_failure(g, err):
 
 #: What _library_group makes of a class's Params: Assembly.replace takes all of
 #: them from a group made anew (one left behind would keep the old numbers).
-_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold", "regime")
+_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold", "regime",
+                "kinks")
 
 
 def _library_group(cls, comps):
@@ -218,6 +220,9 @@ def _library_group(cls, comps):
     regime = getattr(cls, "regime", None)
     if regime is not None:
         g.regime = partial(regime, P)
+    kinks = getattr(cls, "kinks", None)
+    if kinks is not None:
+        g.kinks = partial(kinks, P)
     # per-step coefficients (e.g. heat-transfer correlations), frozen over each step
     wants = getattr(cls, "wants_begin_step", None)
     if wants is not None and wants(P):
@@ -966,22 +971,37 @@ class Assembly:
         if len(self.groups) <= UNROLL_MAX_GROUPS:
             self.residual = self._unrolled_residual()
         self._regime_plan = [(g.regime, g.col) for g in self.groups if g.regime is not None]
+        self._kink_plan = [(g.kinks, g.col) for g in self.groups if g.kinks is not None]
 
     @property
     def has_regimes(self):
         """Whether any group states the pieces of a piecewise law (``regime``)."""
         return bool(self._regime_plan)
 
+    @property
+    def has_kinks(self):
+        """Whether any group states the kinks of its law (``kinks``)."""
+        return bool(self._kink_plan)
+
+    def kinks(self, x):
+        """The side of its law's kinks each instance of every group that
+        states them is on at x (one array), or None without any."""
+        return self._pieces(self._kink_plan, x)
+
     def regimes(self, x):
         """The piece of its piecewise law each instance of every group that
-        states one is on at x (one integer array), or None without any."""
-        plan = self._regime_plan
+        states one is on at x (one array of the classes' integers), or None
+        without any."""
+        return self._pieces(self._regime_plan, x)
+
+    @staticmethod
+    def _pieces(plan, x):
         if not plan:
             return None
         if len(plan) == 1:
             fn, col = plan[0]
-            return np.asarray(fn(x[col]))
-        return np.concatenate([np.asarray(fn(x[col])).ravel() for fn, col in plan])
+            return fn(x[col])
+        return np.concatenate([fn(x[col]).ravel() for fn, col in plan])
 
     def _bind_group(self, env, i, user_call):
         """Put what generated code calls for group i into ``env`` (k<i>: its

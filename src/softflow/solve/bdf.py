@@ -473,6 +473,10 @@ class BDF(Integrator):
         self._jump = None          # a switch's left side, for the sensitivities
         self._chatter = 0          # accepted steps in a row that switched at the smallest steps
         self._fold_at = None       # the time of the last fold jump (_fold_jump)
+        # laws with kinks (a check valve's shut / opening / open): the side of
+        # them at the last point taken (its bytes) and that point (_take)
+        self._kinks = asm.kinks if asm.has_kinks else None
+        self._kink_x = self._kink_at = None
 
     def _propose(self, t, x, S):
         self._point = (x, S)       # for a fold jump (_fold_jump)
@@ -717,6 +721,13 @@ class BDF(Integrator):
                 raise StepFailure(t_new, h, self._chattering(S, S_new, x_new, h))
         else:
             self._chatter = 0
+        if self._kinks is not None and self._across_kink(x, x_new) and not (
+                self._at_break or switched) and k > 1:
+            # the history from before a kink (a valve that has just shut)
+            # extrapolates a smooth trajectory past it: on at order 1
+            self._reset_order(self._tables, k, 1)
+            self._k, self._n_equal = 1, 0
+            return x_new, S_new, t_new
         if self._at_break or switched:
             self._restart_due = True
             self._h_cap = self._fail_cap = math.inf
@@ -748,6 +759,15 @@ class BDF(Integrator):
         self._h = h * max(MIN_FACTOR, factor)
         self._n_equal = 0
         return x_new, S_new, t_new
+
+    def _across_kink(self, x, x_new):
+        """Whether a law's kink (``kinks`` of its class) lies between the points
+        x and x_new of the step just taken."""
+        kinks = self._kinks
+        before = self._kink_at if self._kink_x is x else kinks(x).tobytes()
+        now = kinks(x_new).tobytes()
+        self._kink_x, self._kink_at = x_new, now
+        return now != before
 
     def _interior(self, t_new, h, k, S):
         """Record refine - 1 points evenly inside the step just taken, on the

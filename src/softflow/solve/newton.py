@@ -27,6 +27,14 @@ quantity): each variable is held to a relative accuracy of the typical
 magnitude of its quantity in the network, so a nearly stagnant tube does not
 demand absurd absolute accuracy from its flow. The test is corrected by the
 observed contraction rate (Hairer & Wanner, Solving ODEs II, sec. IV.8).
+An update-based test trusts the Jacobian's slopes: one read from another
+piece of a piecewise law (a check valve's steep opening band, where the
+valve has shut) makes the updates small far from the root. Where a class
+states its pieces (``regime``, :mod:`softflow.components.base`), a chord
+result on another piece than its factors' Jacobian is not accepted: the
+reuse stage's goes to the fresh stage, and a fresh stage that converged on
+another piece than its predictor's goes once more from its point
+(:meth:`Newton._off_piece`).
 """
 from __future__ import annotations
 
@@ -207,8 +215,9 @@ class Newton:
         self.age = 0           # steps since the last factorization
         self.stale = True      # force a fresh Jacobian at the next solve
         self.eta = 1.0         # rate/(1 - rate) seen in earlier solves, for the first test
-        # piecewise laws (a check valve's pieces, Assembly.regimes): the pieces at
-        # the point of the last Jacobian evaluation and of the current factors
+        # piecewise laws (a check valve's pieces, Assembly.regimes): the point of
+        # the last Jacobian evaluation, and the pieces (their bytes: compared
+        # at every accepted point) of the current factors' Jacobian
         self._regimes = asm.regimes if asm.has_regimes else None
         self._jac_x = None
         self._jac_regime = None
@@ -333,7 +342,7 @@ class Newton:
         self.lin.factor()
         self.stats.factorizations += 1
         if self._regimes is not None:
-            self._jac_regime = self._regimes(self._jac_x)
+            self._jac_regime = self._regimes(self._jac_x).tobytes()
         self.lu_dt = dt
         # the step sizes these factors serve (see _reusable; 0 serves only 0)
         self._dt_lo, self._dt_hi = self.dt_ratio[0] * dt, self.dt_ratio[1] * dt
@@ -348,7 +357,7 @@ class Newton:
         makes the chord's updates small far from the root, and the
         update-based convergence test is fooled. False without such laws."""
         return (self._regimes is not None and self._jac_regime is not None
-                and not np.array_equal(self._regimes(x), self._jac_regime))
+                and self._regimes(x).tobytes() != self._jac_regime)
 
     def set_temperature_range(self, lo, hi):
         """Keep the iterates' node temperatures within [lo, hi] K (the range the
@@ -519,6 +528,11 @@ class Newton:
                 and self._dt_lo <= dt <= self._dt_hi)
 
     def solve(self, x0, S, t, dt):
+        """The step equations F(x; S, t, dt) = 0 from the predictor x0 by the
+        stages of the module docstring (a small dense system's usual step in
+        one frame, :meth:`_quick`): the converged Outcome, or the last
+        stage's failed one (its reason and worst equation). Counts a solve
+        against ``max_solves`` (Simulation(max_steps=))."""
         if self.max_solves is not None:
             self._solves += 1
             if self._solves > self.max_solves:
