@@ -761,3 +761,19 @@ def test_check_valve_kinks_are_where_the_smoothstep_ends():
     Vt[:, [0, 1, 4, 5]] = V
     Vt[:, [2, 6]] = 293.15
     assert thermal_class(CheckValve).kinks(P, Vt).tolist() == [0, 0, 1, 1, 1, 2, 2]
+
+
+def test_check_valve_regime_of_one_valve_is_the_array_paths():
+    """CheckValve.regime's one-valve path (Python floats) gives the array
+    path's piece at 4 000 random band positions, the bottom's log pieces and
+    the edges (0, -0, REGIME_EDGE, 1 - REGIME_EDGE, NaN, 1e-300)."""
+    from softflow.components.valves import REGIME_EDGE
+    v = CheckValve("c", sf.air, diameter=1e-3, cracking_pressure=1e4, opening_band=1e3)
+    rng = np.random.default_rng(1)
+    s = np.r_[rng.uniform(-2, 2, 2000), 10 ** rng.uniform(-14, 0, 2000) * REGIME_EDGE * 1.5,
+              [0.0, -0.0, REGIME_EDGE, 1 - REGIME_EDGE, np.nan, 1e-300]]
+    V = np.array([[1.1e5 + x * 1e3, 0.0, 1e5, 0.0] for x in s])
+    every = CheckValve.regime(CheckValve.make_params([v] * s.size), V)
+    one = CheckValve.make_params([v])
+    assert [int(CheckValve.regime(one, V[i:i + 1])[0]) for i in range(s.size)] == every.tolist()
+    assert len(set(every.tolist())) > 10

@@ -7,6 +7,7 @@ mdot = mf_a > 0 is flow from a to b and dp = p_a - p_b.
 """
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -352,6 +353,15 @@ REGIME_EDGE = 0.05
 LOW_PIECES = 16
 
 
+def _piece(s):
+    """CheckValve.regime of one valve at its band position s (a float)."""
+    if s <= 0.0:
+        return -LOW_PIECES - 1
+    if s < REGIME_EDGE:
+        return max(math.floor(math.log2(s / REGIME_EDGE) * 0.5), -LOW_PIECES)
+    return 1 if s > 1.0 - REGIME_EDGE else 0     # (NaN: 0, as the array path)
+
+
 class CheckValve(LibraryComponent):
     """Spring-loaded check valve: flow from ``a`` to ``b`` once dp = p_a - p_b
     exceeds the cracking pressure, none backwards (apart from leakage).
@@ -456,6 +466,8 @@ class CheckValve(LibraryComponent):
         0 the steep middle of the band; 1 open or nearly (its last
         REGIME_EDGE, where the open law's own slope takes over)."""
         s = (V[:, 0] - V[:, 2] - P.cracking_pressure) / P.opening_band
+        if s.size == 1:         # one valve (the usual): ~1 us against ~7 on arrays
+            return np.array([_piece(float(s[0]))], dtype=np.int8)
         with np.errstate(divide="ignore", invalid="ignore"):
             low = np.maximum(np.floor(np.log2(s / REGIME_EDGE) * 0.5), -LOW_PIECES)
         return np.where(s <= 0.0, -LOW_PIECES - 1, np.where(
