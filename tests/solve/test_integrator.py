@@ -443,6 +443,32 @@ def test_a_step_across_a_check_valves_kink_lowers_the_bdf_order(monkeypatch):
     assert held(old) > 300.0
 
 
+def test_the_consistent_start_is_confirmed_on_a_jacobian_at_its_point(monkeypatch):
+    """Two orifices in series between 3 bar and the atmosphere (water; 1 and
+    2 mm, the same Cd): equal flows need dp1 / dp2 = (d2 / d1)^4 = 16. From
+    the initial values the small orifice's slope is its laminar one at rest,
+    many times its slope at the flow it reaches, and chord iterations on it
+    stopped 10 kPa off the middle node's pressure with small updates. The
+    consistent point is now confirmed on a Jacobian at it, and solved again
+    from there where it is not (INITIAL_CONFIRMS)."""
+    from softflow.solve import integrator
+
+    def middle_at_start():
+        s = sf.System()
+        s += sf.PressureSource("hi", pressure=3e5)
+        s += sf.Orifice("o1", sf.water, diameter=1e-3, Cd=0.6)
+        s += sf.Orifice("o2", sf.water, diameter=2e-3, Cd=0.6)
+        s += sf.PressureSource("lo", pressure=sf.pressure_atmospheric)
+        s.connect("hi", "o1")
+        s.connect("o1", "o2")
+        s.connect("o2", "lo")
+        return sf.Simulation(s, duration=0.01).run().get("o1", "pressure", "b")[0]
+    exact = sf.pressure_atmospheric + (3e5 - sf.pressure_atmospheric) / 17
+    assert middle_at_start() == pytest.approx(exact, abs=5.0)
+    monkeypatch.setattr(integrator, "INITIAL_CONFIRMS", 0)
+    assert abs(middle_at_start() - exact) > 5e3
+
+
 def test_continuation_solves_the_unmodified_equations_last(monkeypatch):
     """Newton.continuation's offsets shrink towards 0 and its last solve is of
     F(x) = 0 itself (offset None), which converges; no offset is left behind."""

@@ -262,9 +262,11 @@ class Integrator:
         return x, asm.S0.copy()
 
     def _solve_initial(self):
-        """The consistent point at t = 0 solved for from the initial values, and
-        the dense linear solver of its own that solve factored (None: the
-        run's solver, for sparse and condensed systems)."""
+        """The consistent point at t = 0 solved for from the initial values
+        (confirmed on a Jacobian at it, else solved again from it, up to
+        INITIAL_CONFIRMS times), and the dense linear solver of its own that
+        solve factored (None: the run's solver, for sparse and condensed
+        systems)."""
         asm, newton = self.asm, self.newton
         lin0 = make_linear_solver(asm, "dense") if newton.lin.kind == "dense" else None
         run_lin = newton.lin
@@ -274,11 +276,27 @@ class Integrator:
         try:
             x0 = asm.x0.copy()
             out = newton.continued(newton.solve(x0, asm.S0, 0.0, 0.0), x0, asm.S0, 0.0, 0.0)
+            # the point is confirmed on a Jacobian of its own: chord iterations
+            # on the slopes at the initial values (an orifice's laminar slope
+            # at rest, many times its slope at the flow it reaches) stop where
+            # their updates are small, which such a slope makes them far from
+            # the root
+            for _ in range(INITIAL_CONFIRMS):
+                if not out.converged or newton.confirms(out.x, asm.S0, 0.0, 0.0):
+                    break
+                x1 = out.x
+                out = newton.continued(newton.solve(x1, asm.S0, 0.0, 0.0), x1, asm.S0, 0.0, 0.0)
         finally:
             newton.lin = run_lin
         if not out.converged:
             raise StepFailure(0.0, 0.0, _with_scale_hint(out, lin0))
         return out.x, lin0
+
+
+#: How many times the consistent point at t = 0 is solved again from where the
+#: last solve stopped, where a Jacobian at that point does not confirm it
+#: (Integrator._solve_initial); still unconfirmed after that, it is taken.
+INITIAL_CONFIRMS = 3
 
 
 #: failures of a consistent start that say no more than that Newton did not
