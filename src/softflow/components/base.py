@@ -22,7 +22,8 @@ every instance of the class in the network:
     its derivatives in V (n, m, nv) and S (n, m, ns), and in a parameter (n, m),
     for the sensitivities' jump at a located switch (else finite differences).
 ``regime(P, V)`` (optional)
-    which piece of a piecewise law each instance is on at V, (n,) integers
+    which piece of a piecewise law each instance is on at V, a NumPy array
+    of (n,) integers
     (a check valve: shut, the bottom of its opening band in pieces, its
     steep middle, open). Newton's chord iterations reuse
     a Jacobian only while every instance stays on the piece it was evaluated
@@ -32,7 +33,7 @@ every instance of the class in the network:
     (:meth:`softflow.solve.newton.Newton.solve`).
 ``kinks(P, V)`` (optional)
     which side of each point where the law's second derivative jumps each
-    instance is on at V, (n,) integers (a check valve: shut, inside its
+    instance is on at V, a NumPy array of (n,) integers (a check valve: shut, inside its
     opening band, open). A step across one lowers the BDF's order to 1: the
     method's history from before the kink extrapolates a smooth trajectory
     past it (a tank whose valve has just shut goes on rising at order 2).

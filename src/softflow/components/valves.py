@@ -348,7 +348,7 @@ class Orifice(LibraryComponent):
 #: CheckValve.regime: the fraction of the opening band at either end whose
 #: smoothstep slope is under 0.19 of its peak (the open end: the open law's own
 #: slope takes over; the bottom: cut into LOW_PIECES pieces a factor 4 apart in
-#: the band's position, down to 0.05 / 4^16 = 1.2e-11, below which one piece)
+#: the band's position, the last from 0.05 / 4^15 = 4.7e-11 down to 0)
 REGIME_EDGE = 0.05
 LOW_PIECES = 16
 

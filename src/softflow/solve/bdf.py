@@ -722,11 +722,14 @@ class BDF(Integrator):
         else:
             self._chatter = 0
         if self._kinks is not None and self._across_kink(x, x_new) and not (
-                self._at_break or switched) and k > 1:
+                self._at_break or switched):
             # the history from before a kink (a valve that has just shut)
-            # extrapolates a smooth trajectory past it: on at order 1
-            self._reset_order(self._tables, k, 1)
-            self._k, self._n_equal = 1, 0
+            # extrapolates a smooth trajectory past it: on at order 1, and
+            # the order may rise only once k + 1 steps lie past the kink
+            if k > 1:
+                self._reset_order(self._tables, k, 1)
+                self._k = 1
+            self._n_equal = 0
             return x_new, S_new, t_new
         if self._at_break or switched:
             self._restart_due = True
