@@ -23,20 +23,20 @@ every instance of the class in the network:
     for the sensitivities' jump at a located switch (else finite differences).
 ``regime(P, V)`` (optional)
     which piece of a piecewise law each instance is on at V, a NumPy array
-    of (n,) integers
-    (a check valve: shut, the bottom of its opening band in pieces, its
-    steep middle, open). Newton's chord iterations reuse
-    a Jacobian only while every instance stays on the piece it was evaluated
+    of (n,) integers (a check valve: shut, the bottom of its opening band in
+    pieces, its steep middle, open). Newton's chord iterations reuse a
+    Jacobian only while every instance stays on the piece it was evaluated
     on: a slope from one piece (an opening valve's steep one) read on
     another makes the chord's updates small far from the root, and the
     update-based convergence test is then fooled
     (:meth:`softflow.solve.newton.Newton.solve`).
 ``kinks(P, V)`` (optional)
     which side of each point where the law's second derivative jumps each
-    instance is on at V, a NumPy array of (n,) integers (a check valve: shut, inside its
-    opening band, open). A step across one lowers the BDF's order to 1: the
-    method's history from before the kink extrapolates a smooth trajectory
-    past it (a tank whose valve has just shut goes on rising at order 2).
+    instance is on at V, a NumPy array of (n,) integers (a check valve:
+    shut, inside its opening band, open). A step across one lowers the
+    BDF's order to 1: the method's history from before the kink
+    extrapolates a smooth trajectory past it (a tank whose valve has just
+    shut goes on rising at order 2).
 ``param_jacobian(P, V, S, t, name)`` (optional)
     dF/dtheta of ``residual`` and dr/dtheta of ``rates`` for the numeric
     parameter ``name`` of every instance, or None where the class states none

@@ -376,9 +376,8 @@ def _energy_columns(J, k, dE):
 def _switching_on_iso_columns(base):
     """A switching element's (a snapping valve's) ``switch``, ``switching`` and
     their Jacobians, and a piecewise law's ``regime`` and ``kinks`` (a check
-    valve's), for
-    its thermal variant: the isothermal law's, on the isothermal columns of V
-    (in the thermal V, column 2 is T_a, not p_b)."""
+    valve's), for its thermal variant: the isothermal law's, on the
+    isothermal columns of V (in the thermal V, column 2 is T_a, not p_b)."""
     out = {}
     from .base import LibraryComponent
     if base.switch.__func__ is not LibraryComponent.switch.__func__:

@@ -40,8 +40,8 @@ step start, as the BDF freezes it), run with the adaptive BDF. Others (user
 components, fixed steps, check valves: the variants' Newton here does not
 refresh a Jacobian where a valve changes pieces, as
 :meth:`softflow.solve.newton.Newton.solve` does) keep the shared step
-sequence (:func:`reason_not` says why). A variant whose step fails (Newton down to ``step_min``) is reported failed
-here and run again on its own by the caller, where its result says why; an
+sequence (:func:`reason_not` says why). A variant whose step fails (Newton
+down to ``step_min``) is reported failed here and run again on its own by the caller, where its result says why; an
 iterate that leaves a fluid's range sends the whole batch back to the shared
 steps, which find the variant responsible.
 
