@@ -393,12 +393,11 @@ def _switching_on_iso_columns(base):
             GV[:, :, _ISO_COLS] = GV_iso
             return GV, GS
         out["switching_jacobian"] = classmethod(switching_jacobian)
-    if getattr(base, "regime", None) is not None:       # a check valve's pieces
-        out["regime"] = classmethod(lambda cls, P, V: base.regime.__func__(
-            cls, P, V[:, _ISO_COLS]))
-    if getattr(base, "kinks", None) is not None:
-        out["kinks"] = classmethod(lambda cls, P, V: base.kinks.__func__(
-            cls, P, V[:, _ISO_COLS]))
+    for name in ("regime", "kinks"):         # a check valve's pieces and kinks
+        law = getattr(base, name, None)
+        if law is not None:
+            out[name] = classmethod(lambda cls, P, V, law=law: law.__func__(
+                cls, P, V[:, _ISO_COLS]))
     if getattr(base, "switching_param_jacobian", None) is not None:
         out["switching_param_jacobian"] = classmethod(
             lambda cls, P, V, S, name: base.switching_param_jacobian.__func__(

@@ -274,18 +274,19 @@ class Integrator:
             lin0.note_scale = True
             newton.lin = lin0
         try:
-            x0 = asm.x0.copy()
-            out = newton.continued(newton.solve(x0, asm.S0, 0.0, 0.0), x0, asm.S0, 0.0, 0.0)
-            # the point is confirmed on a Jacobian of its own: chord iterations
-            # on the slopes at the initial values (an orifice's laminar slope
-            # at rest, many times its slope at the flow it reaches) stop where
-            # their updates are small, which such a slope makes them far from
-            # the root
-            for _ in range(INITIAL_CONFIRMS):
-                if not out.converged or newton.confirms(out.x, asm.S0, 0.0, 0.0):
+            # each point is confirmed on a Jacobian of its own, else solved
+            # again from it: chord iterations on the slopes at the initial
+            # values (an orifice's laminar slope at rest, many times its slope
+            # at the flow it reaches) stop where their updates are small,
+            # which such a slope makes them far from the root
+            start = asm.x0.copy()
+            for tries in range(INITIAL_CONFIRMS + 1):
+                out = newton.continued(newton.solve(start, asm.S0, 0.0, 0.0), start,
+                                       asm.S0, 0.0, 0.0)
+                if (not out.converged or tries == INITIAL_CONFIRMS
+                        or newton.confirms(out.x, asm.S0, 0.0, 0.0)):
                     break
-                x1 = out.x
-                out = newton.continued(newton.solve(x1, asm.S0, 0.0, 0.0), x1, asm.S0, 0.0, 0.0)
+                start = out.x
         finally:
             newton.lin = run_lin
         if not out.converged:
