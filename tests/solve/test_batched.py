@@ -58,6 +58,42 @@ def test_a_failing_variant_is_isolated_and_reported():
                                ok.get("tank", "pressure")[-1], rtol=1e-3)
 
 
+def test_a_joint_failure_splits_the_batch_instead_of_dropping_one_variant_at_a_time(
+        monkeypatch):
+    """24 check-valve variants (cracking pressure 0-57.5 kPa, shared steps):
+    each starts alone at t = 0, but the batch's consistent start fails (one
+    damping and one continuation for all the sub-networks), naming v5. v5
+    alone runs through, so the failure was the joint solve's: the others run
+    in two halves (3 batches built), not dropped one at a time as before
+    (24 builds, each failing at t = 0)."""
+    from softflow.curves.waveforms import PiecewiseConstant
+    from softflow.solve import batched
+    s = sf.System()
+    s += sf.PressureSource("source", pressure=PiecewiseConstant([0.0, 0.5], [2e5, P0]))
+    s += sf.CircularTube("tube", sf.air, length=0.6, diameter=2e-3)
+    s += sf.CheckValve("valve", sf.air, diameter=20e-3, cracking_pressure=5e3)
+    s += sf.Container("tank", sf.air, volume=50e-6)
+    s.connect("source", "tube")
+    s.connect("tube", "valve")
+    s.connect("valve", "tank")
+    sim = sf.Simulation(s, duration=1.0)
+    variants = [{"valve.cracking_pressure": c} for c in np.arange(24) * 2.5e3]
+    sizes = []
+    build = batched.build_batch
+    monkeypatch.setattr(batched, "build_batch",
+                        lambda system, vs, *a: sizes.append(len(vs)) or build(system, vs, *a))
+    out = _run_batched(sim, variants, own_clocks=False)
+    assert sizes[0] == 24 and len(sizes) == 3 and sorted(sizes[1:]) == [11, 12]
+    assert all(r.success for r in out)
+    alone = [k for k, r in enumerate(out) if not isinstance(r, batched.VariantResult)]
+    assert alone == [5]
+    for v, r in zip(variants, out):       # the valve holds the tank at source - crack
+        tank = r.get("tank", "pressure")
+        assert tank[np.searchsorted(r.times, 0.45)] == pytest.approx(
+            2e5 - v["valve.cracking_pressure"], abs=1.5e3)
+        assert np.ptp(tank[r.times > 0.6]) < 1.0
+
+
 def test_subnetworks_are_held_to_their_own_scales():
     """Two independent scenes in one System, one with 100x smaller pressures
     and flows: an error of twice its tolerance in the small one fails the
