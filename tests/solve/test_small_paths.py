@@ -248,3 +248,26 @@ def test_dense_lu_equilibrates_a_jacobian_singular_only_in_its_units(n):
     lin2.factor()
     c = rng.standard_normal(n)
     np.testing.assert_allclose(A @ lin2.solve(c), c, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("thermal", ["isothermal", "adiabatic"])
+def test_small_networks_find_their_subnetworks_as_the_sparse_graph_does(monkeypatch, thermal):
+    """Assembly.subnetworks by union-find (up to SMALL_BLOCKS_MAX unknowns)
+    numbers the blocks of every unknown and state as scipy's connected
+    components do: four variants of the two-tank scene in one System (each a
+    block, labelled in the order of their lowest unknown), and one scene."""
+    from softflow.solve import assembly
+    from softflow.solve.batched import build_batch
+    scene = _scene(sf.air, thermal).system
+    batch = build_batch(scene, [{}] * 4, {c.label for c in scene.components})
+    for system in (batch, scene):
+        asm = sf.Simulation(system, duration=0.1, thermal=thermal).asm
+        assert asm.n <= assembly.SMALL_BLOCKS_MAX
+        small = asm.subnetworks()
+        monkeypatch.setattr(assembly, "SMALL_BLOCKS_MAX", -1)
+        asm._subnetworks = None
+        sparse = asm.subnetworks()
+        monkeypatch.undo()
+        assert small[2] == sparse[2] == (4 if system is batch else 1)
+        np.testing.assert_array_equal(small[0], sparse[0])
+        np.testing.assert_array_equal(small[1], sparse[1])
