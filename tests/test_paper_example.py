@@ -42,7 +42,9 @@ def test_paper_example_saves_its_plot_where_it_is_run(paper_run):
 def test_paper_example_runs_and_is_physical(paper_run):
     t, p = paper_run["t"], paper_run["p_actu"]
     assert t[0] == 0.0 and t[-1] == pytest.approx(1.0)
-    assert len(t) == len(p) > 50
+    # 43 steps: the source's undeclared jump at 0.5 s is taken at the smallest
+    # step and the method restarts there (BDF._judge; 106 steps before)
+    assert len(t) == len(p) > 30
     # t = 0: consistent initial value from the balloon curve at 1 g of water
     curve = sf.PVCurve(EXAMPLES / "latex_balloon_60mm_pv.csv")
     p_init = (curve(1e-3 / sf.water.rho) - sf.pressure_atmospheric) * 1e-5

@@ -65,7 +65,7 @@ from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_EST
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
 from .linalg import make_linear_solver
-from .newton import Newton, Stats, gauge_offsets
+from .newton import CRDOWN, Newton, Stats, gauge_offsets
 
 #: Newton on the batch: chord iterations, at most NEWTON_MAX on fresh factors.
 #: Dense blocks get fresh factors at every pass: one Jacobian evaluation of the
@@ -357,6 +357,7 @@ class VariantBDF:
         self._lu_c = np.full(K, np.nan)     # each variant's c its factors were made for
         self._lu_age = np.zeros(K, dtype=np.int64)
         self.eta = np.ones(K)      # each variant's last Newton rate / (1 - rate)
+        self._crate = np.ones(K)   # each variant's damped rate on its factors (CRDOWN)
         self.progress = None       # a softflow.solve.progress.Progress, or None
 
     @property
@@ -513,7 +514,10 @@ class VariantBDF:
                 else:
                     predicted = (nrm <= self._first_max) & (nrm * np.maximum(eta, 1e-3) ** 0.8
                                                             <= 1.0)
-                    done = np.where(first, (nrm <= 1.0) | predicted, nrm * new_eta <= 1.0)
+                    # the damped rate of Newton.CRDOWN (not for a first update)
+                    crate = np.where(first, self._crate,
+                                     np.maximum(rate, CRDOWN * self._crate))
+                    done = np.where(first, (nrm <= 1.0) | predicted, nrm * crate <= 1.0 - crate)
                     diverge = rate >= 0.9                # (False where first: NaN)
                     slow = ~done & ~diverge & (
                         nrm * rate ** np.maximum(limit - 1 - it, 0) / (1.0 - rate) > 1.0)
@@ -528,6 +532,8 @@ class VariantBDF:
             if stage is not None:
                 keep_eta &= ~stage
             eta[keep_eta] = new_eta[keep_eta]
+            if not full:
+                self._crate[keep_eta] = crate[keep_eta]
             if step_ok.all():
                 Xv -= dXv
             else:
@@ -617,6 +623,7 @@ class VariantBDF:
             done = np.ones(K, dtype=bool)
         self._lu_c[done] = cv[done]
         self._lu_age[done] = 0
+        self._crate[done] = 1.0
         self._lu_c[singular] = np.nan
         return singular
 
