@@ -47,6 +47,7 @@ import numpy as np
 import softflow as sf
 from softflow import paper_scenes as ps
 from softflow.solve import simulation as simulation_mod
+from bench_paper_scenes import scenes
 from softflow.solve.bdf import (BDF, FAIL_HOLD, FULL_STAGE_STEPS, MIN_FACTOR, SAFETY,
                                 SECANT_TRIES, SWITCH_PAST)
 
@@ -185,17 +186,6 @@ class TRBDF2(BDF):
         if factor > 1.2 or factor < 1.0:
             self._h = h * factor
         return x_new, S_new, t_new
-
-
-def scenes():
-    out = []
-    for case in ps.FIG3_CASES:
-        out.append((f"fig3:{case}", 3, lambda c=case: ps.fig3(c)))
-    for case in ps.FIG4_CASES:
-        out.append((f"fig4:{case}", 4, lambda c=case: ps.fig4(c)))
-    for name, fluid in zip(ps.FIG5_FLUIDS, (sf.air, sf.water, sf.ethylene_glycol)):
-        out.append((f"fig5:{name}", 5, lambda f=fluid: ps.fig5(f)))
-    return out
 
 
 def run(build, fig, rtol, cls=None, **options):

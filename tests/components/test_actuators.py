@@ -676,14 +676,28 @@ def test_one_actuator_on_a_pvcurve_reads_it_on_floats_bitwise(fluid, extrapolate
                                 == np.where(nan, 0.0, b).tobytes()), (vol, p, jac, a, b)
 
 
-def _noisy_balloon():
+def _noisy_balloon(seed=7):
     """The latex balloon's measured curve resampled at 400 volumes with 1 kPa
-    of noise (seed 7): locally falling faster than air expands, so it has
+    of noise (``seed``): locally falling faster than air expands, so it has
     folds. Returns (curve, its first volume)."""
     raw = sf.PVCurve(str(BALLOON_CSV))
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(seed)
     v = np.linspace(raw.volume[0], raw.volume[-1], 400)
     return sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size)), v[0]
+
+
+def _pumped_balloon(seed=7):
+    """A pump fills the noisy balloon (``_noisy_balloon(seed)``) through a tube
+    for 20 s and draws from it for 18 more."""
+    curve, v0 = _noisy_balloon(seed)
+    s = sf.System()
+    s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
+                             fluid=sf.air)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    s += sf.Actuator("act", sf.air, curve, initial_volume=v0)
+    s.connect("pump", "tube")
+    s.connect("tube", "act")
+    return s
 
 
 def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
@@ -695,14 +709,7 @@ def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
     snaps the one at a fold (the run stopped at t = 20.7 s before). The
     mass the pump drew is what the balloon lost (checked at every point)."""
     from softflow.solve.bdf import BDF
-    curve, v0 = _noisy_balloon()
-    s = sf.System()
-    s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
-                             fluid=sf.air)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
-    s += sf.Actuator("act", sf.air, curve, initial_volume=v0)
-    s.connect("pump", "tube")
-    s.connect("tube", "act")
+    s = _pumped_balloon()
     elsewhere = []
     jump = BDF._fold_jump
 
@@ -736,18 +743,8 @@ def test_a_step_forced_at_the_smallest_step_restarts_the_method(monkeypatch):
     from softflow.solve import bdf
 
     def run(seed):
-        raw = sf.PVCurve(str(BALLOON_CSV))
-        rng = np.random.default_rng(seed)
-        v = np.linspace(raw.volume[0], raw.volume[-1], 400)
-        curve = sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size))
-        s = sf.System()
-        s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
-                                 fluid=sf.air)
-        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
-        s += sf.Actuator("act", sf.air, curve, initial_volume=v[0])
-        s.connect("pump", "tube")
-        s.connect("tube", "act")
-        return sf.Simulation(s, duration=38.0, breakpoints=[20.0]).run(raise_on_failure=False)
+        return sf.Simulation(_pumped_balloon(seed), duration=38.0,
+                             breakpoints=[20.0]).run(raise_on_failure=False)
     for seed in (4, 7, 11):
         res = run(seed)
         assert res.success and res.stats["forced_steps"] > 0
