@@ -676,20 +676,20 @@ def test_one_actuator_on_a_pvcurve_reads_it_on_floats_bitwise(fluid, extrapolate
                                 == np.where(nan, 0.0, b).tobytes()), (vol, p, jac, a, b)
 
 
-def _noisy_balloon(seed=7):
-    """The latex balloon's measured curve resampled at 400 volumes with 1 kPa
-    of noise (``seed``): locally falling faster than air expands, so it has
-    folds. Returns (curve, its first volume)."""
+def _noisy_balloon(seed=7, noise=1e3):
+    """The latex balloon's measured curve resampled at 400 volumes with
+    ``noise`` Pa of noise (``seed``): locally falling faster than air
+    expands, so it has folds. Returns (curve, its first volume)."""
     raw = sf.PVCurve(str(BALLOON_CSV))
     rng = np.random.default_rng(seed)
     v = np.linspace(raw.volume[0], raw.volume[-1], 400)
-    return sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, 1e3, v.size)), v[0]
+    return sf.PVCurve(volume=v, pressure=raw.fdf_volume(v)[0] + rng.normal(0.0, noise, v.size)), v[0]
 
 
-def _pumped_balloon(seed=7):
-    """A pump fills the noisy balloon (``_noisy_balloon(seed)``) through a tube
-    for 20 s and draws from it for 18 more."""
-    curve, v0 = _noisy_balloon(seed)
+def _pumped_balloon(seed=7, noise=1e3):
+    """A pump fills the noisy balloon (``_noisy_balloon(seed, noise)``) through
+    a tube for 20 s and draws from it for 18 more."""
+    curve, v0 = _noisy_balloon(seed, noise)
     s = sf.System()
     s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
                              fluid=sf.air)
@@ -722,7 +722,9 @@ def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
     monkeypatch.setattr(BDF, "_fold_jump", spy)
     res = sf.Simulation(s, duration=38.0, breakpoints=[20.0]).run()
     assert elsewhere and all(jumped for _, jumped in elsewhere)
-    assert max(t for t, _ in elsewhere) > 20.0          # (also) while the pump draws
+    # while the pump draws (since the damped Newton rate, newton.CRDOWN, the
+    # fill meets such a failure too, at 11.2 s: jumped alike)
+    assert max(t for t, _ in elsewhere) > 20.0
     m = res.get("act", "mass")
     drawn = res.integral("pump", "massflow", "a")
     assert res.success and np.all(np.isfinite(m))
@@ -739,20 +741,57 @@ def test_a_step_forced_at_the_smallest_step_restarts_the_method(monkeypatch):
     restart the history across that jump extrapolated a trajectory that no
     longer was: the steps bounced between the two volumes and each of these
     runs stopped by t = 10 s (of 12 noise seeds, 7 went through before the
-    damped Newton rate, newton.CRDOWN, 3 with it, 12 with both)."""
+    damped Newton rate, newton.CRDOWN, 3 with it, 12 with both). Which seeds
+    fail without the restart depends on the path Newton takes through the
+    folds: at most one of these three goes through without it."""
     from softflow.solve import bdf
 
     def run(seed):
         return sf.Simulation(_pumped_balloon(seed), duration=38.0,
                              breakpoints=[20.0]).run(raise_on_failure=False)
+    restarts = []
+    restart = bdf.BDF._restart
+
+    def spy(self, *args):
+        restarts.append(self._forced_restart)
+        return restart(self, *args)
+    monkeypatch.setattr(bdf.BDF, "_restart", spy)
     for seed in (4, 7, 11):
+        restarts.clear()
         res = run(seed)
-        assert res.success and res.stats["forced_steps"] > 0
+        assert res.success and res.stats["forced_steps"] > 0 and any(restarts)
         m = res.get("act", "mass")
         np.testing.assert_allclose(m - m[0], -res.integral("pump", "massflow", "a"),
                                    rtol=0, atol=1e-9 * m.max())
     monkeypatch.setattr(bdf, "FORCED_RESTART", False)
-    assert not any(run(seed).success for seed in (4, 7, 11))
+    assert sum(run(seed).success for seed in (4, 7, 11)) <= 1     # (0 measured)
+
+
+def test_a_forced_restart_whose_probes_fail_goes_on_with_the_history(monkeypatch):
+    """The pumped balloon with 300 Pa of noise (seed 4) at rtol 1e-5: a step
+    forced at step_min by a marginal error (1.12 tolerances, not a jump)
+    asks for a restart whose first probe fails; only that forced step asked
+    for it, so BDF goes on with its history, and the run goes through (it
+    stopped at t = 14.1 s on the probe's failure)."""
+    from softflow.solve.bdf import BDF
+    from softflow.solve.integrator import StepFailure
+    failed = []
+    restart = BDF._restart
+
+    def spy(self, *args):
+        try:
+            return restart(self, *args)
+        except StepFailure:
+            failed.append(self._forced_restart)
+            raise
+    monkeypatch.setattr(BDF, "_restart", spy)
+    res = sf.Simulation(_pumped_balloon(4, 300.0), duration=38.0, breakpoints=[20.0],
+                        rtol=1e-5).run(raise_on_failure=False)
+    assert failed == [True]
+    assert res.success
+    m = res.get("act", "mass")
+    np.testing.assert_allclose(m - m[0], -res.integral("pump", "massflow", "a"),
+                               rtol=0, atol=1e-9 * m.max())
 
 
 def test_a_fold_jump_that_lands_back_where_it_started_is_no_snap(monkeypatch):

@@ -65,7 +65,7 @@ def test_a_joint_failure_splits_the_batch_instead_of_dropping_one_variant_at_a_t
     damping and one continuation for all the sub-networks), naming v5. v5
     alone runs through, so the failure was the joint solve's: the others run
     in two halves (3 batches built), not dropped one at a time as before
-    (24 builds, each failing at t = 0)."""
+    (9 builds, of 24 down to 16 variants, each failing at t = 0)."""
     from softflow.curves.waveforms import PiecewiseConstant
     from softflow.solve import batched
     s = sf.System()

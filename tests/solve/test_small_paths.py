@@ -271,3 +271,30 @@ def test_small_networks_find_their_subnetworks_as_the_sparse_graph_does(monkeypa
         assert small[2] == sparse[2] == (4 if system is batch else 1)
         np.testing.assert_array_equal(small[0], sparse[0])
         np.testing.assert_array_equal(small[1], sparse[1])
+
+
+def test_small_blocks_number_random_graphs_as_scipy_does():
+    """Assembly._small_blocks on random group layouts (groups of 0-4 columns,
+    repeated entries, unknowns no group touches) against scipy's
+    connected_components on the same edges: the same count and labels."""
+    from types import SimpleNamespace
+    from scipy.sparse import csc_matrix
+    from scipy.sparse.csgraph import connected_components
+    from softflow.solve.assembly import Assembly
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        n = int(rng.integers(1, 40))
+        groups = [SimpleNamespace(col=rng.integers(0, n, size=(int(rng.integers(1, 5)),
+                                                               int(rng.integers(0, 5)))))
+                  for _ in range(int(rng.integers(0, 6)))]
+        fake = SimpleNamespace(n=n, groups=groups)
+        count, labels = Assembly._small_blocks(fake)
+        a = [g.col[:, :1].repeat(g.col.shape[1] - 1, axis=1).ravel() for g in groups
+             if g.col.shape[1] > 1]
+        b = [g.col[:, 1:].ravel() for g in groups if g.col.shape[1] > 1]
+        a = np.concatenate(a) if a else np.zeros(0, dtype=int)
+        b = np.concatenate(b) if b else np.zeros(0, dtype=int)
+        expected = connected_components(csc_matrix((np.ones(a.size), (a, b)), shape=(n, n)),
+                                        directed=False)
+        assert count == expected[0]
+        np.testing.assert_array_equal(labels, expected[1])

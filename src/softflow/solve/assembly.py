@@ -859,6 +859,8 @@ class Assembly:
             return i
 
         for g in self.groups:
+            if g.col.shape[1] < 2:       # (no columns, or one: nothing to join)
+                continue
             for row in g.col.tolist():
                 a = root(row[0])
                 for j in row[1:]:

@@ -129,7 +129,10 @@ CHATTER_STEP = 4.0
 #: pump filling and drawing it for 38 s, 12 noise seeds: 7 runs went
 #: through before, 12 now (with newton.CRDOWN, 3 without this restart); the
 #: paper listing (an undeclared jump at 0.5 s) 106 -> 43 steps at the same
-#: error; nine paper scenes: no forced step at the default rtol, unchanged
+#: error; nine paper scenes: no forced step at the default rtol, unchanged.
+#: Where the probes of a restart that only a forced step asked for fail (a
+#: marginal failure of the error test rather than a jump), BDF goes on with
+#: its history (BDF._propose)
 FORCED_RESTART = True
 #: the first step after a (re)start aims at this error estimate (order 1, in
 #: units of the tolerance): its order-1 steps carry the run's largest local
@@ -476,7 +479,7 @@ class BDF(Integrator):
         self._restart_due = True
         self._h = 0.0
         self._k = self._n_equal = self._fails = 0
-        self._forced = self._passed = False
+        self._forced = self._passed = self._forced_restart = False
         self._h_cap, self._cap_hold = math.inf, 0     # while a mode switch is being located
         # below a step that failed the error test, for a while: without it a step
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
@@ -498,8 +501,19 @@ class BDF(Integrator):
         next_break, T = self._next, self.T
         limit = next_break if next_break < T else T
         D, iS, iX, iQ = self._D, self._iS, self._iX, self._iQ
-        if self._restart_due:
+        restart = self._restart_due
+        if restart and self._forced_restart:
+            try:
+                x_right, r0, xdot, h = self._restart(x, S, t, limit)
+            except StepFailure:
+                # a restart only a forced step asked for, whose probes fail
+                # (a marginal failure of the error test, not a jump: the pumped
+                # noisy balloon at rtol 1e-5 stopped there): on with the history
+                restart = self._restart_due = False
+            self._forced_restart = False
+        elif restart:
             x_right, r0, xdot, h = self._restart(x, S, t, limit)
+        if restart:
             self.progress.restarted(t, h)
             D[:] = 0.0
             D[0, iS], D[1, iS] = S, h * r0
@@ -671,17 +685,9 @@ class BDF(Integrator):
                 self._shrink(max(factor, self.step_min / h))
                 return None
             self.forced_steps += 1
-            # taken past the error test at the smallest step: the solution
-            # jumped there (an actuator's gas that Newton took to another
-            # volume holding its mass, past a fold): the history before it
-            # extrapolates a trajectory that no longer is, so the method
-            # restarts from the new point, as after a fold jump (not again
-            # before a step has passed the test since the last restart: at
-            # the start of a run, forced steps in a row follow each other)
-            self._forced = FORCED_RESTART and self._passed
+            self._forced = True
         else:
             self._forced = False
-            self._passed = True
         disc = self._disc
         switched = self._switched = disc is not None and bool((S_new[disc] != S[disc]).any())
         if switched and h > smin:
@@ -746,8 +752,18 @@ class BDF(Integrator):
                 raise StepFailure(t_new, h, self._chattering(S, S_new, x_new, h))
         else:
             self._chatter = 0
+        # a step taken past the error test at the smallest step: the solution
+        # jumped there (an actuator's gas that Newton took to another volume
+        # holding its mass, past a fold): the history before it extrapolates
+        # a trajectory that no longer is, so the method restarts from the new
+        # point, as after a fold jump (not again before a step has passed the
+        # test since the last restart: at the start of a run, forced steps in
+        # a row follow each other)
+        forced = self._forced and FORCED_RESTART and self._passed
+        if not self._forced:
+            self._passed = True
         if self._kinks is not None and self._across_kink(x, x_new) and not (
-                self._at_break or switched or self._forced):
+                self._at_break or switched or forced):
             # the history from before a kink (a valve that has just shut)
             # extrapolates a smooth trajectory past it: on at order 1, and
             # the order may rise only once k + 1 steps lie past the kink
@@ -756,8 +772,11 @@ class BDF(Integrator):
                 self._k = 1
             self._n_equal = 0
             return x_new, S_new, t_new
-        if self._at_break or switched or self._forced:
+        if self._at_break or switched or forced:
             self._restart_due = True
+            # only the forced step asks for it: where its probes fail, BDF
+            # goes on with its history (_propose)
+            self._forced_restart = not (self._at_break or switched)
             self._h_cap = self._fail_cap = math.inf
             self._fail_hold = self._cap_hold = 0
             self.newton.invalidate()
