@@ -540,8 +540,8 @@ def test_a_step_that_fails_at_the_smallest_step_is_solved_by_continuation(monkey
     damped) and the steps forced through the error test there do not
     restart the method (bdf.FORCED_RESTART). With the check on, this scene
     (and the whole family of pulses, cracking pressures 0-92.5 kPa, rtol
-    1e-2 ... 1e-6) needs no rescue, nor with the damped rate or the
-    restart."""
+    1e-2 ... 1e-6) needs no rescue; with the check off, neither does it
+    with the damped rate or the restart on (either alone, measured)."""
     from softflow.solve import bdf, newton
     from softflow.solve.assembly import Assembly
     from softflow.solve.integrator import Integrator

@@ -121,7 +121,7 @@ CHATTER_SWITCHES = 50
 CHATTER_STEP = 4.0
 #: a step taken past the error test at step_min (forced) restarts the method
 #: at order 1 from its point, unless no step has passed the test since the
-#: last restart (BDF._judge): where Newton took an actuator's gas to another
+#: last restart (BDF._take): where Newton took an actuator's gas to another
 #: volume holding its mass (past a fold, in a step of its own rather than by
 #: a fold jump), the history before extrapolated a trajectory that no longer
 #: is, and the next steps bounced between the two volumes until the run
