@@ -192,3 +192,19 @@ def test_sweep_reads_each_variants_outputs_as_its_own_result_reads_them():
             np.testing.assert_array_equal(row[reached], np.interp(times[reached], t,
                                                                   r.get(label, name)))
             assert np.isnan(row[~reached]).all()
+
+
+def test_a_check_found_in_several_batches_is_issued_once_for_the_sweep():
+    """Six tube diameters in batches of three: the fast fill's thermal check
+    fires in five variants across both batches, and is issued once, counting
+    them all (each batch issued its own, with its own count, before)."""
+    import warnings
+    sim = sf.Simulation(scene(), duration=0.1)
+    variants = [{"tube.diameter": d} for d in np.geomspace(1.6e-3, 3e-3, 6)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = _run_batched(sim, variants, batch_size=3, own_clocks=False)
+    thermal = [str(w.message) for w in caught if "time scale" in str(w.message)]
+    assert len(thermal) == 1
+    assert "4 more of the 6 variants" in thermal[0]
+    assert sum(any(r.check == "thermal_time_scale" for r in o.warnings) for o in out) == 5

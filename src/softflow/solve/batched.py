@@ -424,12 +424,16 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
         batch_size = max(batch_size, OWN_CLOCKS_BATCH_SIZE)
     order = sorted(range(len(variants)), key=lambda k: _order_key(variants[k]))
     results = [None] * len(variants)
+    found: list = []       # (variant, validity record) of every batch run
     for start in range(0, len(order), batch_size):
         chunk = order[start:start + batch_size]
         own = None if built is None else [built[k] for k in chunk]
+        mine: list = []
         for k, res in zip(chunk, _run_batch(sim, [variants[k] for k in chunk], progress, own,
-                                            own_clocks=own_clocks)):
+                                            own_clocks=own_clocks, found=mine)):
             results[k] = res
+        found += [(chunk[j], w) for j, w in mine]
+    _summarize(found, len(variants))
     return results
 
 
@@ -443,7 +447,7 @@ def _on_own_clocks(batch_sim, todo, progress=None):
         return None, str(err)
 
 
-def _run_batch(sim, variants, progress, built=None, own_clocks=True):
+def _run_batch(sim, variants, progress, built=None, own_clocks=True, found=None):
     """Results of one batch (in order), the batch run as one network: each
     variant on its own clock where :mod:`softflow.solve.clocks` covers the
     scene, else on one shared step sequence.
@@ -454,12 +458,18 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
     the joint solve's (one damping and one continuation for all the
     sub-networks: 38 check-valve variants whose consistent start at t = 0
     failed together, each starting alone), and the others run again in two
-    halves. A failure not traced to one variant runs each on its own."""
+    halves. A failure not traced to one variant runs each on its own.
+
+    The validity records of the batch runs, as (variant index, record), go to
+    ``found`` where given (:func:`_run_batched` issues them once for the
+    sweep, :func:`_summarize`), else are issued here."""
     from .simulation import Simulation, SimulationError
     results: list = [None] * len(variants)
     labels = {c.label for c in sim.system.components}
     opts = {k: v for k, v in sim._definition.items() if k != "system"}
     groups = [list(range(len(variants)))]
+    summary = found is None
+    found = [] if found is None else found
     while groups:
         todo = groups.pop()
         batch = build_batch(sim.system, [variants[k] for k in todo], labels,
@@ -469,7 +479,7 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
             rec = [kw["record"]] if isinstance(kw["record"], str) else list(kw["record"])
             kw["record"] = [PREFIX.format(j) + r for j in range(len(todo)) for r in rec]
         try:
-            with warnings.catch_warnings():      # issued below, one per check
+            with warnings.catch_warnings():      # issued once per check (_summarize)
                 warnings.simplefilter("ignore", ModelWarning)
                 batch_sim = Simulation(batch, **kw)
                 own, why = (_on_own_clocks(batch_sim, todo, progress) if own_clocks else
@@ -507,22 +517,30 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True):
             else:
                 results[k] = VariantResult(res, PREFIX.format(j), mine.get(j, []),
                                            stats={"clocks": "shared", "shared_because": why})
-        _summarize([w for w in res.warnings if _variant_of(w.component) not in failed],
-                   len(todo))
+        for w in res.warnings:
+            j = _variant_of(w.component)
+            if j is not None and j < len(todo) and j not in failed:
+                found.append((todo[j], w))
+    if summary:
+        _summarize(found, len(variants))
     return results
 
 
-def _summarize(records, n_variants):
-    """One ModelWarning per check of a batched run: its first finding and how
-    many variants share it (each variant's own are in its result's warnings)."""
-    by_check = {}
-    for r in records:
-        by_check.setdefault(r.check, []).append(r)
-    for check, found in by_check.items():
-        variants = {r.component.split("/", 1)[0] for r in found}
+def _summarize(found, n_variants):
+    """One ModelWarning per check of a batched sweep: its first finding and
+    how many of the ``n_variants`` variants share it (each variant's own are
+    in its result's warnings); ``found``: (variant index, batch record), from
+    every batch run (a split batch's halves and the batches of a sweep
+    counted together)."""
+    by_check: dict = {}
+    for k, r in found:
+        by_check.setdefault(r.check, []).append((k, r))
+    for check, items in by_check.items():
+        variants = {k for k, _ in items}
         more = (f" (and the same check in {len(variants) - 1} more of the {n_variants} "
                 "variants; see each variant's result.warnings)" if len(variants) > 1 else "")
-        first = _relabel(found[0], found[0].component.split("/", 1)[0] + "/")
+        r = items[0][1]
+        first = _relabel(r, r.component.split("/", 1)[0] + "/")
         warnings.warn(first.message + more, ModelWarning, stacklevel=3)
 
 
