@@ -28,9 +28,10 @@ relative to each volume's range; CPU is process_time of Simulation + run
 (median of --repeat runs).
 
 Measured (benchmarks/README.md, 2026-12-03): half the steps, 30 % more
-Newton iterations, 15 % more CPU over eight scenes x three rtols, and 3-10x
-less accurate on the snapping scenes at rtol 1e-3 and 1e-4: the BDF stays
-softflow's adaptive method.
+Newton iterations, 15 % more CPU over eight scenes x three rtols; 3-10x less
+accurate on Fig. 3's snapping actuators at rtol 1e-3 and 1e-4 for about the
+same CPU, 1.3-1.9x the CPU on Fig. 5 with air: the BDF stays softflow's
+adaptive method.
 
     python benchmarks/bench_one_step.py [--repeat 3] [--scene fig5:air ...]   # ~5 min
 """
