@@ -49,8 +49,7 @@ import softflow as sf
 from softflow import paper_scenes as ps
 from softflow.solve import simulation as simulation_mod
 from bench_paper_scenes import scenes
-from softflow.solve.bdf import (BDF, FAIL_HOLD, FULL_STAGE_STEPS, MIN_FACTOR, SAFETY,
-                                SECANT_TRIES, SWITCH_PAST)
+from softflow.solve.bdf import BDF, FAIL_HOLD, FULL_STAGE_STEPS, MIN_FACTOR, SAFETY
 
 GAMMA = 2.0 - math.sqrt(2.0)
 D = GAMMA / 2.0                                   # both stages: c = D h
@@ -135,25 +134,10 @@ class TRBDF2(BDF):
             return None
         disc = self._disc
         switched = self._switched = disc is not None and bool((S_new[disc] != S[disc]).any())
-        if switched and h > smin:
-            # located as the BDF locates it (BDF._judge): the step ends just
-            # past the crossing of the switching function (a secant), else bisected
-            motion = self._norm(S_new - S, self._weights(S, S_new, x_new), x_new - x)
-            theta = (self._crossing(x, S, x_new, S_new)
-                     if motion > 1.0 and self._secant_tries < SECANT_TRIES else None)
-            past = 1.0 if theta is None else 1.0 - theta
-            if motion * past > 1.0:
-                self.stats.rejected_steps += 1
-                self.progress.rejected(t_new, h, "switch")
-                if theta is not None:
-                    self._secant_tries += 1
-                    past = min(SWITCH_PAST, 0.5 / max(motion * theta, 1.0))
-                    factor = max(theta * (1.0 + past), self.step_min / h)
-                else:
-                    factor = max(0.5, self.step_min / h)
-                    self._h_cap, self._cap_hold = h * factor, FAIL_HOLD
-                self._shrink(factor)
-                return None
+        # a switch located as the BDF locates it (BDF._switch_rejected)
+        if switched and h > smin and self._switch_rejected(
+                t_new, h, x, S, x_new, S_new, self._weights(S, S_new, x_new)):
+            return None
         self._secant_tries = 0
         self._r_new = r_new
         return t_new

@@ -690,32 +690,39 @@ class BDF(Integrator):
             self._forced = False
         disc = self._disc
         switched = self._switched = disc is not None and bool((S_new[disc] != S[disc]).any())
-        if switched and h > smin:
-            motion = self._norm(S_new - S, w, x_new - x)
-            theta = (self._crossing(x, S, x_new, S_new)
-                     if motion > 1.0 and self._secant_tries < SECANT_TRIES else None)
-            # the part of the step past the switch ran in the old mode: accepted
-            # where the motion over that part is within the tolerance
-            past = 1.0 if theta is None else 1.0 - theta
-            if motion * past > 1.0:
-                self.stats.rejected_steps += 1
-                self.progress.rejected(t_new, h, "switch")
-                if theta is not None:
-                    # end the step just past the crossing (a secant of the
-                    # switching functions between the step's ends), by a
-                    # part whose motion stays within half the tolerance
-                    self._secant_tries += 1
-                    past = min(SWITCH_PAST, 0.5 / max(motion * theta, 1.0))
-                    factor = max(theta * (1.0 + past), self.step_min / h)
-                else:
-                    # no switching function (or the secant did not settle):
-                    # bisect until the switching step is that short
-                    factor = max(0.5, self.step_min / h)
-                    self._h_cap, self._cap_hold = h * factor, FAIL_HOLD
-                self._shrink(factor)
-                return None
+        if switched and h > smin and self._switch_rejected(t_new, h, x, S, x_new, S_new, w):
+            return None
         self._secant_tries = 0
         return t_new
+
+    def _switch_rejected(self, t_new, h, x, S, x_new, S_new, w):
+        """Whether a step of ``h`` that switched a mode is rejected to locate
+        the switch (the next try shrunk, :meth:`_shrink`); ``w``: the step's
+        error weights (:meth:`_weights`)."""
+        motion = self._norm(S_new - S, w, x_new - x)
+        theta = (self._crossing(x, S, x_new, S_new)
+                 if motion > 1.0 and self._secant_tries < SECANT_TRIES else None)
+        # the part of the step past the switch ran in the old mode: accepted
+        # where the motion over that part is within the tolerance
+        past = 1.0 if theta is None else 1.0 - theta
+        if motion * past <= 1.0:
+            return False
+        self.stats.rejected_steps += 1
+        self.progress.rejected(t_new, h, "switch")
+        if theta is not None:
+            # end the step just past the crossing (a secant of the switching
+            # functions between the step's ends), by a part whose motion
+            # stays within half the tolerance
+            self._secant_tries += 1
+            past = min(SWITCH_PAST, 0.5 / max(motion * theta, 1.0))
+            factor = max(theta * (1.0 + past), self.step_min / h)
+        else:
+            # no switching function (or the secant did not settle): bisect
+            # until the switching step is that short
+            factor = max(0.5, self.step_min / h)
+            self._h_cap, self._cap_hold = h * factor, FAIL_HOLD
+        self._shrink(factor)
+        return True
 
     def _take(self, t, x, S, x_new, psi, c, S_new, t_new):
         self._fails = 0
