@@ -169,6 +169,40 @@ def test_a_tube_law_past_its_limit_joins_the_clear_cut_run():
     assert difference(recommended_run(a), ref, a.outputs) < TOL
 
 
+def test_the_base_and_probes_run_at_10_rtol0_and_their_checks_are_judged_at_rtol0():
+    """The bottle: the base (isothermal, ideal) and the probes run at 10 rtol0
+    = the tolerance; only the recommended models run at rtol0, for the time
+    tolerance. The base's checks are judged at rtol0 (|Z - 1| against the
+    tolerance, not 10x it), so the fluid level is still probed; the last
+    probe's run is the time tolerance's 10 rtol0 run: four runs."""
+    a = sf.assess(bottle(), 20.0, tolerance=TOL, outputs=[("bottle", "pressure")])
+    rtol0 = TOL / 10
+    assert [r.config.rtol for r in a.runs] == [10 * rtol0] * 3 + [rtol0]
+    z = [r for r in a.validity if r.check == "gas_compressibility"]
+    assert z and z[0].limit == pytest.approx(TOL)         # rtol0's limit, 10 rtol0 = 1 %
+    assert a.runs[0].result.stats["rtol"] == 10 * rtol0    # the run's own rtol is kept
+    assert a.recommended["fluid_level"] == "table"
+
+
+def test_a_probe_near_the_threshold_is_measured_again_at_rtol0():
+    """A gas tube at 0.55x its Mach limit, the tank held at its wall: the tube
+    law's effect at 10 rtol0 (0.88 %) is within REMEASURE_FRACTION of the
+    tolerance, so the base and the probe run again at rtol0 and the decision
+    is made on that effect (0.57 %: the one the probes at rtol0 measured
+    before the loose probes), reported with the loose one."""
+    from softflow.assess import REMEASURE_FRACTION
+    a = sf.assess(_gas_tube_fill(1.3, thermal="isothermal"), 10.0, tolerance=TOL,
+                  outputs=[("tank", "pressure")])
+    law = _axis(a, "tube law")
+    assert "measured again at rtol 1e-03" in law["verdict"]
+    loose = [r for r in a.runs if r.config.rtol == TOL]
+    here, there = (next(r for r in a.runs if r.config.rtol == TOL / 10
+                        and bool(r.config.overrides) == lifted) for lifted in (False, True))
+    assert law["effect"] == difference(here.result, there.result, a.outputs)
+    assert difference(loose[0].result, loose[1].result, a.outputs) <= REMEASURE_FRACTION * TOL
+    assert law["effect"] > 0.5 * TOL and "adopted" in law["verdict"]
+
+
 def test_a_tube_law_near_its_limit_is_measured_on_its_own():
     """Mach 0.78x the limit (near, not past: borderline): the tube law is
     probed on its own, before the thermal level, and its effect reported."""

@@ -2,15 +2,21 @@
 
 ``sf.assess(system, duration, tolerance=0.01, outputs=[("act1", "volume")])`` runs
 the scene in its cheapest configuration (isothermal, ideal fluids, the
-components' own friction and tube laws, no inertance, ``rtol = tolerance /
-10``) and reads the validity records of that run
-(:mod:`softflow.solve.model_checks`): on each axis whose check is near its
+components' own friction and tube laws, no inertance, ``rtol = 10 rtol0 =
+tolerance``, with ``rtol0 = tolerance / 10``) and reads the validity records
+of that run (:mod:`softflow.solve.model_checks`), judged as for a run at
+``rtol0`` (the limits that follow the tolerance are 10 rtol): on each axis whose check is near its
 limit (a figure at half the limit or more, status 'near') or past it, it runs
 the scene one level up, on top of the levels adopted so far, and measures
 what that changes in the outputs: the largest difference over time, relative
 to each output's range. An axis whose effect is a noticeable part of the
 tolerance gets the level up; the others stay cheap, and cost no run where
-their check is quiet.
+their check is quiet. The probes run at ``10 rtol0`` too; a probe whose
+effect there is at most :data:`REMEASURE_FRACTION` of the tolerance (near
+the adopt threshold, where the loose runs' time errors could decide) is
+measured again at ``rtol0``, base and probe, and decided on that. Only the
+recommended models then run at ``rtol0``, for the time tolerance, whose
+``10 rtol0`` run is the last adopted probe's (or the base's).
 
 Axes and their levels, in the order they are tried
 --------------------------------------------------
@@ -43,7 +49,7 @@ thermal
     where the last axes to probe are each far past their limit
     (:data:`CLEAR_FACTOR` times it, or an isothermal error estimated at that
     many tolerances), each would be adopted, and their run is the
-    recommended models' run at ``rtol0``, which the time tolerance needs
+    recommended models' run at ``10 rtol0``, which the time tolerance needs
     anyway. That run also takes the tube laws past their limit (friction
     past ``Re_laminar``, Mach past 0.3: "free" lifts, one law for another in
     the tubes named, no state added, about the same cost a step), which
@@ -57,8 +63,8 @@ thermal
     clear-cut axis follows, is measured on its own as any other.
 time tolerance
     on the models chosen (their time errors differ: a friction law's
-    transition, a thermal scene's slow modes): a run at ``10 rtol0``, cheaper,
-    against ``rtol0``: within what the neglected axes leave of
+    transition, a thermal scene's slow modes): their run at ``10 rtol0``
+    (the last adopted probe's) against one at ``rtol0``: within what the neglected axes leave of
     ``LOOSE_FRACTION`` of the tolerance, ``10 rtol0`` is recommended; within
     twice that, ``rtol0`` is kept (errors shrink at least 3x per decade of
     rtol); else ``rtol0`` against ``rtol0 / 10``, the tighter recommended
@@ -78,16 +84,21 @@ run on the Simulation compiled for them, set to that rtol (``_set_rtol``:
 bitwise the run of a Simulation built at it). Costs are CPU times
 (``time.process_time``) of building and running each Simulation.
 
-What it costs: the base run, one run per probe, and the models chosen at
-``rtol0`` and ``10 rtol0`` (the latter is the cheapest adequate
-configuration where it is recommended). Where the models chosen differ from
-the base, the floor is therefore the base run plus about 1.3-1.5 runs of the
-cheapest adequate configuration (``rtol0``'s) plus one (``10 rtol0``'s):
-near 3 such runs where the base costs half of one (turbulent air: 2.93x by
-instruction count, a failed cheapest run, the Haaland base, heat transfer at
-``rtol0`` and at ``10 rtol0``). The time tolerance needs the pair: a model's
-time error is not another's (laminar water: ``10 rtol0`` is 0.51 % from
-``rtol0`` in the base models, 0.77 % in the models chosen).
+What it costs: the base run and one run per probe, at ``10 rtol0`` (the
+last adopted probe's run is the recommended models' ``10 rtol0`` run, the
+cheapest adequate configuration where it is recommended), the recommended
+models at ``rtol0``, and two runs at ``rtol0`` for each probe measured again.
+Where the models chosen differ from the base and no probe is measured again,
+that is the base at ``10 rtol0`` plus one run of the cheapest adequate
+configuration plus about 1.3-1.5 such runs (``rtol0``'s). The time tolerance
+needs the pair: a model's time error is not another's (laminar water: ``10
+rtol0`` is 0.51 % from ``rtol0`` in the base models, 0.77 % in the models
+chosen). Until 2026-12-03 the base and the probes ran at ``rtol0``: the same
+recommendations and adopt decisions on the ten scenes of
+``benchmarks/bench_assess.py``, the effects within 0.9 points, at 5-15 % more
+CPU on the thermal scenes (fast fill 3.1-3.2x the cheapest adequate run,
+against 2.75-3.0x now: ``benchmarks/assess_design_d.py`` measured the two
+in turns).
 """
 from __future__ import annotations
 
@@ -116,6 +127,18 @@ BUDGET_FRACTION = 0.5
 #: rtol0 is kept where it differs from 10 rtol0 by at most twice this, or
 #: from rtol0 / 10 by at most this (else rtol0 / 10 is recommended).
 LOOSE_FRACTION = 0.4
+#: The base run and the probes run at rtol0 x LOOSE_FACTOR (10: the loose
+#: member of the time tolerance's pair), their validity checks judged at
+#: rtol0; only the recommended models run at rtol0 as well (module
+#: docstring). 1 gives the design before 2026-12-03, everything at rtol0
+#: (benchmarks/assess_design_d.py compares the two).
+LOOSE_FACTOR = 10.0
+#: A probe whose effect, measured on those loose runs, is at most this
+#: fraction of the tolerance is measured again at rtol0 (base and probe), and
+#: decided on that: near the adopt threshold the loose runs' time errors
+#: could hide an effect (on the ten scenes of bench_assess.py the effects at
+#: 10 rtol0 were within 0.9 points of those at rtol0).
+REMEASURE_FRACTION = 3 * ADOPT_FRACTION
 #: A check this many times past its limit (or, for the thermal axis, an
 #: isothermal error estimated at this many tolerances) is clear-cut: the last
 #: probes, where two or more are, are run as one (module docstring).
@@ -387,9 +410,11 @@ class Assessment:
 
 
 class _Assessor:
-    def __init__(self, system, duration, tolerance, outputs, options):
+    def __init__(self, system, duration, tolerance, outputs, options, checks_rtol=None):
         self.system, self.duration, self.tolerance = system, duration, tolerance
         self.outputs, self.options = outputs, options
+        #: the rtol every run's validity checks are judged at (rtol0)
+        self.checks_rtol = checks_rtol
         self.runs = []
         self._systems = {}
         self._simulations = {}
@@ -416,6 +441,7 @@ class _Assessor:
                 self._simulations[(key, config.thermal)] = sim
             else:
                 _set_rtol(sim, config.rtol, self.options.get("atol"))
+            sim._checks_rtol = self.checks_rtol
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ModelWarning)
                 result = sim.run(raise_on_failure=False, progress=False)
@@ -490,15 +516,15 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
     from .units import to_si
     duration = to_si(duration, "s", name="duration", owner="assess")
     t_start = time.process_time()
-    a = _Assessor(system, duration, tolerance, outputs, simulation_options)
     rtol0 = tolerance / 10
+    a = _Assessor(system, duration, tolerance, outputs, simulation_options, checks_rtol=rtol0)
     scene = _Scene(system)
 
-    base = a.run(Config("isothermal", "ideal", rtol0))
+    base = a.run(Config("isothermal", "ideal", rtol0 * LOOSE_FACTOR))
     verdict = "run"
     if not base.ok:
         failed = base
-        base = _fallback(a, base, scene)
+        base = _fallback(a, base, scene, rtol0)
         why = failed.error if len(failed.error) <= 160 else failed.error[:160] + "..."
         verdict = (f"the cheapest configuration ({failed.config.describe()}) failed: "
                    f"{why}; this is the first one up that ran")
@@ -542,13 +568,23 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
             cost_row(axis, tried, math.nan, up, f"failed: {up.error}; kept the lower level")
             return
         effect = difference(current.result, up.result, outputs)
+        how = ""
+        if effect <= REMEASURE_FRACTION * tolerance and up.config.rtol != rtol0:
+            # near the threshold the loose runs' time errors could decide: again at rtol0
+            here = a.run(current.config.replace(rtol=rtol0))
+            there = a.run(up.config.replace(rtol=rtol0))
+            if here.ok and there.ok:
+                how = (f" (measured again at rtol {rtol0:.0e}: {effect:.2%} at rtol "
+                       f"{up.config.rtol:.0e})")
+                effect = difference(here.result, there.result, outputs)
         if effect > ADOPT_FRACTION * tolerance:
             current = up
             cost_row(axis, tried, effect, up, f"adopted ({reason}): changes the outputs by "
-                                              f"{effect:.2%}")
+                                              f"{effect:.2%}{how}")
         else:
             neglected[axis] = (effect, lift, len(rows))
-            cost_row(axis, tried, effect, up, f"kept the lower level ({reason}): {effect:.2%}")
+            cost_row(axis, tried, effect, up,
+                     f"kept the lower level ({reason}): {effect:.2%}{how}")
 
     for args in probes:
         if not any(args is t for t in together):
@@ -584,7 +620,8 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
         config = lift(config)
         rows[row] = rows[row][:5] + (f"adopted: {effect:.2%}, and the neglected effects "
                                      f"together pass {BUDGET_FRACTION:g} x tolerance",)
-    config = _time_tolerance(a, config, base_config=base.config, spare=(
+    config = _time_tolerance(a, config.replace(rtol=rtol0),
+                             base_config=base.config.replace(rtol=rtol0), spare=(
         LOOSE_FRACTION * tolerance - sum(e for e, _, _ in neglected.values())),
         cost_row=cost_row)
     recommended = _recommendation(config, scene.laminar)
@@ -601,8 +638,8 @@ def _together(probes):
     more. Each of them would be adopted (a free lift: past its limit the level
     up is the better law, and where finer than needed it costs about nothing,
     a law for another with no state added), and their run is the
-    recommended models' run at rtol0, which the time tolerance needs anyway.
-    A free lift that no clear-cut probe follows is measured on its own."""
+    recommended models' run at 10 rtol0, which the time tolerance needs
+    anyway. A free lift that no clear-cut probe follows is measured on its own."""
     n_clear = 0
     while n_clear < len(probes) and getattr(probes[-1 - n_clear][2], "clear", False):
         n_clear += 1
@@ -831,18 +868,20 @@ def _recommendation(config, laminar):
             "rtol": config.rtol, "overrides": overrides}
 
 
-def _fallback(a, failed, scene):
+def _fallback(a, failed, scene, rtol0):
     """The base configuration failed: try one level up on each axis, those
     whose check the failed run found near or past its limit first (a laminar
-    tube past Re_laminar chokes: Haaland, not a finer rtol), then all at once;
-    the first that runs becomes the base. None runs: AssessmentError."""
+    tube past Re_laminar chokes: Haaland, not a finer rtol: rtol0, then
+    rtol0 / 10, the base having run at 10 rtol0), then all at once; the first
+    that runs becomes the base. None runs: AssessmentError."""
     base_cfg = failed.config
     records = failed.result.validity if failed.result is not None else []
     flagged = {r.check for r in records}
     thermal_up = "heat_transfer" if scene.volumes and all(
         _has_wall(c) for c in scene.volumes) else "adiabatic"
     haaland = {lab: {"friction": "Haaland"} for lab in scene.laminar}
-    first, then = [], [base_cfg.replace(rtol=base_cfg.rtol / 10)]
+    # finer rtols: rtol0 (the base ran at 10 rtol0), then rtol0 / 10
+    first, then = [], [base_cfg.replace(rtol=rtol0), base_cfg.replace(rtol=rtol0 / 10)]
     if haaland and _FRICTION_CHECK in flagged:
         # a laminar tube past Re_laminar that choked (its flow far too large)
         # ran past Mach 0.3 too: its law is lifted with its friction, and the
@@ -859,7 +898,7 @@ def _fallback(a, failed, scene):
         (first if _FLUID_CHECK in flagged else then).extend(
             [base_cfg.replace(fluid_level="table"), base_cfg.replace(fluid_level="eos")])
     every = base_cfg.replace(thermal=thermal_up, fluid_level="eos" if scene.gases else "ideal",
-                             rtol=base_cfg.rtol / 10).with_overrides(haaland)
+                             rtol=rtol0 / 10).with_overrides(haaland)
     for cfg in first + then + [every]:
         done = a.run(cfg)
         if done.ok:

@@ -184,6 +184,10 @@ class Simulation:
         of its range, for model='auto'.
     """
 
+    #: the rtol the validity checks judge a run's limits at (None: the run's
+    #: own; sf.assess sets its rtol0 on the runs it makes at 10 rtol0)
+    _checks_rtol: float | None = None
+
     def __init__(self, system: System, duration: Scalar = 1.0, step: Scalar | None = None, *,
                  adaptive: bool | None = None, method: str = "bdf", max_order: int = MAX_ORDER,
                  step_min: Scalar | None = None, step_max: Scalar | None = None,
@@ -544,7 +548,7 @@ class Simulation:
         if sens is not None:
             xs, ss = ((slice(None), slice(None)) if self.record is None else self.record[:2])
             result._set_sensitivities(sens, xs, ss, len(t))
-        records = check_result(asm, result)     # model validity (validity.py)
+        records = check_result(asm, result, rtol=self._checks_rtol)   # model validity
         result.validity, result.warnings = records, beyond(records)
         fatal = [w for w in result.warnings if w.details.get("fatal")]
         if fatal and error is None and self.beyond_limits == "error":

@@ -191,25 +191,39 @@ def _group_checks(asm: Any, fatal_only: bool = False) -> Iterator[tuple[Any, Any
                         yield g, check
 
 
-def check_result(asm: Any, result: Any, fatal_only: bool = False) -> list[ValidityRecord]:
+def check_result(asm: Any, result: Any, fatal_only: bool = False,
+                 rtol: float | None = None) -> list[ValidityRecord]:
     """Every registered check on every group of the run's network: the records
     past their limit and the near misses (see :func:`beyond`). ``fatal_only``:
-    only the checks that can refuse a run (marked ``can_refuse``)."""
+    only the checks that can refuse a run (marked ``can_refuse``). ``rtol``:
+    judge the limits that follow the tolerance (10 rtol) as for a run at this
+    rtol instead of the run's own (sf.assess runs its base at 10 rtol0 and
+    judges it at rtol0)."""
     records: list[ValidityRecord] = []
     if len(result.times) == 0:
         return records
     from ..fluids.base import FluidError
-    for g, check in _group_checks(asm, fatal_only):
-        try:
-            records.extend(check(g, result))
-        except FluidError as err:    # a check must never fail the run it checks
-            c = g.comps[0]
-            records.append(ValidityRecord(
-                component=c.label, check=check.__name__, measured=float("nan"),
-                limit=float("nan"), unit="",
-                suggestion="use a fluid level whose range covers the run's states",
-                message=f"{c.describe()}: the {check.__name__} check could not "
-                        f"be evaluated ({err}); its finding is unknown"))
+    own = result.stats.get("rtol")
+    if rtol is not None:
+        result.stats["rtol"] = rtol
+    try:
+        for g, check in _group_checks(asm, fatal_only):
+            try:
+                records.extend(check(g, result))
+            except FluidError as err:    # a check must never fail the run it checks
+                c = g.comps[0]
+                records.append(ValidityRecord(
+                    component=c.label, check=check.__name__, measured=float("nan"),
+                    limit=float("nan"), unit="",
+                    suggestion="use a fluid level whose range covers the run's states",
+                    message=f"{c.describe()}: the {check.__name__} check could not "
+                            f"be evaluated ({err}); its finding is unknown"))
+    finally:
+        if rtol is not None:
+            if own is None:
+                del result.stats["rtol"]
+            else:
+                result.stats["rtol"] = own
     return records
 
 
