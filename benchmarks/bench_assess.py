@@ -19,9 +19,9 @@ run of the cheapest adequate configuration (target <= 3x). Error: largest
 difference of each output over the run's own time points, relative to the
 output's range in the reference. Floor / cheapest: the part of assess's
 cost that its design pays whatever its probes find (:func:`floor`: the
-base run at rtol0, and the recommended models' runs, the time tolerance's
-rtol0 and 10 rtol0), over the cheapest adequate run; where it is near 3x,
-the target leaves this design nothing for probes. assess, the cheapest adequate and the
+base run, and the recommended models' runs, the time tolerance's rtol0 and
+10 rtol0), over the cheapest adequate run; where it is near 3x, the target
+leaves this design nothing for probes. assess, the cheapest adequate and the
 recommended configuration are measured in turn, --repeats times each. Costs: CPU time (time.process_time) of
 building and running a Simulation, medians of --repeats (assess's with
 their range: the machine is shared).
@@ -169,18 +169,15 @@ def bench(name, repeats):
 
 def floor(a):
     """CPU [s] of the runs that assess's design makes whatever its probes find,
-    of those ``a`` made: the first run that went through (the base, at
-    rtol0, whose validity records pick the axes to probe and against which
-    the probes are measured), and every run of the recommended models (the
-    time tolerance's: rtol0 and 10 rtol0, and rtol0 / 10 where assess went
-    on to it; one of them is the recommendation, and where the recommended
-    models are the base's, the base is their rtol0 run). Beyond it: the
-    probes that are not the recommended models' runs (axes kept at the lower
-    level, and adopted axes that a later probe's run supersedes, e.g. the
-    bottle's fluid level), the failed runs, and assess's own work between
-    runs. It is the floor of this design, not of any assessment: one whose
-    base and probes ran at 10 rtol0 would make fewer runs at rtol0
-    (benchmarks/README.md)."""
+    of those ``a`` made: the first run that went through (the base, at 10
+    rtol0 since 2026-12-03, at rtol0 before, whose validity records pick the
+    axes to probe), and every run of the recommended models (the time
+    tolerance's: rtol0 and 10 rtol0, and rtol0 / 10 where assess went on to
+    it; one of them is the recommendation). Beyond it: the probes that are
+    not the recommended models' runs (axes kept at the lower level, adopted
+    axes that a later probe's run supersedes, e.g. the bottle's fluid level,
+    probes measured again at rtol0), the failed runs, and assess's own work
+    between runs."""
     done = [r for r in a.runs if r.ok]
     models = (a.config.thermal, a.config.fluid_level, a.config.overrides)
     mine = [r for r in done if (r.config.thermal, r.config.fluid_level,
