@@ -179,9 +179,7 @@ def floor(a):
     probes measured again at rtol0), the failed runs, and assess's own work
     between runs."""
     done = [r for r in a.runs if r.ok]
-    models = (a.config.thermal, a.config.fluid_level, a.config.overrides)
-    mine = [r for r in done if (r.config.thermal, r.config.fluid_level,
-                                r.config.overrides) == models]
+    mine = [r for r in done if r.config.replace(rtol=a.config.rtol) == a.config]
     return sum(r.cpu for r in {id(r): r for r in done[:1] + mine}.values())
 
 

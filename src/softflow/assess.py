@@ -577,6 +577,9 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
                 how = (f" (measured again at rtol {rtol0:.0e}: {effect:.2%} at rtol "
                        f"{up.config.rtol:.0e})")
                 effect = difference(here.result, there.result, outputs)
+            else:       # decided on the loose runs, and the row says so
+                how = (f" (at rtol {up.config.rtol:.0e}; again at rtol {rtol0:.0e} it "
+                       f"failed: {(here.error or there.error)[:120]})")
         if effect > ADOPT_FRACTION * tolerance:
             current = up
             cost_row(axis, tried, effect, up, f"adopted ({reason}): changes the outputs by "
