@@ -173,15 +173,67 @@ def test_the_base_and_probes_run_at_10_rtol0_and_their_checks_are_judged_at_rtol
     """The bottle: the base (isothermal, ideal) and the probes run at 10 rtol0
     = the tolerance; only the recommended models run at rtol0, for the time
     tolerance. The base's checks are judged at rtol0 (|Z - 1| against the
-    tolerance, not 10x it), so the fluid level is still probed; the last
-    probe's run is the time tolerance's 10 rtol0 run: four runs."""
+    tolerance, not 10x it), so the fluid level is lifted (past its limit, it
+    joins the clear-cut thermal run); that run is the time tolerance's 10
+    rtol0 run: three runs."""
     a = sf.assess(bottle(), 20.0, tolerance=TOL, outputs=[("bottle", "pressure")])
     rtol0 = TOL / 10
-    assert [r.config.rtol for r in a.runs] == [10 * rtol0] * 3 + [rtol0]
+    assert [r.config.rtol for r in a.runs] == [10 * rtol0] * 2 + [rtol0]
     z = [r for r in a.validity if r.check == "gas_compressibility"]
     assert z and z[0].limit == pytest.approx(TOL)         # rtol0's limit, 10 rtol0 = 1 %
     assert a.runs[0].result.stats["rtol"] == 10 * rtol0    # the run's own rtol is kept
     assert a.recommended["fluid_level"] == "table"
+
+
+def _air_bottle(supply, initial):
+    """bottle()'s scene (2 m of 1 mm tube into 1 L, wall hA 0.5 W/K) between
+    other pressures [Pa]."""
+    s = sf.System()
+    s += sf.PressureSource("supply", pressure=supply)
+    s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3)
+    s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=initial, hA=0.5)
+    s.connect("supply", "tube")
+    s.connect("tube", "bottle")
+    return s
+
+
+def test_a_fluid_level_past_its_limit_joins_the_clear_cut_run():
+    """The bottle, 12 -> 18 MPa: |Z - 1| 1.33x its limit (past it: the ideal
+    level is outside its validity for the tolerance) and the thermal level
+    clear-cut (isothermal error estimated 40 %): the table level is not
+    probed on its own (no isothermal table run) but joins the thermal run;
+    the two rows report their joint effect. The recommendation is within
+    the tolerance of a fine reference, the ideal level's is not."""
+    s = bottle()
+    a = sf.assess(s, 20.0, tolerance=TOL, outputs=[("bottle", "pressure")])
+    assert {(r.check, r.status) for r in a.validity} == {
+        ("gas_compressibility", "beyond"), ("thermal_time_scale", "near")}
+    rows = a.table.set_index("axis")
+    assert rows.loc["fluid level", "effect"] == rows.loc["thermal", "effect"] > 10 * TOL
+    assert "together with thermal" in rows.loc["fluid level", "verdict"]
+    assert "outside its validity" in rows.loc["fluid level", "verdict"]
+    assert "clear-cut" in rows.loc["thermal", "verdict"]
+    assert [(r.config.thermal, r.config.fluid_level) for r in a.runs] == [
+        ("isothermal", "ideal"), ("heat_transfer", "table"), ("heat_transfer", "table")]
+    assert (a.recommended["fluid_level"], a.recommended["thermal"]) == ("table", "heat_transfer")
+    ref = reference(s, 20.0, "heat_transfer", "eos")
+    assert difference(recommended_run(a), ref, a.outputs) < TOL
+    ideal = reference(s, 20.0, "heat_transfer", "ideal")
+    assert difference(ideal, ref, a.outputs) > TOL       # the fluid level alone matters
+
+
+def test_a_fluid_level_near_its_limit_is_measured_on_its_own():
+    """1.5 -> 3 MPa: |Z - 1| 0.82x its limit (near, not past: borderline),
+    the thermal level clear-cut: the fluid level is probed on its own, on
+    the isothermal models, and its own effect reported."""
+    a = sf.assess(_air_bottle(3e6, 1.5e6), 20.0, tolerance=TOL,
+                  outputs=[("bottle", "pressure")])
+    assert [r.status for r in a.validity if r.check == "gas_compressibility"] == ["near"]
+    rows = a.table.set_index("axis")
+    assert "together" not in rows.loc["fluid level", "verdict"]
+    assert rows.loc["fluid level", "effect"] != rows.loc["thermal", "effect"]
+    assert any(r.config.thermal == "isothermal" and r.config.fluid_level == "table"
+               for r in a.runs)
 
 
 def test_a_probe_near_the_threshold_is_measured_again_at_rtol0():
@@ -228,25 +280,27 @@ def test_a_tube_law_past_its_limit_without_a_clear_cut_axis_is_measured():
     assert a.runs[1].config.overrides_dict() == {"tube": {"compressible": "isothermal"}}
 
 
-def test_together_takes_the_trailing_clear_cut_probes_and_the_free_ones():
-    """_together: the trailing clear-cut probes with the free lifts (a tube law
-    past its limit) from before them, where that makes two or more; nothing
+def test_together_takes_the_trailing_clear_cut_probes_and_the_lifts_past_their_limit():
+    """_together: the trailing clear-cut probes with the lifts past their limit
+    (a tube law, the fluid level) from before them, where that makes two or more; nothing
     where no clear-cut probe ends the list."""
     from softflow.assess import _together
 
-    def probe(axis, clear=False, free=False):
+    def probe(axis, clear=False, past=False):
         def lift(cfg):
             return cfg
-        lift.clear, lift.free = clear, free
+        lift.clear, lift.past = clear, past
         return (axis, axis, lift, "")
-    free, other, clear = probe("tube law", free=True), probe("fluid level"), probe("thermal", True)
-    assert _together([free, other, clear]) == [free, clear]
+    law, other, clear = probe("tube law", past=True), probe("fluid level"), probe("thermal", True)
+    assert _together([law, other, clear]) == [law, clear]
     assert _together([other, clear]) == []                  # one run alone: a probe as any
-    assert _together([free, other]) == []                   # nothing clear-cut to join
-    assert _together([free, clear, other]) == []            # the clear one is not last
+    assert _together([law, other]) == []                   # nothing clear-cut to join
+    assert _together([law, clear, other]) == []            # the clear one is not last
     both = probe("inertance", True)
     assert _together([other, both, clear]) == [both, clear]
     assert _together([probe("tube law"), other, clear]) == []   # near: measured
+    fluid = probe("fluid level", past=True)                  # |Z - 1| past its limit
+    assert _together([law, fluid, clear]) == [law, fluid, clear]
 
 
 @pytest.mark.parametrize("scene", ["near_choking", "syringe", "laminar_water"])
