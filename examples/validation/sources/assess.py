@@ -3,11 +3,14 @@
 #
 # `sf.assess(system, duration, tolerance, outputs)` runs the cheapest
 # configuration (isothermal, ideal fluids, the components' own friction laws,
-# no inertance, rtol = tolerance/10), reads the validity records of that run,
-# goes one level up on each axis whose check is near its limit (half of it or
-# more) or past it, keeps a level where it changes the outputs by more than
-# half the tolerance, and recommends a configuration, per component where
-# parts of the network differ. Here, three scenes that need different models:
+# no inertance, rtol = tolerance), reads the validity records of that run
+# (judged as for a run at rtol0 = tolerance/10), goes one level up on each
+# axis whose check is near its limit (half of it or more) or past it, keeps a
+# level where it changes the outputs by more than half the tolerance (axes
+# far past their limit are adopted in one run), measures the time tolerance
+# on the models chosen (rtol0 against 10 rtol0), and recommends a
+# configuration, per component where parts of the network differ. Here,
+# three scenes that need different models:
 #
 # 1. a slow syringe-like fill of an air actuator: isothermal is adequate;
 # 2. a fast fill of a 1 L tank through a valve: the gas heats up, adiabatic is needed;
