@@ -44,12 +44,13 @@ def fast_fill():
     return s, 1.0, [("tank", "pressure")]
 
 
-def bottle():
-    """A 1 L air bottle (wall hA 0.5 W/K) filled from 12 to 18 MPa through 2 m of 1 mm tube."""
+def bottle(supply=18e6, initial=12e6):
+    """A 1 L air bottle (wall hA 0.5 W/K) filled from 12 to 18 MPa (``initial``
+    to ``supply`` [Pa]) through 2 m of 1 mm tube."""
     s = sf.System()
-    s += sf.PressureSource("supply", pressure=18e6)
+    s += sf.PressureSource("supply", pressure=supply)
     s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3)
-    s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=12e6, hA=0.5)
+    s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=initial, hA=0.5)
     s.connect("supply", "tube")
     s.connect("tube", "bottle")
     return s, 20.0, [("bottle", "pressure")]

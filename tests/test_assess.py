@@ -185,18 +185,6 @@ def test_the_base_and_probes_run_at_10_rtol0_and_their_checks_are_judged_at_rtol
     assert a.recommended["fluid_level"] == "table"
 
 
-def _air_bottle(supply, initial):
-    """bottle()'s scene (2 m of 1 mm tube into 1 L, wall hA 0.5 W/K) between
-    other pressures [Pa]."""
-    s = sf.System()
-    s += sf.PressureSource("supply", pressure=supply)
-    s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3)
-    s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=initial, hA=0.5)
-    s.connect("supply", "tube")
-    s.connect("tube", "bottle")
-    return s
-
-
 def test_a_fluid_level_past_its_limit_joins_the_clear_cut_run():
     """The bottle, 12 -> 18 MPa: |Z - 1| 1.33x its limit (past it: the ideal
     level is outside its validity for the tolerance) and the thermal level
@@ -226,7 +214,7 @@ def test_a_fluid_level_near_its_limit_is_measured_on_its_own():
     """1.5 -> 3 MPa: |Z - 1| 0.82x its limit (near, not past: borderline),
     the thermal level clear-cut: the fluid level is probed on its own, on
     the isothermal models, and its own effect reported."""
-    a = sf.assess(_air_bottle(3e6, 1.5e6), 20.0, tolerance=TOL,
+    a = sf.assess(scenes.bottle(3e6, 1.5e6)[0], 20.0, tolerance=TOL,
                   outputs=[("bottle", "pressure")])
     assert [r.status for r in a.validity if r.check == "gas_compressibility"] == ["near"]
     rows = a.table.set_index("axis")
