@@ -704,12 +704,19 @@ def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
     """A pump draws air out of a balloon whose measured curve carries 1 kPa
     of noise: where the curve locally rises as the volume falls, the gas
     must jump at its mass to a smaller volume. Newton fails at the smallest
-    step, but on a negative pressure at the pump's node rather than on the
-    actuator's equation; BDF then looks for a fold at every actuator and
-    snaps the one at a fold (the run stopped at t = 20.7 s before). The
-    mass the pump drew is what the balloon lost (checked at every point)."""
+    step, at times on a negative pressure at the pump's node rather than on
+    the actuator's equation; BDF then looks for a fold at every actuator and
+    snaps the one at a fold (the run stopped at t = 20.7 s before). Which of
+    a run's ~50 fold failures shows at the pump's node turns on the last bits
+    of NumPy's OpenBLAS (its dot and LAPACK kernels, chosen by CPU: one seed
+    met it with the Haswell kernels and not with SkylakeX's), so noise seeds
+    1-12 are run. Measured with OpenBLAS's SkylakeX, Haswell and Prescott
+    kernels: 5, 4 and 4 of the 12 runs met it while the pump draws (seeds
+    1-24: 8, 8 and 7 of 24; while it fills, the failure shows at the
+    balloon's node instead), every run went through and every such failure
+    snapped. The mass the pump drew is what the balloon lost (checked at
+    every point of every run)."""
     from softflow.solve.bdf import BDF
-    s = _pumped_balloon()
     elsewhere = []
     jump = BDF._fold_jump
 
@@ -717,18 +724,22 @@ def test_fold_jump_where_newton_fails_at_another_node(monkeypatch):
         x_far = jump(self, t, out)
         g = None if out.row is None else self.asm.group_of_row(out.row)[0]
         if g is None or g.fold is None:
-            elsewhere.append((t, x_far is not None))
+            node = None if out.unknown is None else self.asm.x_names[out.unknown]
+            elsewhere.append((t, x_far is not None, node))
         return x_far
     monkeypatch.setattr(BDF, "_fold_jump", spy)
-    res = sf.Simulation(s, duration=38.0, breakpoints=[20.0]).run()
-    assert elsewhere and all(jumped for _, jumped in elsewhere)
-    # while the pump draws (since the damped Newton rate, newton.CRDOWN, the
-    # fill meets such a failure too, at 11.2 s: jumped alike)
-    assert max(t for t, _ in elsewhere) > 20.0
-    m = res.get("act", "mass")
-    drawn = res.integral("pump", "massflow", "a")
-    assert res.success and np.all(np.isfinite(m))
-    np.testing.assert_allclose(m - m[0], -drawn, rtol=0, atol=1e-9 * m.max())
+    drawing = []
+    for seed in range(1, 13):
+        elsewhere.clear()
+        res = sf.Simulation(_pumped_balloon(seed), duration=38.0, breakpoints=[20.0]).run()
+        assert all(jumped for _, jumped, _ in elsewhere), (seed, elsewhere)
+        drawing += [(seed, t) for t, _, node in elsewhere
+                    if t > 20.0 and node == "node(pump.a, tube.a) pressure"]
+        m = res.get("act", "mass")
+        drawn = res.integral("pump", "massflow", "a")
+        assert res.success and np.all(np.isfinite(m))
+        np.testing.assert_allclose(m - m[0], -drawn, rtol=0, atol=1e-9 * m.max())
+    assert drawing            # (4-5 of the 12 runs, by the kernels above)
 
 
 def test_a_step_forced_at_the_smallest_step_restarts_the_method(monkeypatch):
@@ -768,11 +779,17 @@ def test_a_step_forced_at_the_smallest_step_restarts_the_method(monkeypatch):
 
 
 def test_a_forced_restart_whose_probes_fail_goes_on_with_the_history(monkeypatch):
-    """The pumped balloon with 300 Pa of noise (seed 4) at rtol 1e-5: a step
-    forced at step_min by a marginal error (1.12 tolerances, not a jump)
-    asks for a restart whose first probe fails; only that forced step asked
-    for it, so BDF goes on with its history, and the run goes through (it
-    stopped at t = 14.1 s on the probe's failure)."""
+    """The pumped balloon (1 kPa of noise, seed 7) at rtol 2e-7: steps forced
+    at step_min by a marginal error (1.0-6.8 tolerances, not a jump) ask for
+    a restart whose first probe fails; only those forced steps asked for it,
+    so BDF goes on with its history each time, and the run goes through (the
+    pumped balloon with 300 Pa of noise, seed 4, at rtol 1e-5 stopped at
+    t = 14.1 s on such a probe's failure). Measured with NumPy's OpenBLAS
+    SkylakeX, Haswell and Prescott kernels (the path turns on their last
+    bits): 24, 18 and 16 such failures here, all of them forced restarts'
+    first probes; seeds 4 and 11: 15-22; at rtol 3e-7 4-13 a run (seeds
+    1-7), at 5e-7 2-5 (seed 7). At 300 Pa and rtol 1e-5, seeds 1-24 met one
+    in 1, 2 and 0 runs of 24 on these kernels (seed 13; 4 and 18; none)."""
     from softflow.solve.bdf import BDF
     from softflow.solve.integrator import StepFailure
     failed = []
@@ -785,9 +802,9 @@ def test_a_forced_restart_whose_probes_fail_goes_on_with_the_history(monkeypatch
             failed.append(self._forced_restart)
             raise
     monkeypatch.setattr(BDF, "_restart", spy)
-    res = sf.Simulation(_pumped_balloon(4, 300.0), duration=38.0, breakpoints=[20.0],
-                        rtol=1e-5).run(raise_on_failure=False)
-    assert failed == [True]
+    res = sf.Simulation(_pumped_balloon(), duration=38.0, breakpoints=[20.0],
+                        rtol=2e-7).run(raise_on_failure=False)
+    assert len(failed) >= 5 and all(failed)
     assert res.success
     m = res.get("act", "mass")
     np.testing.assert_allclose(m - m[0], -res.integral("pump", "massflow", "a"),
