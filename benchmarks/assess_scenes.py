@@ -71,10 +71,12 @@ def laminar_water():
 
 def turbulent_air():
     """Air at 1.5 bar fills a 50 mL container (wall hA 0.05 W/K) through 0.5 m
-    of 2 mm tube given friction='laminar' (Re reaches ~10 000)."""
+    of 2 mm tube given friction='laminar' (Re reaches ~10 000) and the
+    mean-density gas law (which chokes: the scene exercises assess's fallback)."""
     s = sf.System()
     s += sf.PressureSource("supply", pressure=sf.Q_(1.5, "bar"))
-    s += sf.CircularTube("tube", sf.air, length=0.5, diameter=2e-3, friction="laminar")
+    s += sf.CircularTube("tube", sf.air, length=0.5, diameter=2e-3, friction="laminar",
+                         compressible="mean_density")
     s += sf.Container("tank", sf.air, volume=50e-6, hA=0.05)
     s.connect("supply", "tube")
     s.connect("tube", "tank")
@@ -83,11 +85,12 @@ def turbulent_air():
 
 def near_choking():
     """Air at 2.2 bar into a 1 L container (wall hA 0.3 W/K) through 1 m of 2 mm
-    tube: Mach ~0.7 at the tube's low-pressure end at first, short of the
-    isothermal choking limit (0.845), which would stop the run."""
+    tube given the mean-density gas law: Mach ~0.7 at the tube's low-pressure
+    end at first, past that law's 0.3 and short of the isothermal choking limit
+    (0.845), which would stop the run (the scene exercises the tube-law axis)."""
     s = sf.System()
     s += sf.PressureSource("supply", pressure=sf.Q_(2.2, "bar"))
-    s += sf.CircularTube("tube", sf.air, length=1.0, diameter=2e-3)
+    s += sf.CircularTube("tube", sf.air, length=1.0, diameter=2e-3, compressible="mean_density")
     s += sf.Container("tank", sf.air, volume=1e-3, hA=0.3)
     s.connect("supply", "tube")
     s.connect("tube", "tank")

@@ -48,12 +48,13 @@ def tank_and_actuator(D=1e-3, V=1e-5):
     return s
 
 
-def source_tube_tank(pressure=2e5, tank_fluid=sf.air):
+def source_tube_tank(pressure=2e5, tank_fluid=sf.air, **tube):
     """A PressureSource at ``pressure`` [Pa] fills a 10 mL tank of
-    ``tank_fluid`` through 0.3 m of 1 mm air tube."""
+    ``tank_fluid`` through 0.3 m of 1 mm air tube (``tube``: more CircularTube
+    arguments)."""
     s = sf.System()
     s += sf.PressureSource("src", pressure=pressure)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3, **tube)
     s += sf.Container("tank", tank_fluid, volume=1e-5)
     s.connect("tube", "src")
     s.connect("tube", "tank")
@@ -94,13 +95,13 @@ def chattering_valve_scene():
     return s
 
 
-def filling_tank(source=None, fluid=sf.air, friction="Haaland"):
-    """A 10 mL tank of ``fluid`` filled through 0.5 m of 1 mm tube (``friction``)
-    from ``source`` (default a PressureSource at 1.3 bar): the batched-variant
-    tests' scene."""
+def filling_tank(source=None, fluid=sf.air, friction="Haaland", **tube):
+    """A 10 mL tank of ``fluid`` filled through 0.5 m of 1 mm tube (``friction``,
+    more CircularTube arguments in ``tube``) from ``source`` (default a
+    PressureSource at 1.3 bar): the batched-variant tests' scene."""
     s = sf.System()
     s += source or sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", fluid, 0.5, 1e-3, friction=friction)
+    s += sf.CircularTube("tube", fluid, 0.5, 1e-3, friction=friction, **tube)
     s += sf.Container("tank", fluid, 1e-5)
     s.connect("src", "tube")
     s.connect("tube", "tank")

@@ -26,8 +26,10 @@ friction
     those tubes only (below ``Re_laminar`` the two laws are the same, so a
     near miss is not run).
 tube law
-    gas tubes near or past Mach 0.3 with the mean-density law ->
-    ``compressible='isothermal'`` (check ``tube_mach``), those tubes only.
+    gas tubes given the low-Mach ``compressible='mean_density'`` law near or
+    past Mach 0.3 -> the default ``compressible='isothermal'`` pipe-flow law
+    (check ``tube_mach``), those tubes only. Tubes with the default law, which
+    models acceleration and choking, have nothing on this axis.
 inertance
     liquid tubes whose column's inertia is near or past its limit (check
     ``tube_inertia``) -> ``inertance=True``, those tubes only.

@@ -600,9 +600,12 @@ def _from_attributes(comp: Any) -> dict:
         if kind == "HystereticActuator" and name == "meet_tolerance":
             table[name] = _fmt(comp.loop.meet_tolerance, "Pa")
             continue
-        if kind == "Orifice" and (name in ("C", "b", "m") if model != "iso"
-                                  else name in ("diameter", "K")):
+        if kind == "Orifice" and name == "m" and model == "ISO 6358":
+            if not _same(comp.subsonic_index, p.default):
+                table[name] = comp.subsonic_index
             continue
+        if kind == "Orifice" and name == "K" and math.isfinite(comp.Cd):
+            continue                       # worked out from Cd
         if not hasattr(comp, name):
             if p.default is inspect.Parameter.empty:
                 raise SceneError(f"{owner}: cannot read its parameter {name!r} back to write it")
@@ -611,6 +614,8 @@ def _from_attributes(comp: Any) -> dict:
         if value is None or (p.default is not inspect.Parameter.empty
                              and _same(value, p.default)):
             continue
+        if isinstance(value, (float, np.floating)) and math.isnan(value):
+            continue                       # not used in the component's configuration
         if isinstance(value, (bool, str, np.bool_)):
             table[name] = bool(value) if isinstance(value, np.bool_) else value
         elif isinstance(value, (int, float, np.floating)):
@@ -658,7 +663,8 @@ def _check_rebuilt(comp: Any, table: dict) -> None:
     for name in names:
         a, b = getattr(comp, name, None), getattr(twin, name, None)
         if isinstance(a, (int, float)) and not isinstance(a, bool) and not (
-                isinstance(b, (int, float)) and math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-300)):
+                isinstance(b, (int, float)) and (math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-300)
+                                                 or (math.isnan(a) and math.isnan(b)))):
             raise SceneError(f"{comp.describe()}: its {name} ({a!r}) cannot be written "
                              f"faithfully to a scene file (it would read back as {b!r})")
     if hasattr(comp, "signal"):

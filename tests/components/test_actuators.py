@@ -459,10 +459,11 @@ def test_every_volume_reports_its_volume():
     np.testing.assert_allclose(res.get("tank", "volume"), 1e-5)
     v_acc = res.get("acc", "volume")
     # its volume follows its pressure, to Newton's tolerance (rtol / 20 of the
-    # gauge pressure): within 1e-4 of its 0.85 mL swing
+    # gauge pressure): within 1e-4 of its 0.75 uL swing (0.85 uL with the
+    # mean-density tube law, which leaves out the entry's acceleration)
     np.testing.assert_allclose(v_acc, 1e-5 + 1e-10 * (res.get("acc", "pressure") - P0), rtol=0,
                                atol=1e-4 * np.ptp(v_acc))
-    assert np.ptp(v_acc) > 0.8e-6
+    assert np.ptp(v_acc) > 0.7e-6
     assert res.get("tank", "volume", as_quantity=True)[0].to("mL").magnitude == pytest.approx(10)
 
 
@@ -693,7 +694,8 @@ def _pumped_balloon(seed=7, noise=1e3):
     s = sf.System()
     s += sf.VolumeFlowSource("pump", volumeflow=lambda t: 2e-6 if t < 20 else -2e-6,
                              fluid=sf.air)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    # the mean-density tube law: the solver paths these tests follow were measured with it
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3, compressible="mean_density")
     s += sf.Actuator("act", sf.air, curve, initial_volume=v0)
     s.connect("pump", "tube")
     s.connect("tube", "act")
@@ -825,12 +827,13 @@ def test_a_fold_jump_that_lands_back_where_it_started_is_no_snap(monkeypatch):
     curve, v0 = _noisy_balloon()
     s = sf.System()
     s += sf.PressureSource("drive", sf.waveforms.Sine(2e4, 0.3, offset=1.3e5))
-    s += sf.CircularTube("dtube", sf.air, length=0.3, diameter=1e-3)
+    # the mean-density tube law: the solver paths this test follows were measured with it
+    s += sf.CircularTube("dtube", sf.air, length=0.3, diameter=1e-3, compressible="mean_density")
     s += sf.Actuator("driven", sf.air, ps.curve_monotonic(20.0))
     s.connect("drive", "dtube")
     s.connect("dtube", "driven")
     s += sf.VolumeFlowSource("pump", volumeflow=2e-6, fluid=sf.air)
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3, compressible="mean_density")
     s += sf.Actuator("act", sf.air, curve, initial_volume=v0)
     s.connect("pump", "tube")
     s.connect("tube", "act")

@@ -5,6 +5,7 @@ Every case checks: no NaN or inf in the results, mass conserved, and the
 physically expected end state.
 """
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -59,12 +60,13 @@ def test_tanks_from_1_kPa_to_30_MPa_equalise_and_conserve_mass(p_high, p_low, me
     s += sf.Container("lo", sf.air, volume=4e-4, initial_pressure=p_low)
     s.connect("tube", "hi")
     s.connect("tube", "lo")
-    # the tube chokes at the start (choked flow is not modelled): the solver's
-    # robustness is what is tested here, with the validity finding as a warning
-    with pytest.warns(sf.ModelWarning, match="gas flow chokes"):
-        res = sf.Simulation(s, method=method, duration=20.0, beyond_limits="warn").run()
+    # the tube chokes at the start (the default law models it: no warning of it);
+    # the ideal gas at 30 MPa is warned of (gas_compressibility)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        res = sf.Simulation(s, method=method, duration=20.0).run()
     assert res.success, res.message
-    assert "tube_choked" in {w.check for w in res.warnings}
+    assert not {"tube_choked", "tube_mach"} & {w.check for w in res.warnings}
     assert_finite(res)
     m = stored_mass(res, ["hi", "lo"])
     assert np.max(np.abs(m - m[0])) / m[0] < 1e-9
@@ -324,10 +326,12 @@ def test_measured_balloon_curve_with_added_noise(smoothing, method):
 @pytest.mark.parametrize("level", ["ideal", "table", "eos"])
 def test_air_at_temperatures_from_minus_40_to_150_C(celsius, level, method):
     air = sf.air.with_level(level).at(temperature=sf.Q_(celsius, "degC"))
-    with pytest.warns(sf.ModelWarning, match="gas flow chokes"):   # 10:1 through a tube
-        res = sf.Simulation(_two_air_tanks(air), method=method, duration=5.0,
-                            beyond_limits="warn").run()
+    # 10:1 through a tube: choked at first, no warning of it
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)     # (-40 C: Z - 1 = -0.0126)
+        res = sf.Simulation(_two_air_tanks(air), method=method, duration=5.0).run()
     assert res.success
+    assert not {"tube_choked", "tube_mach"} & {w.check for w in res.warnings}
     assert_finite(res)
     m = res.get("hi", "mass") + res.get("lo", "mass")
     assert np.max(np.abs(m - m[0])) < 1e-9 * m[0]
@@ -372,9 +376,13 @@ def test_air_bottle_at_30_MPa_with_the_eos(method):
     s += sf.Container("bottle", air, volume=1e-3, initial_pressure=1e3)     # 1 kPa: evacuated
     s.connect("supply", "hose")
     s.connect("hose", "bottle")
-    with pytest.warns(sf.ModelWarning, match="gas flow chokes"):   # filling from 1 atm
-        res = sf.Simulation(s, method=method, duration=5.0, beyond_limits="warn").run()
+    # choked while it fills from 1 kPa: no warning of it (the bottle's fill
+    # time against its wall's is warned of)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        res = sf.Simulation(s, method=method, duration=5.0).run()
     assert res.success
+    assert not {"tube_choked", "tube_mach"} & {w.check for w in res.warnings}
     assert_finite(res)
     assert res.get("bottle", "pressure")[-1] == pytest.approx(30e6, rel=1e-5)
     assert res.get("bottle", "mass")[-1] == pytest.approx(float(air.density(30e6)) * 1e-3, rel=1e-5)

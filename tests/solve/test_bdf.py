@@ -332,16 +332,20 @@ def _switches(monkeypatch=None, **kw):
 def test_switches_are_placed_by_their_switching_functions(rtol, monkeypatch):
     """A step that switches a mode ends at the secant crossing of the
     switching function (SnappingValve.switching) instead of being bisected:
-    a third of the rejected steps or fewer, the switch times within 5 rtol
-    (relative) of a tight run, as bisection's are (measured: 7.5e-4 s against
-    1.2e-3 s at rtol 1e-3, 2.0e-6 s against 1.0e-6 s at 1e-6, at the last of
-    the four switches: the global error of the states carries them)."""
+    a third of the rejected steps or fewer, the switch times within 6 rtol
+    (relative) of a tight run, as bisection's are. Measured, relative to the
+    switch time over rtol, the largest of the four switches: 0.72 against
+    2.5 at rtol 1e-3, 5.2 against 1.9 at 1e-6 (6 against 29 and 8 against 65
+    rejections); the global error of the states carries them. (With the
+    open valve's mean-density law, before the isothermal pipe-flow law of
+    gases, the last switch was 7.5e-4 s against 1.2e-3 s at 1e-3, 2.0e-6 s
+    against 1.0e-6 s at 1e-6, within 5 rtol.)"""
     ref, _ = _switches(rtol=1e-9)
     secant, n_secant = _switches(rtol=rtol)
     bisected, n_bisect = _switches(monkeypatch, rtol=rtol)
     assert len(ref) == len(secant) == len(bisected) == 4
     err_secant, err_bisect = np.abs(secant - ref), np.abs(bisected - ref)
-    assert (err_secant <= 5 * rtol * ref).all() and (err_bisect <= 5 * rtol * ref).all()
+    assert (err_secant <= 6 * rtol * ref).all() and (err_bisect <= 6 * rtol * ref).all()
     assert err_secant.max() <= 3 * err_bisect.max()
     assert n_secant * 3 <= n_bisect
 
@@ -620,7 +624,8 @@ def _bottle_fill():
     of 1 mm tube (benchmarks/assess_scenes.bottle)."""
     s = sf.System()
     s += sf.PressureSource("supply", pressure=18e6)
-    s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3)
+    # the mean-density tube law: the Newton paths this scene follows were measured with it
+    s += sf.CircularTube("tube", sf.air, length=2.0, diameter=1e-3, compressible="mean_density")
     s += sf.Container("bottle", sf.air, volume=1e-3, initial_pressure=12e6, hA=0.5)
     s.connect("supply", "tube")
     s.connect("tube", "bottle")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from fluids.compressible import P_isothermal_critical_flow, isothermal_gas
 from fluids.friction import friction_factor
+from scipy.optimize import brentq
 
 import softflow as sf
 from helpers import source_tube_tank
@@ -33,42 +34,62 @@ def _run(system, **kw):
         return sf.Simulation(system, duration=0.01, **kw).run(raise_on_failure=False)
 
 
-def _critical_outlet_pressure(p1, length, diameter):
-    """fluids' isothermal critical outlet pressure, with the Haaland friction
-    factor at the critical flow (fixed point)."""
-    area = np.pi * diameter ** 2 / 4
-    mu = float(sf.air.viscosity(P0))
-    fd = 0.03
-    for _ in range(30):
-        p2 = P_isothermal_critical_flow(P=p1, fd=fd, D=diameter, L=length)
-        m = isothermal_gas(rho=float(sf.air.density(p1)), fd=fd, P1=p1, P2=p2 * (1 + 1e-9),
-                           L=length, D=diameter)
-        fd = friction_factor(Re=m * diameter / (mu * area), eD=1.5e-6 / diameter,
-                             Method="Haaland")
-    return p2
+def _inlet_pressure(p0, G, c2):
+    """The pressure after isothermal acceleration from rest at p0 into a tube
+    (c2 ln(p0/p1) = u1^2/2, u1 = G c2/p1), solved here on its own."""
+    return brentq(lambda p1: c2 * np.log(p0 / p1) - 0.5 * (G * c2 / p1) ** 2,
+                  p0 * np.exp(-0.5), p0, xtol=1e-12 * p0, rtol=1e-15)
+
+
+@pytest.mark.parametrize("factor", [0.97, 0.5, 0.1])
+def test_choked_tube_flow_against_the_isothermal_critical_flow_of_fluids(factor):
+    """The default law past the choke: the same flow at any outlet pressure below
+    the critical one, which is fluids' isothermal critical outlet pressure from
+    the tube's own inlet pressure (after the entry), with Haaland's friction;
+    no warning, a successful run."""
+    p0, L, D = 3e5, 1.0, 4e-3
+    area = np.pi * D ** 2 / 4
+    c2 = sf.air.R * sf.air.temperature
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", sf.ModelWarning)
+        res = sf.Simulation(_tube(p0, factor * 0.95e5), duration=0.01).run()
+    assert res.success and not res.warnings
+    mf = res.get("tube", "massflow_a")[-1]
+    G = mf / area
+    p1 = _inlet_pressure(p0, G, c2)
+    fd = friction_factor(Re=mf * D / (float(sf.air.viscosity(P0)) * area), eD=1.5e-6 / D,
+                         Method="Haaland")
+    p2 = P_isothermal_critical_flow(P=p1, fd=fd, D=D, L=L)
+    assert factor * 0.95e5 < p2
+    assert G * np.sqrt(c2) == pytest.approx(p2, rel=1e-7)       # exit at sqrt(R T)
+    want = isothermal_gas(rho=p1 / c2, fd=fd, P1=p1, P2=p2 * (1 + 1e-12), L=L, D=D)
+    assert mf == pytest.approx(want, rel=1e-6)
 
 
 @pytest.mark.parametrize("factor, choked", [(0.97, True), (1.03, False)])
-def test_choking_against_the_isothermal_critical_pressure_of_fluids(factor, choked):
-    p1 = 3e5
-    p2 = factor * _critical_outlet_pressure(p1, 1.0, 4e-3)     # ~1.05 bar
-    res = _run(_tube(p1, p2, compressible="isothermal"))
+def test_mean_density_law_is_refused_past_the_choke(factor, choked):
+    """The mean-density law keeps giving more flow past the choke: refused there,
+    with the default law as the way out."""
+    p1, p2 = 3e5, factor * 1.245e5     # its own choke, Mach 0.845 at the outlet: ~1.245 bar
+    res = _run(_tube(p1, p2, compressible="mean_density"))
     assert ("tube_choked" in _checks(res)) is choked
     if choked:       # no result from past the model's maximum
         assert res.status == "failed"
         assert "tube" in res.message and "pressure ratio" in res.message
         assert "0.845" in res.message      # the limit, Mach 1/sqrt(1.4)
+        assert "compressible='isothermal'" in res.message
         with pytest.raises(sf.SimulationError, match="gas flow chokes"):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", sf.ModelWarning)
-                sf.Simulation(_tube(p1, p2, compressible="isothermal"), duration=0.01).run()
+                sf.Simulation(_tube(p1, p2, compressible="mean_density"), duration=0.01).run()
     else:
         assert res.success
 
 
 def test_a_choked_tube_can_be_returned_with_a_warning_instead():
     with pytest.warns(sf.ModelWarning, match="gas flow chokes"):
-        res = sf.Simulation(_tube(1e6, 1e5), duration=0.01, beyond_limits="warn").run()
+        res = sf.Simulation(_tube(1e6, 1e5, compressible="mean_density"), duration=0.01,
+                            beyond_limits="warn").run()
     assert res.success and "tube_choked" in _checks(res)
     with pytest.raises(ValueError, match="beyond_limits must be 'error' or 'warn'"):
         sf.Simulation(_tube(1e6, 1e5), duration=0.01, beyond_limits="ignore")
@@ -76,7 +97,7 @@ def test_a_choked_tube_can_be_returned_with_a_warning_instead():
 
 @pytest.mark.parametrize("p1, warned", [(1.25e5, True), (1.02e5 + 1e3, False)])
 def test_mean_density_law_past_mach_0_3_suggests_the_isothermal_law(p1, warned):
-    res = _run(_tube(p1, P0, length=0.2))
+    res = _run(_tube(p1, P0, length=0.2, compressible="mean_density"))
     assert res.success
     assert ("tube_mach" in _checks(res)) is warned
     if warned:
@@ -182,7 +203,7 @@ def test_a_run_refused_from_its_start_stops_at_once():
     stops after the consistent start instead of computing to the end and
     being cut back (same status and message as the full run would give)."""
     def scene():
-        return source_tube_tank(pressure=5e5)
+        return source_tube_tank(pressure=5e5, compressible="mean_density")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         res = sf.Simulation(scene(), duration=0.5).run(raise_on_failure=False)

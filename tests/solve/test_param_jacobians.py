@@ -73,6 +73,11 @@ def _cases():
                                    Re_laminar=20.0) for i in range(4)],
          ["diameter", "Cd", "Re_laminar"],
          lambda r: _two_port(r, np.zeros(4), dp=np.array([0.05, -0.1, 3e3, -2e4])), None),
+        # a gas's Cd: the nozzle law (the band, subsonic, and choked backwards)
+        ("Orifice-nozzle", [sf.Orifice(f"o{i}", air, diameter=1e-3, Cd=0.6 + 0.1 * i,
+                                       Re_laminar=20.0) for i in range(4)],
+         ["diameter", "Cd", "Re_laminar"],
+         lambda r: _two_port(r, np.zeros(4), dp=np.array([0.05, -0.1, 3e4, -1e5])), None),
         ("Orifice-ISO", [sf.Orifice(f"o{i}", air, C=1e-8, b=0.3) for i in range(4)],
          ["C", "b", "pr_laminar", "m"], lambda r: _two_port(r, np.zeros(4)), None),
         # laminar-like (pr > pr_laminar), subsonic and choked (pr < b), both directions
@@ -277,6 +282,7 @@ def _thermal_cases():
             (sf.Orifice("oi", air, C=1e-8, b=0.3, pr_laminar=0.99),
              ["C", "b", "pr_laminar", "m"]),
             (sf.Orifice("ok", air, diameter=1e-3, K=2.0), ["diameter", "K", "Re_laminar"]),
+            (sf.Orifice("on", air, diameter=1e-3, Cd=0.6), ["diameter", "Cd", "Re_laminar"]),
             (sf.CheckValve("c", air, 1e-3, cracking_pressure=5e3, leakage=1e-12),
              ["diameter", "cracking_pressure", "opening_band", "leakage", "Cd", "Re_laminar"]),
             (sf.TeslaValve("v", air, 0.05, 1e-3), ["length", "diameter", "diodicity",
@@ -313,11 +319,12 @@ def test_thermal_variants_param_jacobians_match_central_differences(case):
     n = 4
     two = len(comp.terminal_spec) == 2
     flows = (2 * AIR_FLOWS if comp.label == "sv" else AIR_FLOWS) if comp.label not in (
-        "ok", "c", "oi") else np.zeros(n)
+        "ok", "on", "c", "oi") else np.zeros(n)
     if two:
         pb = rng.uniform(1.1e5, 2e5, n)
         dp = (np.array([50.0, -900.0, 2e4, 4e5]) if comp.label == "oi" else
               np.array([0.01, -0.02, 3e3, -2e4]) if comp.label == "ok" else
+              np.array([0.01, -0.02, 3e4, -1e5]) if comp.label == "on" else
               np.array([2e3, 5.4e3, 1e4, -3e3]) if comp.label == "c" else
               rng.uniform(-3e4, 3e4, n))
         V = np.column_stack([pb + dp, flows, rng.uniform(280, 340, n), rng.normal(0, 1, n),
@@ -821,6 +828,7 @@ def _signature_scenes():
     return [
         ("Orifice-K", two_port(sf.Orifice("x", air, diameter=0.5e-3, K=2.0)), None),
         ("Orifice-Cd", two_port(sf.Orifice("x", water, diameter=0.5e-3, Cd=0.6), water), None),
+        ("Orifice-nozzle", two_port(sf.Orifice("x", air, diameter=0.5e-3, Cd=0.6)), None),
         ("Orifice-ISO", two_port(sf.Orifice("x", air, C=5e-9, b=0.3, m=0.6)), None),
         ("CheckValve", two_port(sf.CheckValve("x", air, 0.5e-3, cracking_pressure=3e3,
                                               leakage=1e-12)), None),

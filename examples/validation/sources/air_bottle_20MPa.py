@@ -8,11 +8,10 @@
 # The `ideal` level is run too, to show what the ideal-gas law misses at 20 MPa
 # (about 2.6 % of the fill mass: that is the point of the comparison).
 #
-# The hose chokes while the pressure ratio is large (softflow's validity
-# check says so with a `ModelWarning`; by default it would stop the run
-# there): the time course of the fill is not modelled then, but the state
-# compared here, the equilibrium at the end, does not depend on the flow law.
-# So the runs ask for the whole fill with `beyond_limits='warn'`.
+# The hose chokes while the pressure ratio is large; the default tube law
+# (isothermal pipe flow) models that, so no validity check stops or warns of
+# it. The state compared here, the equilibrium at the end, does not depend on
+# the flow law anyway.
 
 # %%
 import CoolProp.CoolProp as CP
@@ -35,8 +34,8 @@ def fill(fluid):
     s += sf.Container("bottle", fluid, volume=V)
     s.connect("supply", "hose")
     s.connect("hose", "bottle")
-    res = sf.Simulation(s, duration=60.0, beyond_limits="warn").run()
-    assert "tube_choked" in {w.check for w in res.warnings}
+    res = sf.Simulation(s, duration=60.0).run()
+    assert not {"tube_choked", "tube_mach"} & {w.check for w in res.warnings}
     return res
 
 

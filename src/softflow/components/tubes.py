@@ -1,5 +1,6 @@
-"""Tubes: Darcy–Weisbach with a selectable friction correlation, optional
-isothermal compressible flow and optional fluid inertance."""
+"""Tubes: Darcy–Weisbach with a selectable friction correlation, gas flow at
+any pressure ratio (isothermal pipe flow with choking) and optional fluid
+inertance."""
 from __future__ import annotations
 
 import copy
@@ -12,6 +13,8 @@ from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
                                      friction_Haaland, resolve_friction, roughness_terms,
                                      smoothstep)
+from ..correlations.gas_pipe import isothermal_pipe
+from ..fluids.ideal import IdealGas
 from .base import FLUID_PORT, Affine, LibraryComponent
 
 if TYPE_CHECKING:
@@ -123,6 +126,116 @@ def tube_law_derivative(P, name, dp, mf_d_mf, d_eD):
         return -(3.0 * dp + mf_d_mf + P.eD * d_eD) / P.diameter
     return d_eD / P.diameter
 
+def viscosity_log_slope(P, pm, mu):
+    """d(mu)/dp / mu of the group's fluid at pressures pm (viscosity mu there), by a
+    central difference (the fluid protocol has no mu_dp), kept inside the
+    fluid's valid range (a table ends at its last point)."""
+    lo, hi = getattr(P.fluid, "p_range", (0.0, np.inf))
+    p1 = np.maximum(pm * (1 - 1e-6), lo)
+    p2 = np.minimum(pm * (1 + 1e-6), hi)
+    return (P.fluid.viscosity(p2) - P.fluid.viscosity(p1)) / (p2 - p1) / mu
+
+
+def _friction_term(P, pa, mf, pb, jac):
+    """The friction term Phi = c_mu (f Re) mf of a group of tubes (f Re by the
+    group's blended law; for a real fluid mu at the mean pressure, else at
+    1 atm), with the pieces its derivatives need: (Phi, pm, c_mu, mu_ratio,
+    Re, f Re, d(f Re)/dRe)."""
+    pm = 0.5 * (pa + pb)
+    re_per_mf, c_mu, mu_ratio = P.re_per_mf, P.c_mu, None
+    if P.variable_mu:
+        mu_ratio = P.fluid.viscosity(pm) / P.mu       # relative to mu at 1 atm
+        re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
+    Re = np.abs(mf) * re_per_mf
+    if P.turbulent is None or Re.max(initial=0.0) <= P.Re_lo:
+        phi, dphi = 64.0, 0.0         # all laminar: f Re = 64 exactly
+    else:
+        phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent, derivative=jac,
+                                terms=P.friction_terms)
+    return c_mu * phi * mf, pm, c_mu, mu_ratio, Re, phi, dphi
+
+
+def _isothermal_residual(P, pa, mf, pb, Phi, jac):
+    """R of :func:`softflow.correlations.gas_pipe.isothermal_pipe` for a group
+    of gas tubes (or tube-like valves) with friction term Phi, c^2 = p/rho at
+    the mean pressure (R T for an ideal gas); returns (R's tuple, rho(pm) or
+    None for an ideal gas, c^2)."""
+    if P.c2 is None:
+        pm = 0.5 * (pa + pb)
+        rho = P.fluid.density(pm)
+        c2 = pm / rho
+    else:       # an ideal gas: p/rho = R T, whatever the pressure
+        rho, c2 = None, P.c2
+    return isothermal_pipe(pa, mf, pb, P.area, c2, Phi, jac), rho, c2
+
+
+def isothermal_drop(P, pa, mf, pb, Phi, Phi_mf, Phi_pm, jac):
+    """The isothermal pipe-flow law of a gas (:mod:`softflow.correlations.gas_pipe`)
+    in pressure-drop form, dp = p_a - p_b - R, so that a tube's residual
+    (p_a - p_b) - dp is R itself, and its partials in p_a, mf, p_b. ``Phi`` is
+    the friction term c_mu (f Re) mf (a Tesla valve's times its direction
+    factor), ``Phi_mf`` its derivative in mf, ``Phi_pm`` in the mean pressure
+    (None where mu is constant). The one law of gas tubes, Tesla valves and
+    open snapping valves."""
+    (R, R_pa, R_mf, R_pb, R_c2, R_phi, _), rho, c2 = _isothermal_residual(
+        P, pa, mf, pb, Phi, jac)
+    dp = (pa - pb) - R
+    if not jac:
+        return dp, None, None, None
+    # through the mean pressure: c^2 = pm/rho(pm), and Phi's viscosity for real fluids
+    if rho is None:
+        R_pm = 0.0
+    else:
+        pm = 0.5 * (pa + pb)
+        R_pm = R_c2 * (1.0 - c2 * P.fluid.density_dp(pm)) / rho
+    if Phi_pm is not None:
+        R_pm = R_pm + R_phi * Phi_pm
+    return dp, 1.0 - R_pa - 0.5 * R_pm, -(R_mf + R_phi * Phi_mf), -1.0 - R_pb - 0.5 * R_pm
+
+
+def isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name):
+    """d(p_a - p_b required)/d theta of :func:`isothermal_drop` from d(Phi)/d theta
+    (``Phi_theta``) and, for the diameter, the flux G = mf/A of the acceleration
+    terms: R depends on A only through G, dR/dA = -(mf/A) dR/dmf, dA/dD = 2A/D."""
+    pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
+    (_, _, R_mf, _, _, R_phi, _), _, _ = _isothermal_residual(P, pa, mf, pb, Phi, True)
+    d = -R_phi * Phi_theta
+    return d + 2.0 * mf * R_mf / P.diameter if name == "diameter" else d
+
+
+def gas_pipe_drop(P, pa, mf, pb, jac):
+    """:func:`isothermal_drop` of a group of gas tubes, with their friction term."""
+    Phi, pm, c_mu, mu_ratio, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
+    if not jac:
+        return isothermal_drop(P, pa, mf, pb, Phi, None, None, False)
+    Phi_pm = (c_mu * mf * (phi - Re * dphi) * viscosity_log_slope(P, pm, mu_ratio * P.mu)
+              if P.variable_mu else None)
+    return isothermal_drop(P, pa, mf, pb, Phi, c_mu * (phi + Re * dphi), Phi_pm, True)
+
+
+def gas_pipe_parameter_derivative(P, V, name):
+    """d(p_a - p_b required)/d theta of a gas tube's :func:`gas_pipe_drop` for a
+    parameter of :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS`: the friction
+    term Phi = c_mu (f Re) mf scales as the Darcy law does."""
+    pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
+    Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, True)
+    if name in BLEND_BOUNDS:
+        Phi_theta = c_mu * mf * friction_bound_derivative(P, Re, name)
+    else:
+        d_eD = c_mu * mf * friction_roughness_derivative(P, Re)
+        Phi_theta = tube_law_derivative(P, name, Phi, mf * c_mu * (phi + Re * dphi), d_eD)
+    return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name)
+
+
+def set_isothermal_law(P, isothermal):
+    """The group's gas law on its Params: ``P.isothermal`` (the isothermal
+    pipe-flow law) and ``P.c2``, p/rho where it is a constant (R T of an ideal
+    gas; else None, taken at the mean pressure)."""
+    P.isothermal = bool(isothermal)
+    P.c2 = (float(P.fluid.R * P.fluid.temperature)
+            if P.isothermal and isinstance(P.fluid, IdealGas) else None)
+
+
 class CircularTube(LibraryComponent):
     """Straight circular tube between terminals ``a`` and ``b``.
 
@@ -137,17 +250,28 @@ class CircularTube(LibraryComponent):
     mdot_a + mdot_b = 0. Writing the law with f·Re keeps it linear in mdot at
     zero flow, so its derivative never vanishes there.
 
-    For a gas (``fluid.compressible``) rho is the density at the mean pressure
-    (p_a + p_b)/2. With a real fluid (level ``table`` or ``eos``) mu is taken at
-    the mean pressure too; at level ``ideal`` it is the fluid's constant. With ``compressible='isothermal'`` the gas's acceleration
-    along the tube is added, which makes the law the complete isothermal pipe
-    flow equation (Crane TP-410; ``fluids.compressible.isothermal_gas``):
+    For a gas (``fluid.compressible``) the default, ``compressible='isothermal'``,
+    is isothermal pipe flow at any pressure ratio
+    (:mod:`softflow.correlations.gas_pipe`): the node pressures are stagnation
+    pressures; the gas accelerates from rest into the tube (c^2 ln(p0/p1) =
+    u1^2/2, c^2 = p/rho, R T for an ideal gas), then flows with friction and
+    acceleration (Crane TP-410; ``fluids.compressible.isothermal_gas``)
 
-        A^2 (p_a^2 - p_b^2) / (R T) = mdot^2 (f L/D + 2 ln(p_a/p_b))
+        p1^2 - p2^2 = G^2 c^2 (f L/D + 2 ln(p1/p2)),   G = mdot/A,
 
-    exact for an ideal gas, for which (p_a^2 - p_b^2)/(R T) = 2 rho_mean (p_a - p_b).
-    It is valid below the isothermal choking limit (velocity < sqrt(R T) at
-    ``b``); choked tube flow is not modelled. For liquids the option has no effect.
+    and chokes where its exit velocity reaches c (Mach 1/sqrt(gamma), 0.845
+    for air): the exit pressure is then G c, and a lower downstream pressure
+    passes no more flow. At low Mach it is the Darcy law above with rho at the
+    mean pressure, to O(M^2) (the acceleration terms). For a real fluid (level
+    ``table`` or ``eos``) c^2 = p/rho and mu are taken at the mean pressure (an
+    ideal gas with the compressibility of the mean pressure); at level
+    ``ideal`` mu is the fluid's constant. ``compressible='mean_density'`` keeps
+    the Darcy law with rho at the mean pressure and no acceleration: cheaper,
+    valid below about Mach 0.3 (a validity warning past it) and refused past
+    the choking Mach, where it over-predicts the flow. For liquids the option
+    has no effect. In a thermal scene the law is scaled by the upstream
+    temperature (see :mod:`softflow.components.thermal`); adiabatic (Fanno)
+    pipe flow is not modelled.
 
     With ``inertance=True`` the constructor returns an
     :class:`InertialCircularTube`, which adds the fluid's inertia as a state.
@@ -169,8 +293,9 @@ class CircularTube(LibraryComponent):
         closed form; any other name of ``fluids.friction.friction_factor``'s
         methods (e.g. 'Serghides_2') is tabulated once as a spline in Re.
         'laminar' uses Hagen–Poiseuille at every Re.
-    compressible : {'mean_density', 'isothermal'}, default 'mean_density'
-        Gas model (see above).
+    compressible : {'isothermal', 'mean_density'}, default 'isothermal'
+        Gas model (see above): isothermal pipe flow with entry, acceleration
+        and choking, or the low-Mach mean-density Darcy law.
     inertance : bool, default False
         Add the fluid inertance L/A · d(mdot)/dt (rho L / A per volume flow)
         to the pressure drop, with the mass flow as a state.
@@ -189,7 +314,7 @@ class CircularTube(LibraryComponent):
     def __init__(self, label: str, fluid: Fluid, length: Scalar, diameter: Scalar,
                  roughness: Scalar = 1.5e-6, Re_laminar: float = 2300.0,
                  Re_turbulent: float = 4000.0, *, friction: str = "Haaland",
-                 compressible: str = "mean_density", inertance: bool = False) -> None:
+                 compressible: str = "isothermal", inertance: bool = False) -> None:
         super().__init__(label, fluid=None)
         set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         try:
@@ -222,7 +347,7 @@ class CircularTube(LibraryComponent):
         # real-fluid levels: viscosity at the tube's mean pressure (air at 15 MPa
         # is 20 % more viscous than at 1 atm); the ideal level keeps it constant
         P.variable_mu = getattr(P.fluid, "level", "ideal") != "ideal"
-        P.isothermal = P.compressible and first.compressible == "isothermal"
+        set_isothermal_law(P, P.compressible and first.compressible == "isothermal")
         P.length_per_area = P.length / P.area
         P.c_per_rho = (None if P.compressible or P.variable_mu
                        else P.c_mu / P.fluid.rho)
@@ -260,14 +385,19 @@ class CircularTube(LibraryComponent):
         # real-fluid mu); np.float64, not float, so that a division by zero gives
         # inf or nan, as on arrays, instead of raising
         P.one = (one_instance(P) if P.turbulent in (None, friction_Haaland) and not P.variable_mu
+                 and not P.isothermal
                  and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__ else None)
         return P
 
     @classmethod
     def pressure_drop(cls, P, pa, mf, pb, jac):
-        """p_a - p_b required by the flow mf entering at ``a`` (friction, and gas
-        acceleration if isothermal), and its partial derivatives in p_a, mf, p_b
-        (None without ``jac``)."""
+        """p_a - p_b required by the flow mf entering at ``a`` and its partial
+        derivatives in p_a, mf, p_b (None without ``jac``): the Darcy law at the
+        mean density, or for a gas with ``compressible='isothermal'`` the
+        isothermal pipe flow of :func:`gas_pipe_drop` (entry, acceleration,
+        choking), as p_a - p_b minus its residual."""
+        if P.isothermal:
+            return gas_pipe_drop(P, pa, mf, pb, jac)
         if P.compressible or P.variable_mu:
             pm = 0.5 * (pa + pb)
         if P.compressible:
@@ -305,37 +435,18 @@ class CircularTube(LibraryComponent):
         c = P.c_per_rho if P.c_per_rho is not None else c_mu / rho
         c_phi = P.c64_per_rho if laminar and P.c_per_rho is not None else c * phi
         dp = c_phi * mf
-        if P.isothermal:
-            log_ratio = np.log(pa / pb)
-            k_acc = mf * mf / (P.area * P.area * rho)
-            dp_acc = log_ratio * k_acc
-            dp = dp + dp_acc
         if not jac:
             return dp, None, None, None
         d_mf = c_phi if dphi is None else c * (phi + Re * dphi)
         if P.compressible:
-            # dp ∝ 1/rho(p_mean) in both terms
+            # dp ∝ 1/rho(p_mean)
             d_pm = -dp / rho * P.fluid.density_dp(pm) * 0.5
         else:
             d_pm = 0.0
         if P.variable_mu:
-            # friction dp = c(mu) phi(Re(mu)) mf with c ∝ mu, Re ∝ 1/mu; dmu/dp by a
-            # central difference of the fluid's viscosity (the protocol has no mu_dp)
-            # (kept inside the fluid's valid range: a table ends at its last point)
-            lo, hi = getattr(P.fluid, "p_range", (0.0, np.inf))
-            p1 = np.maximum(pm * (1 - 1e-6), lo)
-            p2 = np.minimum(pm * (1 + 1e-6), hi)
-            dmu_dp = (P.fluid.viscosity(p2) - P.fluid.viscosity(p1)) / (p2 - p1)
-            mu = mu_ratio * P.mu
             phi_less = phi if dphi is None else phi - Re * dphi
-            d_pm = d_pm + 0.5 * c * mf * phi_less / mu * dmu_dp
-        d_pa = d_pm
-        d_pb = d_pm
-        if P.isothermal:
-            d_mf = d_mf + 2.0 * log_ratio * mf / (P.area * P.area * rho)
-            d_pa = d_pa + k_acc / pa
-            d_pb = d_pb - k_acc / pb
-        return dp, d_pa, d_mf, d_pb
+            d_pm = d_pm + 0.5 * c * mf * phi_less * viscosity_log_slope(P, pm, mu_ratio * P.mu)
+        return dp, d_pm, d_mf, d_pm
 
     @classmethod
     def _laminar(cls, P, V):
@@ -397,32 +508,25 @@ class CircularTube(LibraryComponent):
         and, for the geometry, for a tabulated friction correlation (made for the
         roughness; its table starts at Re_laminar, which the bounds' derivative
         leaves out: the table interpolates the same correlation)."""
-        if name in BLEND_BOUNDS:
-            pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
-            rho = P.fluid.density(0.5 * (pa + pb)) if P.compressible else P.fluid.rho
-            re_per_mf, c_mu = P.re_per_mf, P.c_mu
-            if P.variable_mu:
-                mu_ratio = P.fluid.viscosity(0.5 * (pa + pb)) / P.mu
-                re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
-            # dp = c_mu/rho (f Re) mdot (+ the isothermal acceleration, which has no Re)
-            return c_mu / rho * mf * friction_bound_derivative(P, np.abs(mf) * re_per_mf, name)
-        if name not in TUBE_GEOMETRY or isinstance(P.turbulent, FrictionTable):
+        if name not in BLEND_BOUNDS and (name not in TUBE_GEOMETRY
+                                         or isinstance(P.turbulent, FrictionTable)):
             return None
+        if P.isothermal:
+            return gas_pipe_parameter_derivative(P, V, name)
         pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
-        dp, _, d_mf, _ = cls.pressure_drop(P, pa, mf, pb, True)
         pm = 0.5 * (pa + pb)
         rho = P.fluid.density(pm) if P.compressible else P.fluid.rho
         re_per_mf, c_mu = P.re_per_mf, P.c_mu
         if P.variable_mu:
             mu_ratio = P.fluid.viscosity(pm) / P.mu
             re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
-        # the gas's acceleration (isothermal model) scales as 1/A^2 and has no L
-        acc = (np.log(pa / pb) * mf * mf / (P.area * P.area * rho) if P.isothermal
-               else np.zeros(P.n))
-        d_eD = c_mu / rho * mf * friction_roughness_derivative(P, np.abs(mf) * re_per_mf)
-        # mdot d(dp)/d(mdot) of the friction part: the acceleration's is 2 acc
-        friction = tube_law_derivative(P, name, dp - acc, mf * d_mf - 2.0 * acc, d_eD)
-        return friction - (4.0 * acc / P.diameter if name == "diameter" else 0.0)
+        Re = np.abs(mf) * re_per_mf
+        if name in BLEND_BOUNDS:
+            # dp = c_mu/rho (f Re) mdot
+            return c_mu / rho * mf * friction_bound_derivative(P, Re, name)
+        dp, _, d_mf, _ = cls.pressure_drop(P, pa, mf, pb, True)
+        d_eD = c_mu / rho * mf * friction_roughness_derivative(P, Re)
+        return tube_law_derivative(P, name, dp, mf * d_mf, d_eD)
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):

@@ -16,11 +16,13 @@ from ..constants import pressure_atmospheric
 from ..correlations.friction import fRe_blended, friction_Haaland, roughness_terms, smoothstep
 from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, dp_at_reynolds,
                                     loss_coefficient_from_discharge_coefficient,
-                                    massflow_ISO_6358, massflow_loss_coefficient)
+                                    massflow_ISO_6358, massflow_loss_coefficient,
+                                    massflow_nozzle, nozzle_flow_factor)
 from .base import FLUID_PORT, LibraryComponent
-from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative, one_instance,
-                    friction_roughness_derivative, set_tube_coefficients, set_tube_geometry,
-                    tube_law_derivative)
+from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative,
+                    friction_roughness_derivative, isothermal_drop,
+                    isothermal_drop_parameter_derivative, one_instance, set_isothermal_law,
+                    set_tube_coefficients, set_tube_geometry, tube_law_derivative)
 
 if TYPE_CHECKING:
     from .._typing import Scalar
@@ -88,11 +90,7 @@ def _loss_law_derivative(P, dp, rho, q, name):
     None else."""
     if name not in ("diameter", "K", "Cd", "Re_laminar"):
         return None
-    xs = P.dp_small
-    u = dp / xs
-    # d r/d dp_small of the odd cubic inside the band (the square root outside has none)
-    dr_dxs = np.where(np.abs(dp) < xs, -0.625 * dp * xs ** -1.5 * (1.0 - u * u), 0.0)
-    g = P.area * np.sqrt(2.0 * rho / P.K) * dr_dxs * xs
+    g = P.area * np.sqrt(2.0 * rho / P.K) * _band_derivative(dp, P.dp_small)
     if name == "diameter":
         return (2.0 * q - 2.0 * g) / np.sqrt(4.0 * P.area / np.pi)
     if name == "Re_laminar":      # dp_small xs = K rho_n (Re mu / (rho_n D))^2 / 2
@@ -101,13 +99,68 @@ def _loss_law_derivative(P, dp, rho, q, name):
     return dq_dK if name == "K" else -2.0 * P.K ** 1.5 * dq_dK
 
 
-def _laminar_reynolds(P):
+def _band_derivative(dp, xs):
+    """xs · d r/d xs of the regularized square root r(dp; xs)
+    (:func:`~softflow.correlations.orifice.regularized_sqrt`): the odd cubic's,
+    inside the band |dp| < xs; the square root outside has none."""
+    u = dp / xs
+    return np.where(np.abs(dp) < xs, -0.625 * dp * xs ** -0.5 * (1.0 - u * u), 0.0)
+
+
+def _nozzle_flow(P, pa, pb):
+    """:func:`~softflow.correlations.orifice.massflow_nozzle` of a group (P.Cd,
+    P.gamma, P.area, P.dp_small), the gas's density at the upstream pressure;
+    returns (mdot, d/dp_a, d/dp_b, density there)."""
+    fl = P.fluid
+    p_up = np.maximum(pa, pb)
+    rho = fl.density(p_up)
+    q, dq_pa, dq_pb = massflow_nozzle(pa, pb, rho, P.gamma, P.Cd, P.area, P.dp_small,
+                                      fl.density_dp(p_up))
+    return q, dq_pa, dq_pb, rho
+
+
+def _nozzle_law_derivative(P, pa, pb, q, rho, name):
+    """dq/d theta of the nozzle law q = Cd A sqrt(2 rho_up) r(dp; dp_small) Y(s)
+    (:func:`_nozzle_flow`, ``q`` its flow, ``rho`` the upstream density) for
+    theta = diameter (A ∝ D^2; at fixed Reynolds number dp_small ∝ 1/D^2),
+    Cd (q ∝ Cd; dp_small ∝ K = 1/Cd^2) or Re_laminar (dp_small ∝ Re^2); None
+    else. Y depends on the pressures and gamma only."""
+    if name not in ("diameter", "Cd", "Re_laminar"):
+        return None
+    p_up = np.maximum(pa, pb)
+    Y = nozzle_flow_factor((p_up - np.minimum(pa, pb)) / p_up, P.gamma)[0]
+    g = P.Cd * P.area * np.sqrt(2.0 * rho) * Y * _band_derivative(pa - pb, P.dp_small)
+    if name == "diameter":
+        return (2.0 * q - 2.0 * g) / np.sqrt(4.0 * P.area / np.pi)
+    if name == "Cd":
+        return (q - 2.0 * g) / P.Cd
+    return 2.0 * g / _laminar_reynolds(P, 1.0 / P.Cd ** 2)
+
+
+def _laminar_reynolds(P, K=None):
     """The Reynolds number Re_laminar that placed dp_small (:func:`dp_at_reynolds`
-    at the fluid's nominal density and the viscosity at 1 atm), from dp_small."""
+    at the fluid's nominal density and the viscosity at 1 atm, loss coefficient
+    K: P.K where None), from dp_small."""
     rho = P.fluid.rho
     mu = float(P.fluid.viscosity(pressure_atmospheric))
     diameter = np.sqrt(4.0 * P.area / np.pi)
-    return np.sqrt(2.0 * P.dp_small / (P.K * rho)) * rho * diameter / mu
+    return np.sqrt(2.0 * P.dp_small / ((P.K if K is None else K) * rho)) * rho * diameter / mu
+
+
+def _nozzle_gamma(comp):
+    """The ratio of specific heats the nozzle law of ``comp`` (a gas) uses: the
+    fluid's at 1 atm and its temperature; a clear error where it has none."""
+    fl = comp.fluid
+    try:
+        gamma = float(np.asarray(fl.gamma(pressure_atmospheric)))
+    except NotImplementedError:
+        raise ValueError(f"{comp.describe()}: the nozzle law of a gas (Cd) needs the fluid's "
+                         f"ratio of specific heats, which fluid {fl.name!r} does not give; "
+                         "give K (incompressible law) or C and b (ISO 6358)") from None
+    if not gamma > 1.0:
+        raise ValueError(f"{comp.describe()}: the nozzle law of a gas (Cd) needs a ratio of "
+                         f"specific heats > 1; fluid {fl.name!r} gives {gamma}")
+    return gamma
 
 
 def _iso_law_derivative(P, pa, pb, name):
@@ -176,22 +229,35 @@ class _TubeLike(LibraryComponent):
 
 # ---------------------------------------------------------------------------------------
 class Orifice(LibraryComponent):
-    """Flow restrictor between terminals ``a`` and ``b``, one of three models:
+    """Flow restrictor between terminals ``a`` and ``b``, one of four models:
 
-    * loss coefficient ``K`` with ``diameter``: dp = K rho v^2/2, v = mdot/(rho A);
-    * discharge coefficient ``Cd`` with ``diameter``: mdot = Cd A sqrt(2 rho dp)
-      (the same law with K = 1/Cd^2);
+    * loss coefficient ``K`` with ``diameter``: dp = K rho v^2/2, v = mdot/(rho A)
+      (incompressible, liquids and gases alike; ``model`` 'K');
+    * discharge coefficient ``Cd`` with ``diameter``, a liquid:
+      mdot = Cd A sqrt(2 rho dp), the same law with K = 1/Cd^2 (``model`` 'K');
+    * discharge coefficient ``Cd`` with ``diameter``, a gas: the isentropic
+      nozzle from the upstream (stagnation) pressure p0 to the downstream one,
+      mdot = Cd A p0 sqrt(2 gamma/((gamma-1) R T0)) sqrt(pr^(2/gamma) - pr^((gamma+1)/gamma)),
+      pr = p_down/p0, choked below pr* = (2/(gamma+1))^(gamma/(gamma-1)) (0.528
+      for air) at mdot = Cd A p0 sqrt(gamma/(R T0)) (2/(gamma+1))^((gamma+1)/(2(gamma-1)))
+      (``model`` 'nozzle'; :func:`softflow.correlations.orifice.massflow_nozzle`:
+      a real gas, 'table' or 'eos', takes R T0 = p0/rho(p0), gamma the fluid's
+      at 1 atm). T0 is the fluid's temperature, or in a thermal scene the
+      upstream temperature. Its ISO 6358 equivalent (same choked flow):
+      :func:`softflow.correlations.orifice.iso_6358_of_nozzle`;
     * ISO 6358 for gases, sonic conductance ``C`` with critical pressure ratio
       ``b`` (and subsonic index ``m``): choked flow mdot = C rho0 p_up sqrt(T0/T)
       for p_down/p_up <= b, elliptic subsonic law above (see
-      :func:`softflow.correlations.orifice.massflow_ISO_6358`).
+      :func:`softflow.correlations.orifice.massflow_ISO_6358`; ``model`` 'ISO 6358').
 
     K/Cd models take rho at the upstream pressure (continuous at dp = 0 because
     the flow vanishes there), and replace the square root by a linear-like odd
     cubic below the dp at which the orifice Reynolds number rho v D/mu equals
-    ``Re_laminar`` (density at 1 atm). For gases they hold while ``|dp|`` is small
-    against the upstream pressure; beyond, use the ISO 6358 model. The ISO model
-    turns laminar-like above the pressure ratio ``pr_laminar``.
+    ``Re_laminar`` (density at 1 atm; for a gas's nozzle law the same band, where
+    it is the incompressible law to within 3 dp/(4 gamma p0)). A gas through a
+    K orifice holds while ``|dp|`` is small against the upstream pressure (it
+    never chokes: give Cd or C, b beyond). The ISO model turns laminar-like
+    above the pressure ratio ``pr_laminar``.
 
     Parameters
     ----------
@@ -202,7 +268,8 @@ class Orifice(LibraryComponent):
     K : float [-], optional
         Loss coefficient (> 0).
     Cd : float [-], optional
-        Discharge coefficient (0 < Cd <= 1; about 0.6 for a sharp-edged orifice).
+        Discharge coefficient (0 < Cd <= 1; about 0.6 for a sharp-edged orifice,
+        0.97-0.99 for a rounded nozzle, ISO 9300); a gas's chokes.
     C : float [m^3/(s Pa)], optional
         ISO 6358 sonic conductance at rho0 = 1.185 kg/m^3, T0 = 293.15 K
         (catalogues give dm^3/(s bar): pass ``sf.Q_(0.5, 'dm**3/(s*bar)')``).
@@ -217,7 +284,8 @@ class Orifice(LibraryComponent):
     """
 
     terminal_spec = TWO_PORTS
-    param_names = ("area", "K", "dp_small", "C", "b", "subsonic_index", "pr_laminar")
+    param_names = ("area", "K", "dp_small", "C", "b", "subsonic_index", "pr_laminar", "Cd",
+                   "gamma")
     jac_pattern = TWO_PORT_PATTERN
 
     def __init__(self, label: str, fluid: Fluid, diameter: Scalar | None = None, *,
@@ -233,7 +301,7 @@ class Orifice(LibraryComponent):
                              f"got {given or 'none'}")
         nan = float("nan")
         self.area = self.K = self.dp_small = self.C = self.b = nan
-        self.subsonic_index = self.pr_laminar = nan
+        self.subsonic_index = self.pr_laminar = self.Cd = self.gamma = nan
         if C is not None:
             self.model = "ISO 6358"
             self._init_iso(C, b, m, pr_laminar, diameter)
@@ -251,13 +319,21 @@ class Orifice(LibraryComponent):
                 cd = self._si(Cd, "", "Cd", positive=True)
                 if cd > 1:
                     raise ValueError(f"{self.describe()}: Cd must be in (0, 1], got {cd}")
+                self.Cd = cd
                 self.K = float(loss_coefficient_from_discharge_coefficient(cd))
             re = self._si(Re_laminar, "", "Re_laminar", positive=True)
+            self.Re_laminar = re
             self.area = np.pi * d * d / 4.0
             self.diameter = d
             rho = self.fluid.rho
             mu = float(self.fluid.viscosity(pressure_atmospheric))
             self.dp_small = float(dp_at_reynolds(re, self.K, rho, mu, d))
+            if Cd is not None and self.fluid.compressible:
+                # a gas with a discharge coefficient: the isentropic nozzle, which
+                # has no loss coefficient (its band still placed with K = 1/Cd^2)
+                self.model = "nozzle"
+                self.gamma = _nozzle_gamma(self)
+                self.K = nan
 
     def _init_iso(self, C, b, m, pr_laminar, diameter):
         if diameter is not None:
@@ -301,6 +377,8 @@ class Orifice(LibraryComponent):
         if P.model == "ISO 6358":
             q, dq_pa, dq_pb = massflow_ISO_6358(pa, pb, P.T, P.C, P.b, P.subsonic_index,
                                                 P.pr_laminar)
+        elif P.model == "nozzle":
+            q, dq_pa, dq_pb, _ = _nozzle_flow(P, pa, pb)
         else:
             forward = pa >= pb
             if fl.compressible:
@@ -329,10 +407,14 @@ class Orifice(LibraryComponent):
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta, dr/d theta) for diameter, K, Cd and Re_laminar
-        (loss-coefficient model, :func:`_loss_law_derivative`) or C (ISO 6358,
+        (loss-coefficient model, :func:`_loss_law_derivative`), diameter, Cd and
+        Re_laminar (nozzle, :func:`_nozzle_law_derivative`) or C (ISO 6358,
         where the flow is proportional to it), b, pr_laminar and m (ISO 6358,
         :func:`_iso_law_derivative`); None for others."""
         pa, pb = V[:, 0], V[:, 2]
+        if P.model == "nozzle":
+            q, _, _, rho = _nozzle_flow(P, pa, pb)
+            return _flow_law_jacobian(P, _nozzle_law_derivative(P, pa, pb, q, rho, name))
         if P.model == "ISO 6358":
             if name != "C":
                 return _flow_law_jacobian(P, _iso_law_derivative(P, pa, pb, name))
@@ -366,14 +448,19 @@ class CheckValve(LibraryComponent):
     """Spring-loaded check valve: flow from ``a`` to ``b`` once dp = p_a - p_b
     exceeds the cracking pressure, none backwards (apart from leakage).
 
-        mdot = w(dp) · Cd A sqrt(2 rho(p_a) dp) + rho(p_mean) · leakage · dp
+        mdot = w(dp) · q_open(p_a, p_b) + rho(p_mean) · leakage · dp
 
+    with q_open :class:`Orifice`'s law for a discharge coefficient: a liquid's
+    Cd A sqrt(2 rho dp), a gas's isentropic nozzle (subsonic, or choked below
+    the critical pressure ratio, :func:`softflow.correlations.orifice.massflow_nozzle`),
+    or with ``gas_law='incompressible'`` a gas's Cd A sqrt(2 rho(p_a) dp).
     The opening fraction w rises as a C1 smoothstep (3s^2 - 2s^3) from 0 at
     dp = cracking_pressure to 1 at cracking_pressure + opening_band: the open
     law is an orifice whose area grows with the spring's travel. The residual is
     one smooth function of dp; there is no open/closed switch to chatter between.
     The square root is regularized below the dp at which the orifice Reynolds
-    number is Re_laminar, as in :class:`Orifice`.
+    number is Re_laminar, as in :class:`Orifice`. In a thermal scene the open
+    law stays at the fluid's temperature (its energy transport is upwind).
 
     Without leakage a node enclosed only by closed check valves has an
     undetermined pressure (singular Jacobian); a tiny ``leakage`` fixes it.
@@ -393,15 +480,21 @@ class CheckValve(LibraryComponent):
     leakage : float [m^3/(s Pa)], default 0
         Volume-flow conductance when closed (both directions, >= 0).
     Re_laminar : float [-], default 10
+    gas_law : {'nozzle', 'incompressible'}, default 'nozzle'
+        A gas's open passage: the isentropic nozzle (chokes), or the
+        incompressible orifice equation at the density at ``a`` (the law before
+        the nozzle; it never chokes). Not used with a liquid.
     """
 
     terminal_spec = TWO_PORTS
-    param_names = ("area", "K", "dp_small", "cracking_pressure", "opening_band", "leakage")
+    param_names = ("area", "K", "dp_small", "cracking_pressure", "opening_band", "leakage",
+                   "Cd", "gamma")
     jac_pattern = TWO_PORT_PATTERN
 
     def __init__(self, label: str, fluid: Fluid, diameter: Scalar,
                  cracking_pressure: Scalar = 0.0, opening_band: Scalar = 1e3, Cd: float = 0.6,
-                 leakage: Scalar = 0.0, Re_laminar: float = 10.0) -> None:
+                 leakage: Scalar = 0.0, Re_laminar: float = 10.0,
+                 gas_law: str = "nozzle") -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
         self.diameter = self._si(diameter, "m", "diameter", positive=True)
@@ -413,22 +506,50 @@ class CheckValve(LibraryComponent):
             raise ValueError(f"{self.describe()}: Cd must be in (0, 1], got {cd}")
         self.leakage = self._si(leakage, "m**3/(s*Pa)", "leakage", nonnegative=True)
         re = self._si(Re_laminar, "", "Re_laminar", positive=True)
+        self.Re_laminar = re
+        self.Cd = cd
         self.K = float(loss_coefficient_from_discharge_coefficient(cd))
         self.area = np.pi * self.diameter ** 2 / 4.0
         mu = float(self.fluid.viscosity(pressure_atmospheric))
         self.dp_small = float(dp_at_reynolds(re, self.K, self.fluid.rho, mu, self.diameter))
+        if gas_law not in ("nozzle", "incompressible"):
+            raise ValueError(f"{self.describe()}: gas_law must be 'nozzle' or 'incompressible', "
+                             f"got {gas_law!r}")
+        self.gas_law = gas_law
+        nozzle = self.fluid.compressible and gas_law == "nozzle"
+        self.gamma = _nozzle_gamma(self) if nozzle else float("nan")
+
+    def group_key(self):
+        return (type(self), id(self.fluid), self.gas_law)
+
+    @classmethod
+    def make_params(cls, components):
+        P = super().make_params(components)
+        P.nozzle = bool(P.fluid.compressible) and components[0].gas_law == "nozzle"
+        return P
+
+    @staticmethod
+    def _open_flow(P, pa, pb):
+        """The open passage's flow, its derivatives in p_a, p_b, and the density
+        the law takes (at the upstream pressure for the nozzle, at ``a`` for the
+        incompressible law of a gas)."""
+        if P.nozzle:
+            return _nozzle_flow(P, pa, pb)
+        fl = P.fluid
+        if fl.compressible:
+            rho_a, drho_a = fl.density(pa), fl.density_dp(pa)
+        else:
+            rho_a, drho_a = fl.rho, 0.0
+        q, dq_dp, dq_rho = massflow_loss_coefficient(pa - pb, rho_a, P.K, P.area, P.dp_small)
+        return q, dq_dp + dq_rho * drho_a, -dq_dp, rho_a
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         fl = P.fluid
         dp = pa - pb
-        if fl.compressible:
-            rho_a, drho_a = fl.density(pa), fl.density_dp(pa)
-        else:
-            rho_a, drho_a = fl.rho, 0.0
         rho_m, drho_m = _mean_density(fl, pa, pb)
-        q_open, dq_dp, dq_rho = massflow_loss_coefficient(dp, rho_a, P.K, P.area, P.dp_small)
+        q_open, dq_pa, dq_pb, _ = cls._open_flow(P, pa, pb)
         w, dw = smoothstep(dp, P.cracking_pressure, P.cracking_pressure + P.opening_band)
         q_leak = rho_m * P.leakage * dp
         F = np.empty((P.n, 2))
@@ -436,14 +557,14 @@ class CheckValve(LibraryComponent):
         F[:, 1] = mfa - (w * q_open + q_leak)
         if not jac:
             return F, None
-        d_dp = dw * q_open + w * dq_dp + rho_m * P.leakage   # through dp
-        d_rho = drho_m * P.leakage * dp                        # through rho_m, per p_a or p_b
+        d_dp = dw * q_open + rho_m * P.leakage     # through dp
+        d_rho = drho_m * P.leakage * dp              # through rho_m, per p_a or p_b
         J = np.empty((P.n, 5))
         J[:, 0] = 1.0
         J[:, 1] = 1.0
-        J[:, 2] = -(d_dp + d_rho + w * dq_rho * drho_a)
+        J[:, 2] = -(d_dp + d_rho + w * dq_pa)
         J[:, 3] = 1.0
-        J[:, 4] = -(-d_dp + d_rho)
+        J[:, 4] = -(-d_dp + d_rho + w * dq_pb)
         return F, J
 
     @classmethod
@@ -477,13 +598,12 @@ class CheckValve(LibraryComponent):
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta, dr/d theta) for diameter, Cd, Re_laminar (the open passage's
-        law, :func:`_loss_law_derivative`), cracking_pressure, opening_band and
-        leakage; None for others."""
+        law, :func:`_loss_law_derivative` or, for a gas, :func:`_nozzle_law_derivative`),
+        cracking_pressure, opening_band and leakage; None for others."""
         pa, pb = V[:, 0], V[:, 2]
         fl = P.fluid
         dp = pa - pb
-        rho_a = fl.density(pa) if fl.compressible else fl.rho
-        q_open = massflow_loss_coefficient(dp, rho_a, P.K, P.area, P.dp_small)[0]
+        q_open, _, _, rho = cls._open_flow(P, pa, pb)
         w, dw = smoothstep(dp, P.cracking_pressure, P.cracking_pressure + P.opening_band)
         if name == "cracking_pressure":
             dq = -dw * q_open
@@ -491,8 +611,10 @@ class CheckValve(LibraryComponent):
             dq = -dw * (dp - P.cracking_pressure) / P.opening_band * q_open
         elif name == "leakage":
             dq = _mean_density(fl, pa, pb)[0] * dp
+        elif name in ("diameter", "Cd", "Re_laminar") and P.nozzle:
+            dq = w * _nozzle_law_derivative(P, pa, pb, q_open, rho, name)
         elif name in ("diameter", "Cd", "Re_laminar"):
-            dq = w * _loss_law_derivative(P, dp, rho_a, q_open, name)
+            dq = w * _loss_law_derivative(P, dp, rho, q_open, name)
         else:
             return None
         return _flow_law_jacobian(P, dq)
@@ -555,33 +677,42 @@ class TeslaValve(_TubeLike):
     def make_params(cls, components):
         P = super().make_params(components)
         set_tube_coefficients(P)
+        set_isothermal_law(P, P.fluid.compressible)
         P.mf_blend = P.Re_blend / P.re_per_mf
         return P
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        rho, drho = _mean_density(P.fluid, pa, pb)
-        c = P.c_mu / rho
         Re, phi, dphi = _tube_fRe(P, mfa)
         w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
         extra = P.diodicity - 1.0
         mult = 1.0 + extra * (1.0 - w)
         law = phi * mfa * mult
-        dp_model = c * law
+        dlaw = (phi + Re * dphi) * mult - phi * mfa * extra * dw if jac else None
         F = np.empty((P.n, 2))
         F[:, 0] = mfa + mfb
-        F[:, 1] = (pa - pb) - dp_model
+        J = np.empty((P.n, 5)) if jac else None
+        if P.isothermal:
+            # a gas: the tube's isothermal pipe-flow law, its friction term times D
+            dp, d_pa, d_mf, d_pb = isothermal_drop(
+                P, pa, mfa, pb, P.c_mu * law, None if dlaw is None else P.c_mu * dlaw, None,
+                jac)
+            F[:, 1] = (pa - pb) - dp
+            if jac:
+                J[:, 2], J[:, 3], J[:, 4] = 1.0 - d_pa, -d_mf, -1.0 - d_pb
+        else:
+            rho, drho = _mean_density(P.fluid, pa, pb)
+            c = P.c_mu / rho
+            dp_model = c * law
+            F[:, 1] = (pa - pb) - dp_model
+            if jac:
+                g = dp_model / rho * drho
+                J[:, 2], J[:, 3], J[:, 4] = 1.0 + g, -c * dlaw, -1.0 + g
         if not jac:
             return F, None
-        dlaw = (phi + Re * dphi) * mult - phi * mfa * extra * dw
-        g = dp_model / rho * drho
-        J = np.empty((P.n, 5))
         J[:, 0] = 1.0
         J[:, 1] = 1.0
-        J[:, 2] = 1.0 + g
-        J[:, 3] = -c * dlaw
-        J[:, 4] = -1.0 + g
         return F, J
 
 
@@ -591,7 +722,8 @@ class TeslaValve(_TubeLike):
         Re_blend (the blend's width scales the flow mf_blend ∝ Re_blend·D) and the
         laminar-turbulent bounds Re_laminar, Re_turbulent."""
         pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
-        c = P.c_mu / _mean_density(P.fluid, pa, pb)[0]
+        # the gas law takes the friction term itself (c_mu), the Darcy law over rho
+        c = P.c_mu if P.isothermal else P.c_mu / _mean_density(P.fluid, pa, pb)[0]
         w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
         extra = P.diodicity - 1.0
         mult = 1.0 + extra * (1.0 - w)
@@ -610,6 +742,8 @@ class TeslaValve(_TubeLike):
             d = c * mfa * mult * friction_bound_derivative(P, Re, name)
         else:
             return None
+        if P.isothermal:
+            d = isothermal_drop_parameter_derivative(P, V, dp * mult, d, name)
         return _flow_law_jacobian(P, d)
 
 
@@ -687,12 +821,13 @@ class SnappingValve(_TubeLike):
     def make_params(cls, components):
         P = super().make_params(components)
         set_tube_coefficients(P)
+        set_isothermal_law(P, P.fluid.compressible)
         # Haaland's roughness terms, made once on the group's array: NumPy's **
         # on a scalar is not its ufunc on an array to the last bit
         P.friction_terms = roughness_terms(friction_Haaland, P.eD)
-        # one valve: the residual and the switch on NumPy scalars, the same
-        # arithmetic as on arrays (bitwise; 8 -> 2 us a residual, measured)
-        P.one = one_instance(P)
+        # one valve of a liquid: the residual and the switch on NumPy scalars, the
+        # same arithmetic as on arrays (bitwise; 8 -> 2 us a residual, measured)
+        P.one = None if P.isothermal else one_instance(P)
         return P
 
     @classmethod
@@ -748,6 +883,14 @@ class SnappingValve(_TubeLike):
         x = np.where(is_open, x_open, x_closed)
         dx = np.where(is_open, dx_open, x_closed) if jac else None
         (f0, f1), j = _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho)
+        if P.isothermal and is_open.any():
+            # open with a gas: the tube's isothermal pipe-flow law
+            dp, d_pa, d_mf, d_pb = isothermal_drop(P, pa, mfa, pb, x_open * mfa, dx_open,
+                                                   None, jac)
+            f1 = np.where(is_open, (pa - pb) - dp, f1)
+            if jac:
+                j = (np.where(is_open, 1.0 - d_pa, j[0]), np.where(is_open, -d_mf, j[1]),
+                     np.where(is_open, -1.0 - d_pb, j[2]))
         F = np.empty((P.n, 2))
         F[:, 0] = f0
         F[:, 1] = f1
@@ -791,16 +934,21 @@ class SnappingValve(_TubeLike):
         pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
         is_open = S[:, 0] > 0.5
         rho = _mean_density(P.fluid, pa, pb)[0]
+        # the open passage's law: the gas law takes the friction term itself (c_mu)
+        c = P.c_mu if P.isothermal else P.c_mu / rho
         if name in TUBE_GEOMETRY:
-            d = np.where(is_open, _tube_drop_derivative(P, name, P.c_mu / rho, mfa)[0], 0.0)
-        elif name == "closed_conductance":
-            d = np.where(is_open, 0.0, -mfa / (P.closed_conductance ** 2 * rho))
-        elif name in ("opening_pressure", "closing_pressure"):
-            d = np.zeros(P.n)
+            d_open, dp = _tube_drop_derivative(P, name, c, mfa)
         elif name in BLEND_BOUNDS:
             Re = np.abs(mfa) * P.re_per_mf
-            d = np.where(is_open, P.c_mu / rho * mfa * friction_bound_derivative(P, Re, name),
-                         0.0)
+            d_open, dp = c * mfa * friction_bound_derivative(P, Re, name), None
+        elif name == "closed_conductance":
+            return _flow_law_jacobian(
+                P, np.where(is_open, 0.0, -mfa / (P.closed_conductance ** 2 * rho)))
+        elif name in ("opening_pressure", "closing_pressure"):
+            return _flow_law_jacobian(P, np.zeros(P.n))
         else:
             return None
-        return _flow_law_jacobian(P, d)
+        if P.isothermal:
+            Phi = dp if dp is not None else c * _tube_fRe(P, mfa, P.friction_terms)[1] * mfa
+            d_open = isothermal_drop_parameter_derivative(P, V, Phi, d_open, name)
+        return _flow_law_jacobian(P, np.where(is_open, d_open, 0.0))

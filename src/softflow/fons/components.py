@@ -79,12 +79,16 @@ class VolumeflowSource(ResultsMixin, _sf.VolumeFlowSource):
 
 class CircularTube(ResultsMixin, _sf.CircularTube):
     """fonsim's ``CircularTube(label, fluid, length=0.6, diameter=0.002,
-    roughness=1.5e-6)`` [m]: softflow's tube (Darcy–Weisbach, Haaland)."""
+    roughness=1.5e-6)`` [m]: softflow's tube (Darcy–Weisbach, Haaland) with
+    fonsim's gas law, the density at the mean pressure and no acceleration
+    (``compressible='mean_density'``: it does not choke; past Mach 0.3 softflow
+    warns, past the choke it refuses the run, naming the default
+    ``sf.CircularTube`` law that models it)."""
 
     def __init__(self, label=None, fluid=None, length=0.6, diameter=0.002, roughness=1.5e-6):
         label = _label(label, "CircularTube")
         super().__init__(label, _fluid(fluid, "CircularTube", label), length, diameter,
-                         roughness)
+                         roughness, compressible="mean_density")
 
 
 class Container(ResultsMixin, _sf.Container):
@@ -130,9 +134,12 @@ class CheckValve(ResultsMixin, _sf.CheckValve):
 
     def _bind_fluid(self, fluid):
         terminals = self.terminals
+        # (an ideal valve's wide passage: the orifice equation, with which its
+        # agreement with fonsim was measured, rather than a gas's nozzle law)
         _sf.CheckValve.__init__(self, self.label, fluid, IDEAL_VALVE_DIAMETER,
                                 cracking_pressure=self._threshold,
-                                opening_band=IDEAL_VALVE_OPENING_BAND)
+                                opening_band=IDEAL_VALVE_OPENING_BAND,
+                                gas_law="incompressible")
         self.set_terminals(*terminals)   # keep the terminals the System has connected
         self._fluid_pending = False
 

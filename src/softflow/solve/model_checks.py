@@ -22,24 +22,21 @@ Checks
     of transitional and turbulent flow. Fraction: Re / Re_laminar (below it
     the laminar law and the default blend are the same law).
 ``tube_mach`` / ``tube_choked``
-    Gas tubes: the Mach number at the tube's low-pressure end, v/c with
-    ``v = |mdot| / (rho(p_low) A)``. Both tube laws stop being valid where
-    isothermal pipe flow chokes, at v = sqrt(R T), i.e. Mach 1/sqrt(gamma)
-    (0.845 for air; Crane TP-410; ``fluids.compressible.isothermal_gas``
-    finds the same limit): more pressure difference would not give more flow,
-    and a law that keeps giving more (or past its maximum, less) returns a
-    wrong answer. That is fatal (``tube_choked``). Below it, the default
-    ``compressible='mean_density'`` law neglects the gas's acceleration, which
-    matters from about Mach 0.3 (``tube_mach``; use ``compressible='isothermal'``).
-    Fractions: Mach / 0.3 for the mean-density law (``tube_mach``), Mach / the
-    choking Mach for the isothermal law (``tube_choked``; near it, a record
-    with status 'near').
+    Gas tubes with ``compressible='mean_density'`` (the default isothermal
+    pipe-flow law models acceleration and choking, and has no such check):
+    the Mach number at the tube's low-pressure end, v/c with
+    ``v = |mdot| / (rho(p_low) A)``. The mean-density law neglects the gas's
+    acceleration, which matters from about Mach 0.3 (``tube_mach``), and past
+    the isothermal choking Mach 1/sqrt(gamma) (0.845 for air) it keeps giving
+    more flow for more pressure difference, a wrong answer: that is fatal
+    (``tube_choked``). Both suggest the default law. Fraction: Mach / 0.3.
 ``orifice_choked``
-    An orifice given by K or Cd (an incompressible law) with a gas, at a
+    An orifice given by K (an incompressible law) with a gas, at a
     pressure ratio below the critical ratio (2/(gamma+1))^(gamma/(gamma-1))
-    (0.528 for air): the real flow is choked there; the ISO 6358 model
-    (``C``, ``b``) describes it. Fraction: the relative pressure drop
-    1 - p_low/p_high against the critical one, 1 - 0.528.
+    (0.528 for air): the real flow is choked there; the nozzle law (``Cd``
+    with a gas) and the ISO 6358 model (``C``, ``b``) describe it, and are
+    not checked. Fraction: the relative pressure drop 1 - p_low/p_high
+    against the critical one, 1 - 0.528.
 ``gas_compressibility``
     A gas at the ``ideal`` level whose compressibility factor Z (from CoolProp
     at the pressures and temperatures the run visited) differs from 1 by more
@@ -162,7 +159,9 @@ def tube_reynolds(g, result):
 def tube_mach(g, result):
     comp0 = g.comps[0]
     fluid = comp0.fluid
-    if fluid is None or not fluid.compressible:
+    # the isothermal pipe-flow law (the default) models acceleration and choking
+    if (fluid is None or not fluid.compressible
+            or getattr(comp0, "compressible", None) != "mean_density"):
         return []
     keep, mf = group_values(g, result, "massflow_a")
     if not keep:
@@ -186,51 +185,41 @@ def tube_mach(g, result):
     choke = 1.0 / math.sqrt(gamma)
     tt = group_times(g, result, keep)
     out = []
+    use = ("use the default CircularTube(..., compressible='isothermal'), which adds the "
+           "gas's acceleration and chokes")
     for j in np.flatnonzero(peak >= NEAR_MACH):
         c = g.comps[keep[j]]
         k = int(np.argmax(mach[:, j]))
         t = float(tt[k, j])
         ratio = float(p_low[k, j] / max(pa[k, j], pb[k, j]))
-        mean_density = getattr(c, "compressible", None) == "mean_density"
         if peak[j] >= choke:
             first = int(np.argmax(mach[:, j] >= choke))
             out.append(_record(
                 c, "tube_choked", peak[j], choke, "", max(peak[j] / choke, 1.0 + 1e-12),
-                "choked tube flow is not modelled: lower the pressure ratio, shorten or "
-                "widen the tube, or model the restriction as an Orifice with the ISO 6358 "
-                "law (C, b), which chokes",
+                use,
                 f"gas flow chokes: Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s "
                 f"(pressure ratio p_low/p_high = {ratio:.3g}), past the isothermal choking "
                 f"limit Mach 1/sqrt(gamma) = {choke:.3g}, where more pressure difference "
-                "gives no more flow; the tube law has left its range.",
+                "gives no more flow; the compressible='mean_density' law has left its range "
+                "(it keeps giving more).",
                 fatal=True, first_time=float(tt[first, j]), pressure_ratio=ratio,
                 time=t))
-        elif mean_density:
+        else:
             fraction = peak[j] / MACH_INCOMPRESSIBLE
             out.append(_record(
-                c, "tube_mach", peak[j], MACH_INCOMPRESSIBLE, "", fraction,
-                "use CircularTube(..., compressible='isothermal'), which adds the gas's "
-                "acceleration",
+                c, "tube_mach", peak[j], MACH_INCOMPRESSIBLE, "", fraction, use,
                 f"Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
                 f"{ratio:.3g}), {_past(fraction, f'Mach {MACH_INCOMPRESSIBLE}')}"
                 + (": " if fraction > 1 else ", past which ") + "the gas's acceleration, "
                 "which the mean-density law neglects, is no longer small.", time=t))
-        elif grade(peak[j] / choke):
-            out.append(_record(
-                c, "tube_choked", peak[j], choke, "", peak[j] / choke,
-                "keep the pressure ratio below the choking one, or model the restriction as "
-                "an Orifice with the ISO 6358 law (C, b), which chokes",
-                f"Mach {peak[j]:.3g} at its low-pressure end at t = {t:.6g} s (pressure ratio "
-                f"{ratio:.3g}), {_past(peak[j] / choke, f'the choking Mach {choke:.3g}')}.",
-                time=t))
     return out
 
 
 def orifice_choked(g, result):
     comp0 = g.comps[0]
     fluid = comp0.fluid
-    if fluid is None or not fluid.compressible or getattr(comp0, "model", None) == "ISO 6358":
-        return []
+    if fluid is None or not fluid.compressible or getattr(comp0, "model", None) != "K":
+        return []      # the nozzle (Cd) and ISO 6358 laws model the choking
     keep, pa = group_values(g, result, "pressure_a")
     if not keep:
         return []
@@ -247,12 +236,13 @@ def orifice_choked(g, result):
         if grade(fraction):
             out.append(_record(
                 c, "orifice_choked", ratio[k], critical, "", fraction,
-                "give the orifice by its ISO 6358 sonic conductance and critical ratio "
-                "(Orifice(..., C=..., b=...)), which chokes",
+                "give the orifice by its discharge coefficient (Orifice(..., diameter=..., "
+                "Cd=...): the isentropic nozzle law) or its ISO 6358 sonic conductance and "
+                "critical ratio (Orifice(..., C=..., b=...)); both choke",
                 f"pressure ratio p_low/p_high reached {ratio[k]:.3g} at t = "
                 f"{tt[k, j]:.6g} s, " + (
                     f"below the critical ratio {critical:.3g}: the real flow is choked "
-                    "there, and the incompressible K/Cd law over-predicts it."
+                    "there, and the incompressible K law over-predicts it."
                     if fraction > 1 else f"a pressure drop {fraction:.0%} of the critical "
                     f"one (ratio {critical:.3g}), where the gas's expansion starts to matter."),
                 time=float(tt[k, j])))

@@ -250,8 +250,9 @@ CHOSEN = {"initial_temperature": "_T_initial", "wall_temperature": "_T_wall",
 
 #: Arguments kept under another attribute, or folded into one: where that attribute
 #: is NaN, the component's configuration does not use the argument (an ISO 6358
-#: orifice's Cd and Re_laminar, a K or Cd orifice's m).
-USED_AS = {"Orifice": {"m": "subsonic_index", "Cd": "K", "Re_laminar": "dp_small"}}
+#: orifice's Re_laminar, a K or Cd orifice's m; an orifice keeps its Cd as Cd,
+#: NaN where it was given K or C).
+USED_AS = {"Orifice": {"m": "subsonic_index", "Re_laminar": "dp_small"}}
 
 
 def _numeric_value(comp, name):

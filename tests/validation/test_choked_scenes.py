@@ -1,0 +1,232 @@
+"""Five pneumatic scenes whose tube chokes, softflow against an independent
+reference (``gas_reference.py``: NumPy/SciPy/``fluids``, no softflow).
+
+The reference implements the choked isothermal tube law (entry acceleration,
+isothermal pipe flow with friction and acceleration, exit at max(p_down, G c))
+and integrates each scene to rtol 1e-10; the tests here check the reference
+itself (against ``fluids.compressible.isothermal_gas`` and closed forms) and
+then softflow, at its default settings, against it: the largest pressure
+difference over the run within 2 % of the scene's pressure range, a
+successful run, and no ``tube_choked`` validity warning.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fluids.compressible import isothermal_gas
+
+sys.path.insert(0, str(Path(__file__).parent))
+import gas_reference as ref  # noqa: E402
+
+import softflow as sf  # noqa: E402
+
+#: softflow within this share of the scene's pressure range of the reference
+TOLERANCE = 0.02
+SCENE_NAMES = tuple(ref.SCENE_FUNCTIONS)
+
+
+# -- the reference itself -----------------------------------------------------------------
+def test_reference_air_is_softflows_air():
+    """The reference's constants are those of softflow's sf.air (ideal level)."""
+    assert sf.air.R == pytest.approx(ref.R_AIR, rel=1e-14)
+    assert sf.air.temperature == pytest.approx(ref.T_AIR, rel=1e-14)
+    for p in (1e5, 1e6):
+        assert float(sf.air.viscosity(p)) == pytest.approx(ref.MU_AIR, rel=1e-12)
+        assert float(sf.air.gamma(p)) == pytest.approx(ref.GAMMA_AIR, rel=1e-12)
+        assert float(sf.air.density(p)) == pytest.approx(p / ref.RT, rel=1e-12)
+
+
+def test_reference_does_not_import_softflow():
+    import subprocess
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); import gas_reference; "
+            "gas_reference.tube_massflow(1e6, 1e5, 1.0, 4e-3); "
+            "assert not any(m.split('.')[0] == 'softflow' for m in sys.modules)")
+    subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent)], check=True)
+
+
+def test_reference_self_checks():
+    """Friction, entry, pipe and choke of the reference: against fluids
+    (Haaland, isothermal_gas, P_isothermal_critical_flow) and a second solution
+    of the choke in the inlet Mach number (see gas_reference.self_check)."""
+    rows = ref.self_check(verbose=False)
+    assert len(rows) > 30
+
+
+@pytest.mark.parametrize("p1, p2, L, D", [(1e6, 5e5, 1.0, 4e-3), (4e5, 3e5, 0.1, 4e-3),
+                                          (2e5, 1.2e5, 2.0, 2e-3), (1.05e5, 1.01e5, 1.0, 1e-3)])
+def test_pipe_part_matches_fluids_isothermal_gas(p1, p2, L, D):
+    """The pipe part alone (no entry acceleration): fluids.isothermal_gas with the
+    reference's friction factor gives the same mass flow."""
+    m = ref.pipe_massflow(p1, p2, L, D)
+    f = ref.friction_factor(m / (math.pi * D * D / 4) * D / ref.MU_AIR, ref.ROUGHNESS / D)
+    assert m == pytest.approx(isothermal_gas(rho=p1 / ref.RT, fd=f, P1=p1, P2=p2, L=L, D=D),
+                              rel=1e-10)
+
+
+@pytest.mark.parametrize("p0, p_down, L, D", [(1e6, 8e5, 1.0, 4e-3), (3e5, 2.5e5, 0.3, 2e-3),
+                                              (2e5, 1.9e5, 0.1, 4e-3)])
+def test_tube_massflow_from_its_inlet_pressure_matches_fluids(p0, p_down, L, D):
+    """tube_massflow, unchoked: from the inlet pressure p1 its entry reaches, it is
+    fluids.isothermal_gas."""
+    st = ref.tube_state(p0, p_down, L, D)
+    mdot, choked = ref.tube_massflow(p0, p_down, L, D)
+    assert not choked and mdot == st["mdot"]
+    assert math.log(p0 / st["p1"]) == pytest.approx(st["M1"] ** 2 / 2, rel=1e-12)
+    assert mdot == pytest.approx(isothermal_gas(rho=st["p1"] / ref.RT, fd=st["f"], P1=st["p1"],
+                                                P2=p_down, L=L, D=D), rel=1e-10)
+
+
+def test_long_tube_tends_to_fluids_isothermal_gas():
+    """Where the entry's acceleration is negligible (a long tube), tube_massflow from
+    the node pressure is fluids.isothermal_gas from it; the difference is the
+    entry's first-order effect and shrinks as 1/L."""
+    p0, pd, D = 2e5, 1.5e5, 4e-3
+    errors = []
+    for L in (50.0, 500.0, 5000.0):
+        mdot, choked = ref.tube_massflow(p0, pd, L, D)
+        st = ref.tube_state(p0, pd, L, D)
+        assert not choked
+        fluids_m = isothermal_gas(rho=p0 / ref.RT, fd=st["f"], P1=p0, P2=pd, L=L, D=D)
+        errors.append(abs(mdot / fluids_m - 1))
+        entry = p0 ** 2 * st["M1"] ** 2 / (2 * (p0 ** 2 - pd ** 2))
+        assert errors[-1] == pytest.approx(entry, rel=0.2)
+    assert errors[-1] < 1e-5 and errors[0] / errors[-1] > 50
+
+
+@pytest.mark.parametrize("p0, L, D", [(401325.0, 0.1, 4e-3), (1e6, 1.0, 4e-3), (1e6, 0.3, 2e-3),
+                                      (5e5, 0.2, 3e-3), (701325.0, 2.0, 2e-3)])
+def test_choked_flow_is_the_isothermal_fanno_limit(p0, L, D):
+    """Choked: the exit runs at c = sqrt(R T), f L/D equals the isothermal Fanno
+    parameter of the inlet Mach number, and the flow no longer depends on p_down."""
+    st = ref.tube_state(p0, 0.1 * p0, L, D)
+    assert st["choked"]
+    assert st["p2"] == pytest.approx(st["G"] * ref.C_ISO, rel=1e-14)
+    assert ref.fanno_parameter(st["M1"]) == pytest.approx(st["f"] * L / D, rel=1e-9)
+    assert st["G"] == pytest.approx(ref.choked_massflux_by_mach(p0, L, D), rel=1e-10)
+    assert ref.tube_massflow(p0, 0.05 * p0, L, D) == ref.tube_massflow(p0, 0.1 * p0, L, D)
+    # the same G* just below the choke and (to second order) just above it
+    p_star = st["p2"]
+    below, ch_below = ref.tube_massflow(p0, p_star * (1 - 1e-9), L, D)
+    above, ch_above = ref.tube_massflow(p0, p_star * (1 + 1e-6), L, D)
+    assert ch_below and not ch_above and above == pytest.approx(below, rel=1e-9)
+    # flow from b to a is the mirror image
+    assert ref.tube_massflow(0.1 * p0, p0, L, D) == (-st["mdot"], True)
+
+
+def test_reference_scene_integrations():
+    """The fill's choked phase in closed form, the two tanks' mass, each duration
+    (1 % from equilibrium) and each scene against a second integrator."""
+    rows = ref.scene_checks({name: _reference(name) for name in SCENE_NAMES}, verbose=False)
+    assert len(rows) == 3 + 4 * len(SCENE_NAMES)
+
+
+@pytest.mark.parametrize("name", SCENE_NAMES)
+def test_reference_scene_chokes_then_unchokes(name):
+    r = _reference(name)
+    assert r.choked_at_start and len(r.choke_events) == 1
+    assert 0.0 < r.choked_fraction < 1.0
+    assert r.distance_to_equilibrium() <= 0.01
+
+
+def test_actuator_curve_is_softflows_pvcurve():
+    """The reference's PCHIP curve is softflow's PVCurve of the same points (gauge
+    bar, mL), extrapolation aside; an actuator at 1 atm starts at the first volume."""
+    curve = _actuator_curve()
+    pchip = ref.actuator_curve()
+    v = np.linspace(ref.ACTUATOR_VOLUME_ML[0], ref.ACTUATOR_VOLUME_ML[-1], 1001) * 1e-6
+    np.testing.assert_allclose(curve(v), pchip(v), rtol=1e-13)
+    np.testing.assert_allclose(curve.fdf_volume(v)[1], pchip.derivative()(v), rtol=1e-9)
+    act = sf.Actuator("actuator", sf.air, curve, initial_pressure=sf.Q_(1, "atm"))
+    assert act.initial_volume == pytest.approx(ref.ACTUATOR_VOLUME_ML[0] * 1e-6, rel=1e-12)
+    assert act.initial_pressure == pytest.approx(ref.P_ATM, rel=1e-14)
+
+
+# -- softflow against the reference ---------------------------------------------------------
+@functools.lru_cache(maxsize=None)
+def _reference(name):
+    return ref.SCENE_FUNCTIONS[name]()
+
+
+def _actuator_curve():
+    return sf.PVCurve(volume=sf.Q_(np.array(ref.ACTUATOR_VOLUME_ML), "mL"),
+                      pressure=sf.Q_(np.array(ref.ACTUATOR_GAUGE_BAR), "bar"), gauge=True)
+
+
+def _tube(length, diameter):
+    return sf.CircularTube("tube", sf.air, length=length, diameter=diameter)
+
+
+def _same(quantity, si_value):
+    """A scene's Quantity is the reference's SI number (the two stay one scene)."""
+    assert quantity.to_base_units().magnitude == pytest.approx(si_value, rel=1e-12)
+    return quantity
+
+
+def _scene(name):
+    """The scene ``name`` in softflow, at its defaults; returns the system and the
+    labels of its pressures (the reference's keys, softflow's component labels)."""
+    sc = ref.SCENES[name]
+    tube = sc["tube"]
+    s = sf.System()
+    s += _tube(_same(sf.Q_(tube.length * 100, "cm"), tube.length),
+               _same(sf.Q_(tube.diameter * 1000, "mm"), tube.diameter))
+    if name == "fill":           # 3 bar gauge supply into a 50 mL tank at 1 atm
+        s += sf.PressureSource("supply", pressure=_same(sf.Q_(401325, "Pa"), sc["supply"]))
+        s += sf.Container("tank", sf.air, volume=_same(sf.Q_(50, "mL"), sc["volume"]),
+                          initial_pressure=_same(sf.Q_(101325, "Pa"), sc["initial"]))
+        s.connect("tube", "supply")
+        s.connect("tube", "tank")
+    elif name.startswith("blowdown"):   # 1 L at 10 bar abs to the atmosphere
+        s += sf.Container("tank", sf.air, volume=_same(sf.Q_(1, "L"), sc["volume"]),
+                          initial_pressure=_same(sf.Q_(10, "bar"), sc["initial"]))
+        s += sf.PressureSource("ambient", pressure=_same(sf.Q_(101325, "Pa"), sc["ambient"]))
+        s.connect("tube", "tank")
+        s.connect("tube", "ambient")
+    elif name == "two_tanks":    # 100 mL at 5 bar abs and 100 mL at 1 bar abs
+        s += sf.Container("tank_a", sf.air, volume=_same(sf.Q_(100, "mL"), sc["volume_a"]),
+                          initial_pressure=_same(sf.Q_(5, "bar"), sc["initial_a"]))
+        s += sf.Container("tank_b", sf.air, volume=_same(sf.Q_(100, "mL"), sc["volume_b"]),
+                          initial_pressure=_same(sf.Q_(1, "bar"), sc["initial_b"]))
+        s.connect("tube", "tank_a")
+        s.connect("tube", "tank_b")
+    elif name == "actuator":     # 6 bar gauge supply into a soft actuator from 0 gauge
+        s += sf.PressureSource("supply", pressure=_same(sf.Q_(701325, "Pa"), sc["supply"]))
+        s += sf.Actuator("actuator", sf.air, _actuator_curve(),
+                         initial_pressure=_same(sf.Q_(1, "atm"), sc["initial"]))
+        s.connect("tube", "supply")
+        s.connect("tube", "actuator")
+    else:
+        raise KeyError(name)
+    return s
+
+
+@pytest.mark.parametrize("name", SCENE_NAMES)
+def test_softflow_choked_scene_matches_reference(name):
+    """softflow at its default settings (tube law, adaptive BDF, rtol 1e-3) runs the
+    scene through its choked phase, says nothing of a choked tube, and stays within
+    2 % of the pressure range of the reference over the whole run."""
+    reference = _reference(name)
+    system = _scene(name)
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always")
+        result = sf.Simulation(system, duration=sf.Q_(reference.duration, "s")).run()
+    assert result.success, result.status
+    choked = [w.message for w in result.warnings if w.check == "tube_choked"]
+    assert not choked, choked
+    t = np.asarray(result.times)
+    assert t[-1] == pytest.approx(reference.duration, rel=1e-9)
+    expected = reference.pressure_at(t)
+    for label, p_ref in expected.items():
+        p = np.asarray(result.get(label, "pressure"))
+        err = np.abs(p - p_ref)
+        k = int(np.argmax(err))
+        assert err[k] <= TOLERANCE * reference.pressure_range, (
+            f"{name}: {label} off by {err[k]:.4g} Pa at t = {t[k]:.4g} s (softflow "
+            f"{p[k]:.6g} Pa, reference {p_ref[k]:.6g} Pa), more than {TOLERANCE:.0%} of the "
+            f"range {reference.pressure_range:.6g} Pa")
