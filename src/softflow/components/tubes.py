@@ -166,7 +166,7 @@ def _isothermal_residual(P, pa, mf, pb, Phi, jac):
         c2 = pm / rho
     else:       # an ideal gas: p/rho = R T, whatever the pressure
         rho, c2 = None, P.c2
-    return isothermal_pipe(pa, mf, pb, P.area, c2, Phi, jac), rho, c2
+    return isothermal_pipe(pa, mf, pb, P.area, c2, Phi, jac, c2_partial=rho is not None), rho, c2
 
 
 def isothermal_drop(P, pa, mf, pb, Phi, Phi_mf, Phi_pm, jac):

@@ -59,7 +59,7 @@ def entry_z(a):
     return np.minimum(-lambertw(-np.minimum(a, _A_MAX)).real, 1.0)
 
 
-def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
+def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True, c2_partial=True):
     """Residual R of isothermal tube flow (see the module) and its partials.
 
     pa, pb : node (stagnation) pressures [Pa]; mf : mass flow from a to b [kg/s];
@@ -67,13 +67,15 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
     phi : friction term c_mu (f Re) mf [Pa kg/m^3] (signed with mf).
 
     Returns (R, dR/dpa, dR/dmf, dR/dpb, dR/dc2, dR/dphi, choked), the partials
-    None without ``jac``; ``choked`` is True where the exit runs at Mach 1.
+    None without ``jac`` (dR/dc2 None without ``c2_partial``, for a constant
+    c2); ``choked`` is True where the exit runs at Mach 1.
     The selections (reverse flow, the choke, the entry's limit) are made only
     where some instance needs them: the common case (all forward, none
     choked) costs a third fewer array operations.
     """
-    forward = mf >= 0.0
-    all_forward = bool(np.all(forward))
+    # (the flags by the arrays' own methods: np.all's dispatch costs ~2 us a call)
+    forward = np.asarray(mf >= 0.0)
+    all_forward = bool(forward.all())
     if all_forward:
         p0, pd, sign = pa, pb, 1.0
     else:
@@ -83,12 +85,12 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
     G = np.abs(mf) / area
     GG = G * G
     GGc2 = GG * c2
-    c = np.sqrt(c2)
+    c = c2 ** 0.5
     Gc = G * c
     p0sq = p0 * p0
     a = GGc2 / p0sq
-    inside = a < _INV_E
-    all_inside = bool(np.all(inside))
+    inside = np.asarray(a < _INV_E)
+    all_inside = bool(inside.all())
     z = entry_z(a)
     p1 = p0 * np.exp(-0.5 * z)
     if not all_inside:
@@ -97,8 +99,8 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
         # which makes F C1 there and keeps it falling beyond (see the module)
         p1 = np.where(inside, p1, Gc)
     p1sq = p1 * p1
-    choked = pd < Gc
-    any_choked = bool(np.any(choked))
+    choked = np.asarray(pd < Gc)
+    any_choked = bool(choked.any())
     pe = np.where(choked, Gc, pd) if any_choked else pd
     log_ratio = np.log(p1 / pe)
     # F: the forward residual in Pa^2 (phi enters with the flow's sign: -2 c2 phi is odd)
@@ -115,8 +117,8 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
     # up to the entry's limit; with a = G^2 c2 / p0^2. Past the limit the held
     # inlet and the term -p0^2 (a - 1/e) give the same dF/dG and dF/dc2
     dF_dp0 = 2.0 * (p1sq - GGc2) / p0 + 2.0 * a * p0
-    dF_dG = -4.0 * G * c2 * log_ratio - 2.0 * G * c2
-    dF_dc2 = -2.0 * GG * log_ratio - GG
+    dF_dG = -2.0 * G * c2 * (2.0 * log_ratio + 1.0)
+    dF_dc2 = -GG * (2.0 * log_ratio + 1.0) if c2_partial else None
     if not all_inside:
         dF_dp0 = np.where(inside, dF_dp0, 2.0 * _INV_E * p0)
     dF_dpe = 2.0 * (GGc2 - pe * pe) / pe        # zero where the exit chokes (M = 1)
@@ -125,7 +127,8 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
         # pe = G c moves with G and c2 (dF/dpe is zero at the choke itself)
         dF_dpd = np.where(choked, 0.0, dF_dpe)
         dF_dG = dF_dG + np.where(choked, dF_dpe * c, 0.0)
-        dF_dc2 = dF_dc2 + np.where(choked, dF_dpe * 0.5 * G / c, 0.0)
+        if c2_partial:
+            dF_dc2 = dF_dc2 + np.where(choked, dF_dpe * 0.5 * G / c, 0.0)
     # back to (pa, mf, pb) with the direction's sign; G = |mf|/A, so dG/dmf = sign/A
     if all_forward:
         dF_dpa, dF_dpb = dF_dp0, dF_dpd
@@ -134,10 +137,11 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True):
         d_pd = sign * dF_dpd
         dF_dpa = np.where(forward, d_p0, d_pd)
         dF_dpb = np.where(forward, d_pd, d_p0)
-        dF_dc2 = sign * dF_dc2
+        if c2_partial:
+            dF_dc2 = sign * dF_dc2
     inv_S = 1.0 / S
     return (R, (dF_dpa - R) * inv_S, dF_dG * inv_S / area, (dF_dpb - R) * inv_S,
-            (dF_dc2 - 2.0 * phi) * inv_S, -2.0 * c2 * inv_S, choked)
+            (dF_dc2 - 2.0 * phi) * inv_S if c2_partial else None, -2.0 * c2 * inv_S, choked)
 
 
 def isothermal_choked_massflow(p0, area, c2, fLD):
