@@ -21,8 +21,11 @@ import numpy as np
 import pytest
 from fluids.compressible import isothermal_gas
 
-sys.path.insert(0, str(Path(__file__).parent))
+# the reference and the scenes live beside the validation notebooks (choked_tube)
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "validation"
+sys.path.insert(0, str(EXAMPLES))
 import gas_reference as ref  # noqa: E402
+import gas_scenes  # noqa: E402
 
 import softflow as sf  # noqa: E402
 
@@ -47,7 +50,7 @@ def test_reference_does_not_import_softflow():
     code = ("import sys; sys.path.insert(0, sys.argv[1]); import gas_reference; "
             "gas_reference.tube_massflow(1e6, 1e5, 1.0, 4e-3); "
             "assert not any(m.split('.')[0] == 'softflow' for m in sys.modules)")
-    subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent)], check=True)
+    subprocess.run([sys.executable, "-c", code, str(EXAMPLES)], check=True)
 
 
 def test_reference_self_checks():
@@ -137,7 +140,7 @@ def test_reference_scene_chokes_then_unchokes(name):
 def test_actuator_curve_is_softflows_pvcurve():
     """The reference's PCHIP curve is softflow's PVCurve of the same points (gauge
     bar, mL), extrapolation aside; an actuator at 1 atm starts at the first volume."""
-    curve = _actuator_curve()
+    curve = gas_scenes.actuator_curve()
     pchip = ref.actuator_curve()
     v = np.linspace(ref.ACTUATOR_VOLUME_ML[0], ref.ACTUATOR_VOLUME_ML[-1], 1001) * 1e-6
     np.testing.assert_allclose(curve(v), pchip(v), rtol=1e-13)
@@ -147,63 +150,146 @@ def test_actuator_curve_is_softflows_pvcurve():
     assert act.initial_pressure == pytest.approx(ref.P_ATM, rel=1e-14)
 
 
+
+# -- the adiabatic reference itself ----------------------------------------------------------
+ADIABATIC_SCENE_NAMES = tuple(ref.ADIABATIC_SCENE_FUNCTIONS)
+
+
+@functools.lru_cache(maxsize=None)
+def _reference_adiabatic(name):
+    return ref.ADIABATIC_SCENE_FUNCTIONS[name]()
+
+
+def test_adiabatic_reference_air_is_softflows_air():
+    """cp, cv of the adiabatic reference are softflow's sf.air's (ideal level), and its
+    u, h differ from the reference's cv T, cp T by constants only (the energy balances
+    are the same)."""
+    for p in (1e5, 1e6):
+        assert float(sf.air.cp(p)) == pytest.approx(ref.CP_AIR, rel=1e-12)
+        assert float(sf.air.cv(p)) == pytest.approx(ref.CV_AIR, rel=1e-12)
+    T = np.array([150.0, 293.15, 400.0])
+    for name, c in (("enthalpy", ref.CP_AIR), ("internal_energy", ref.CV_AIR)):
+        offset = np.asarray(getattr(sf.air, name)(np.full(3, 3e5), T)) - c * T
+        np.testing.assert_allclose(offset, offset[0], rtol=0, atol=1e-9 * c * 400.0)
+
+
+def test_adiabatic_reference_self_checks():
+    """Fanno function against gamma = 1.4 tables and its ODE, entry against fluids'
+    stagnation relations, zero-length tube = isentropic nozzle (fluids' critical state),
+    choke in the inlet Mach number, unchoked flux against the closed forms, continuity,
+    low-Mach limit (see gas_reference.self_check_adiabatic)."""
+    rows = ref.self_check_adiabatic(verbose=False)
+    assert len(rows) > 80
+
+
+@pytest.mark.parametrize("M, value", [(0.2, 14.5333), (0.5, 1.06906), (0.8, 0.07229),
+                                      (0.10, 66.922), (0.16, 24.198)])
+def test_fanno_function_matches_tables(M, value):
+    """F*(M) = f L*/D (Darcy) for gamma = 1.4 against table values, and F*(1) = 0."""
+    assert ref.fanno(M, 1.4) == pytest.approx(value, abs=5e-6 if value < 2 else 5e-4)
+    assert ref.fanno(1.0, 1.4) == 0.0
+
+
+@pytest.mark.parametrize("p0, T0", [(1e6, 293.15), (401325.0, 250.0)])
+def test_adiabatic_zero_length_tube_is_the_isentropic_nozzle(p0, T0):
+    from fluids.compressible import P_critical_flow
+    g = ref.GAMMA_AIR
+    nozzle = (p0 * math.sqrt(g / (ref.R_AIR * T0))
+              * (2 / (g + 1)) ** ((g + 1) / (2 * (g - 1))))
+    assert ref.adiabatic_choked_massflux(p0, T0, 0.0, 4e-3) == pytest.approx(nozzle, rel=1e-14)
+    assert ref.adiabatic_tube_state(p0, T0, 0.1 * p0, 0.0, 4e-3)["p2"] == pytest.approx(
+        P_critical_flow(p0, g), rel=1e-13)
+    # a very short tube tends to it
+    assert ref.adiabatic_choked_massflux(p0, T0, 1e-9, 4e-3) == pytest.approx(nozzle, rel=1e-7)
+
+
+@pytest.mark.parametrize("p0, T0, L, D", [(401325.0, 293.15, 0.1, 4e-3),
+                                          (1e6, 200.0, 1.0, 4e-3), (1e6, 293.15, 0.3, 2e-3),
+                                          (5e5, 350.0, 0.2, 3e-3), (701325.0, 293.15, 2.0, 2e-3)])
+def test_adiabatic_choked_flow_is_the_fanno_limit(p0, T0, L, D):
+    """Choked: F*(M1) = f L/D at the exit Mach 1, G* the same in the inlet Mach number,
+    independent of p_down, continuous at the choke, mirrored for b -> a; more flow than
+    the isothermal law's choke (M = 1 at the exit instead of 1/sqrt(gamma))."""
+    st = ref.adiabatic_tube_state(p0, T0, 0.1 * p0, L, D)
+    assert st["choked"] and st["M2"] == 1.0
+    assert ref.fanno(st["M1"]) == pytest.approx(st["f"] * L / D, rel=1e-9)
+    assert st["G"] == pytest.approx(ref.adiabatic_choked_massflux_by_mach(p0, T0, L, D),
+                                    rel=1e-10)
+    assert ref.adiabatic_tube_massflux(p0, T0, 0.05 * p0, 300.0, L, D) == (st["G"], True)
+    below = ref.adiabatic_tube_massflux(p0, T0, st["p2"] * (1 - 1e-9), T0, L, D)
+    above = ref.adiabatic_tube_massflux(p0, T0, st["p2"] * (1 + 1e-6), T0, L, D)
+    assert below[1] and not above[1] and above[0] == pytest.approx(below[0], rel=1e-9)
+    assert ref.adiabatic_tube_massflux(0.1 * p0, 300.0, p0, T0, L, D) == (-st["G"], True)
+    if T0 == ref.T_AIR:
+        assert st["G"] > ref.choked_massflux(p0, L, D)
+
+
+@pytest.mark.parametrize("p0, T0, p_down, L, D", [(1e6, 293.15, 8e5, 1.0, 4e-3),
+                                                  (3e5, 250.0, 2.5e5, 0.3, 2e-3),
+                                                  (1.05e5, 293.15, 1.01e5, 1.0, 1e-3)])
+def test_adiabatic_unchoked_flow_satisfies_the_fanno_closed_forms(p0, T0, p_down, L, D):
+    st = ref.adiabatic_tube_state(p0, T0, p_down, L, D)
+    assert not st["choked"]
+    assert ref.fanno(st["M1"]) - ref.fanno(st["M2"]) == pytest.approx(st["f"] * L / D,
+                                                                      rel=1e-8)
+    assert st["p1"] * ref.fanno_pressure_ratio(st["M1"], st["M2"]) == pytest.approx(
+        p_down, rel=1e-12)
+    # T0 is constant along the tube: the exit's static T from its Mach number
+    assert st["T2"] == pytest.approx(T0 / (1 + (ref.GAMMA_AIR - 1) / 2 * st["M2"] ** 2),
+                                     rel=1e-14)
+
+
+def test_adiabatic_low_mach_limit_is_the_isothermal_law():
+    """A long tube (low Mach): Fanno flow tends to the isothermal law, within M^2."""
+    for L in (50.0, 500.0, 5000.0):
+        st = ref.adiabatic_tube_state(2e5, ref.T_AIR, 1.5e5, L, 4e-3)
+        iso = ref.tube_massflow(2e5, 1.5e5, L, 4e-3)[0]
+        assert abs(st["mdot"] / iso - 1) < st["M2"] ** 2
+
+
+def test_adiabatic_reference_scene_integrations():
+    """The fill's choked phase in closed form, the isentropic blowdowns, the energy
+    balances, the two tanks' mass and energy, each duration (pressures and temperatures
+    1 % from equilibrium) and each scene against a second integrator."""
+    rows = ref.scene_checks_adiabatic({name: _reference_adiabatic(name)
+                                       for name in ADIABATIC_SCENE_NAMES}, verbose=False)
+    assert len(rows) == 14 + 6 * len(ADIABATIC_SCENE_NAMES)
+
+
+@pytest.mark.parametrize("name", ADIABATIC_SCENE_NAMES)
+def test_adiabatic_reference_scene_chokes_then_unchokes(name):
+    r = _reference_adiabatic(name)
+    assert r.choked_at_start and len(r.choke_events) == 1
+    assert 0.0 < r.choked_fraction < 1.0
+    assert r.distance_to_equilibrium() <= 0.01
+    assert r.temperature_distance_to_equilibrium() <= 0.01
+    assert r.duration == ref.ADIABATIC_DURATIONS[name]
+    for label, T in r.temperatures.items():
+        assert T[0] == pytest.approx(ref.T_AIR, rel=1e-14)
+        # monotone towards the closed-form equilibrium
+        d = np.diff(T)
+        assert np.all(d >= 0) or np.all(d <= 0), label
+
+
+def test_adiabatic_two_tanks_conserve_mass_and_energy():
+    """The tube is adiabatic and stores nothing: m_a + m_b and U_a + U_b stay constant;
+    the tanks end at the isothermal scene's common pressure (U = cv p V / R), a cold and
+    b warm."""
+    r = _reference_adiabatic("two_tanks")
+    m = r.masses["tank_a"] + r.masses["tank_b"]
+    U = ref.CV_AIR * (r.masses["tank_a"] * r.temperatures["tank_a"]
+                      + r.masses["tank_b"] * r.temperatures["tank_b"])
+    np.testing.assert_allclose(m, m[0], rtol=1e-12)
+    np.testing.assert_allclose(U, U[0], rtol=1e-12)
+    p_eq, Ta, Tb = ref.two_tanks_equilibrium_adiabatic()
+    assert p_eq == _reference("two_tanks").equilibrium["tank_a"]
+    assert Ta < ref.T_AIR < Tb
+
+
 # -- softflow against the reference ---------------------------------------------------------
 @functools.lru_cache(maxsize=None)
 def _reference(name):
     return ref.SCENE_FUNCTIONS[name]()
-
-
-def _actuator_curve():
-    return sf.PVCurve(volume=sf.Q_(np.array(ref.ACTUATOR_VOLUME_ML), "mL"),
-                      pressure=sf.Q_(np.array(ref.ACTUATOR_GAUGE_BAR), "bar"), gauge=True)
-
-
-def _tube(length, diameter):
-    return sf.CircularTube("tube", sf.air, length=length, diameter=diameter)
-
-
-def _same(quantity, si_value):
-    """A scene's Quantity is the reference's SI number (the two stay one scene)."""
-    assert quantity.to_base_units().magnitude == pytest.approx(si_value, rel=1e-12)
-    return quantity
-
-
-def _scene(name):
-    """The scene ``name`` in softflow, at its defaults; returns the system and the
-    labels of its pressures (the reference's keys, softflow's component labels)."""
-    sc = ref.SCENES[name]
-    tube = sc["tube"]
-    s = sf.System()
-    s += _tube(_same(sf.Q_(tube.length * 100, "cm"), tube.length),
-               _same(sf.Q_(tube.diameter * 1000, "mm"), tube.diameter))
-    if name == "fill":           # 3 bar gauge supply into a 50 mL tank at 1 atm
-        s += sf.PressureSource("supply", pressure=_same(sf.Q_(401325, "Pa"), sc["supply"]))
-        s += sf.Container("tank", sf.air, volume=_same(sf.Q_(50, "mL"), sc["volume"]),
-                          initial_pressure=_same(sf.Q_(101325, "Pa"), sc["initial"]))
-        s.connect("tube", "supply")
-        s.connect("tube", "tank")
-    elif name.startswith("blowdown"):   # 1 L at 10 bar abs to the atmosphere
-        s += sf.Container("tank", sf.air, volume=_same(sf.Q_(1, "L"), sc["volume"]),
-                          initial_pressure=_same(sf.Q_(10, "bar"), sc["initial"]))
-        s += sf.PressureSource("ambient", pressure=_same(sf.Q_(101325, "Pa"), sc["ambient"]))
-        s.connect("tube", "tank")
-        s.connect("tube", "ambient")
-    elif name == "two_tanks":    # 100 mL at 5 bar abs and 100 mL at 1 bar abs
-        s += sf.Container("tank_a", sf.air, volume=_same(sf.Q_(100, "mL"), sc["volume_a"]),
-                          initial_pressure=_same(sf.Q_(5, "bar"), sc["initial_a"]))
-        s += sf.Container("tank_b", sf.air, volume=_same(sf.Q_(100, "mL"), sc["volume_b"]),
-                          initial_pressure=_same(sf.Q_(1, "bar"), sc["initial_b"]))
-        s.connect("tube", "tank_a")
-        s.connect("tube", "tank_b")
-    elif name == "actuator":     # 6 bar gauge supply into a soft actuator from 0 gauge
-        s += sf.PressureSource("supply", pressure=_same(sf.Q_(701325, "Pa"), sc["supply"]))
-        s += sf.Actuator("actuator", sf.air, _actuator_curve(),
-                         initial_pressure=_same(sf.Q_(1, "atm"), sc["initial"]))
-        s.connect("tube", "supply")
-        s.connect("tube", "actuator")
-    else:
-        raise KeyError(name)
-    return s
 
 
 @pytest.mark.parametrize("name", SCENE_NAMES)
@@ -212,7 +298,7 @@ def test_softflow_choked_scene_matches_reference(name):
     scene through its choked phase, says nothing of a choked tube, and stays within
     2 % of the pressure range of the reference over the whole run."""
     reference = _reference(name)
-    system = _scene(name)
+    system = gas_scenes.scene(name)
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         result = sf.Simulation(system, duration=sf.Q_(reference.duration, "s")).run()
