@@ -23,10 +23,13 @@ Energy model
   the enthalpy flow of 1 µg/s of air per kelvin) gives a node through which
   nothing flows a temperature (the average of its neighbours'); it moves energy
   between volumes but never creates or destroys any, so energy balances close
-  exactly. The temperature enters the gas flow laws through the ideal-gas
+  exactly. A gas tube of an ideal gas with the pipe-flow law (the default) is
+  adiabatic (Fanno) pipe flow from the upstream node's stagnation state
+  (:func:`softflow.components.tubes.adiabatic_drop`, T_up its temperature).
+  Elsewhere the temperature enters the gas flow laws through the ideal-gas
   density at the upstream temperature: orifices' mass flow scales with
-  sqrt(T_ref/T_up), tubes' and Tesla/snapping valves' pressure drop with
-  T_up/T_ref (T_ref: the fluid's own temperature; viscosity stays at its
+  sqrt(T_ref/T_up), the other tubes' and Tesla/snapping valves' pressure drop
+  with T_up/T_ref (T_ref: the fluid's own temperature; viscosity stays at its
   nominal value). Inertial tubes and check valves keep their nominal-temperature
   flow law (their energy transport is still upwind).
 * **Energy reference**: energies are counted from one reference enthalpy per
@@ -323,7 +326,15 @@ class ThermalTwoPort:
         if mode is not None:
             w, _ = _upwind_weight(V[:, 1], False)
             T_up = V[:, 6] + w * (V[:, 2] - V[:, 6])
-            dF[:, 1] *= np.sqrt(P.T_ref / T_up) if mode == "sqrt_density" else T_up / P.T_ref
+            # a law of the upstream temperature itself (see _kernel_pressure_drop)
+            derivative = (getattr(cls, "thermal_drop_parameter_derivative", None)
+                          if cls.direct else None)
+            law = None if derivative is None else derivative(P, V[:, _ISO_COLS], T_up, name)
+            if law is not None:
+                dF[:, 1] = -law
+            else:
+                dF[:, 1] *= (np.sqrt(P.T_ref / T_up) if mode == "sqrt_density"
+                             else T_up / P.T_ref)
         return dF, dr
 
     @classmethod
@@ -333,9 +344,18 @@ class ThermalTwoPort:
         without building the isothermal residual and Jacobian first: ~30 %
         fewer array operations, which is what small thermal scenes pay for."""
         pa, mf, Ta, Ea, pb, Tb, Eb = V[:, 0], V[:, 1], V[:, 2], V[:, 3], V[:, 4], V[:, 6], V[:, 7]
-        dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mf, pb, jac)
         E, w, dw, dE, T_up = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
-        theta = T_up * (1.0 / P.T_ref)
+        # a law of the upstream temperature itself (a gas tube's adiabatic pipe
+        # flow), else the isothermal law scaled by theta = T_up/T_ref
+        thermal_drop = getattr(cls, "thermal_drop", None)
+        law = None if thermal_drop is None else thermal_drop(P, pa, mf, pb, T_up, jac)
+        if law is None:
+            dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mf, pb, jac)
+            theta = T_up * (1.0 / P.T_ref)
+            d_T = dp * (1.0 / P.T_ref) if jac else None
+        else:
+            dp, d_pa, d_mf, d_pb, d_T = law
+            theta = 1.0
         F = np.empty((P.n, 4))
         np.add(mf, V[:, 5], out=F[:, 0])
         np.subtract(pa - pb, theta * dp, out=F[:, 1])
@@ -348,7 +368,7 @@ class ThermalTwoPort:
         J[:, 0] = 1.0
         J[:, 1] = 1.0
         J[:, 2] = 1.0 - theta * d_pa
-        coef = dp * (-1.0 / P.T_ref)               # dF1/dT_up
+        coef = -d_T                                # dF1/dT_up
         J[:, 3] = (-theta * d_mf if isinstance(dw, float)      # plain upwind: dw = 0
                    else coef * dw * (Ta - Tb) - theta * d_mf)
         J[:, 4] = -1.0 - theta * d_pb

@@ -13,6 +13,7 @@ from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
                                      friction_Haaland, resolve_friction, roughness_terms,
                                      smoothstep)
+from ..correlations.fanno import adiabatic_pipe
 from ..correlations.gas_pipe import isothermal_pipe
 from ..fluids.ideal import IdealGas
 from .base import FLUID_PORT, Affine, LibraryComponent
@@ -193,14 +194,33 @@ def isothermal_drop(P, pa, mf, pb, Phi, Phi_mf, Phi_pm, jac):
     return dp, 1.0 - R_pa - 0.5 * R_pm, -(R_mf + R_phi * Phi_mf), -1.0 - R_pb - 0.5 * R_pm
 
 
-def isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name):
-    """d(p_a - p_b required)/d theta of :func:`isothermal_drop` from d(Phi)/d theta
+def isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up=None):
+    """d(p_a - p_b required)/d theta of :func:`isothermal_drop` (or, given the
+    upstream temperature ``T_up``, of :func:`adiabatic_drop`) from d(Phi)/d theta
     (``Phi_theta``) and, for the diameter, the flux G = mf/A of the acceleration
     terms: R depends on A only through G, dR/dA = -(mf/A) dR/dmf, dA/dD = 2A/D."""
     pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
-    (_, _, R_mf, _, _, R_phi, _), _, _ = _isothermal_residual(P, pa, mf, pb, Phi, True)
+    if T_up is None:
+        (_, _, R_mf, _, _, R_phi, _), _, _ = _isothermal_residual(P, pa, mf, pb, Phi, True)
+    else:
+        _, _, R_mf, _, _, R_phi, _ = adiabatic_pipe(pa, mf, pb, T_up, P.area, P.R_gas,
+                                                    P.gamma, Phi, True)
     d = -R_phi * Phi_theta
     return d + 2.0 * mf * R_mf / P.diameter if name == "diameter" else d
+
+
+def adiabatic_drop(P, pa, mf, pb, T_up, jac):
+    """The adiabatic (Fanno) pipe-flow law of an ideal gas in a thermal scene
+    (:mod:`softflow.correlations.fanno`) in pressure-drop form, dp = p_a - p_b - R,
+    with the upstream (stagnation) temperature ``T_up``; returns dp and its
+    partials in p_a, mf, p_b and T_up (None without ``jac``)."""
+    Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
+    R, R_pa, R_mf, R_pb, R_T, R_phi, _ = adiabatic_pipe(pa, mf, pb, T_up, P.area, P.R_gas,
+                                                        P.gamma, Phi, jac)
+    dp = (pa - pb) - R
+    if not jac:
+        return dp, None, None, None, None
+    return (dp, 1.0 - R_pa, -(R_mf + R_phi * c_mu * (phi + Re * dphi)), -1.0 - R_pb, -R_T)
 
 
 def gas_pipe_drop(P, pa, mf, pb, jac):
@@ -213,10 +233,11 @@ def gas_pipe_drop(P, pa, mf, pb, jac):
     return isothermal_drop(P, pa, mf, pb, Phi, c_mu * (phi + Re * dphi), Phi_pm, True)
 
 
-def gas_pipe_parameter_derivative(P, V, name):
-    """d(p_a - p_b required)/d theta of a gas tube's :func:`gas_pipe_drop` for a
-    parameter of :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS`: the friction
-    term Phi = c_mu (f Re) mf scales as the Darcy law does."""
+def gas_pipe_parameter_derivative(P, V, name, T_up=None):
+    """d(p_a - p_b required)/d theta of a gas tube's :func:`gas_pipe_drop` (or,
+    given ``T_up``, :func:`adiabatic_drop`) for a parameter of
+    :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS`: the friction term
+    Phi = c_mu (f Re) mf scales as the Darcy law does."""
     pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
     Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, True)
     if name in BLEND_BOUNDS:
@@ -224,16 +245,20 @@ def gas_pipe_parameter_derivative(P, V, name):
     else:
         d_eD = c_mu * mf * friction_roughness_derivative(P, Re)
         Phi_theta = tube_law_derivative(P, name, Phi, mf * c_mu * (phi + Re * dphi), d_eD)
-    return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name)
+    return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up)
 
 
 def set_isothermal_law(P, isothermal):
-    """The group's gas law on its Params: ``P.isothermal`` (the isothermal
-    pipe-flow law) and ``P.c2``, p/rho where it is a constant (R T of an ideal
-    gas; else None, taken at the mean pressure)."""
+    """The group's gas law on its Params: ``P.isothermal`` (the pipe-flow law),
+    ``P.c2``, p/rho where it is a constant (R T of an ideal gas; else None,
+    taken at the mean pressure), and for an ideal gas its R and gamma
+    (``P.R_gas``, ``P.gamma``; None otherwise), which the adiabatic law of a
+    thermal scene takes."""
     P.isothermal = bool(isothermal)
-    P.c2 = (float(P.fluid.R * P.fluid.temperature)
-            if P.isothermal and isinstance(P.fluid, IdealGas) else None)
+    ideal = P.isothermal and isinstance(P.fluid, IdealGas)
+    P.c2 = float(P.fluid.R * P.fluid.temperature) if ideal else None
+    P.R_gas = float(P.fluid.R) if ideal else None
+    P.gamma = float(P.fluid.gamma0) if ideal else None
 
 
 class CircularTube(LibraryComponent):
@@ -269,9 +294,14 @@ class CircularTube(LibraryComponent):
     the Darcy law with rho at the mean pressure and no acceleration: cheaper,
     valid below about Mach 0.3 (a validity warning past it) and refused past
     the choking Mach, where it over-predicts the flow. For liquids the option
-    has no effect. In a thermal scene the law is scaled by the upstream
-    temperature (see :mod:`softflow.components.thermal`); adiabatic (Fanno)
-    pipe flow is not modelled.
+    has no effect. In a thermal scene (``thermal='adiabatic'`` or
+    ``'heat_transfer'``) the same option is, for an ideal gas, adiabatic pipe
+    flow (:mod:`softflow.correlations.fanno`): isentropic entry from the
+    upstream stagnation state (p0, T0 of the node), Fanno flow with the same
+    friction term, choked at exit Mach 1, the stagnation enthalpy carried
+    through; for a real fluid (``table``, ``eos``) and the mean-density law,
+    the isothermal law scaled by the upstream temperature (see
+    :mod:`softflow.components.thermal`).
 
     With ``inertance=True`` the constructor returns an
     :class:`InertialCircularTube`, which adds the fluid's inertia as a state.
@@ -294,8 +324,9 @@ class CircularTube(LibraryComponent):
         methods (e.g. 'Serghides_2') is tabulated once as a spline in Re.
         'laminar' uses Hagen–Poiseuille at every Re.
     compressible : {'isothermal', 'mean_density'}, default 'isothermal'
-        Gas model (see above): isothermal pipe flow with entry, acceleration
-        and choking, or the low-Mach mean-density Darcy law.
+        Gas model (see above): pipe flow with entry, acceleration and choking
+        (isothermal in isothermal scenes, adiabatic in thermal scenes of an
+        ideal gas), or the low-Mach mean-density Darcy law.
     inertance : bool, default False
         Add the fluid inertance L/A · d(mdot)/dt (rho L / A per volume flow)
         to the pressure drop, with the mass flow as a state.
@@ -447,6 +478,32 @@ class CircularTube(LibraryComponent):
             phi_less = phi if dphi is None else phi - Re * dphi
             d_pm = d_pm + 0.5 * c * mf * phi_less * viscosity_log_slope(P, pm, mu_ratio * P.mu)
         return dp, d_pm, d_mf, d_pm
+
+    @classmethod
+    def thermal_drop(cls, P, pa, mf, pb, T_up, jac):
+        """In a thermal scene: p_a - p_b required and its partials in p_a, mf,
+        p_b and the upstream (stagnation) temperature T_up, for an ideal gas with
+        the pipe-flow law the adiabatic (Fanno) one (:func:`adiabatic_drop`);
+        None for the other laws, which the thermal variant scales by T_up/T_ref
+        (:mod:`softflow.components.thermal`)."""
+        if P.R_gas is None or not cls._own_law():
+            return None
+        return adiabatic_drop(P, pa, mf, pb, T_up, jac)
+
+    @classmethod
+    def _own_law(cls):
+        """Whether the class keeps CircularTube's pressure-drop law (a subclass
+        with a law of its own keeps it in thermal scenes too, scaled)."""
+        return cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__
+
+    @classmethod
+    def thermal_drop_parameter_derivative(cls, P, V, T_up, name):
+        """d(p_a - p_b required)/d theta of :meth:`thermal_drop`; None where that
+        law is not the adiabatic one or states no derivative for ``name``."""
+        if (P.R_gas is None or not cls._own_law() or (name not in BLEND_BOUNDS and (
+                name not in TUBE_GEOMETRY or isinstance(P.turbulent, FrictionTable)))):
+            return None
+        return gas_pipe_parameter_derivative(P, V, name, T_up)
 
     @classmethod
     def _laminar(cls, P, V):
