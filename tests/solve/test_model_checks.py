@@ -46,14 +46,15 @@ def test_choked_tube_flow_against_the_isothermal_critical_flow_of_fluids(factor)
     """The default law past the choke: the same flow at any outlet pressure below
     the critical one, which is fluids' isothermal critical outlet pressure from
     the tube's own inlet pressure (after the entry), with Haaland's friction;
-    no warning, a successful run."""
+    a successful run, whose only warning is that adiabatic flow would pass more
+    (tube_isothermal_flow: f L/D ~ 5 here)."""
     p0, L, D = 3e5, 1.0, 4e-3
     area = np.pi * D ** 2 / 4
     c2 = sf.air.R * sf.air.temperature
     with warnings.catch_warnings():
-        warnings.simplefilter("error", sf.ModelWarning)
+        warnings.simplefilter("ignore", sf.ModelWarning)
         res = sf.Simulation(_tube(p0, factor * 0.95e5), duration=0.01).run()
-    assert res.success and not res.warnings
+    assert res.success and {w.check for w in res.warnings} == {"tube_isothermal_flow"}
     mf = res.get("tube", "massflow_a")[-1]
     G = mf / area
     p1 = _inlet_pressure(p0, G, c2)
@@ -235,3 +236,38 @@ def test_largest_on_ranges_is_the_per_range_search():
         z = np.concatenate([np.interp(at, grid, row) for row in rows])
         want = z[np.argmax(np.abs(z))]
         assert got[j] == want or (np.isnan(want) and np.isnan(got[j])), j
+
+
+def test_a_short_choked_tube_of_an_isothermal_scene_is_warned_of_its_adiabatic_flow():
+    """A 10 cm x 4 mm tube filling a tank from 3 bar gauge chokes (f L/D ~ 0.6):
+    as isothermal pipe flow its choked flow is ~9 % below the adiabatic (Fanno)
+    one, past max(10 rtol, 1 %): a warning whose figure is the two closed forms'
+    ratio at the tube's f L/D, suggesting thermal='adiabatic'. Run so, the tube
+    is Fanno flow and the warning is gone (the suggestion moves the scene to a
+    model without it). A 20 m x 2 mm tube from 10 to 0.5 bar (f L/D ~ 200)
+    chokes too, within 0.3 %: no record."""
+    from softflow.correlations.fanno import adiabatic_choked_massflow
+    from softflow.correlations.gas_pipe import isothermal_choked_massflow
+
+    def fill(length, diameter, **kw):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 3e5)
+        s += sf.CircularTube("tube", sf.air, length=length, diameter=diameter)
+        s += sf.Container("tank", sf.air, volume=50e-6)
+        s.connect("src", "tube")
+        s.connect("tube", "tank")
+        return _run(s, **kw)
+    res = fill(0.1, 4e-3)
+    (w,) = [w for w in res.validity if w.check == "tube_isothermal_flow"]
+    assert w.status == "beyond" and w in res.warnings
+    R, T = sf.air.R, sf.air.temperature
+    ratio = (adiabatic_choked_massflow(1.0, T, 1.0, R, sf.air.gamma0, w.details["fLD"])
+             / isothermal_choked_massflow(1.0, 1.0, R * T, w.details["fLD"]))
+    assert 0.3 < w.details["fLD"] < 1.0 and w.measured == pytest.approx(ratio - 1, rel=1e-12)
+    assert 0.07 < w.measured < 0.11 and "thermal='adiabatic'" in w.suggestion
+    assert "tube_isothermal_flow" not in {r.check for r in fill(0.1, 4e-3,
+                                                                thermal="adiabatic").validity}
+    long = _run(_tube(10e5, 0.5e5, length=20.0, diameter=2e-3))
+    G = long.get("tube", "massflow_a")[-1] / (np.pi * 2e-3 ** 2 / 4)
+    assert 0.5e5 < G * np.sqrt(R * T)                                     # it choked
+    assert "tube_isothermal_flow" not in {r.check for r in long.validity}
