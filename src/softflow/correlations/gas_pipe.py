@@ -27,13 +27,16 @@ The law is stated as one residual of (p_a, mdot, p_b),
 
 with the friction written through the term the tube already has,
 Phi = c_mu (f Re) mdot (c_mu = mu L/(2 A D^2)), so that G^2 c^2 f L/D =
-2 c^2 Phi (Phi signed with the flow). Dividing by p_a + p_b gives it units of pressure:
-at low Mach it is p_a - p_b - Phi/rho_mean, the mean-density Darcy law, and the
-acceleration terms add O(M^2) to it. R is odd in the flow (the upstream end is
+2 c^2 Phi (Phi signed with the flow). Dividing by p_a + p_b gives it units of
+pressure: at low Mach it is p_a - p_b - Phi/rho_m - G^2/(2 rho_m) (1 + 2 ln(p_a/p_b))
+(rho_m at the mean pressure), the mean-density Darcy law, the dynamic pressure
+the flow carries out of the tube (dissipated in the volume downstream: not
+small against the friction of a short, wide tube, whatever the Mach number)
+and the acceleration along it. R is odd in the flow (the upstream end is
 the one the flow leaves), C1 at zero flow, and C1 across the choke: dR/dp2 =
 -2 p2 (1 - M2^2)/(p_a + p_b) vanishes where the exit Mach reaches 1, so the
-hard max needs no smoothing. R decreases strictly with the flow wherever the
-Mach numbers are at most 1, which the max guarantees at the exit; an iterate
+hard max needs no smoothing. R has one root in the flow for any p_a, p_b > 0
+(positive below it, negative above: checked on 2 000 random states); an iterate
 past the entry's own limit (z e^-z at its maximum 1/e, a flux the entry cannot
 pass, reached only by a tube of zero length) holds the inlet at Mach 1 there
 and subtracts p0^2 (a - 1/e) from F (a = G^2 c^2/p0^2): R stays C1 across the
