@@ -1,8 +1,9 @@
 """Reference solutions and third-party solvers for the air-chain work-precision benchmark.
 
 Scene (``air_chain``): PressureSource -> (CircularTube -> Container) x N, ideal-gas
-air (``sf.air``), isothermal, laminar tubes (``friction='laminar'``, default
-``compressible='mean_density'``), tubes 0.2 m x 2 mm, containers 5 mL at 1 atm; the
+air (``sf.air``), isothermal, laminar tubes (``friction='laminar'``,
+``compressible='mean_density'``: the equations below; the default pipe-flow law
+adds the exit's dynamic pressure), tubes 0.2 m x 2 mm, containers 5 mL at 1 atm; the
 source holds 1 atm + 0.2 bar from t = 0, for 0.2 s. Error measure: the largest
 |p - p_ref| over the containers and the solver's own output times, divided by the
 step STEP_PA = 0.2e5 Pa. (Only output times count: a solver with few, long steps is
@@ -77,7 +78,7 @@ def air_chain(N, friction="laminar", fluid=None):
     """The softflow System: ``scenes.chain`` (PressureSource -> (CircularTube ->
     Container) x N) with this module's parameters and the tubes' friction law."""
     return chain(N, fluid=fluid, p_source=P_ATM + STEP_PA, length=LENGTH, diameter=DIAMETER,
-                 volume=VOLUME, friction=friction)
+                 volume=VOLUME, friction=friction, compressible="mean_density")
 
 
 class ChainODE:

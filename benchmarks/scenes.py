@@ -7,15 +7,16 @@ P_ATM = sf.pressure_atmospheric
 
 
 def chain(N, fluid=None, p_source=None, length=0.2, diameter=2e-3, volume=5e-6,
-          friction="Haaland"):
-    """PressureSource -> (CircularTube -> Container) x N; tube i+1 starts at container i."""
+          friction="Haaland", compressible="isothermal"):
+    """PressureSource -> (CircularTube -> Container) x N; tube i+1 starts at container i
+    (``compressible``: the tubes' gas law, the default's or 'mean_density')."""
     fluid = sf.air if fluid is None else fluid
     p_source = P_ATM + 0.2e5 if p_source is None else p_source
     s = sf.System()
     s += sf.PressureSource("source", pressure=p_source)
     for i in range(N):
         s += sf.CircularTube(f"tube{i}", fluid, length=length, diameter=diameter,
-                             friction=friction)
+                             friction=friction, compressible=compressible)
         s += sf.Container(f"cont{i}", fluid, volume=volume, initial_pressure=P_ATM)
     s.connect(("tube0", "a"), ("source", "a"))
     for i in range(N):
