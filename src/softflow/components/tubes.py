@@ -127,6 +127,7 @@ def tube_law_derivative(P, name, dp, mf_d_mf, d_eD):
         return -(3.0 * dp + mf_d_mf + P.eD * d_eD) / P.diameter
     return d_eD / P.diameter
 
+
 def viscosity_log_slope(P, pm, mu):
     """d(mu)/dp / mu of the group's fluid at pressures pm (viscosity mu there), by a
     central difference (the fluid protocol has no mu_dp), kept inside the
@@ -233,18 +234,25 @@ def gas_pipe_drop(P, pa, mf, pb, jac):
     return isothermal_drop(P, pa, mf, pb, Phi, c_mu * (phi + Re * dphi), Phi_pm, True)
 
 
+def friction_parameter_derivative(P, V, name):
+    """(Phi, d(Phi)/d theta, the mean pressure) of a group of tubes' friction term
+    Phi = c_mu (f Re) mf, for a parameter of :data:`TUBE_GEOMETRY` or
+    :data:`BLEND_BOUNDS`: Phi scales as a Darcy pressure drop does (c_mu ∝ L/D^4,
+    Re ∝ 1/D, eD = roughness/D), so both gas laws and the mean-density law
+    take their parameter derivatives from it."""
+    pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
+    Phi, pm, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, True)
+    if name in BLEND_BOUNDS:
+        return Phi, c_mu * mf * friction_bound_derivative(P, Re, name), pm
+    d_eD = c_mu * mf * friction_roughness_derivative(P, Re)
+    return Phi, tube_law_derivative(P, name, Phi, mf * c_mu * (phi + Re * dphi), d_eD), pm
+
+
 def gas_pipe_parameter_derivative(P, V, name, T_up=None):
     """d(p_a - p_b required)/d theta of a gas tube's :func:`gas_pipe_drop` (or,
     given ``T_up``, :func:`adiabatic_drop`) for a parameter of
-    :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS`: the friction term
-    Phi = c_mu (f Re) mf scales as the Darcy law does."""
-    pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
-    Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, True)
-    if name in BLEND_BOUNDS:
-        Phi_theta = c_mu * mf * friction_bound_derivative(P, Re, name)
-    else:
-        d_eD = c_mu * mf * friction_roughness_derivative(P, Re)
-        Phi_theta = tube_law_derivative(P, name, Phi, mf * c_mu * (phi + Re * dphi), d_eD)
+    :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS`."""
+    Phi, Phi_theta, _ = friction_parameter_derivative(P, V, name)
     return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up)
 
 
@@ -573,20 +581,9 @@ class CircularTube(LibraryComponent):
             return None
         if P.isothermal:
             return gas_pipe_parameter_derivative(P, V, name)
-        pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
-        pm = 0.5 * (pa + pb)
-        rho = P.fluid.density(pm) if P.compressible else P.fluid.rho
-        re_per_mf, c_mu = P.re_per_mf, P.c_mu
-        if P.variable_mu:
-            mu_ratio = P.fluid.viscosity(pm) / P.mu
-            re_per_mf, c_mu = re_per_mf / mu_ratio, c_mu * mu_ratio
-        Re = np.abs(mf) * re_per_mf
-        if name in BLEND_BOUNDS:
-            # dp = c_mu/rho (f Re) mdot
-            return c_mu / rho * mf * friction_bound_derivative(P, Re, name)
-        dp, _, d_mf, _ = cls.pressure_drop(P, pa, mf, pb, True)
-        d_eD = c_mu / rho * mf * friction_roughness_derivative(P, Re)
-        return tube_law_derivative(P, name, dp, mf * d_mf, d_eD)
+        # dp = Phi / rho, rho at the mean pressure for a gas
+        _, Phi_theta, pm = friction_parameter_derivative(P, V, name)
+        return Phi_theta / (P.fluid.density(pm) if P.compressible else P.fluid.rho)
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
