@@ -36,8 +36,8 @@ Checks
     model of a tube too short and fast to exchange heat with its wall (and the
     law of a thermal scene), passes a different choked flow at the tube's
     f L/D (more, for air: 12 % at f L/D = 0.1, 8 % at 1, 2.5 % at 10, 0.5 % at
-    100). Fraction: the
-    relative difference of the two choked flows over ``max(10 rtol, 1e-2)``.
+    100). Fraction: the relative difference of the two choked flows over
+    ``max(10 rtol, 1e-2)``.
 ``orifice_choked``
     An orifice given by K (an incompressible law) with a gas, at a
     pressure ratio below the critical ratio (2/(gamma+1))^(gamma/(gamma-1))
@@ -270,7 +270,8 @@ def tube_isothermal_flow(g, result):
             "(Fanno) pipe flow",
             f"choked as isothermal pipe flow (at t = {tt[k, j]:.6g} s, f L/D = {fLD:.3g}), "
             f"where adiabatic (Fanno) pipe flow, the model of a tube too short and fast to "
-            f"exchange heat with its wall, passes {ratio - 1.0:+.2%} of its choked flow, "
+            f"exchange heat with its wall, would choke at a flow {abs(ratio - 1.0):.2%} "
+            f"{'larger' if ratio > 1.0 else 'smaller'}, "
             + (f"more than {limit:.3g} (max(10 rtol, 1 %))." if fraction > 1 else
                f"against a limit of {limit:.3g} (max(10 rtol, 1 %))."),
             flow_ratio=float(ratio), fLD=fLD, time=float(tt[k, j])))
