@@ -23,12 +23,12 @@ Energy model
   the enthalpy flow of 1 µg/s of air per kelvin) gives a node through which
   nothing flows a temperature (the average of its neighbours'); it moves energy
   between volumes but never creates or destroys any, so energy balances close
-  exactly. A gas tube of an ideal gas with the pipe-flow law (the default) is
-  adiabatic (Fanno) pipe flow from the upstream node's stagnation state
-  (:func:`softflow.components.tubes.adiabatic_drop`, T_up its temperature).
+  exactly. A gas tube and a Tesla valve of an ideal gas with the pipe-flow law
+  (the default) are adiabatic (Fanno) pipe flow from the upstream node's
+  stagnation state (their ``thermal_drop``; T_up its temperature).
   Elsewhere the temperature enters the gas flow laws through the ideal-gas
   density at the upstream temperature: orifices' mass flow scales with
-  sqrt(T_ref/T_up), the other tubes' and Tesla/snapping valves' pressure drop
+  sqrt(T_ref/T_up), the other tubes' and snapping valves' pressure drop
   with T_up/T_ref (T_ref: the fluid's own temperature; viscosity stays at its
   nominal value). Inertial tubes and check valves keep their nominal-temperature
   flow law (their energy transport is still upwind).

@@ -19,6 +19,7 @@ from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, d
                                     massflow_ISO_6358, massflow_loss_coefficient,
                                     massflow_nozzle, nozzle_flow_factor)
 from .base import FLUID_PORT, LibraryComponent
+from ..correlations.fanno import adiabatic_pipe
 from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative,
                     friction_roughness_derivative, isothermal_drop,
                     isothermal_drop_parameter_derivative, one_instance, set_isothermal_law,
@@ -627,7 +628,10 @@ class TeslaValve(_TubeLike):
 
     Forward the pressure drop is :class:`~softflow.components.tubes.CircularTube`'s
     (Hagen–Poiseuille / Haaland, density at the mean pressure), dp_t(mdot).
-    Backward, at equal ``|mdot|``, it is Di·dp_t. The direction is blended on the
+    Backward, at equal ``|mdot|``, it is Di·dp_t. For a gas the friction term
+    D(mdot)·c_mu (f Re) mdot enters the tube's pipe-flow law instead (isothermal;
+    adiabatic, Fanno, in a thermal scene of an ideal gas), whose acceleration
+    terms the diodicity leaves as they are. The direction is blended on the
     backward side only:
 
         dp = D(mdot)·dp_t(mdot),  D = 1 + (Di - 1)·(1 - w(mdot)),
@@ -682,48 +686,73 @@ class TeslaValve(_TubeLike):
         return P
 
     @classmethod
-    def residual(cls, P, V, S, t, jac):
-        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+    def _friction(cls, P, mfa, jac):
+        """The valve's friction term over c_mu, (f Re) mdot D(mdot), and its
+        derivative in mdot (None without ``jac``)."""
         Re, phi, dphi = _tube_fRe(P, mfa)
         w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
         extra = P.diodicity - 1.0
         mult = 1.0 + extra * (1.0 - w)
         law = phi * mfa * mult
-        dlaw = (phi + Re * dphi) * mult - phi * mfa * extra * dw if jac else None
-        F = np.empty((P.n, 2))
-        F[:, 0] = mfa + mfb
-        J = np.empty((P.n, 5)) if jac else None
-        if P.isothermal:
-            # a gas: the tube's isothermal pipe-flow law, its friction term times D
-            dp, d_pa, d_mf, d_pb = isothermal_drop(
-                P, pa, mfa, pb, P.c_mu * law, None if dlaw is None else P.c_mu * dlaw, None,
-                jac)
-            F[:, 1] = (pa - pb) - dp
-            if jac:
-                J[:, 2], J[:, 3], J[:, 4] = 1.0 - d_pa, -d_mf, -1.0 - d_pb
-        else:
-            rho, drho = _mean_density(P.fluid, pa, pb)
-            c = P.c_mu / rho
-            dp_model = c * law
-            F[:, 1] = (pa - pb) - dp_model
-            if jac:
-                g = dp_model / rho * drho
-                J[:, 2], J[:, 3], J[:, 4] = 1.0 + g, -c * dlaw, -1.0 + g
-        if not jac:
-            return F, None
-        J[:, 0] = 1.0
-        J[:, 1] = 1.0
-        return F, J
-
+        return law, ((phi + Re * dphi) * mult - phi * mfa * extra * dw if jac else None)
 
     @classmethod
-    def param_jacobian(cls, P, V, S, t, name):
-        """(dF/d theta, dr/d theta) for length, diameter, roughness, diodicity,
-        Re_blend (the blend's width scales the flow mf_blend ∝ Re_blend·D) and the
-        laminar-turbulent bounds Re_laminar, Re_turbulent."""
-        pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
-        # the gas law takes the friction term itself (c_mu), the Darcy law over rho
-        c = P.c_mu if P.isothermal else P.c_mu / _mean_density(P.fluid, pa, pb)[0]
+    def pressure_drop(cls, P, pa, mfa, pb, jac):
+        """p_a - p_b required by the flow mfa entering at ``a`` and its partials in
+        p_a, mfa, p_b (None without ``jac``): a gas's isothermal pipe-flow law with
+        the friction term times D (:func:`softflow.components.tubes.isothermal_drop`),
+        else the Darcy law at the mean density."""
+        law, dlaw = cls._friction(P, mfa, jac)
+        if P.isothermal:
+            return isothermal_drop(P, pa, mfa, pb, P.c_mu * law,
+                                   None if dlaw is None else P.c_mu * dlaw, None, jac)
+        rho, drho = _mean_density(P.fluid, pa, pb)
+        c = P.c_mu / rho
+        dp = c * law
+        if not jac:
+            return dp, None, None, None
+        g = -dp / rho * drho
+        return dp, g, c * dlaw, g
+
+    @classmethod
+    def thermal_drop(cls, P, pa, mfa, pb, T_up, jac):
+        """In a thermal scene, for an ideal gas: the adiabatic (Fanno) pipe-flow
+        law with the valve's friction term (:func:`softflow.correlations.fanno.adiabatic_pipe`),
+        p_a - p_b required and its partials in p_a, mfa, p_b and the upstream
+        temperature; None otherwise (the thermal variant scales the isothermal law)."""
+        if P.R_gas is None:
+            return None
+        law, dlaw = cls._friction(P, mfa, jac)
+        R, R_pa, R_mf, R_pb, R_T, R_phi, _ = adiabatic_pipe(pa, mfa, pb, T_up, P.area, P.R_gas,
+                                                            P.gamma, P.c_mu * law, jac)
+        dp = (pa - pb) - R
+        if not jac:
+            return dp, None, None, None, None
+        return dp, 1.0 - R_pa, -(R_mf + R_phi * P.c_mu * dlaw), -1.0 - R_pb, -R_T
+
+    @classmethod
+    def residual(cls, P, V, S, t, jac):
+        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
+        dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
+        F = np.empty((P.n, 2))
+        F[:, 0] = mfa + mfb
+        F[:, 1] = (pa - pb) - dp
+        if not jac:
+            return F, None
+        J = np.empty((P.n, 5))
+        J[:, 0] = 1.0
+        J[:, 1] = 1.0
+        J[:, 2], J[:, 3], J[:, 4] = 1.0 - d_pa, -d_mf, -1.0 - d_pb
+        return F, J
+
+    @classmethod
+    def _friction_parameter_derivative(cls, P, V, name, c):
+        """(c (f Re) mdot D, its derivative in theta) for length, diameter,
+        roughness, diodicity, Re_blend (the blend's width scales the flow
+        mf_blend ∝ Re_blend·D) and the laminar-turbulent bounds; None for
+        others. ``c``: c_mu (the gas laws' friction term) or c_mu/rho (the
+        Darcy law's pressure drop)."""
+        mfa = V[:, 1]
         w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
         extra = P.diodicity - 1.0
         mult = 1.0 + extra * (1.0 - w)
@@ -742,9 +771,33 @@ class TeslaValve(_TubeLike):
             d = c * mfa * mult * friction_bound_derivative(P, Re, name)
         else:
             return None
+        return dp * mult, d
+
+    @classmethod
+    def param_jacobian(cls, P, V, S, t, name):
+        """(dF/d theta, dr/d theta) for length, diameter, roughness, diodicity,
+        Re_blend and the laminar-turbulent bounds Re_laminar, Re_turbulent."""
+        pa, pb = V[:, 0], V[:, 2]
+        # the gas law takes the friction term itself (c_mu), the Darcy law over rho
+        c = P.c_mu if P.isothermal else P.c_mu / _mean_density(P.fluid, pa, pb)[0]
+        out = cls._friction_parameter_derivative(P, V, name, c)
+        if out is None:
+            return None
+        Phi, d = out
         if P.isothermal:
-            d = isothermal_drop_parameter_derivative(P, V, dp * mult, d, name)
+            d = isothermal_drop_parameter_derivative(P, V, Phi, d, name)
         return _flow_law_jacobian(P, d)
+
+    @classmethod
+    def thermal_drop_parameter_derivative(cls, P, V, T_up, name):
+        """d(p_a - p_b required)/d theta of :meth:`thermal_drop`; None where that
+        is not the adiabatic law or for other parameters."""
+        if P.R_gas is None:
+            return None
+        out = cls._friction_parameter_derivative(P, V, name, P.c_mu)
+        if out is None:
+            return None
+        return isothermal_drop_parameter_derivative(P, V, out[0], out[1], name, T_up)
 
 
 # ---------------------------------------------------------------------------------------
