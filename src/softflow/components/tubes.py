@@ -210,18 +210,19 @@ def isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up=None):
     return d + 2.0 * mf * R_mf / P.diameter if name == "diameter" else d
 
 
-def adiabatic_drop(P, pa, mf, pb, T_up, jac):
+def adiabatic_drop(P, pa, mf, pb, T_up, Phi, Phi_mf, jac):
     """The adiabatic (Fanno) pipe-flow law of an ideal gas in a thermal scene
     (:mod:`softflow.correlations.fanno`) in pressure-drop form, dp = p_a - p_b - R,
-    with the upstream (stagnation) temperature ``T_up``; returns dp and its
-    partials in p_a, mf, p_b and T_up (None without ``jac``)."""
-    Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
+    with the upstream (stagnation) temperature ``T_up`` and the friction term
+    ``Phi`` (its derivative in mf ``Phi_mf``); returns dp and its partials in
+    p_a, mf, p_b and T_up (None without ``jac``). The thermal law of gas tubes
+    and Tesla valves."""
     R, R_pa, R_mf, R_pb, R_T, R_phi, _ = adiabatic_pipe(pa, mf, pb, T_up, P.area, P.R_gas,
                                                         P.gamma, Phi, jac)
     dp = (pa - pb) - R
     if not jac:
         return dp, None, None, None, None
-    return (dp, 1.0 - R_pa, -(R_mf + R_phi * c_mu * (phi + Re * dphi)), -1.0 - R_pb, -R_T)
+    return dp, 1.0 - R_pa, -(R_mf + R_phi * Phi_mf), -1.0 - R_pb, -R_T
 
 
 def gas_pipe_drop(P, pa, mf, pb, jac):
@@ -499,7 +500,9 @@ class CircularTube(LibraryComponent):
         (:mod:`softflow.components.thermal`)."""
         if P.R_gas is None or not cls._own_law():
             return None
-        return adiabatic_drop(P, pa, mf, pb, T_up, jac)
+        Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
+        return adiabatic_drop(P, pa, mf, pb, T_up, Phi,
+                              c_mu * (phi + Re * dphi) if jac else None, jac)
 
     @classmethod
     def _own_law(cls):

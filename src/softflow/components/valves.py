@@ -19,8 +19,7 @@ from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, d
                                     massflow_ISO_6358, massflow_loss_coefficient,
                                     massflow_nozzle, nozzle_flow_factor)
 from .base import FLUID_PORT, LibraryComponent
-from ..correlations.fanno import adiabatic_pipe
-from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, friction_bound_derivative,
+from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, adiabatic_drop, friction_bound_derivative,
                     friction_roughness_derivative, isothermal_drop,
                     isothermal_drop_parameter_derivative, one_instance, set_isothermal_law,
                     set_tube_coefficients, set_tube_geometry, tube_law_derivative)
@@ -717,18 +716,14 @@ class TeslaValve(_TubeLike):
     @classmethod
     def thermal_drop(cls, P, pa, mfa, pb, T_up, jac):
         """In a thermal scene, for an ideal gas: the adiabatic (Fanno) pipe-flow
-        law with the valve's friction term (:func:`softflow.correlations.fanno.adiabatic_pipe`),
+        law with the valve's friction term (:func:`softflow.components.tubes.adiabatic_drop`),
         p_a - p_b required and its partials in p_a, mfa, p_b and the upstream
         temperature; None otherwise (the thermal variant scales the isothermal law)."""
         if P.R_gas is None:
             return None
         law, dlaw = cls._friction(P, mfa, jac)
-        R, R_pa, R_mf, R_pb, R_T, R_phi, _ = adiabatic_pipe(pa, mfa, pb, T_up, P.area, P.R_gas,
-                                                            P.gamma, P.c_mu * law, jac)
-        dp = (pa - pb) - R
-        if not jac:
-            return dp, None, None, None, None
-        return dp, 1.0 - R_pa, -(R_mf + R_phi * P.c_mu * dlaw), -1.0 - R_pb, -R_T
+        return adiabatic_drop(P, pa, mfa, pb, T_up, P.c_mu * law,
+                              None if dlaw is None else P.c_mu * dlaw, jac)
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
