@@ -844,3 +844,41 @@ def test_a_thermal_tesla_valves_sensitivities_are_its_adiabatic_laws():
             fd = (up.get(label, var) - down.get(label, var)) / (2 * h)
             err = np.abs(res.sensitivity(label, var, key) - fd).max() / np.abs(fd).max()
             assert err < 1e-6, (key, label, var, err)
+
+
+def _open_snapping_valve():
+    # opens at 1 kPa, closes below -10 bar: open all through the runs below
+    return SnappingValve("tv", sf.air, opening_pressure=1e3, closing_pressure=-1e6,
+                         closed_conductance=1e-12, length=0.1, diameter=1.5e-3,
+                         initially_open=True)
+
+
+def test_an_open_thermal_snapping_valve_is_the_tubes_adiabatic_law():
+    """In an adiabatic scene an open snapping valve of a gas is its passage's
+    adiabatic (Fanno) pipe flow, as a tube of that passage is: the same run to
+    1e-6, forward and back."""
+    runs = [sf.Simulation(_tesla_fill(v), duration=0.03, thermal="adiabatic").run()
+            for v in (_open_snapping_valve(),
+                      sf.CircularTube("tv", sf.air, length=0.1, diameter=1.5e-3))]
+    assert np.all(runs[0].get("tv", "open") == 1.0)
+    for name in ("pressure", "temperature"):
+        np.testing.assert_allclose(runs[0].get("tank", name), runs[1].get("tank", name),
+                                   rtol=1e-6)
+
+
+@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
+def test_an_open_thermal_snapping_valves_sensitivities_are_its_adiabatic_laws():
+    """Its passage's length and diameter through the adiabatic law's friction
+    term, against central differences of whole runs at fixed steps: within 1e-6
+    of the largest."""
+    sim = sf.Simulation(_tesla_fill(_open_snapping_valve()), duration=0.03, step=1e-3,
+                        newton_rtol=1e-12, thermal="adiabatic")
+    names = [("tv.length", 0.1), ("tv.diameter", 1.5e-3)]
+    res = sim.run(sensitivities=[n for n, _ in names])
+    for key, value in names:
+        h = 1e-5 * value
+        up, down = sim.run(params={key: value + h}), sim.run(params={key: value - h})
+        for label, var in (("tank", "pressure"), ("tank", "temperature"), ("tv", "massflow_a")):
+            fd = (up.get(label, var) - down.get(label, var)) / (2 * h)
+            err = np.abs(res.sensitivity(label, var, key) - fd).max() / np.abs(fd).max()
+            assert err < 1e-6, (key, label, var, err)

@@ -23,14 +23,14 @@ Energy model
   the enthalpy flow of 1 µg/s of air per kelvin) gives a node through which
   nothing flows a temperature (the average of its neighbours'); it moves energy
   between volumes but never creates or destroys any, so energy balances close
-  exactly. A gas tube and a Tesla valve of an ideal gas with the pipe-flow law
-  (the default) are adiabatic (Fanno) pipe flow from the upstream node's
-  stagnation state (their ``thermal_drop``; T_up its temperature).
-  Elsewhere the temperature enters the gas flow laws through the ideal-gas
-  density at the upstream temperature: orifices' mass flow scales with
-  sqrt(T_ref/T_up), the other tubes' and snapping valves' pressure drop
-  with T_up/T_ref (T_ref: the fluid's own temperature; viscosity stays at its
-  nominal value). Inertial tubes and check valves keep their nominal-temperature
+  exactly. A gas tube, a Tesla valve and an open snapping valve of an ideal
+  gas with the pipe-flow law (the default) are adiabatic (Fanno) pipe flow
+  from the upstream node's stagnation state (their ``thermal_drop`` or
+  ``thermal_rows``; T_up its temperature). Elsewhere the temperature enters
+  the gas flow laws through the ideal-gas density at the upstream temperature:
+  orifices' mass flow scales with sqrt(T_ref/T_up), the other tubes' and a
+  closed snapping valve's pressure drop with T_up/T_ref (T_ref: the fluid's
+  own temperature; viscosity stays at its nominal value). Inertial tubes and check valves keep their nominal-temperature
   flow law (their energy transport is still upwind).
 * **Energy reference**: energies are counted from one reference enthalpy per
   scene, h0 = h(1 atm, T) of the first gas found (its own temperature): a
@@ -259,6 +259,7 @@ class ThermalTwoPort:
         np.add(Ea, Eb, out=F[:, 2])
         np.subtract(Ea, E, out=F[:, 3])
         mode = cls.flow_temperature
+        own = None
         if mode == "sqrt_density":                # F1 = mf - theta q_iso
             q = mf - Fi[:, 1]
             theta = np.sqrt(P.T_ref / T_up)
@@ -271,6 +272,15 @@ class ThermalTwoPort:
             F[:, 1] -= (theta - 1.0) * dp          # Fi1 = (pa - pb) - dp
             if jac:
                 coef = dp * (-1.0 / P.T_ref)
+            # the instances whose law is of the upstream temperature itself (an
+            # open snapping valve of an ideal gas: adiabatic pipe flow)
+            rows = getattr(cls, "thermal_rows", None)
+            own = None if rows is None else rows(P, V[:, _ISO_COLS], S, T_up, jac)
+            if own is not None:
+                mask, dp_T, d_pa, d_mf, d_pb, d_T = own
+                F[:, 1] = np.where(mask, (pa - pb) - dp_T, F[:, 1])
+                if jac:
+                    coef = np.where(mask, -d_T, coef)
         if not jac:
             return F, None
         # Ji: the flow law's V columns, then its state columns (an inertial tube's),
@@ -297,6 +307,10 @@ class ThermalTwoPort:
                 J[:, 2] += one_theta
                 J[:, 4] -= one_theta
                 J[:, 3] = theta * Ji[:, 3] + dT_up
+                if own is not None:
+                    J[:, 2] = np.where(mask, 1.0 - d_pa, J[:, 2])
+                    J[:, 3] = np.where(mask, dT_up - d_mf, J[:, 3])
+                    J[:, 4] = np.where(mask, -1.0 - d_pb, J[:, 4])
             cw = coef * w
             J[:, k] = cw
             np.subtract(coef, cw, out=J[:, k + 1])
@@ -335,6 +349,12 @@ class ThermalTwoPort:
             else:
                 dF[:, 1] *= (np.sqrt(P.T_ref / T_up) if mode == "sqrt_density"
                              else T_up / P.T_ref)
+                rows = (None if cls.direct or mode == "sqrt_density"
+                        else getattr(cls, "thermal_rows_parameter_derivative", None))
+                own = None if rows is None else rows(P, V[:, _ISO_COLS], S, T_up, name)
+                if own is not None:
+                    mask, d = own
+                    dF[:, 1] = np.where(mask, -d, dF[:, 1])
         return dF, dr
 
     @classmethod

@@ -806,7 +806,8 @@ class SnappingValve(_TubeLike):
     up behind it until it snaps open and releases a burst; on deflation (dp < 0,
     below the closing threshold) it stays closed and acts as a tight restrictor,
     as in the paper. Open, it is a low-resistance tube (``length``,
-    ``diameter``; the CircularTube law, both directions).
+    ``diameter``; the CircularTube law, both directions: a gas's pipe-flow law,
+    adiabatic in a thermal scene of an ideal gas).
 
     The mode is the discrete state ``open`` (0 or 1): each step uses the mode
     from its start, and :meth:`switch` changes it from the converged dp at the
@@ -971,6 +972,41 @@ class SnappingValve(_TubeLike):
         if not jac:
             return F, None
         return F, np.array([[1.0, 1.0, *j]])
+
+    @classmethod
+    def thermal_rows(cls, P, V, S, T_up, jac):
+        """In a thermal scene, for an ideal gas: (open, dp, its partials in p_a,
+        mfa, p_b and T_up) of the open passage's adiabatic (Fanno) pipe-flow law
+        (:func:`softflow.components.tubes.adiabatic_drop`), for the instances
+        ``open`` (the closed restrictor keeps its law scaled by the upstream
+        temperature); None otherwise."""
+        if P.R_gas is None:
+            return None
+        pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
+        Re, phi, dphi = _tube_fRe(P, mfa, P.friction_terms)
+        law = adiabatic_drop(P, pa, mfa, pb, T_up, P.c_mu * phi * mfa,
+                             P.c_mu * (phi + Re * dphi) if jac else None, jac)
+        return (S[:, 0] > 0.5, *law)
+
+    @classmethod
+    def thermal_rows_parameter_derivative(cls, P, V, S, T_up, name):
+        """(open, d(p_a - p_b required)/d theta) of :meth:`thermal_rows`' law: the
+        open passage's geometry and blend bounds through its friction term, none
+        for the closed restrictor's and the switch's parameters; None where
+        that law does not apply."""
+        if P.R_gas is None:
+            return None
+        mfa = V[:, 1]
+        if name in TUBE_GEOMETRY:
+            Phi_theta, Phi = _tube_drop_derivative(P, name, P.c_mu, mfa)
+        elif name in BLEND_BOUNDS:
+            Re, phi, _ = _tube_fRe(P, mfa)
+            Phi_theta = P.c_mu * mfa * friction_bound_derivative(P, Re, name)
+            Phi = P.c_mu * phi * mfa
+        else:
+            return S[:, 0] > 0.5, np.zeros(P.n)
+        return S[:, 0] > 0.5, isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name,
+                                                                   T_up)
 
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
