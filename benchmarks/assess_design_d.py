@@ -38,7 +38,7 @@ from assess_scenes import SCENES  # noqa: E402
 from bench_assess import simulate  # noqa: E402
 
 TOLERANCE = 0.01
-_ISO_TUBE = {"tube": {"compressible": "isothermal"}}
+_ISO_TUBE = {"tube": {"compressible": "pipe_flow"}}
 #: the cheapest adequate configuration of each scene (bench_assess.py, 19:06)
 CHEAPEST = {
     "syringe": Config("isothermal", "ideal", 1e-2).with_overrides(_ISO_TUBE),

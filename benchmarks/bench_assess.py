@@ -6,7 +6,7 @@ decides (thermal: isothermal or the scene's thermal model, adiabatic or heat
 transfer where the volumes have walls, and per volume: wall-less volumes held
 isothermal while the others are not; fluid level ideal or table; the laminar
 tubes' friction as given or Haaland; gas tubes' law as given or
-compressible='isothermal'; liquid tubes without or with inertance; rtol 1e-2,
+compressible='pipe_flow'; liquid tubes without or with inertance; rtol 1e-2,
 1e-3, 1e-4; the fluid also at the table level in one volume's high-pressure
 part only, where a scene has more than one gas volume) finds the cheapest configuration within the tolerance (1 %) of a
 converged fine reference (every axis at its finest, table fluids (eos where
@@ -93,7 +93,7 @@ def axes(system):
     gas_tubes = [c.label for c in tubes if c.fluid.compressible]
     liquid_tubes = [c.label for c in tubes if not c.fluid.compressible]
     friction = [{}] + ([{lab: {"friction": "Haaland"} for lab in laminar}] if laminar else [])
-    law = [{}] + ([{lab: {"compressible": "isothermal"} for lab in gas_tubes}]
+    law = [{}] + ([{lab: {"compressible": "pipe_flow"} for lab in gas_tubes}]
                   if gas_tubes else [])
     inertance = [{}] + ([{lab: {"inertance": True} for lab in liquid_tubes}]
                         if liquid_tubes else [])

@@ -7,7 +7,7 @@ P_ATM = sf.pressure_atmospheric
 
 
 def chain(N, fluid=None, p_source=None, length=0.2, diameter=2e-3, volume=5e-6,
-          friction="Haaland", compressible="isothermal"):
+          friction="Haaland", compressible="pipe_flow"):
     """PressureSource -> (CircularTube -> Container) x N; tube i+1 starts at container i
     (``compressible``: the tubes' gas law, the default's or 'mean_density')."""
     fluid = sf.air if fluid is None else fluid

@@ -162,12 +162,12 @@ def test_a_tube_law_past_its_limit_joins_the_clear_cut_run():
     assert "together with thermal" in rows.loc["tube law", "verdict"]
     assert "not measured on its own" in rows.loc["tube law", "verdict"]
     assert "clear-cut" in rows.loc["thermal", "verdict"]
-    assert a.recommended["overrides"] == {"tube": {"compressible": "isothermal"}}
+    assert a.recommended["overrides"] == {"tube": {"compressible": "pipe_flow"}}
     assert a.recommended["thermal"] == "heat_transfer"
     assert len(a.runs) == 3
     assert not any(r.config.thermal == "isothermal" and r.config.overrides for r in a.runs)
     ref = reference(s, duration, "heat_transfer", "ideal",
-                    {"tube": {"compressible": "isothermal"}})
+                    {"tube": {"compressible": "pipe_flow"}})
     assert difference(recommended_run(a), ref, a.outputs) < TOL
 
 
@@ -268,7 +268,7 @@ def test_a_tube_law_past_its_limit_without_a_clear_cut_axis_is_measured():
     assert [r.status for r in a.validity if r.check == "tube_mach"] == ["beyond"]
     row = _axis(a, "tube law")
     assert "together" not in row["verdict"] and row["effect"] > 0
-    assert a.runs[1].config.overrides_dict() == {"tube": {"compressible": "isothermal"}}
+    assert a.runs[1].config.overrides_dict() == {"tube": {"compressible": "pipe_flow"}}
 
 
 def test_together_takes_the_trailing_clear_cut_probes_and_the_lifts_past_their_limit():
@@ -430,7 +430,7 @@ def test_failed_base_goes_up_first_on_the_axis_its_checks_name():
     assert a.runs[0].result is not None          # its validity records were read
     assert a.runs[1].ok
     assert a.runs[1].config.overrides_dict() == {
-        "tube": {"friction": "Haaland", "compressible": "isothermal"}}
+        "tube": {"friction": "Haaland", "compressible": "pipe_flow"}}
     base = _axis(a, "base")
     assert "failed" in base["verdict"] and "friction='Haaland'" in base["level tried"]
     assert "friction" not in set(a.table["axis"])       # decided by the fallback

@@ -198,7 +198,7 @@ FRICTION = ("Haaland", "Colebrook", "Churchill", "Swamee-Jain", "laminar")
 def two_port(r, label, fluid):
     kind = r.choice(TWO_PORTS)
     if kind == "tube":
-        # a gas's tube at its default law (compressible='isothermal': choked flow modelled)
+        # a gas's tube at its default law (compressible='pipe_flow': choked flow modelled)
         options = {"friction": r.choice(FRICTION), "inertance": r.integer(0, 3) == 0}
         return sf.CircularTube(label, fluid, length=r.log(5e-3, 3.0),
                                diameter=r.log(2e-4, 5e-3), **options)

@@ -27,7 +27,7 @@ friction
     near miss is not run).
 tube law
     gas tubes given the low-Mach ``compressible='mean_density'`` law near or
-    past Mach 0.3 -> the default ``compressible='isothermal'`` pipe-flow law
+    past Mach 0.3 -> the default ``compressible='pipe_flow'`` law
     (check ``tube_mach``), those tubes only. Tubes with the default law, which
     models acceleration and choking, have nothing on this axis.
 inertance
@@ -362,7 +362,7 @@ class Assessment:
         {argument: value}}`` for the components that need a level of their
         own: ``{'thermal': 'isothermal'}`` for a volume held at its wall
         temperature where others fill fast, ``{'friction': 'Haaland'}``,
-        ``{'compressible': 'isothermal'}``, ``{'inertance': True}`` for tubes,
+        ``{'compressible': 'pipe_flow'}``, ``{'inertance': True}`` for tubes,
         ``{'fluid_level': 'table'}`` for the high-pressure part of a network
         (the volumes whose ``|Z - 1|`` is near or past its limit and the
         components sharing a node with them) where the rest stays ideal.
@@ -546,7 +546,7 @@ def assess(system, duration, tolerance=0.01, outputs=None, **simulation_options)
     rows = [("base", base.config.describe(), math.nan, base.cpu, 1.0, verdict)]
     lifted = sorted(lab for lab, args in base.config.overrides if dict(args).get("compressible"))
     if lifted:
-        rows.append(("tube law", f"{', '.join(lifted)}: compressible='isothermal'", math.nan,
+        rows.append(("tube law", f"{', '.join(lifted)}: compressible='pipe_flow'", math.nan,
                      0.0, 0.0, "adopted with the friction law: the cheapest configuration "
                      "choked there (the base run is this level's)"))
 
@@ -800,9 +800,9 @@ class _Scene:
             rows.append(("friction", "laminar", math.nan, 0.0, 0.0,
                          "kept: every laminar tube stays below its Re_laminar, where the "
                          "laminar law and the default blend are the same"))
-        labels, lift = per_tube(_MACH_CHECK, "compressible", "isothermal", law=True)
+        labels, lift = per_tube(_MACH_CHECK, "compressible", "pipe_flow", law=True)
         if labels:
-            out.append(("tube law", f"{', '.join(labels)}: compressible='isothermal'", lift,
+            out.append(("tube law", f"{', '.join(labels)}: compressible='pipe_flow'", lift,
                         "Mach past 0.3" if lift.past else "Mach near or past 0.3"))
         labels, lift = per_tube(_INERTIA_CHECK, "inertance", True)
         if labels:
@@ -879,7 +879,7 @@ def _recommendation(config, laminar):
             "friction": ("Haaland" if laminar and sorted(haaland) == sorted(laminar)
                          else "as given, Haaland where overridden" if haaland else "as given"),
             "tube_law": ("as given, isothermal where overridden"
-                         if named("compressible", "isothermal") else "as given"),
+                         if named("compressible", "pipe_flow") else "as given"),
             "inertance": ("as given, True where overridden" if named("inertance", True)
                           else "as given"),
             "rtol": config.rtol, "overrides": overrides}
@@ -906,7 +906,7 @@ def _fallback(a, failed, scene, rtol0):
         choked = {r.component for r in records if r.check == _CHOKED_CHECK
                   and r.component in haaland and r.status == "beyond"}
         first.append(base_cfg.with_overrides(
-            {lab: dict(args, **({"compressible": "isothermal"} if lab in choked else {}))
+            {lab: dict(args, **({"compressible": "pipe_flow"} if lab in choked else {}))
              for lab, args in haaland.items()}))
     (first if _FRICTION_CHECK in flagged else then).extend(
         [base_cfg.with_overrides(haaland)] if haaland else [])

@@ -159,7 +159,7 @@ def test_isothermal_compressible_flow_matches_fluids(pa):
     after the entry's acceleration, the pipe is fluids' isothermal_gas."""
     L, D, rough = 0.5, 1e-3, 1.5e-6
     tube = CircularTube("t", sf.air, length=L, diameter=D, roughness=rough)
-    assert tube.compressible == "isothermal"        # the default
+    assert tube.compressible == "pipe_flow"         # the default
     mf = _between_sources(tube, pa, P0)
     area = math.pi * D ** 2 / 4
     Re = mf * D / (sf.air.mu * area)

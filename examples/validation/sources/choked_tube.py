@@ -1,9 +1,9 @@
 # %% [markdown]
 # # Gas flow through a tube at any pressure ratio, choked flow included (air)
 #
-# softflow's default tube law for a gas (`CircularTube(..., compressible='isothermal')`)
-# is isothermal pipe flow between two nodes whose pressures are stagnation
-# pressures (the gas at rest in the volumes):
+# softflow's default tube law for a gas (`CircularTube(..., compressible='pipe_flow')`)
+# is, in an isothermal scene, isothermal pipe flow between two nodes whose
+# pressures are stagnation pressures (the gas at rest in the volumes):
 #
 # * the gas accelerates from rest into the tube, isothermally:
 #   c² ln(p₀/p₁) = u₁²/2, c² = RT;

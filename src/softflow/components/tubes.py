@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from .._typing import Scalar
     from ..fluids.base import Fluid
 
-_COMPRESSIBLE_MODES = ("mean_density", "isothermal")
+_COMPRESSIBLE_MODES = ("pipe_flow", "isothermal", "mean_density")
 #: groups up to this size test laminarity by a dot product (single-threaded in BLAS)
 _DOT_MAX = 1000
 
@@ -257,17 +257,17 @@ def gas_pipe_parameter_derivative(P, V, name, T_up=None):
     return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up)
 
 
-def set_isothermal_law(P, isothermal):
+def set_isothermal_law(P, isothermal, adiabatic=True):
     """The group's gas law on its Params: ``P.isothermal`` (the pipe-flow law),
     ``P.c2``, p/rho where it is a constant (R T of an ideal gas; else None,
-    taken at the mean pressure), and for an ideal gas its R and gamma
-    (``P.R_gas``, ``P.gamma``; None otherwise), which the adiabatic law of a
-    thermal scene takes."""
+    taken at the mean pressure), and for an ideal gas whose law is adiabatic in
+    a thermal scene (``adiabatic``) its R and gamma (``P.R_gas``, ``P.gamma``;
+    None otherwise), which that law takes."""
     P.isothermal = bool(isothermal)
     ideal = P.isothermal and isinstance(P.fluid, IdealGas)
     P.c2 = float(P.fluid.R * P.fluid.temperature) if ideal else None
-    P.R_gas = float(P.fluid.R) if ideal else None
-    P.gamma = float(P.fluid.gamma0) if ideal else None
+    P.R_gas = float(P.fluid.R) if ideal and adiabatic else None
+    P.gamma = float(P.fluid.gamma0) if ideal and adiabatic else None
 
 
 class CircularTube(LibraryComponent):
@@ -284,8 +284,8 @@ class CircularTube(LibraryComponent):
     mdot_a + mdot_b = 0. Writing the law with f·Re keeps it linear in mdot at
     zero flow, so its derivative never vanishes there.
 
-    For a gas (``fluid.compressible``) the default, ``compressible='isothermal'``,
-    is isothermal pipe flow at any pressure ratio
+    For a gas (``fluid.compressible``) the default, ``compressible='pipe_flow'``,
+    is, in an isothermal scene, isothermal pipe flow at any pressure ratio
     (:mod:`softflow.correlations.gas_pipe`): the node pressures are stagnation
     pressures; the gas accelerates from rest into the tube (c^2 ln(p0/p1) =
     u1^2/2, c^2 = p/rho, R T for an ideal gas), then flows with friction and
@@ -307,12 +307,13 @@ class CircularTube(LibraryComponent):
     valid below about Mach 0.3 (a validity warning past it) and refused past
     the choking Mach, where it over-predicts the flow. For liquids the option
     has no effect. In a thermal scene (``thermal='adiabatic'`` or
-    ``'heat_transfer'``) the same option is, for an ideal gas, adiabatic pipe
+    ``'heat_transfer'``) ``'pipe_flow'`` is, for an ideal gas, adiabatic pipe
     flow (:mod:`softflow.correlations.fanno`): isentropic entry from the
     upstream stagnation state (p0, T0 of the node), Fanno flow with the same
     friction term, choked at exit Mach 1, the stagnation enthalpy carried
-    through; for a real fluid (``table``, ``eos``) and the mean-density law,
-    the isothermal law scaled by the upstream temperature (see
+    through; for a real fluid (``table``, ``eos``), with
+    ``compressible='isothermal'`` (isothermal pipe flow in every scene) and
+    the mean-density law, the isothermal law scaled by the upstream temperature (see
     :mod:`softflow.components.thermal`).
 
     With ``inertance=True`` the constructor returns an
@@ -335,10 +336,11 @@ class CircularTube(LibraryComponent):
         closed form; any other name of ``fluids.friction.friction_factor``'s
         methods (e.g. 'Serghides_2') is tabulated once as a spline in Re.
         'laminar' uses Hagen–Poiseuille at every Re.
-    compressible : {'isothermal', 'mean_density'}, default 'isothermal'
-        Gas model (see above): pipe flow with entry, acceleration and choking
-        (isothermal in isothermal scenes, adiabatic in thermal scenes of an
-        ideal gas), or the low-Mach mean-density Darcy law.
+    compressible : {'pipe_flow', 'isothermal', 'mean_density'}, default 'pipe_flow'
+        Gas model (see above): pipe flow with entry, acceleration and choking,
+        isothermal in isothermal scenes and adiabatic in thermal scenes of an
+        ideal gas ('pipe_flow'), or isothermal in every scene ('isothermal'),
+        or the low-Mach mean-density Darcy law ('mean_density').
     inertance : bool, default False
         Add the fluid inertance L/A · d(mdot)/dt (rho L / A per volume flow)
         to the pressure drop, with the mass flow as a state.
@@ -357,7 +359,7 @@ class CircularTube(LibraryComponent):
     def __init__(self, label: str, fluid: Fluid, length: Scalar, diameter: Scalar,
                  roughness: Scalar = 1.5e-6, Re_laminar: float = 2300.0,
                  Re_turbulent: float = 4000.0, *, friction: str = "Haaland",
-                 compressible: str = "isothermal", inertance: bool = False) -> None:
+                 compressible: str = "pipe_flow", inertance: bool = False) -> None:
         super().__init__(label, fluid=None)
         set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         try:
@@ -390,7 +392,8 @@ class CircularTube(LibraryComponent):
         # real-fluid levels: viscosity at the tube's mean pressure (air at 15 MPa
         # is 20 % more viscous than at 1 atm); the ideal level keeps it constant
         P.variable_mu = getattr(P.fluid, "level", "ideal") != "ideal"
-        set_isothermal_law(P, P.compressible and first.compressible == "isothermal")
+        set_isothermal_law(P, P.compressible and first.compressible in ("pipe_flow", "isothermal"),
+                           adiabatic=first.compressible == "pipe_flow")
         P.length_per_area = P.length / P.area
         P.c_per_rho = (None if P.compressible or P.variable_mu
                        else P.c_mu / P.fluid.rho)
@@ -436,7 +439,7 @@ class CircularTube(LibraryComponent):
     def pressure_drop(cls, P, pa, mf, pb, jac):
         """p_a - p_b required by the flow mf entering at ``a`` and its partial
         derivatives in p_a, mf, p_b (None without ``jac``): the Darcy law at the
-        mean density, or for a gas with ``compressible='isothermal'`` the
+        mean density, or for a gas with the pipe-flow law (the default) the
         isothermal pipe flow of :func:`gas_pipe_drop` (entry, acceleration,
         choking), as p_a - p_b minus its residual."""
         if P.isothermal:

@@ -197,7 +197,7 @@ def tube_mach(g, result):
     choke = 1.0 / math.sqrt(gamma)
     tt = group_times(g, result, keep)
     out = []
-    use = ("use the default CircularTube(..., compressible='isothermal'), which adds the "
+    use = ("use the default CircularTube(..., compressible='pipe_flow'), which adds the "
            "gas's acceleration and chokes")
     for j in np.flatnonzero(peak >= NEAR_MACH):
         c = g.comps[keep[j]]
@@ -233,7 +233,7 @@ def tube_isothermal_flow(g, result):
     # an isothermal scene's gas tube with the pipe-flow law (a thermal scene's is
     # adiabatic already); an ideal gas, whose adiabatic law is known
     if (fluid is None or not fluid.compressible or getattr(comp0, "_thermal", None) is not None
-            or getattr(comp0, "compressible", None) != "isothermal"
+            or getattr(comp0, "compressible", None) != "pipe_flow"
             or not isinstance(fluid, IdealGas)):
         return []
     keep, mf = group_values(g, result, "massflow_a")
