@@ -527,6 +527,17 @@ for _name, _d in DURATIONS.items():
 
 
 # -- the reference's own checks -------------------------------------------------------------
+def _checker(rows: list, verbose: bool) -> Callable[[str, float, float], None]:
+    """check(what, err, tol) of the self-checks: appends (what, err, tol) to
+    ``rows``, prints it if ``verbose``, and asserts err <= tol."""
+    def check(what: str, err: float, tol: float) -> None:
+        rows.append((what, err, tol))
+        if verbose:
+            print(f"  {'ok ' if err <= tol else 'BAD'} {what}: {err:.3g} (tol {tol:g})")
+        assert err <= tol, f"{what}: {err:.3g} > {tol:g}"
+    return check
+
+
 def self_check(verbose: bool = True) -> list[tuple[str, float, float]]:
     """Limiting cases and cross-checks; returns (what, relative error, tolerance)
     rows and raises AssertionError on the first failure."""
@@ -534,12 +545,7 @@ def self_check(verbose: bool = True) -> list[tuple[str, float, float]]:
     from fluids.friction import Haaland
 
     rows = []
-
-    def check(what, err, tol):
-        rows.append((what, err, tol))
-        if verbose:
-            print(f"  {'ok ' if err <= tol else 'BAD'} {what}: {err:.3g} (tol {tol:g})")
-        assert err <= tol, f"{what}: {err:.3g} > {tol:g}"
+    check = _checker(rows, verbose)
 
     # friction
     for Re in (4000.0, 2e4, 3e5):
@@ -629,12 +635,7 @@ def scene_checks(results: dict[str, SceneResult] | None = None, verbose: bool = 
     more) and its pressures against a second integrator (LSODA, rtol 1e-8)."""
     results = results or {name: fn() for name, fn in SCENE_FUNCTIONS.items()}
     rows = []
-
-    def check(what, err, tol):
-        rows.append((what, err, tol))
-        if verbose:
-            print(f"  {'ok ' if err <= tol else 'BAD'} {what}: {err:.3g} (tol {tol:g})")
-        assert err <= tol, f"{what}: {err:.3g} > {tol:g}"
+    check = _checker(rows, verbose)
 
     # fill: a constant choked flow G* A from the constant supply, so the tank's pressure
     # rises linearly until it reaches G* c
@@ -1253,12 +1254,7 @@ def self_check_adiabatic(verbose: bool = True) -> list[tuple[str, float, float]]
     from fluids.compressible import P_critical_flow, P_stagnation, T_critical_flow
 
     rows = []
-
-    def check(what, err, tol):
-        rows.append((what, err, tol))
-        if verbose:
-            print(f"  {'ok ' if err <= tol else 'BAD'} {what}: {err:.3g} (tol {tol:g})")
-        assert err <= tol, f"{what}: {err:.3g} > {tol:g}"
+    check = _checker(rows, verbose)
 
     # the Fanno function and pressure ratio against the gamma = 1.4 tables (absolute, to
     # half a unit of the table's last digit)
@@ -1385,12 +1381,7 @@ def scene_checks_adiabatic(results: dict[str, AdiabaticSceneResult] | None = Non
     rtol 1e-9)."""
     results = results or {name: fn() for name, fn in ADIABATIC_SCENE_FUNCTIONS.items()}
     rows = []
-
-    def check(what, err, tol):
-        rows.append((what, err, tol))
-        if verbose:
-            print(f"  {'ok ' if err <= tol else 'BAD'} {what}: {err:.3g} (tol {tol:g})")
-        assert err <= tol, f"{what}: {err:.3g} > {tol:g}"
+    check = _checker(rows, verbose)
 
     g = GAMMA_AIR
     # fill: a constant choked flow mdot* = G*(p_s, T_s) A, so U, the mass and p = (gamma-1)

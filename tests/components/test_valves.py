@@ -811,31 +811,25 @@ def _tesla_fill(valve, pressure=None):
     return s
 
 
-def test_a_thermal_tesla_valve_is_the_tubes_adiabatic_law():
-    """In an adiabatic scene a gas's Tesla valve is adiabatic (Fanno) pipe flow
-    with its friction term, as a tube is: with diodicity 1 it is the tube, to
-    Newton's tolerance, forward and back (the source falls below the tank)."""
-    kw = dict(length=0.1, diameter=1.5e-3)
+def _same_adiabatic_run_as_its_tube(valve):
+    """``valve`` (a passage 0.1 m x 1.5 mm) and the tube of that passage fill a
+    tank and let it back out (_tesla_fill) in an adiabatic scene: the same run,
+    to 1e-6 of the tank's pressure and temperature. Returns the valve's run."""
     runs = [sf.Simulation(_tesla_fill(v), duration=0.03, thermal="adiabatic").run()
-            for v in (TeslaValve("tv", sf.air, diodicity=1.0, **kw),
-                      sf.CircularTube("tv", sf.air, **kw))]
+            for v in (valve, sf.CircularTube("tv", sf.air, length=0.1, diameter=1.5e-3))]
     for name in ("pressure", "temperature"):
         np.testing.assert_allclose(runs[0].get("tank", name), runs[1].get("tank", name),
                                    rtol=1e-6)
-    mf = runs[0].get("tv", "massflow_a")
-    assert mf.max() > 0 > mf.min()
+    return runs[0]
 
 
-@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
-def test_a_thermal_tesla_valves_sensitivities_are_its_adiabatic_laws():
-    """The thermal Tesla valve's parameter derivatives (through its friction
-    term, into the adiabatic law) against central differences of whole runs at
-    fixed steps, forward and back: length, diameter and diodicity within 1e-6
-    of the largest (measured <= 1.6e-7)."""
-    valve = TeslaValve("tv", sf.air, length=0.1, diameter=1.5e-3, diodicity=3.0)
+def _thermal_sensitivities_match_differences(valve, names):
+    """The adiabatic fill's sensitivities to ``names`` ((parameter, value)) against
+    central differences of whole runs at fixed steps (relative step 1e-5): the
+    tank's pressure and temperature and the valve's flow within 1e-6 of the
+    largest."""
     sim = sf.Simulation(_tesla_fill(valve), duration=0.03, step=1e-3, newton_rtol=1e-12,
                         thermal="adiabatic")
-    names = [("tv.length", 0.1), ("tv.diameter", 1.5e-3), ("tv.diodicity", 3.0)]
     res = sim.run(sensitivities=[n for n, _ in names])
     for key, value in names:
         h = 1e-5 * value
@@ -844,6 +838,26 @@ def test_a_thermal_tesla_valves_sensitivities_are_its_adiabatic_laws():
             fd = (up.get(label, var) - down.get(label, var)) / (2 * h)
             err = np.abs(res.sensitivity(label, var, key) - fd).max() / np.abs(fd).max()
             assert err < 1e-6, (key, label, var, err)
+
+
+def test_a_thermal_tesla_valve_is_the_tubes_adiabatic_law():
+    """In an adiabatic scene a gas's Tesla valve is adiabatic (Fanno) pipe flow
+    with its friction term, as a tube is: with diodicity 1 it is the tube, to
+    Newton's tolerance, forward and back (the source falls below the tank)."""
+    mf = _same_adiabatic_run_as_its_tube(
+        TeslaValve("tv", sf.air, length=0.1, diameter=1.5e-3, diodicity=1.0)
+    ).get("tv", "massflow_a")
+    assert mf.max() > 0 > mf.min()
+
+
+@pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
+def test_a_thermal_tesla_valves_sensitivities_are_its_adiabatic_laws():
+    """The thermal Tesla valve's parameter derivatives (through its friction
+    term, into the adiabatic law), forward and back: length, diameter and
+    diodicity within 1e-6 (measured <= 1.6e-7)."""
+    _thermal_sensitivities_match_differences(
+        TeslaValve("tv", sf.air, length=0.1, diameter=1.5e-3, diodicity=3.0),
+        [("tv.length", 0.1), ("tv.diameter", 1.5e-3), ("tv.diodicity", 3.0)])
 
 
 def _open_snapping_valve():
@@ -857,28 +871,13 @@ def test_an_open_thermal_snapping_valve_is_the_tubes_adiabatic_law():
     """In an adiabatic scene an open snapping valve of a gas is its passage's
     adiabatic (Fanno) pipe flow, as a tube of that passage is: the same run to
     1e-6, forward and back."""
-    runs = [sf.Simulation(_tesla_fill(v), duration=0.03, thermal="adiabatic").run()
-            for v in (_open_snapping_valve(),
-                      sf.CircularTube("tv", sf.air, length=0.1, diameter=1.5e-3))]
-    assert np.all(runs[0].get("tv", "open") == 1.0)
-    for name in ("pressure", "temperature"):
-        np.testing.assert_allclose(runs[0].get("tank", name), runs[1].get("tank", name),
-                                   rtol=1e-6)
+    run = _same_adiabatic_run_as_its_tube(_open_snapping_valve())
+    assert np.all(run.get("tv", "open") == 1.0)
 
 
 @pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
 def test_an_open_thermal_snapping_valves_sensitivities_are_its_adiabatic_laws():
     """Its passage's length and diameter through the adiabatic law's friction
-    term, against central differences of whole runs at fixed steps: within 1e-6
-    of the largest."""
-    sim = sf.Simulation(_tesla_fill(_open_snapping_valve()), duration=0.03, step=1e-3,
-                        newton_rtol=1e-12, thermal="adiabatic")
-    names = [("tv.length", 0.1), ("tv.diameter", 1.5e-3)]
-    res = sim.run(sensitivities=[n for n, _ in names])
-    for key, value in names:
-        h = 1e-5 * value
-        up, down = sim.run(params={key: value + h}), sim.run(params={key: value - h})
-        for label, var in (("tank", "pressure"), ("tank", "temperature"), ("tv", "massflow_a")):
-            fd = (up.get(label, var) - down.get(label, var)) / (2 * h)
-            err = np.abs(res.sensitivity(label, var, key) - fd).max() / np.abs(fd).max()
-            assert err < 1e-6, (key, label, var, err)
+    term: within 1e-6."""
+    _thermal_sensitivities_match_differences(
+        _open_snapping_valve(), [("tv.length", 0.1), ("tv.diameter", 1.5e-3)])

@@ -318,11 +318,6 @@ def test_softflow_choked_scene_matches_reference(name):
             f"range {reference.pressure_range:.6g} Pa")
 
 
-@functools.lru_cache(maxsize=None)
-def _adiabatic_reference(name):
-    return ref.ADIABATIC_SCENE_FUNCTIONS[name]()
-
-
 @pytest.mark.parametrize("name", SCENE_NAMES)
 def test_softflow_adiabatic_scene_matches_the_fanno_reference(name):
     """thermal='adiabatic' at the default settings: the tube is adiabatic (Fanno)
@@ -331,7 +326,7 @@ def test_softflow_adiabatic_scene_matches_the_fanno_reference(name):
     of the scene's pressure range and every gas temperature within 2 % of its
     temperature range over the whole run (measured 0.04-0.08 % and
     0.02-0.29 %), no tube warned of."""
-    reference = _adiabatic_reference(name)
+    reference = _reference_adiabatic(name)
     with warnings.catch_warnings(record=True):
         warnings.simplefilter("always")
         result = sf.Simulation(gas_scenes.scene(name), duration=reference.duration,
