@@ -129,6 +129,11 @@ def _rtol(result):
     return float(result.stats.get("rtol", 1e-3))
 
 
+def _limit(result, floor):
+    """A check's limit that follows the run's tolerance: max(10 rtol, floor)."""
+    return max(10.0 * _rtol(result), floor)
+
+
 # -- tubes ---------------------------------------------------------------------------
 def tube_reynolds(g, result):
     comp0 = g.comps[0]
@@ -247,7 +252,7 @@ def tube_isothermal_flow(g, result):
     G = np.abs(mf) / area
     # choked: the downstream pressure below the exit's G c (isothermal Mach 1)
     choked = np.minimum(pa, pb) < G * math.sqrt(RT)
-    limit = max(10.0 * _rtol(result), 1e-2)
+    limit = _limit(result, 1e-2)
     tt = group_times(g, result, keep)
     gamma = float(fluid.gamma0)
     out = []
@@ -399,7 +404,7 @@ def gas_compressibility(g, result):
             T = [float(np.nanmin(temps)), float(np.nanmax(temps))]
     except KeyError:
         pass
-    limit = max(10 * _rtol(result), 1e-3)
+    limit = _limit(result, 1e-3)
     # the bound grows with |p|: where it stays short of a near miss at the largest
     # |p| of all the volumes, no volume is asked below (one bound instead of one
     # per volume, and no NaN-aware reductions)
@@ -578,7 +583,7 @@ def adiabatic_time_scale(g, result):
     k = np.argmax(dev, axis=0)
     cols = np.arange(len(keep))
     peak = dev[k, cols]
-    limit = max(10 * _rtol(result), 1e-2)
+    limit = _limit(result, 1e-2)
     significant = peak > limit * Tw
     if not significant.any():
         return []
@@ -661,7 +666,7 @@ def tube_inertia(g, result):
     _, pa = group_values(g, result, "pressure_a")
     _, pb = group_values(g, result, "pressure_b")
     t = group_times(g, result, keep)
-    limit = max(10 * _rtol(result), 1e-2)
+    limit = _limit(result, 1e-2)
     jump = np.abs(np.diff(mf, axis=0))
     with np.errstate(all="ignore"):
         rate = jump / np.diff(t, axis=0)
