@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..constants import pressure_atmospheric
-from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, fRe_blended,
-                                     friction_Haaland, resolve_friction, roughness_terms,
-                                     smoothstep)
+from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, compiled_kind,
+                                     fRe_blended, friction_Haaland, resolve_friction,
+                                     roughness_terms, smoothstep)
 from ..correlations.fanno import adiabatic_pipe
 from ..correlations.gas_pipe import isothermal_pipe
 from ..fluids.ideal import IdealGas
@@ -226,7 +226,16 @@ def adiabatic_drop(P, pa, mf, pb, T_up, Phi, Phi_mf, jac):
 
 
 def gas_pipe_drop(P, pa, mf, pb, jac):
-    """:func:`isothermal_drop` of a group of gas tubes, with their friction term."""
+    """:func:`isothermal_drop` of a group of gas tubes, with their friction term;
+    for an ideal gas with an analytic friction correlation (``P.kind``, see
+    :func:`set_compiled_law`) in one compiled pass over the group
+    (:func:`softflow.laws.tube.isothermal_drop`, the same laws)."""
+    if P.kind is not None:
+        n = P.n
+        out = np.empty((4, n))
+        _tube_laws().isothermal_drop_array(P.kind, P.Re_lo, P.Re_hi, pa, mf, pb, P.re_per_mf,
+                                           P.c_mu, P.eD, P.kind_terms, P.area, P.c2, *out)
+        return (out[0], out[1], out[2], out[3]) if jac else (out[0], None, None, None)
     Phi, pm, c_mu, mu_ratio, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
     if not jac:
         return isothermal_drop(P, pa, mf, pb, Phi, None, None, False)
@@ -255,6 +264,30 @@ def gas_pipe_parameter_derivative(P, V, name, T_up=None):
     :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS`."""
     Phi, Phi_theta, _ = friction_parameter_derivative(P, V, name)
     return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up)
+
+
+def set_compiled_law(P):
+    """Whether the group's gas law runs as one compiled pass
+    (:func:`gas_pipe_drop`): ``P.kind``, the compiled id of its friction
+    correlation, for an ideal gas on the isothermal pipe-flow law with a
+    constant viscosity and an analytic correlation, else None; ``P.kind_terms``
+    what the correlation takes from the roughness (Haaland's term, or eD)."""
+    P.kind = None
+    if P.isothermal and P.c2 is not None and not P.variable_mu:
+        P.kind = compiled_kind(P.turbulent)
+        P.kind_terms = P.eD if P.friction_terms is None else P.friction_terms
+
+
+_laws = None
+
+
+def _tube_laws():
+    """:mod:`softflow.laws.tube`, imported at the first use (numba's import)."""
+    global _laws
+    if _laws is None:
+        from ..laws import tube
+        _laws = tube
+    return _laws
 
 
 def set_isothermal_law(P, isothermal, adiabatic=True):
@@ -423,6 +456,7 @@ class CircularTube(LibraryComponent):
         # what the turbulent law computes from the roughness alone, once per group
         # (make_params runs again for a run that changes a roughness or diameter)
         P.friction_terms = roughness_terms(P.turbulent, P.eD)
+        set_compiled_law(P)
         # one tube: its residual evaluates the law on NumPy scalars (P.one: this P
         # with its per-instance values as np.float64), ~31 k instead of ~106 k
         # instructions a call without Jacobian. The same arithmetic, bitwise: +-*/

@@ -1,19 +1,68 @@
 """Darcy friction factors, vectorized, each with its derivative in Re.
 
-The reference implementations are ``fluids.friction`` (Caleb Bell); the tests
-compare these array versions against them. Array versions exist because
-the solver evaluates thousands of tubes per call and needs dF/dRe.
+The laws themselves are the compiled scalar functions of
+:mod:`softflow.laws.friction` (one place, callable from compiled code); the
+functions here apply them to arrays (any shapes that broadcast; floats give
+floats). The reference implementations are ``fluids.friction`` (Caleb Bell);
+the tests compare against them.
 """
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 _LN10 = np.log(10.0)
+_laws = None
+
+
+def compiled():
+    """:mod:`softflow.laws.friction`, imported at the first use (importing numba
+    costs about 0.35 s: not at ``import softflow``)."""
+    global _laws
+    if _laws is None:
+        from ..laws import friction
+        _laws = friction
+    return _laws
+
+
+def prepared(*xs):
+    """The arguments as 1-D C-contiguous float64 arrays of one length (their
+    broadcast), and the result's shape (``()`` where all are scalars): one
+    type signature for the compiled loops."""
+    shape = np.broadcast_shapes(*[np.shape(x) for x in xs])
+    n = math.prod(shape)
+    out = []
+    for x in xs:
+        if (type(x) is np.ndarray and x.shape == shape and x.dtype == np.float64
+                and x.flags.c_contiguous):
+            out.append(x.reshape(n))
+        else:
+            out.append(np.ascontiguousarray(
+                np.broadcast_to(np.asarray(x, dtype=np.float64), shape)).reshape(n))
+    return shape, out
+
+
+def shaped(shape, *arrays):
+    """The loops' outputs in the result's shape (floats for ``()``)."""
+    if shape == ():
+        return tuple(float(a[0]) for a in arrays)
+    return tuple(a.reshape(shape) for a in arrays)
 
 
 def friction_laminar(Re):
     """Hagen–Poiseuille Darcy friction factor f = 64/Re (valid for Re < ~2300)."""
     return 64.0 / Re
+
+
+def _turbulent(kind, Re, eD, derivative, a=None):
+    law = compiled()
+    shape, (Re, eD) = prepared(Re, eD)
+    a = eD if a is None else prepared(a, Re)[1][0]
+    f, df = np.empty(Re.size), np.empty(Re.size)
+    law.turbulent_array(kind, Re, eD, a, f, df)
+    f, df = shaped(shape, f, df)
+    return f, (df if derivative else None)
 
 
 def friction_Haaland(Re, eD, *, derivative=True, terms=None):
@@ -31,14 +80,7 @@ def friction_Haaland(Re, eD, *, derivative=True, terms=None):
     Returns (f, df/dRe); df is None without ``derivative``.
     """
     a = _haaland_terms(eD) if terms is None else terms
-    arg = a + 6.9 / Re
-    y = -1.8 * np.log(arg) / _LN10
-    f = 1.0 / (y * y)
-    if not derivative:
-        return f, None
-    dy = 1.8 / _LN10 * (6.9 / (Re * Re)) / arg
-    df = -2.0 * f / y * dy
-    return f, df
+    return _turbulent(compiled().HAALAND, Re, eD, derivative, a)
 
 
 def _haaland_terms(eD):
@@ -48,14 +90,11 @@ def _haaland_terms(eD):
 def smoothstep(x, lo, hi, derivative=True):
     """C1 step from 0 (x <= lo) to 1 (x >= hi): 3s^2 - 2s^3; returns (w, dw/dx),
     dw/dx None without ``derivative``."""
-    # minimum(maximum()): np.clip's values, without its dispatch (~2 us a call on
-    # the one-tube arrays of small scenes)
-    s = np.minimum(np.maximum((x - lo) / (hi - lo), 0.0), 1.0)
-    w = s * s * (3.0 - 2.0 * s)
-    if not derivative:
-        return w, None
-    dw = 6.0 * s * (1.0 - s) / (hi - lo)
-    return w, dw
+    shape, (x, lo, hi) = prepared(x, lo, hi)
+    w, dw = np.empty(x.size), np.empty(x.size)
+    compiled().smoothstep_array(x, lo, hi, w, dw)
+    w, dw = shaped(shape, w, dw)
+    return w, (dw if derivative else None)
 
 
 def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivative=True,
@@ -67,34 +106,41 @@ def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivativ
 
     ``turbulent(Re, eD, derivative=...) -> (f, df/dRe)`` defaults to
     :func:`friction_Haaland`; ``terms``, what :func:`roughness_terms` made for it
-    and this eD, is passed on to it (``terms=``) where given.
+    and this eD, is passed on to it (``terms=``) where given. The analytic
+    correlations (:data:`ANALYTIC_FRICTION`) are evaluated by the compiled law
+    (:func:`softflow.laws.friction.fRe_blended`); another callable (a
+    :class:`FrictionTable`) is called at max(Re, Re_lo) and blended by the
+    same compiled blend.
     f·Re stays finite at Re = 0, which lets a tube write Δp = C·(f·Re)·ṁ with
     a derivative that never vanishes at zero flow.
     """
-    if isinstance(Re, float):     # one value stays a scalar (a 0-d array costs more)
-        lowest = Re
+    law = compiled()
+    kind = compiled_kind(turbulent or friction_Haaland)
+    shape, (Re, eD) = prepared(Re, eD)
+    phi, dphi = np.empty(Re.size), np.empty(Re.size)
+    if kind is not None:
+        if kind == law.HAALAND:
+            a = prepared(_haaland_terms(eD) if terms is None else terms, Re)[1][0]
+        else:
+            a = eD
+        law.fRe_blended_array(kind, Re, eD, a, float(Re_lo), float(Re_hi), phi, dphi)
     else:
-        Re = np.asarray(Re, dtype=float)
-        lowest = Re.item() if Re.size == 1 else Re.min(initial=np.inf)
-    law = turbulent or friction_Haaland
-    kw = {"derivative": derivative} if terms is None else {"derivative": derivative,
-                                                          "terms": terms}
-    if Re_lo <= Re_hi and lowest >= Re_hi:
-        # all past the blend (w = 1, dw = 0): f·Re of the turbulent law itself, the
-        # blend's value bitwise (64 + (phit - 64) is exact for phit >= 32, and f·Re
-        # of a turbulent law is far above that), without the smoothstep's arithmetic
-        ft, dft = law(Re, eD, **kw)
-        return ft * Re, (ft + Re * dft if derivative else None)
-    w, dw = smoothstep(Re, Re_lo, Re_hi, derivative)
-    Ret = np.maximum(Re, Re_lo)  # the turbulent law is only needed (and finite) above Re_lo
-    ft, dft = law(Ret, eD, **kw)
-    phit = ft * Ret
-    phi = 64.0 + w * (phit - 64.0)
-    if not derivative:
-        return phi, None
-    dphit = np.where(Re > Re_lo, ft + Ret * dft, 0.0)
-    dphi = dw * (phit - 64.0) + w * dphit
-    return phi, dphi
+        ft, dft = turbulent(np.maximum(Re, Re_lo), eD, derivative=True)
+        ft, dft = prepared(ft, Re)[1][0], prepared(dft, Re)[1][0]
+        law.blend_array(Re, ft, dft, float(Re_lo), float(Re_hi), phi, dphi)
+    phi, dphi = shaped(shape, phi, dphi)
+    return phi, (dphi if derivative else None)
+
+
+def compiled_kind(turbulent):
+    """The id of the correlation ``turbulent`` (one of :data:`ANALYTIC_FRICTION`'s
+    functions, or None for 'laminar') in the compiled laws
+    (:mod:`softflow.laws.friction`); None for another law (a table)."""
+    law = compiled()
+    if turbulent is None:
+        return law.LAMINAR
+    name = _KIND.get(turbulent)
+    return None if name is None else getattr(law, name)
 
 
 def roughness_terms(turbulent, eD):
@@ -118,15 +164,7 @@ def friction_Swamee_Jain_1976(Re, eD, *, derivative=True):
 
     Returns (f, df/dRe); df is None without ``derivative``.
     """
-    s = (6.97 / Re) ** 0.9
-    arg = s + eD / 3.7
-    y = np.log(arg) / _LN10
-    f = 0.25 / (y * y)
-    if not derivative:
-        return f, None
-    dy = -0.9 * s / Re / (arg * _LN10)
-    df = -2.0 * f / y * dy
-    return f, df
+    return _turbulent(compiled().SWAMEE_JAIN, Re, eD, derivative)
 
 
 def friction_Churchill_1977(Re, eD, *, derivative=True):
@@ -140,33 +178,16 @@ def friction_Churchill_1977(Re, eD, *, derivative=True):
 
     Returns (f, df/dRe); df is None without ``derivative``.
     """
-    s = (7.0 / Re) ** 0.9
-    u = s + 0.27 * eD
-    L = -np.log(u)
-    A = (2.457 * L) ** 16
-    B = (37530.0 / Re) ** 16
-    T = (A + B) ** -1.5
-    lam = (8.0 / Re) ** 12
-    X = lam + T
-    f = 8.0 * X ** (1.0 / 12.0)
-    if not derivative:
-        return f, None
-    dL = 0.9 * s / Re / u                 # d/dRe of -ln(u)
-    dA = 16.0 * A / L * dL
-    dB = -16.0 * B / Re
-    dT = -1.5 * T / (A + B) * (dA + dB)
-    dX = -12.0 * lam / Re + dT
-    df = f / 12.0 * dX / X
-    return f, df
+    return _turbulent(compiled().CHURCHILL, Re, eD, derivative)
 
 
-def friction_Colebrook(Re, eD, *, iterations=8, derivative=True):
+def friction_Colebrook(Re, eD, *, derivative=True):
     """Colebrook (1939) implicit equation solved to round-off, and df/dRe.
 
     1/sqrt(f) = -2 log10(eD/3.7 + 2.51/(Re sqrt(f))), the reference turbulent
-    law behind the Moody chart. Solved by Newton's method on x = 1/sqrt(f),
-    vectorized, from Haaland's value (within 2 %), so a fixed handful of
-    iterations reach round-off; df/dRe by implicit differentiation.
+    law behind the Moody chart. Solved by Newton's method on x = 1/sqrt(f)
+    from Haaland's value (within 2 %), so a handful of iterations reach
+    round-off; df/dRe by implicit differentiation.
 
     Colebrook, C.F., "Turbulent flow in pipes, with particular reference to the
     transition region between the smooth and rough pipe laws",
@@ -174,27 +195,7 @@ def friction_Colebrook(Re, eD, *, iterations=8, derivative=True):
 
     Returns (f, df/dRe); df is None without ``derivative``.
     """
-    Re = np.asarray(Re, dtype=float)
-    a = np.asarray(eD, dtype=float) / 3.7
-    b = 2.51 / Re
-    x = 1.0 / np.sqrt(friction_Haaland(Re, eD)[0])
-    c = 2.0 / _LN10
-    for _ in range(iterations):
-        w = a + b * x
-        g = x + c * np.log(w)
-        dx = g / (1.0 + c * b / w)
-        x = x - dx
-        if np.all(np.abs(dx) <= 1e-15 * x):
-            break
-    if not derivative:
-        return 1.0 / (x * x), None
-    w = a + b * x
-    dg_dx = 1.0 + c * b / w
-    dg_dRe = -c * b * x / (w * Re)          # db/dRe = -b/Re
-    dx_dRe = -dg_dRe / dg_dx
-    f = 1.0 / (x * x)
-    df = -2.0 * f / x * dx_dRe
-    return f, df
+    return _turbulent(compiled().COLEBROOK, Re, eD, derivative)
 
 
 class FrictionTable:
@@ -266,6 +267,10 @@ ANALYTIC_FRICTION = {
     "Churchill_1977": friction_Churchill_1977,
     "Swamee_Jain_1976": friction_Swamee_Jain_1976,
 }
+
+#: the analytic correlations' ids in the compiled laws (names of laws.friction's constants)
+_KIND = {friction_Haaland: "HAALAND", friction_Colebrook: "COLEBROOK",
+         friction_Churchill_1977: "CHURCHILL", friction_Swamee_Jain_1976: "SWAMEE_JAIN"}
 
 _ALIASES = {"churchill": "Churchill_1977", "swamee_jain": "Swamee_Jain_1976",
             "hagen_poiseuille": "laminar", "poiseuille": "laminar"}

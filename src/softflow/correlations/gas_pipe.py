@@ -48,18 +48,30 @@ Each function works on floats and NumPy arrays alike.
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import lambertw
 
-_INV_E = float(np.exp(-1.0))
-#: the largest a below 1/e (scipy's W0 is nan at the float nearest -1/e)
-_A_MAX = float(np.nextafter(_INV_E, 0.0))
+from .friction import prepared, shaped
+
+_laws = None
+
+
+def compiled():
+    """:mod:`softflow.laws.gas_pipe`, imported at the first use."""
+    global _laws
+    if _laws is None:
+        from ..laws import gas_pipe
+        _laws = gas_pipe
+    return _laws
 
 
 def entry_z(a):
     """z in [0, 1] with z exp(-z) = a: the isothermal entry's z = M1^2 from
-    a = G^2 c^2 / p0^2, the principal branch z = -W0(-a) (scipy's Lambert W),
-    held at 1 from a = 1/e on (the entry's limit, see the module)."""
-    return np.minimum(-lambertw(-np.minimum(a, _A_MAX)).real, 1.0)
+    a = G^2 c^2 / p0^2, the principal branch z = -W0(-a) of Lambert's W,
+    held at 1 from a = 1/e on (the entry's limit, see the module); the
+    compiled :func:`softflow.laws.gas_pipe.entry_z`."""
+    shape, (a,) = prepared(a)
+    z = np.empty(a.size)
+    compiled().entry_z_array(a, z)
+    return shaped(shape, z)[0]
 
 
 def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True, c2_partial=True):
@@ -71,80 +83,20 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi, jac=True, c2_partial=True):
 
     Returns (R, dR/dpa, dR/dmf, dR/dpb, dR/dc2, dR/dphi, choked), the partials
     None without ``jac`` (dR/dc2 None without ``c2_partial``, for a constant
-    c2); ``choked`` is True where the exit runs at Mach 1.
-    The selections (reverse flow, the choke, the entry's limit) are made only
-    where some instance needs them: the common case (all forward, none
-    choked) costs a third fewer array operations.
+    c2); ``choked`` is True where the exit runs at Mach 1. Arrays that
+    broadcast (floats give floats), evaluated by the compiled
+    :func:`softflow.laws.gas_pipe.isothermal_pipe`.
     """
-    # (the flags by the arrays' own methods: np.all's dispatch costs ~2 us a call)
-    forward = np.asarray(mf >= 0.0)
-    all_forward = bool(forward.all())
-    if all_forward:
-        p0, pd, sign = pa, pb, 1.0
-    else:
-        p0 = np.where(forward, pa, pb)
-        pd = np.where(forward, pb, pa)
-        sign = np.where(forward, 1.0, -1.0)
-    G = np.abs(mf) / area
-    GG = G * G
-    GGc2 = GG * c2
-    c = c2 ** 0.5
-    Gc = G * c
-    p0sq = p0 * p0
-    a = GGc2 / p0sq
-    inside = np.asarray(a < _INV_E)
-    all_inside = bool(inside.all())
-    z = entry_z(a)
-    p1 = p0 * np.exp(-0.5 * z)
-    if not all_inside:
-        # past the entry's limit (an iterate only): the inlet held at Mach 1,
-        # p1 = G c, which meets p0 e^-1/2 at the limit, less p0^2 (a - 1/e),
-        # which makes F C1 there and keeps it falling beyond (see the module)
-        p1 = np.where(inside, p1, Gc)
-    p1sq = p1 * p1
-    choked = np.asarray(pd < Gc)
-    any_choked = bool(choked.any())
-    pe = np.where(choked, Gc, pd) if any_choked else pd
-    log_ratio = np.log(p1 / pe)
-    # F: the forward residual in Pa^2 (phi enters with the flow's sign: -2 c2 phi is odd)
-    F_forward = p1sq - pe * pe - 2.0 * GGc2 * log_ratio
-    if not all_inside:
-        F_forward = F_forward - np.where(inside, 0.0, p0sq * (a - _INV_E))
-    F = sign * F_forward - 2.0 * c2 * phi
-    S = pa + pb
-    R = F / S
+    shape, args = prepared(pa, mf, pb, area, c2, phi)
+    n = args[0].size
+    out = [np.empty(n) for _ in range(6)]
+    choked = np.empty(n, dtype=np.bool_)
+    compiled().isothermal_pipe_array(*args, *out, choked)
+    R, R_pa, R_mf, R_pb, R_c2, R_phi = shaped(shape, *out)
+    choked = choked.reshape(shape)
     if not jac:
         return R, None, None, None, None, None, choked
-    # through z: dF/dz at fixed p0 (p1^2 = p0^2 e^-z and the -2 G^2 c2 ln p1 term)
-    # is -p1^2 + G^2 c2 = -p1^2 (1 - z), times dz/da = e^z/(1 - z): -p0^2, finite
-    # up to the entry's limit; with a = G^2 c2 / p0^2. Past the limit the held
-    # inlet and the term -p0^2 (a - 1/e) give the same dF/dG and dF/dc2
-    dF_dp0 = 2.0 * (p1sq - GGc2) / p0 + 2.0 * a * p0
-    dF_dG = -2.0 * G * c2 * (2.0 * log_ratio + 1.0)
-    dF_dc2 = -GG * (2.0 * log_ratio + 1.0) if c2_partial else None
-    if not all_inside:
-        dF_dp0 = np.where(inside, dF_dp0, 2.0 * _INV_E * p0)
-    dF_dpe = 2.0 * (GGc2 - pe * pe) / pe        # zero where the exit chokes (M = 1)
-    dF_dpd = dF_dpe
-    if any_choked:
-        # pe = G c moves with G and c2 (dF/dpe is zero at the choke itself)
-        dF_dpd = np.where(choked, 0.0, dF_dpe)
-        dF_dG = dF_dG + np.where(choked, dF_dpe * c, 0.0)
-        if c2_partial:
-            dF_dc2 = dF_dc2 + np.where(choked, dF_dpe * 0.5 * G / c, 0.0)
-    # back to (pa, mf, pb) with the direction's sign; G = |mf|/A, so dG/dmf = sign/A
-    if all_forward:
-        dF_dpa, dF_dpb = dF_dp0, dF_dpd
-    else:
-        d_p0 = sign * dF_dp0
-        d_pd = sign * dF_dpd
-        dF_dpa = np.where(forward, d_p0, d_pd)
-        dF_dpb = np.where(forward, d_pd, d_p0)
-        if c2_partial:
-            dF_dc2 = sign * dF_dc2
-    inv_S = 1.0 / S
-    return (R, (dF_dpa - R) * inv_S, dF_dG * inv_S / area, (dF_dpb - R) * inv_S,
-            (dF_dc2 - 2.0 * phi) * inv_S if c2_partial else None, -2.0 * c2 * inv_S, choked)
+    return R, R_pa, R_mf, R_pb, (R_c2 if c2_partial else None), R_phi, choked
 
 
 def isothermal_choked_massflow(p0, area, c2, fLD):

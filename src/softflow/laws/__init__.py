@@ -1,0 +1,90 @@
+"""The library's physical laws as compiled scalar functions (numba).
+
+Each law is a plain function of floats that returns its value and its partial
+derivatives, compiled once per install (``cache=True``) and callable from
+other compiled code as it is; the array functions of
+:mod:`softflow.correlations` are thin loops over them, so that a law is
+written once. Settings reach the laws as arguments, never as module globals
+(numba freezes globals into its cache).
+
+``NUMBA_DISABLE_JIT=1`` runs the same functions as plain Python: for
+debugging and coverage, not a second implementation.
+
+The cache: numba keys a cached function on its own source file only, so an
+edit of a law in another file that it calls would leave a stale cache. The
+locators below (tried before numba's own, for the functions of this package
+only) key every function here on the text of all of this package's modules
+and softflow's version instead. Writes are numba's own (a temporary file
+renamed into place), so concurrent first compiles (pytest-xdist or Dask
+workers) are safe: the last one wins with identical contents.
+"""
+from __future__ import annotations
+
+import functools
+import hashlib
+from pathlib import Path
+
+import numba
+from numba.core import caching
+
+from .. import __version__
+
+_PACKAGE = Path(__file__).resolve().parent
+
+
+@functools.lru_cache(maxsize=1)
+def source_stamp() -> bytes:
+    """SHA-256 of softflow's version and of every module of this package (name
+    and text): the key of every cached compiled law."""
+    h = hashlib.sha256(__version__.encode())
+    for path in sorted(_PACKAGE.glob("*.py")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.digest()
+
+
+def _ours(py_file) -> bool:
+    try:
+        return Path(py_file).resolve().parent == _PACKAGE
+    except (OSError, TypeError):
+        return False
+
+
+def _keyed_on_package(base):
+    """A subclass of numba's cache locator ``base`` that takes only this
+    package's functions and stamps them with :func:`source_stamp`."""
+
+    class Locator(base):
+        def get_source_stamp(self):
+            return source_stamp()
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not _ours(py_file):
+                return None
+            return super().from_function(py_func, py_file)
+
+    Locator.__name__ = Locator.__qualname__ = "Softflow" + base.__name__
+    return Locator
+
+
+def _numba_class(name):
+    # numba's names (public from 0.61 on, with a leading underscore before)
+    return getattr(caching, name, None) or getattr(caching, "_" + name)
+
+
+def _install_locators():
+    classes = _numba_class("CacheImpl")._locator_classes
+    if any(getattr(c, "__name__", "").startswith("Softflow") for c in classes):
+        return
+    ours = [_keyed_on_package(_numba_class(name)) for name in
+            ("UserProvidedCacheLocator", "InTreeCacheLocator", "UserWideCacheLocator")]
+    classes[:0] = ours
+
+
+_install_locators()
+
+#: how every law is compiled: cached; NumPy's floating-point semantics (a
+#: division by zero gives inf or nan, as the array code it replaced did,
+#: instead of raising); no fastmath (the laws' bits are IEEE)
+jit = functools.partial(numba.njit, cache=True, nogil=True, error_model="numpy")

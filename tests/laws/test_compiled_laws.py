@@ -1,0 +1,169 @@
+"""The compiled laws (softflow.laws): the scalar functions themselves against
+``fluids`` and scipy, their partials against differences, the array functions
+of softflow.correlations as loops over them, the pure-Python mode
+(NUMBA_DISABLE_JIT=1) giving the same numbers, and the cache keyed on the
+package's text."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import fluids.friction
+import numpy as np
+import pytest
+from scipy.special import lambertw
+
+import softflow.laws as laws
+from softflow.correlations import friction as arrays
+from softflow.correlations.gas_pipe import entry_z as entry_z_array
+from softflow.correlations.gas_pipe import isothermal_pipe as isothermal_pipe_array
+from softflow.laws import friction as fl
+from softflow.laws import gas_pipe as gl
+
+RE = np.logspace(np.log10(4e3), 8, 25)
+ROUGHNESS = (0.0, 1e-6, 1e-4, 1e-2, 0.05)
+
+
+@pytest.mark.parametrize("scalar, reference", [
+    (lambda Re, eD: fl.haaland(Re, fl.haaland_terms(eD)), fluids.friction.Haaland),
+    (fl.colebrook, fluids.friction.Colebrook),
+    (fl.churchill, fluids.friction.Churchill_1977),
+    (fl.swamee_jain, fluids.friction.Swamee_Jain_1976),
+], ids=["Haaland", "Colebrook", "Churchill_1977", "Swamee_Jain_1976"])
+@pytest.mark.parametrize("eD", ROUGHNESS)
+def test_scalar_friction_laws_match_fluids_with_their_derivative(scalar, reference, eD):
+    for Re in RE:
+        f, df = scalar(float(Re), eD)
+        assert f == pytest.approx(reference(float(Re), eD), rel=1e-12)
+        h = 1e-6 * Re
+        fd = (scalar(Re + h, eD)[0] - scalar(Re - h, eD)[0]) / (2 * h)
+        assert df == pytest.approx(fd, rel=1e-6, abs=1e-9 * abs(f) / Re)
+
+
+@pytest.mark.parametrize("kind", [fl.HAALAND, fl.COLEBROOK, fl.CHURCHILL, fl.SWAMEE_JAIN])
+@pytest.mark.parametrize("bounds", [(2300.0, 4000.0), (1000.0, 1500.0)])
+def test_blended_law_is_laminar_below_turbulent_above_and_C1(kind, bounds):
+    lo, hi = bounds
+    eD = 1e-4
+    a = fl.haaland_terms(eD)
+    assert fl.fRe_blended(kind, 0.5 * lo, eD, a, lo, hi) == (64.0, 0.0)
+    f, df = fl.turbulent(kind, 2.0 * hi, eD, a)
+    phi, dphi = fl.fRe_blended(kind, 2.0 * hi, eD, a, lo, hi)
+    assert (phi, dphi) == pytest.approx((f * 2.0 * hi, f + 2.0 * hi * df), rel=1e-15)
+    for Re in np.linspace(0.9 * lo, 1.1 * hi, 41):
+        h = 1e-3
+        fd = (fl.fRe_blended(kind, Re + h, eD, a, lo, hi)[0]
+              - fl.fRe_blended(kind, Re - h, eD, a, lo, hi)[0]) / (2 * h)
+        assert fl.fRe_blended(kind, Re, eD, a, lo, hi)[1] == pytest.approx(fd, rel=1e-5,
+                                                                             abs=1e-9)
+    assert fl.fRe_blended(fl.LAMINAR, 1e6, eD, a, lo, hi) == (64.0, 0.0)
+
+
+def test_entry_z_solves_z_exp_minus_z_on_the_principal_branch():
+    a = np.logspace(-300, np.log10(0.36), 5001)
+    z = np.array([gl.entry_z(float(x)) for x in a])
+    np.testing.assert_allclose(z, -lambertw(-a).real, rtol=1e-14)
+    # near the entry's limit z is ill-conditioned (dz/da infinite at a = 1/e:
+    # a's round-off moves z by sqrt(2e da) ~ 2e-8): the equation holds to round-off
+    near = np.exp(-1.0) * (1.0 - np.logspace(-15, -1, 200))
+    zn = np.array([gl.entry_z(float(x)) for x in near])
+    assert (zn <= 1.0).all()
+    np.testing.assert_allclose(zn, -lambertw(-near).real, rtol=0, atol=3e-8)
+    np.testing.assert_allclose(zn * np.exp(-zn), near, rtol=4e-16)
+    assert gl.entry_z(0.0) == 0.0
+    assert gl.entry_z(np.exp(-1.0)) == 1.0 and gl.entry_z(10.0) == 1.0
+    assert np.isnan(gl.entry_z(float("nan")))
+    np.testing.assert_array_equal(entry_z_array(a), z)
+
+
+def _states(n=400, seed=7):
+    rng = np.random.default_rng(seed)
+    pa = rng.uniform(0.2e5, 10e5, n)
+    pb = pa * rng.uniform(0.05, 1.5, n)
+    area = np.pi * rng.uniform(2e-4, 5e-3, n) ** 2 / 4
+    c2 = 287.05 * rng.uniform(250.0, 400.0, n)
+    # flux up to past the entry's limit, either direction
+    mf = rng.uniform(-1.3, 1.3, n) * np.maximum(pa, pb) / np.sqrt(c2) * area * 0.6
+    phi = rng.uniform(0.0, 3.0, n) * mf / area ** 2 * 1e-3
+    return pa, mf, pb, area, c2, phi
+
+
+def test_isothermal_pipe_partials_match_central_differences():
+    for pa, mf, pb, area, c2, phi in zip(*_states()):
+        out = gl.isothermal_pipe(pa, mf, pb, area, c2, phi)
+        args = [pa, mf, pb, area, c2, phi]
+        for k, arg in ((1, 0), (2, 1), (3, 2), (4, 4), (5, 5)):
+            h = 1e-7 * max(abs(args[arg]), 1e-9 if arg == 1 else 1.0)
+            up, down = list(args), list(args)
+            up[arg] += h
+            down[arg] -= h
+            fd = (gl.isothermal_pipe(*up)[0] - gl.isothermal_pipe(*down)[0]) / (2 * h)
+            scale = abs(out[0]) / abs(args[arg]) if args[arg] else abs(fd)
+            assert out[k] == pytest.approx(fd, rel=1e-5, abs=1e-7 * scale + 1e-12), (k, args)
+
+
+def test_array_law_is_the_scalar_law_elementwise():
+    states = _states()
+    R, R_pa, R_mf, R_pb, R_c2, R_phi, choked = isothermal_pipe_array(*states)
+    for i, args in enumerate(zip(*states)):
+        assert (R[i], R_pa[i], R_mf[i], R_pb[i], R_c2[i], R_phi[i], choked[i]) == \
+            gl.isothermal_pipe(*args)
+    assert choked.any() and not choked.all()
+    # scalars broadcast against arrays; floats give floats
+    one = isothermal_pipe_array(2e5, 1e-3, 1e5, 1e-6, 287.0 * 293.0, 0.0)
+    assert isinstance(one[0], float) and one[0] == gl.isothermal_pipe(
+        2e5, 1e-3, 1e5, 1e-6, 287.0 * 293.0, 0.0)[0]
+
+
+# -- the pure-Python mode and the cache ---------------------------------------------------
+_PROBE = """
+import json, sys
+import numpy as np
+import softflow.laws as laws
+from softflow.laws import friction as fl, gas_pipe as gl
+out = [fl.colebrook(1e5, 1e-4), fl.fRe_blended(fl.HAALAND, 3000.0, 1e-4, fl.haaland_terms(1e-4),
+                                               2300.0, 4000.0),
+       gl.entry_z(0.2), gl.isothermal_pipe(3e5, 2e-3, 1e5, 3e-6, 287.0 * 293.0, 1e3)[:6]]
+hits = sum(len(f.stats.cache_hits) for f in (fl.colebrook, gl.isothermal_pipe)
+           if hasattr(f, "stats"))
+print(json.dumps({"values": out, "jit": not laws.numba.config.DISABLE_JIT, "hits": hits}))
+"""
+
+
+def _probe(**env):
+    run = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
+                         env={**os.environ, **env}, timeout=600)
+    assert run.returncode == 0, run.stderr
+    return json.loads(run.stdout.splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_pure_python_mode_gives_the_compiled_numbers_and_the_cache_is_used():
+    compiled = _probe()
+    again = _probe()
+    assert compiled["jit"] and again["hits"] > 0      # the second process loads the cache
+    python = _probe(NUMBA_DISABLE_JIT="1")
+    assert not python["jit"]
+    np.testing.assert_allclose(np.hstack(python["values"]).astype(float),
+                               np.hstack(compiled["values"]).astype(float), rtol=1e-15)
+
+
+def test_cache_key_is_the_whole_package_text(tmp_path, monkeypatch):
+    for path in Path(laws.__file__).parent.glob("*.py"):
+        (tmp_path / path.name).write_bytes(path.read_bytes())
+    monkeypatch.setattr(laws, "_PACKAGE", tmp_path)
+    laws.source_stamp.cache_clear()
+    try:
+        before = laws.source_stamp()
+        other = tmp_path / "gas_pipe.py"
+        other.write_text(other.read_text() + "\n# an edit in another law's file\n")
+        laws.source_stamp.cache_clear()
+        assert laws.source_stamp() != before
+    finally:
+        laws.source_stamp.cache_clear()
+    # the locators take this package's functions only
+    ours = [c for c in laws._numba_class("CacheImpl")._locator_classes
+            if c.__name__.startswith("Softflow")]
+    assert len(ours) == 3
+    assert all(c.from_function(np.sum, np.__file__) is None for c in ours)
