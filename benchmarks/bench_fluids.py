@@ -4,7 +4,7 @@ For each built-in fluid and level: microseconds per call on a vector of 10 000
 states (density and viscosity at given (p, T), and density at the fluid's own
 temperature, the isothermal path), and the largest relative error of density and
 viscosity against the eos level over the tables' ranges (air, nitrogen:
-0.05-20 MPa x -40...150 degC; water, ethylene glycol: 0.05-20 MPa x 1...95 degC),
+0.01-20 MPa x -40...150 degC; water, ethylene glycol: 0.05-20 MPa x 1...95 degC),
 on those 10 000 random states plus a 60 x 60 grid that includes the corners.
 Last column: the ideal level's density error at 20 MPa and 20 degC.
 

@@ -24,10 +24,10 @@ every network that did not succeed, its ``describe()`` and its message (the
 first 300 characters), with hints: the patterns behind this generator's
 failures so far, read off the network (a flow source at a volume-less node
 whose tubes are inertial, closed or dead ends, a junction of inertial tubes
-only, table air driven below its 0.5 bar), for a person to confirm and to
-classify by physical cause. Issue 37's
-target: >= 95 % complete, none stops on choking (before the isothermal tube
-and nozzle laws, a sample of 140: 84 complete, 24 choke, 30 fail at t = 0).
+only, table air driven below the table's lowest pressure), for a person to
+confirm and to classify by physical cause. Issue 37's target: >= 95 % complete,
+none stops on choking (before the isothermal tube and nozzle laws, a sample of
+140: 84 complete, 24 choke, 30 fail at t = 0).
 """
 from __future__ import annotations
 
@@ -114,7 +114,7 @@ INERTIAL_START = "flow source against inertial tubes at rest, no volume"
 INERTIAL_NODE = "node of inertial tubes only, no volume"
 DEAD_CHECK = "dead end behind a check valve without leakage"
 FLOW_NO_VOLUME = "flow source at a node without volume (closed, dead end or choked outlets)"
-TABLE_LOW = "table air below its 0.5 bar"
+TABLE_LOW = "table air below the table's lowest pressure"
 
 
 def hints(net, outcome=None):
@@ -155,11 +155,12 @@ def hints(net, outcome=None):
                         "their choked capacity)"))
     fluid = next((c.fluid for c in comps.values() if getattr(c, "fluid", None) is not None), None)
     if fluid is not None and getattr(fluid, "level", "ideal") == "table":
+        p_lo = fluid.p_range[0]           # the table's lowest pressure [Pa]
         low = [c.label for c in comps.values() if isinstance(c, sf.PressureSource)
-               and _signal_min(c, net.options["duration"]) < 0.5e5]
+               and _signal_min(c, net.options["duration"]) < p_lo]
         if low:
             out.append((TABLE_LOW, f"pressure source(s) {', '.join(low)} below the air "
-                        "table's 0.5 bar"))
+                        f"table's lowest pressure, {p_lo / 1e5:g} bar"))
     return out
 
 
