@@ -1,8 +1,10 @@
 """A gas's orifice given by its discharge coefficient: the isentropic nozzle law
-(softflow.correlations.orifice.massflow_nozzle), subsonic and choked, against an
-independent textbook formula written here and against ``fluids``; its
-smoothness at the critical ratio and at zero flow; its analytic Jacobians; a
-10 bar blowdown against an independent ODE; its ISO 6358 equivalent; bad input."""
+(softflow.correlations.orifice.massflow_nozzle, the compiled
+softflow.laws.orifice.massflow_nozzle), subsonic and choked, against an
+independent textbook formula written here and against ``fluids``; the
+residual as the compiled scalar law, state by state; its smoothness at the
+critical ratio and at zero flow; its analytic Jacobians; a 10 bar blowdown
+against an independent ODE; its ISO 6358 equivalent; bad input."""
 import math
 import warnings
 
@@ -16,6 +18,7 @@ import softflow as sf
 from softflow.components.valves import CheckValve, Orifice
 from softflow.correlations.orifice import (critical_pressure_ratio, iso_6358_of_nozzle,
                                            massflow_ISO_6358, massflow_nozzle)
+from softflow.laws import orifice as law
 from softflow.solve.params import rebuild
 
 AIR = sf.air
@@ -117,6 +120,27 @@ def test_steady_flow_in_a_network_is_the_nozzle_both_ways():
             res = sf.Simulation(s, duration=1e-2, step=5e-3).run()
         got = res.get("o", "massflow", "a")[-1]
         assert got == pytest.approx(nozzle_reference(pa, pb, Cd, d), rel=1e-9)
+
+
+@pytest.mark.parametrize("fluid", [AIR, AIR.with_level("table"), sf.water],
+                         ids=["nozzle", "nozzle-table", "liquid-Cd"])
+def test_the_residual_evaluates_the_compiled_scalar_law(fluid):
+    """The group's flow and its partials are the compiled law of
+    softflow.laws.orifice at each state, bitwise, both ways and in every regime."""
+    group = _group(fluid)
+    for pa, pb in _regime_pressures(group).values():
+        q, d_a, d_b = _kernel(group, pa, pb)
+        for i, o in enumerate(group):
+            if o.model == "nozzle":
+                p_up = max(pa[i], pb[i])
+                want = law.massflow_nozzle(pa[i], pb[i], float(fluid.density(p_up)),
+                                           float(fluid.density_dp(p_up)), o.gamma, o.Cd,
+                                           o.area, o.dp_small)
+            else:
+                w, w_dp, _ = law.massflow_loss_coefficient(pa[i] - pb[i], fluid.rho, o.K,
+                                                           o.area, o.dp_small)
+                want = (w, w_dp, -w_dp)
+            assert (q[i], d_a[i], d_b[i]) == want
 
 
 # ---------------------------------------------------------------------------------------

@@ -7,6 +7,14 @@ at the band edge, so the result is C1 and its slope at zero flow is finite and
 non-zero: Newton neither divides by an infinite derivative nor stalls on a flat
 one. The same idea as Modelica.Fluid's regularized roots, with its own formula.
 
+The laws that a residual evaluates (the regularized root, the loss-coefficient
+orifice, the critical pressure ratio, the nozzle flow factor and law, ISO
+6358's flow fraction and law) are evaluated by the compiled scalar functions
+of :mod:`softflow.laws.orifice`, written once there; the functions here are
+thin array wrappers over them (arguments that broadcast, floats for floats).
+The closed forms used once at set-up (:func:`loss_coefficient_from_discharge_coefficient`,
+:func:`iso_6358_of_nozzle`'s sonic conductance, :func:`dp_at_reynolds`) stay in NumPy.
+
 Reference implementations for the tests: ``fluids.core.dP_from_K``,
 ``fluids.flow_meter.flow_meter_discharge`` and ``nozzle_expansibility``, and
 ``fluids.compressible.P_critical_flow`` (Caleb Bell).
@@ -15,18 +23,31 @@ from __future__ import annotations
 
 import numpy as np
 
+from .friction import prepared, shaped
+
 #: ISO 6358 standard reference atmosphere (ANR): density [kg/m^3] and temperature [K].
 ISO_6358_RHO0 = 1.185
 ISO_6358_T0 = 293.15
 
+_laws = None
 
-def _odd_cubic(x, x_l, f_l, df_l):
-    """y = x (alpha + beta x^2), the odd cubic with y(x_l) = f_l and y'(x_l) = df_l;
-    returns (y, dy/dx). Monotone on [0, x_l] when 0 < df_l <= f_l/x_l."""
-    beta = (df_l - f_l / x_l) / (2.0 * x_l * x_l)
-    alpha = f_l / x_l - beta * x_l * x_l
-    x2 = x * x
-    return x * (alpha + beta * x2), alpha + 3.0 * beta * x2
+
+def compiled():
+    """:mod:`softflow.laws.orifice`, imported at the first use."""
+    global _laws
+    if _laws is None:
+        from ..laws import orifice
+        _laws = orifice
+    return _laws
+
+
+def _run(loop, n_out, *args):
+    """``loop`` of :mod:`softflow.laws.orifice` over ``args`` broadcast to 1-D
+    float64 arrays, with ``n_out`` preallocated outputs, in the result's shape."""
+    shape, args = prepared(*args)
+    out = [np.empty(args[0].size) for _ in range(n_out)]
+    loop(*args, *out)
+    return shaped(shape, *out)
 
 
 def regularized_sqrt(x, x_small):
@@ -38,18 +59,10 @@ def regularized_sqrt(x, x_small):
 
     x : float or array
     x_small : float or array (> 0)
+
+    Evaluated by the compiled :func:`softflow.laws.orifice.regularized_sqrt`.
     """
-    x = np.asarray(x, dtype=float)
-    ax = np.abs(x)
-    inside = ax < x_small
-    safe = np.where(inside, x_small, ax)    # keeps sqrt/division finite where unused
-    r = np.sqrt(safe)
-    y_out = np.sign(x) * r
-    dy_out = 0.5 / r
-    xs = np.broadcast_to(x_small, x.shape)
-    rs = np.sqrt(xs)
-    y_in, dy_in = _odd_cubic(x, xs, rs, 0.5 / rs)
-    return np.where(inside, y_in, y_out), np.where(inside, dy_in, dy_out)
+    return _run(compiled().regularized_sqrt_array, 2, x, x_small)
 
 
 def massflow_loss_coefficient(dp, rho, K, area, dp_small):
@@ -69,12 +82,10 @@ def massflow_loss_coefficient(dp, rho, K, area, dp_small):
     dp : pressure drop [Pa], rho : density [kg/m^3], K : loss coefficient [-],
     area : flow area [m^2], dp_small : regularization band [Pa]
 
-    Returns (mdot [kg/s], d mdot/d dp, d mdot/d rho).
+    Returns (mdot [kg/s], d mdot/d dp, d mdot/d rho), evaluated by the compiled
+    :func:`softflow.laws.orifice.massflow_loss_coefficient`.
     """
-    r, dr = regularized_sqrt(dp, dp_small)
-    g = area * np.sqrt(2.0 / K)
-    sq = np.sqrt(rho)
-    return g * sq * r, g * sq * dr, g * r * 0.5 / sq
+    return _run(compiled().massflow_loss_coefficient_array, 3, dp, rho, K, area, dp_small)
 
 
 def loss_coefficient_from_discharge_coefficient(Cd):
@@ -90,9 +101,9 @@ def loss_coefficient_from_discharge_coefficient(Cd):
 def critical_pressure_ratio(gamma):
     """pr* = (2/(gamma+1))^(gamma/(gamma-1)): the back-to-stagnation pressure
     ratio at which an isentropic nozzle of an ideal gas chokes (0.528 for
-    gamma = 1.4; Anderson, Modern Compressible Flow, 3rd ed., sec. 5.4)."""
-    gamma = np.asarray(gamma, dtype=float)
-    return (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))
+    gamma = 1.4; Anderson, Modern Compressible Flow, 3rd ed., sec. 5.4); the
+    compiled :func:`softflow.laws.orifice.critical_pressure_ratio`."""
+    return _run(compiled().critical_pressure_ratio_array, 1, gamma)[0]
 
 
 def nozzle_flow_factor(s, gamma):
@@ -116,29 +127,10 @@ def nozzle_flow_factor(s, gamma):
     round-off down to s -> 0, where it is given its limit.
 
     s : float or array [-]; gamma : ratio of specific heats (> 1) [-].
-    Returns (Y [-], dY/ds [-]).
+    Returns (Y [-], dY/ds [-]), evaluated by the compiled
+    :func:`softflow.laws.orifice.nozzle_flow_factor`.
     """
-    s = np.asarray(s, dtype=float)
-    gamma = np.asarray(gamma, dtype=float)
-    e = (gamma - 1.0) / gamma
-    b = critical_pressure_ratio(gamma)
-    choked = s >= 1.0 - b
-    tiny = s < 1e-9
-    s_sub = np.where(choked | tiny, 1e-3, s)      # keeps the logs finite where unused
-    ln_pr = np.log1p(-s_sub)
-    E = -np.expm1(e * ln_pr)                  # 1 - pr^e, to round-off near pr = 1
-    pr = 1.0 - s_sub
-    G = np.exp(2.0 / gamma * ln_pr) * (E / s_sub) / e        # Y^2
-    # d ln G/d pr = 2/(gamma pr) - e pr^(e-1)/E + 1/s, -> 3/(2 gamma) as s -> 0
-    dlnG = 2.0 / (gamma * pr) - e * np.exp((e - 1.0) * ln_pr) / E + 1.0 / s_sub
-    Y = np.sqrt(G)
-    dY = -0.5 * Y * dlnG                      # dY/ds = -dY/dpr
-    s_ch = np.where(choked, s, 1.0)
-    psi_star = np.sqrt(gamma * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (gamma - 1.0)))
-    Y_ch = psi_star / np.sqrt(2.0 * s_ch)
-    Y = np.where(choked, Y_ch, np.where(tiny, 1.0 - 0.75 / gamma * s, Y))
-    dY = np.where(choked, -0.5 * Y_ch / s_ch, np.where(tiny, -0.75 / gamma, dY))
-    return Y, dY
+    return _run(compiled().nozzle_flow_factor_array, 2, s, gamma)
 
 
 def massflow_nozzle(p_a, p_b, rho_up, gamma, Cd, area, dp_small, drho_up=None):
@@ -182,26 +174,15 @@ def massflow_nozzle(p_a, p_b, rho_up, gamma, Cd, area, dp_small, drho_up=None):
     regularization band [Pa]; drho_up : d rho_up / d p_up [kg/(m^3 Pa)]
     (None: an ideal gas at fixed temperature, rho_up/p_up).
 
-    Returns (mdot [kg/s], d mdot/d p_a, d mdot/d p_b).
+    Returns (mdot [kg/s], d mdot/d p_a, d mdot/d p_b), evaluated by the compiled
+    :func:`softflow.laws.orifice.massflow_nozzle`.
     """
-    p_a = np.asarray(p_a, dtype=float)
-    p_b = np.asarray(p_b, dtype=float)
-    forward = p_a >= p_b
-    p_up = np.where(forward, p_a, p_b)
-    p_dn = np.where(forward, p_b, p_a)
-    rho_up = np.asarray(rho_up, dtype=float)
-    if drho_up is None:
-        drho_up = rho_up / p_up
-    dp = p_a - p_b
-    s = (p_up - p_dn) / p_up
-    Y, dY = nozzle_flow_factor(s, gamma)
-    r, dr = regularized_sqrt(dp, dp_small)
-    k = Cd * area * np.sqrt(2.0 * rho_up)
-    q = k * r * Y
-    base = k * dr * Y
-    d_up = 0.5 * q * drho_up / rho_up + k * r * dY * p_dn / (p_up * p_up)
-    d_dn = -k * r * dY / p_up
-    return q, base + np.where(forward, d_up, d_dn), -base + np.where(forward, d_dn, d_up)
+    ideal = drho_up is None
+    shape, args = prepared(p_a, p_b, rho_up, rho_up if ideal else drho_up, gamma, Cd, area,
+                           dp_small)
+    out = [np.empty(args[0].size) for _ in range(3)]
+    compiled().massflow_nozzle_array(*args, ideal, *out)
+    return shaped(shape, *out)
 
 
 def iso_6358_of_nozzle(diameter, Cd, gamma, R, rho0=ISO_6358_RHO0, T0=ISO_6358_T0):
@@ -242,24 +223,9 @@ def dp_at_reynolds(Re, K, rho, mu, diameter):
 def _iso_6358_phi(s, b, m, s_lam):
     """Flow fraction phi(s) of the choked flow and dphi/ds, with
     s = (1 - p_down/p_up)/(1 - b) >= 0: 1 when choked (s >= 1),
-    [s (2 - s)]^m subsonic, odd cubic below s_lam."""
-    s = np.asarray(s, dtype=float)
-    # clipped to [s_lam, 1]: at s >= 1 (choked) u = 1, so phi = 1 and dphi = 0
-    # exactly; the laminar cubic is only evaluated where some s lies below s_lam
-    # (np.minimum/np.maximum: np.clip's own overhead is ~3x theirs on a few values)
-    s_c = np.minimum(np.maximum(s, s_lam), 1.0)
-    u = s_c * (2.0 - s_c)
-    phi = u ** m
-    dphi = m * u ** (m - 1.0) * (2.0 - 2.0 * s_c)
-    laminar = s < s_lam
-    if laminar.any():
-        u_l = s_lam * (2.0 - s_lam)
-        phi_l = u_l ** m
-        dphi_l = m * u_l ** (m - 1.0) * (2.0 - 2.0 * s_lam)
-        y_in, dy_in = _odd_cubic(s, s_lam, phi_l, dphi_l)
-        phi = np.where(laminar, y_in, phi)
-        dphi = np.where(laminar, dy_in, dphi)
-    return phi, dphi
+    [s (2 - s)]^m subsonic, odd cubic below s_lam (``b`` is not used); the
+    compiled :func:`softflow.laws.orifice.iso_6358_phi`."""
+    return _run(compiled().iso_6358_phi_array, 2, s, m, s_lam)
 
 
 def massflow_ISO_6358(p_a, p_b, T, C, b, m=0.5, pr_laminar=0.999,
@@ -287,30 +253,8 @@ def massflow_ISO_6358(p_a, p_b, T, C, b, m=0.5, pr_laminar=0.999,
     over [-] (b < pr_laminar < 1); rho0, T0 : reference density [kg/m^3] and
     temperature [K] at which C is rated.
 
-    Returns (mdot [kg/s], d mdot/d p_a, d mdot/d p_b).
+    Returns (mdot [kg/s], d mdot/d p_a, d mdot/d p_b), evaluated by the compiled
+    :func:`softflow.laws.orifice.massflow_iso_6358`.
     """
-    p_a = np.asarray(p_a, dtype=float)
-    p_b = np.asarray(p_b, dtype=float)
-    forward = p_a >= p_b
-    # every flow one way (the usual case): the same numbers without the selections
-    # (arrays only: a 0-d query keeps np.where's 0-d arrays)
-    ahead = forward.ndim > 0 and bool(forward.all())
-    if ahead:
-        p_up, p_dn = p_a, p_b
-    else:
-        p_up = np.where(forward, p_a, p_b)
-        p_dn = np.where(forward, p_b, p_a)
-    k = C * rho0 * np.sqrt(T0 / T)
-    one_b = 1.0 - b
-    s = (1.0 - p_dn / p_up) / one_b
-    s_lam = (1.0 - pr_laminar) / one_b
-    phi, dphi = _iso_6358_phi(s, b, m, s_lam)
-    q = k * p_up * phi
-    d_up = k * (phi + dphi * p_dn / (p_up * one_b))
-    d_dn = -k * dphi / one_b
-    if ahead:
-        return q, d_up, d_dn
-    mdot = np.where(forward, q, -q)
-    dpa = np.where(forward, d_up, -d_dn)
-    dpb = np.where(forward, d_dn, -d_up)
-    return mdot, dpa, dpb
+    return _run(compiled().massflow_iso_6358_array, 3, p_a, p_b, T, C, b, m, pr_laminar,
+                rho0, T0)
