@@ -64,65 +64,39 @@ with the flow as at the limit. (Inside, h'(a) = K ln X1 - 1 approaches -1
 like sqrt(a* - a), as z1 does: the slope is continuous at the limit but not
 Lipschitz there, like the isothermal law's through Lambert's W.)
 
-Each function works on floats and NumPy arrays alike.
+The law is evaluated by the compiled scalar functions of
+:mod:`softflow.laws.fanno` (one place, callable from compiled code); the
+functions here are loops over them for arrays (any shapes that broadcast;
+floats give floats). :func:`fanno_parameter` and
+:func:`adiabatic_choked_massflow` are closed forms of the textbook relations
+for tests, the documentation and the model checks' estimates, not the law.
 """
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
 
-#: a floor for a = W/p0^2 under the logarithm (zero flow): z1 = 1e-300 there
-_A_FLOOR = 1e-300
+from .friction import prepared, shaped
+
+_laws = None
 
 
-@lru_cache(maxsize=64)
-def _gas(gamma):
-    """Constants of the law for a ratio of specific heats gamma (a float), as
-    0-d arrays (NumPy multiplies an array by one faster than by a Python float):
-    (k, K, K/2, -n, n - 1, ln a*, a*, 1/gamma, P, s/P, beta, 2k, 4k). P, s/P and
-    beta give the entry's starting value (see :func:`_entry`)."""
+def compiled():
+    """:mod:`softflow.laws.fanno`, imported at the first use."""
+    global _laws
+    if _laws is None:
+        from ..laws import fanno
+        _laws = fanno
+    return _laws
+
+
+def _gamma(gamma):
+    """gamma as a float, refused unless it exceeds 1."""
     g = float(gamma)
     if not g > 1.0:
         raise ValueError(f"gamma must exceed 1, got {g}")
-    k, K = 0.5 * (g - 1.0), 0.5 * (g + 1.0)
-    n = K / k
-    ln_a_max = -n * math.log1p(k)
-    s = math.sqrt(g + 1.0)
-    P = n * math.log(K)
-    beta = ((1.0 - k) / 3.0 - 1.0 + s * s / (2.0 * P)) / P
-    values = (k, K, 0.5 * K, -n, n - 1.0, ln_a_max, math.exp(ln_a_max), 1.0 / g, P, s / P,
-              beta, 2.0 * k, 4.0 * k)
-    out = tuple(np.array(v) for v in values)
-    for v in out:
-        v.flags.writeable = False
-    return out
-
-
-def _entry(lna, gamma):
-    """ln(1 + k z1) of the isentropic entry from ln a (see
-    :func:`adiabatic_entry_z`); ln K past the limit."""
-    k, _, half_K, minus_n, _, ln_a_max, _, _, P, s_P, beta, _, _ = _gas(gamma)
-    # q^2 = ln(a*/a): near the limit -ln z1 = v ~ s q + (1 - k)/3 q^2, s = sqrt(g + 1);
-    # at rest v ~ q^2 + P, P = -ln a*. v0 = q^2 + P (1 - exp(-(s/P) q - beta q^2))
-    # has both and the series to q^2; for gamma in (1, 3] u0 = -v0 lies above the
-    # root u = ln z1, by at most 1.1 % of |u|: f > 0 there and Halley's denominator
-    # exceeds 1
-    q = np.sqrt(np.maximum(ln_a_max - lna, 0.0))   # 0 past the limit: z1 = 1
-    u = -(q * q + P * (1.0 - np.exp(-q * (s_P + beta * q))))
-    # two Halley steps on f(u) = u - n ln(1 + k e^u) - ln a (f' = (1 - z)/(1 + k z),
-    # f'' = -K z/(1 + k z)^2), concave and increasing in u <= 0: round-off. The
-    # first moves down from u0 <= 0, the second by round-off-sized amounts near the
-    # limit (z = 1 + O(eps) is harmless); the floor on 1 - z makes the step
-    # 0/0 -> 0 at the limit itself (q = 0: f = 0 there)
-    for _ in range(2):
-        z = np.exp(u)
-        kz = k * z
-        f = u + minus_n * np.log1p(kz) - lna
-        omz = np.maximum(1.0 - z, 1e-150)
-        u = u - f * (1.0 + kz) / (omz + half_K * f * z / omz)
-    return np.log1p(k * np.exp(u))
+    return g
 
 
 def adiabatic_entry_z(a, gamma):
@@ -130,9 +104,13 @@ def adiabatic_entry_z(a, gamma):
     a = G^2 R T0/(gamma p0^2): z1 (1 + k z1)^-n = a, k = (gamma-1)/2,
     n = (gamma+1)/(gamma-1), the subsonic root; 1 from the entry's limit
     a* = ((gamma+1)/2)^-n on. Two Halley steps in ln z1 from a starting value
-    good to about 1 % (in ln z1): round-off (checked for 1 < gamma <= 3)."""
-    a = np.asarray(a, dtype=float)
-    return np.expm1(_entry(np.log(np.maximum(a, _A_FLOOR)), gamma)) / (0.5 * (gamma - 1.0))
+    good to about 1 % (in ln z1): round-off (checked for 1 < gamma <= 3). The
+    compiled :func:`softflow.laws.fanno.adiabatic_entry_z`; gamma one float."""
+    g = _gamma(gamma)
+    shape, (a,) = prepared(a)
+    z = np.empty(a.size)
+    compiled().adiabatic_entry_z_array(a, g, z)
+    return shaped(shape, z)[0]
 
 
 def fanno_parameter(M, gamma):
@@ -158,75 +136,20 @@ def adiabatic_pipe(pa, mf, pb, T0, area, R, gamma, phi, jac=True):
     Returns (R, dR/dpa, dR/dmf, dR/dpb, dR/dT0, dR/dphi, choked), the partials
     None without ``jac``; ``choked`` is True where the exit runs at Mach 1.
     dR/dT0 is at fixed phi (a viscosity that moves with T0 enters through phi).
-    The selections (reverse flow, the choke, the entry's limit) are made only
-    where some instance needs them.
+    Arrays that broadcast (floats give floats), evaluated by the compiled
+    :func:`softflow.laws.fanno.adiabatic_pipe`.
     """
-    _, K, _, minus_n, n1, ln_a_max, _, inv_g, _, _, _, k2, k4 = _gas(gamma)
-    forward = np.greater_equal(mf, 0.0)
-    all_forward = bool(forward.all())
-    if all_forward:
-        p0, pd = pa, pb
-    else:
-        p0 = np.where(forward, pa, pb)
-        pd = np.where(forward, pb, pa)
-        sign = np.where(forward, 1.0, -1.0)
-    RT = R * T0
-    G = np.abs(mf) / area
-    GRT_g = G * RT * inv_g
-    W = G * GRT_g                               # G^2 R T0/g [Pa^2]
-    p0sq = p0 * p0
-    lna = np.log(np.maximum(W / p0sq, _A_FLOOR))
-    L1 = _entry(lna, gamma)                     # ln(1 + k z1)
-    # the exit: static pressure p_d, or p2* = sqrt(W/K) where p_d is below it
-    pdsq = pd * pd
-    pstar_sq = W / K
-    choked = np.less(pdsq, pstar_sq)
-    any_choked = bool(choked.any())
-    pesq = np.where(choked, pstar_sq, pdsq) if any_choked else pdsq
-    # z2 (1 + k z2) = b: with r = sqrt(1 + 4 k b), 1 + k z2 = (1 + r)/2 and
-    # 1 + (g-1) z2 = r
-    b = W / pesq
-    r = np.sqrt(1.0 + k4 * b)
-    B2 = 0.5 + 0.5 * r
-    # ln X1 - ln X2 = ln[(rho2/rho1)^2], finite at zero flow (X = K z/(1 + k z))
-    dlnX = np.log(pesq * B2 * B2 / p0sq) + n1 * L1
-    A1 = np.exp(minus_n * L1)                   # a/z1; a* at and past the limit
-    if bool(np.less(ln_a_max, lna).any()):
-        # past the entry's limit z1 = 1 (A1 = a*) makes the formula's ln X1 ln(a/a*):
-        # held at 0 instead; then with h = -(a - a*), p0^2 h = p0^2 a* - W is what
-        # the first term below gives as it stands
-        dlnX = dlnX + np.minimum(ln_a_max - lna, 0.0)
-    # p0^2 A1 (1 - z1) - p2^2 B2 (1 - z2) + K W dlnX, with p0^2 A1 z1 = p2^2 B2 z2 = W
-    K_dlnX = K * dlnX
-    F = p0sq * A1 - pesq * B2 + W * K_dlnX
-    if not all_forward:
-        F = sign * F
-    F = F - 2.0 * RT * phi
-    S = pa + pb
-    Rs = F / S
+    g = _gamma(gamma)
+    shape, args = prepared(pa, mf, pb, T0, area, R, phi)
+    n = args[0].size
+    out = [np.empty(n) for _ in range(6)]
+    choked = np.empty(n, dtype=np.bool_)
+    compiled().adiabatic_pipe_array(*args[:6], g, args[6], *out, choked)
+    Rs, R_pa, R_mf, R_pb, R_T0, R_phi = shaped(shape, *out)
+    choked = choked.reshape(shape)
     if not jac:
         return Rs, None, None, None, None, None, choked
-    # h'(a) - k2'(b) (see the module): dF/dG = 2 G R T0/g (...), dF/d(R T0) = G^2/g (...)
-    Bb_r = (B2 - b) / r                        # B2 (1 - z2)/(1 + (g-1) z2)
-    D = K_dlnX - 1.0 - k2 * Bb_r / B2
-    dF_dG = 2.0 * GRT_g * D
-    dF_dRT = G * G * inv_g * D
-    dF_dp0 = 2.0 * A1 * p0
-    # zero at the choke (exit Mach 1), so p2* moving with G and T0 adds nothing
-    dF_dpd = -2.0 * Bb_r * pd
-    if any_choked:
-        dF_dpd = np.where(choked, 0.0, dF_dpd)
-    if all_forward:
-        dF_dpa, dF_dpb = dF_dp0, dF_dpd
-    else:
-        d_p0 = sign * dF_dp0
-        d_pd = sign * dF_dpd
-        dF_dpa = np.where(forward, d_p0, d_pd)
-        dF_dpb = np.where(forward, d_pd, d_p0)
-        dF_dRT = sign * dF_dRT
-    inv_S = 1.0 / S
-    return (Rs, (dF_dpa - Rs) * inv_S, dF_dG * inv_S / area, (dF_dpb - Rs) * inv_S,
-            (dF_dRT - 2.0 * phi) * (R * inv_S), -2.0 * RT * inv_S, choked)
+    return Rs, R_pa, R_mf, R_pb, R_T0, R_phi, choked
 
 
 def adiabatic_choked_massflow(p0, T0, area, R, gamma, fLD):
