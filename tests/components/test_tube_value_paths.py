@@ -177,8 +177,9 @@ class _OwnLaw(CircularTube):
 
 @pytest.mark.parametrize("tubes, scalar", [
     ([CircularTube("t", sf.air, 0.1, 1e-3, compressible="mean_density")], True),
-    ([CircularTube("t", sf.water, 0.1, 1e-3, friction="laminar")], True),
-    # the isothermal pipe-flow law (the gas default) has no scalar view
+    # a liquid of constant properties and the isothermal pipe-flow law (the gas
+    # default) run the compiled law instead (test_compiled_paths_are_the_array_law)
+    ([CircularTube("t", sf.water, 0.1, 1e-3, friction="laminar")], False),
     ([CircularTube("t", sf.air, 0.1, 1e-3)], False),
     ([CircularTube("t", sf.air, 0.1, 1e-3, friction="Colebrook")], False),   # its ** differs
     ([CircularTube("t", sf.air.with_level("table"), 0.1, 1e-3)], False),      # mu(p)
@@ -211,6 +212,40 @@ def test_one_tube_scalar_view_is_made_where_it_is_the_same_arithmetic(tubes, sca
             np.testing.assert_array_equal(FJ, FJ_arrays)
             assert J.shape == J_arrays.shape == (1, 5) and J.dtype == float
             np.testing.assert_array_equal(J, J_arrays)
+
+
+@pytest.mark.parametrize("fluid", [sf.air, sf.water], ids=["air", "water"])
+@pytest.mark.parametrize("friction", ["laminar", "Haaland", "Colebrook", "Churchill",
+                                      "Swamee-Jain"])
+def test_compiled_paths_are_the_array_law(fluid, friction):
+    """A group of gas tubes (isothermal pipe flow) or of liquid tubes of constant
+    properties (the Darcy law) runs its residual and pressure drop as one
+    compiled pass (P.kind); the same law through NumPy arrays (P.kind = None)
+    gives the same numbers to round-off, laminar, in the blend, turbulent and
+    choked, either direction."""
+    tubes = [CircularTube(f"t{k}", fluid, 0.02 * (k + 1), 1e-3 * (1 + 0.3 * k),
+                          friction=friction) for k in range(4)]
+    P = CircularTube.make_params(tubes)
+    assert P.kind is not None
+    S = np.zeros((4, 0))
+    for re in (0.0, 1e3, 2300.0, 3e3, 4000.0, 5e3, 2e5, 2e6):
+        mf = re / P.re_per_mf * np.array([1.0, -1.0, 0.5, -2.0])
+        V = np.column_stack([np.full(4, 3e5), mf, np.array([1e5, 2.9e5, 0.3e5, 2e5]), -mf])
+        got = [CircularTube.residual(P, V, S, 0.0, jac) for jac in (False, True)]
+        drop = CircularTube.pressure_drop(P, V[:, 0], V[:, 1], V[:, 2], True)
+        P.kind, kind = None, P.kind
+        try:
+            want = [CircularTube.residual(P, V, S, 0.0, jac) for jac in (False, True)]
+            want_drop = CircularTube.pressure_drop(P, V[:, 0], V[:, 1], V[:, 2], True)
+        finally:
+            P.kind = kind
+        scale = np.abs(V[:, [0, 2]]).max()
+        np.testing.assert_allclose(got[0][0], want[0][0], rtol=1e-13, atol=1e-13 * scale)
+        np.testing.assert_allclose(got[1][0], want[1][0], rtol=1e-13, atol=1e-13 * scale)
+        np.testing.assert_allclose(got[1][1], want[1][1], rtol=1e-12, atol=1e-15)
+        for a, b in zip(drop, want_drop):
+            np.testing.assert_allclose(np.broadcast_to(a, (4,)), np.broadcast_to(b, (4,)),
+                                       rtol=1e-12, atol=1e-13 * scale)
 
 
 @pytest.mark.parametrize("V", [[0.0, 0.0, 0.0, 0.0], [0.0, 1e-4, 1e5, -1e-4],

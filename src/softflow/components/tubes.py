@@ -266,19 +266,32 @@ def gas_pipe_parameter_derivative(P, V, name, T_up=None):
     return isothermal_drop_parameter_derivative(P, V, Phi, Phi_theta, name, T_up)
 
 
-def set_compiled_law(P):
-    """Whether the group's gas law runs as one compiled pass
-    (:func:`gas_pipe_drop`): ``P.kind``, the compiled id of its friction
-    correlation, for an ideal gas on the isothermal pipe-flow law with a
-    constant viscosity and an analytic correlation, else None; ``P.kind_terms``
-    what the correlation takes from the roughness (Haaland's term, or eD)."""
+def set_compiled_law(P, own_law=True):
+    """Whether the group's law runs as one compiled pass (:func:`gas_pipe_drop`,
+    :meth:`CircularTube.pressure_drop`, :meth:`CircularTube.residual`):
+    ``P.kind``, the compiled id of its friction correlation, for an ideal gas
+    on the isothermal pipe-flow law or a liquid of constant properties, each
+    with a constant viscosity and an analytic correlation, else None;
+    ``P.kind_terms`` what the correlation takes from the roughness (Haaland's
+    term, or eD); ``P.kind_c`` the law's coefficient (c_mu for the gas,
+    c_mu/rho for the liquid) and ``P.kind_c2`` p/rho of the gas (0 for the
+    liquid). None where the class has a pressure-drop law of its own
+    (``own_law`` False)."""
     P.kind = None
+    if not own_law:
+        return
     if P.isothermal and P.c2 is not None and not P.variable_mu:
-        P.kind = compiled_kind(P.turbulent)
-        P.kind_terms = P.eD if P.friction_terms is None else P.friction_terms
+        P.kind_c, P.kind_c2 = P.c_mu, P.c2
+    elif not P.isothermal and getattr(P, "c_per_rho", None) is not None:
+        P.kind_c, P.kind_c2 = P.c_per_rho, 0.0
+    else:
+        return
+    P.kind = compiled_kind(P.turbulent)
+    P.kind_terms = P.eD if P.friction_terms is None else P.friction_terms
 
 
 _laws = None
+_NO_JACOBIAN = np.empty((0, 5))
 
 
 def _tube_laws():
@@ -456,7 +469,7 @@ class CircularTube(LibraryComponent):
         # what the turbulent law computes from the roughness alone, once per group
         # (make_params runs again for a run that changes a roughness or diameter)
         P.friction_terms = roughness_terms(P.turbulent, P.eD)
-        set_compiled_law(P)
+        set_compiled_law(P, own_law=cls._own_law())
         # one tube: its residual evaluates the law on NumPy scalars (P.one: this P
         # with its per-instance values as np.float64), ~31 k instead of ~106 k
         # instructions a call without Jacobian. The same arithmetic, bitwise: +-*/
@@ -465,7 +478,7 @@ class CircularTube(LibraryComponent):
         # real-fluid mu); np.float64, not float, so that a division by zero gives
         # inf or nan, as on arrays, instead of raising
         P.one = (one_instance(P) if P.turbulent in (None, friction_Haaland) and not P.variable_mu
-                 and not P.isothermal
+                 and not P.isothermal and P.kind is None
                  and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__ else None)
         return P
 
@@ -475,9 +488,16 @@ class CircularTube(LibraryComponent):
         derivatives in p_a, mf, p_b (None without ``jac``): the Darcy law at the
         mean density, or for a gas with the pipe-flow law (the default) the
         isothermal pipe flow of :func:`gas_pipe_drop` (entry, acceleration,
-        choking), as p_a - p_b minus its residual."""
+        choking), as p_a - p_b minus its residual. A liquid of constant
+        properties with an analytic correlation (``P.kind``) runs as one
+        compiled pass (:func:`softflow.laws.tube.darcy_drop`)."""
         if P.isothermal:
             return gas_pipe_drop(P, pa, mf, pb, jac)
+        if P.kind is not None:
+            dp, d_mf = np.empty(P.n), np.empty(P.n)
+            _tube_laws().darcy_drop_array(P.kind, P.Re_lo, P.Re_hi, mf, P.re_per_mf, P.kind_c,
+                                          P.eD, P.kind_terms, dp, d_mf)
+            return (dp, 0.0, d_mf, 0.0) if jac else (dp, None, None, None)
         if P.compressible or P.variable_mu:
             pm = 0.5 * (pa + pb)
         if P.compressible:
@@ -584,6 +604,13 @@ class CircularTube(LibraryComponent):
                 F = V.dot(P.lin_map)
                 F[:, 1] -= P.c64_per_rho * V[:, 1]
                 return F, None
+        if P.kind is not None:
+            # the law in one compiled pass (set_compiled_law)
+            F = np.empty((P.n, 2))
+            J = np.empty((P.n, 5)) if jac else _NO_JACOBIAN
+            _tube_laws().residual(P.kind, P.Re_lo, P.Re_hi, V, P.re_per_mf, P.kind_c, P.eD,
+                                  P.kind_terms, P.area, P.kind_c2, F, J, jac)
+            return F, (J if jac else None)
         if P.one is not None:
             # one tube: the same law on NumPy scalars (see make_params)
             pa, mfa, pb, mfb = V[0]

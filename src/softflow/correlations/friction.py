@@ -29,14 +29,21 @@ def compiled():
 def prepared(*xs):
     """The arguments as 1-D C-contiguous float64 arrays of one length (their
     broadcast), and the result's shape (``()`` where all are scalars): one
-    type signature for the compiled loops."""
-    shape = np.broadcast_shapes(*[np.shape(x) for x in xs])
+    type signature for the compiled loops. Arrays of the result's shape are
+    passed as they are (a view) or copied once; scalars are filled in."""
+    shapes = [x.shape if type(x) is np.ndarray else np.shape(x) for x in xs]
+    shape = shapes[0]
+    if any(sh != shape for sh in shapes):
+        shape = np.broadcast_shapes(*shapes)
     n = math.prod(shape)
     out = []
-    for x in xs:
-        if (type(x) is np.ndarray and x.shape == shape and x.dtype == np.float64
-                and x.flags.c_contiguous):
+    for x, sh in zip(xs, shapes):
+        if sh == shape and type(x) is np.ndarray:
+            if x.dtype != np.float64 or not x.flags.c_contiguous:
+                x = np.ascontiguousarray(x, dtype=np.float64)
             out.append(x.reshape(n))
+        elif sh == ():
+            out.append(np.full(n, float(x)))
         else:
             out.append(np.ascontiguousarray(
                 np.broadcast_to(np.asarray(x, dtype=np.float64), shape)).reshape(n))

@@ -32,3 +32,44 @@ def isothermal_drop_array(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu, eD, a, area
         dp[i], d_pa[i], d_mf[i], d_pb[i] = isothermal_drop(
             kind, lo, hi, pa[i], mf[i], pb[i], re_per_mf[i], c_mu[i], eD[i], a[i], area[i],
             c2)
+
+
+@jit
+def darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a):
+    """p_a - p_b required by the flow mf through a tube of a liquid of constant
+    density and viscosity (the Darcy law, c = c_mu/rho), and its partial in
+    mf: (dp, d_mf); the pressures do not enter."""
+    Re = abs(mf) * re_per_mf
+    phi, dphi = fRe_blended(kind, Re, eD, a, lo, hi)
+    return c * phi * mf, c * (phi + Re * dphi)
+
+
+@jit
+def darcy_drop_array(kind, lo, hi, mf, re_per_mf, c, eD, a, dp, d_mf):
+    for i in range(mf.size):
+        dp[i], d_mf[i] = darcy_drop(kind, lo, hi, mf[i], re_per_mf[i], c[i], eD[i], a[i])
+
+
+@jit
+def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, F, J, jac):
+    """A group of tubes' residual F (n, 2) (mass balance; p_a - p_b minus the
+    required drop) and, with ``jac``, its nonzeros J (n, 5) in the tube's
+    pattern, from V = [p_a, mf_a, p_b, mf_b] (n, 4): isothermal pipe flow of
+    an ideal gas (c2 > 0; c = c_mu) or the Darcy law of a liquid (c2 = 0;
+    c = c_mu/rho)."""
+    for i in range(V.shape[0]):
+        pa, mf, pb = V[i, 0], V[i, 1], V[i, 2]
+        if c2 > 0.0:
+            dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf[i],
+                                                   c[i], eD[i], a[i], area[i], c2)
+        else:
+            dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf[i], c[i], eD[i], a[i])
+            d_pa = d_pb = 0.0
+        F[i, 0] = mf + V[i, 3]
+        F[i, 1] = (pa - pb) - dp
+        if jac:
+            J[i, 0] = 1.0
+            J[i, 1] = 1.0
+            J[i, 2] = 1.0 - d_pa
+            J[i, 3] = -d_mf
+            J[i, 4] = -1.0 - d_pb
