@@ -283,3 +283,29 @@ def test_gas_pipe_law_at_degenerate_points_gives_no_exception(V):
         for jac in (False, True):
             F, J = CircularTube.residual(P, np.array([V]), np.zeros((1, 0)), 0.0, jac)
             assert F.shape == (1, 2) and (J is None or J.shape == (1, 5))
+
+
+@pytest.mark.parametrize("friction", ["laminar", "Haaland", "Colebrook", "Churchill",
+                                      "Swamee-Jain"])
+def test_compiled_thermal_path_is_the_array_law(friction):
+    """In a thermal scene a group of ideal-gas tubes runs adiabatic pipe flow
+    (friction + Fanno) as one compiled pass; the same law through the array
+    functions (P.kind = None) gives the same numbers to round-off, laminar,
+    in the blend, turbulent and choked, either direction."""
+    tubes = [CircularTube(f"t{k}", sf.air, 0.02 * (k + 1), 1e-3 * (1 + 0.3 * k),
+                          friction=friction) for k in range(4)]
+    P = CircularTube.make_params(tubes)
+    assert P.kind is not None and P.R_gas is not None
+    T_up = np.array([293.15, 250.0, 350.0, 400.0])
+    for re in (0.0, 1e3, 2300.0, 3e3, 4000.0, 5e3, 2e5, 2e6):
+        mf = re / P.re_per_mf * np.array([1.0, -1.0, 0.5, -2.0])
+        pa, pb = np.full(4, 3e5), np.array([1e5, 2.9e5, 0.3e5, 2e5])
+        got = CircularTube.thermal_drop(P, pa, mf, pb, T_up, True)
+        P.kind, kind = None, P.kind
+        try:
+            want = CircularTube.thermal_drop(P, pa, mf, pb, T_up, True)
+        finally:
+            P.kind = kind
+        for a, b in zip(got, want):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-13 * 3e5)
+        assert CircularTube.thermal_drop(P, pa, mf, pb, T_up, False)[1] is None

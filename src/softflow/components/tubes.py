@@ -557,6 +557,13 @@ class CircularTube(LibraryComponent):
         (:mod:`softflow.components.thermal`)."""
         if P.R_gas is None or not cls._own_law():
             return None
+        if P.kind is not None:
+            # in one compiled pass (laws.tube.adiabatic_drop_array; set_compiled_law)
+            out = np.empty((5, P.n))
+            _tube_laws().adiabatic_drop_array(P.kind, P.Re_lo, P.Re_hi, pa, mf, pb, T_up,
+                                              P.re_per_mf, P.c_mu, P.eD, P.kind_terms, P.area,
+                                              P.R_gas, P.gamma, *out)
+            return tuple(out) if jac else (out[0], None, None, None, None)
         Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
         return adiabatic_drop(P, pa, mf, pb, T_up, Phi,
                               c_mu * (phi + Re * dphi) if jac else None, jac)

@@ -1,5 +1,6 @@
-"""A gas tube's pressure-drop law, compiled: the blended friction law
-(:mod:`.friction`) feeding isothermal pipe flow (:mod:`.gas_pipe`).
+"""A tube's pressure-drop law, compiled: the blended friction law
+(:mod:`.friction`) feeding isothermal pipe flow (:mod:`.gas_pipe`), adiabatic
+pipe flow in thermal scenes (:mod:`.fanno`), or a liquid's Darcy law.
 
 The one evaluation of a group of gas tubes with constant viscosity and an
 analytic friction correlation (:func:`softflow.components.tubes.gas_pipe_drop`
@@ -9,6 +10,7 @@ operations.
 from __future__ import annotations
 
 from . import jit
+from .fanno import adiabatic_pipe_gas, gas_constants
 from .friction import fRe_blended
 from .gas_pipe import isothermal_pipe
 
@@ -73,3 +75,23 @@ def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, F, J, jac):
             J[i, 2] = 1.0 - d_pa
             J[i, 3] = -d_mf
             J[i, 4] = -1.0 - d_pb
+
+
+@jit
+def adiabatic_drop_array(kind, lo, hi, pa, mf, pb, T_up, re_per_mf, c_mu, eD, a, area, R, gamma,
+                         dp, d_pa, d_mf, d_pb, d_T):
+    """p_a - p_b required by the flow mf through gas tubes in a thermal scene
+    (adiabatic pipe flow from the upstream stagnation temperature T_up, the
+    friction term Phi = c_mu (f Re) mf), and its partials in p_a, mf, p_b and
+    T_up, into the output arrays."""
+    gas = gas_constants(gamma)
+    for i in range(pa.size):
+        m = mf[i]
+        Re = abs(m) * re_per_mf[i]
+        phi, dphi = fRe_blended(kind, Re, eD[i], a[i], lo, hi)
+        r = adiabatic_pipe_gas(pa[i], m, pb[i], T_up[i], area[i], R, gas, c_mu[i] * phi * m)
+        dp[i] = (pa[i] - pb[i]) - r[0]
+        d_pa[i] = 1.0 - r[1]
+        d_mf[i] = -(r[2] + r[5] * c_mu[i] * (phi + Re * dphi))
+        d_pb[i] = -1.0 - r[3]
+        d_T[i] = -r[4]
