@@ -149,3 +149,38 @@ def crossing_time(t, y, level, i):
     if i == 0:
         return t[0]
     return t[i - 1] + (level - y[i - 1]) / (y[i] - y[i - 1]) * (t[i] - t[i - 1])
+
+
+def compiled_and_python(expression, env=None):
+    """The value of ``expression`` (Python source giving a list of numbers and
+    tuples of numbers, with ``softflow.laws``' modules imported as ``laws``,
+    ``friction``, ``gas_pipe``, ``fanno``, ``orifice``) evaluated in a fresh
+    interpreter compiled and again with NUMBA_DISABLE_JIT=1: (compiled, python)
+    as flat float arrays, after asserting that each process ran in its mode.
+    Also returns the compiled process's cache hits of the laws it called."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    probe = (
+        "import json\n"
+        "import softflow.laws as laws\n"
+        "from softflow.laws import fanno, friction, gas_pipe, orifice\n"
+        f"out = {expression}\n"
+        "hits = sum(len(f.stats.cache_hits) for m in (fanno, friction, gas_pipe, orifice)\n"
+        "           for f in vars(m).values() if hasattr(f, 'stats'))\n"
+        "print(json.dumps({'values': out, 'jit': not laws.numba.config.DISABLE_JIT,\n"
+        "                  'hits': hits}))\n")
+
+    def run(**extra):
+        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                              env={**os.environ, **(env or {}), **extra}, timeout=600,
+                              check=False)
+        assert done.returncode == 0, done.stderr
+        return json.loads(done.stdout.splitlines()[-1])
+
+    compiled, python = run(NUMBA_DISABLE_JIT="0"), run(NUMBA_DISABLE_JIT="1")
+    assert compiled["jit"] and not python["jit"]
+    flat = [np.hstack(r["values"]).astype(float) for r in (compiled, python)]
+    return flat[0], flat[1], compiled["hits"]

@@ -3,10 +3,6 @@
 of softflow.correlations as loops over them, the pure-Python mode
 (NUMBA_DISABLE_JIT=1) giving the same numbers, and the cache keyed on the
 package's text."""
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import fluids.friction
@@ -15,7 +11,7 @@ import pytest
 from scipy.special import lambertw
 
 import softflow.laws as laws
-from softflow.correlations import friction as arrays
+from helpers import compiled_and_python
 from softflow.correlations.gas_pipe import entry_z as entry_z_array
 from softflow.correlations.gas_pipe import isothermal_pipe as isothermal_pipe_array
 from softflow.laws import friction as fl
@@ -117,36 +113,16 @@ def test_array_law_is_the_scalar_law_elementwise():
 
 
 # -- the pure-Python mode and the cache ---------------------------------------------------
-_PROBE = """
-import json, sys
-import numpy as np
-import softflow.laws as laws
-from softflow.laws import friction as fl, gas_pipe as gl
-out = [fl.colebrook(1e5, 1e-4), fl.fRe_blended(fl.HAALAND, 3000.0, 1e-4, fl.haaland_terms(1e-4),
-                                               2300.0, 4000.0),
-       gl.entry_z(0.2), gl.isothermal_pipe(3e5, 2e-3, 1e5, 3e-6, 287.0 * 293.0, 1e3)[:6]]
-hits = sum(len(f.stats.cache_hits) for f in (fl.colebrook, gl.isothermal_pipe)
-           if hasattr(f, "stats"))
-print(json.dumps({"values": out, "jit": not laws.numba.config.DISABLE_JIT, "hits": hits}))
-"""
-
-
-def _probe(**env):
-    run = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                         env={**os.environ, **env}, timeout=600)
-    assert run.returncode == 0, run.stderr
-    return json.loads(run.stdout.splitlines()[-1])
-
-
 @pytest.mark.slow
 def test_pure_python_mode_gives_the_compiled_numbers_and_the_cache_is_used():
-    compiled = _probe()
-    again = _probe()
-    assert compiled["jit"] and again["hits"] > 0      # the second process loads the cache
-    python = _probe(NUMBA_DISABLE_JIT="1")
-    assert not python["jit"]
-    np.testing.assert_allclose(np.hstack(python["values"]).astype(float),
-                               np.hstack(compiled["values"]).astype(float), rtol=1e-15)
+    expression = ("[friction.colebrook(1e5, 1e-4), friction.fRe_blended(friction.HAALAND, "
+                  "3000.0, 1e-4, friction.haaland_terms(1e-4), 2300.0, 4000.0), "
+                  "gas_pipe.entry_z(0.2), "
+                  "gas_pipe.isothermal_pipe(3e5, 2e-3, 1e5, 3e-6, 287.0 * 293.0, 1e3)[:6]]")
+    compiled, python, _ = compiled_and_python(expression)
+    _, _, hits = compiled_and_python(expression)
+    assert hits > 0      # a second process loads the cache
+    np.testing.assert_allclose(python, compiled, rtol=1e-15)
 
 
 def test_cache_key_is_the_whole_package_text(tmp_path, monkeypatch):

@@ -5,14 +5,12 @@ equation to round-off and held at 1 past the limit, and the pure-Python mode
 (NUMBA_DISABLE_JIT=1) giving the same numbers. The law itself (against an
 independent solution, its smoothness, its root) is tested in
 tests/components/test_fanno_law.py."""
-import json
 import math
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+
+from helpers import compiled_and_python
 
 from softflow.correlations import fanno as arrays
 from softflow.laws import fanno as fl
@@ -143,29 +141,12 @@ def test_gamma_not_above_one_is_nan_compiled_and_refused_by_the_arrays():
             arrays.adiabatic_entry_z(0.1, g)
 
 
-_PROBE = """
-import json
-from softflow.laws import fanno as fl
-import softflow.laws as laws
-out = [fl.adiabatic_entry_z(0.2, 1.4), fl.adiabatic_entry_z(0.5787, 1.4),
-       fl.adiabatic_pipe(3e5, 2e-3, 1e5, 300.0, 3e-6, 287.05, 1.4, 1e3)[:6],
-       fl.adiabatic_pipe(1e5, -2e-3, 3e5, 300.0, 3e-6, 287.05, 1.3, -1e3)[:6],
-       fl.adiabatic_pipe(3e5, 0.2, 1e5, 300.0, 3e-6, 287.05, 5 / 3, 1e3)[:6]]
-print(json.dumps({"values": out, "jit": not laws.numba.config.DISABLE_JIT}))
-"""
-
-
-def _probe(**env):
-    run = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                         env={**os.environ, **env}, timeout=600, check=False)
-    assert run.returncode == 0, run.stderr
-    return json.loads(run.stdout.splitlines()[-1])
-
-
 @pytest.mark.slow
 def test_pure_python_mode_gives_the_compiled_numbers():
-    compiled = _probe(NUMBA_DISABLE_JIT="0")
-    python = _probe(NUMBA_DISABLE_JIT="1")
-    assert compiled["jit"] and not python["jit"]
-    np.testing.assert_allclose(np.hstack(python["values"]), np.hstack(compiled["values"]),
-                               rtol=1e-15)
+    expression = (
+        "[fanno.adiabatic_entry_z(0.2, 1.4), fanno.adiabatic_entry_z(0.5787, 1.4), "
+        "fanno.adiabatic_pipe(3e5, 2e-3, 1e5, 300.0, 3e-6, 287.05, 1.4, 1e3)[:6], "
+        "fanno.adiabatic_pipe(1e5, -2e-3, 3e5, 300.0, 3e-6, 287.05, 1.3, -1e3)[:6], "
+        "fanno.adiabatic_pipe(3e5, 0.2, 1e5, 300.0, 3e-6, 287.05, 5 / 3, 1e3)[:6]]")
+    compiled, python, _ = compiled_and_python(expression)
+    np.testing.assert_allclose(python, compiled, rtol=1e-15)

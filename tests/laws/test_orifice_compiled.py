@@ -5,14 +5,12 @@ subsonic, choked, laminar-like, both directions); the nozzle law against the
 Mach-number form of an ideal gas's isentropic flow through a convergent
 nozzle, written here; the pure-Python mode (NUMBA_DISABLE_JIT=1) giving the
 compiled numbers."""
-import json
 import math
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+
+from helpers import compiled_and_python
 
 from softflow.correlations import orifice as arrays
 from softflow.laws import orifice as law
@@ -292,33 +290,17 @@ def test_nozzle_chokes_at_the_critical_ratio_and_reverses_with_the_pressures():
 # ---------------------------------------------------------------------------------------
 # the pure-Python mode
 # ---------------------------------------------------------------------------------------
-_PROBE = """
-import json
-import softflow.laws as laws
-from softflow.laws import orifice as o
-out = [o.regularized_sqrt(0.3, 2.0), o.regularized_sqrt(-7.0, 2.0),
-       o.massflow_loss_coefficient(3e3, 998.0, 2.7, 1e-6, 0.5),
-       o.nozzle_flow_factor(1e-11, 1.4), o.nozzle_flow_factor(0.2, 1.4),
-       o.nozzle_flow_factor(0.8, 1.3),
-       o.massflow_nozzle(3e5, 2.5e5, 3.5, 1.1e-5, 1.4, 0.6, 1e-6, 0.05),
-       o.massflow_nozzle(1e5, 6e5, 7.1, 1.2e-5, 1.3, 0.8, 1e-6, 0.05),
-       o.massflow_iso_6358(3e5, 2.9999e5, 300.0, 1e-8, 0.4, 0.5, 0.999, 1.185, 293.15),
-       o.massflow_iso_6358(1e5, 6e5, 300.0, 1e-8, 0.4, 0.7, 0.999, 1.185, 293.15)]
-print(json.dumps({"values": out, "jit": not laws.numba.config.DISABLE_JIT}))
-"""
-
-
-def _probe(**env):
-    run = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                         env={**os.environ, **env}, timeout=600, check=False)
-    assert run.returncode == 0, run.stderr
-    return json.loads(run.stdout.splitlines()[-1])
-
-
 @pytest.mark.slow
 def test_pure_python_mode_gives_the_compiled_numbers():
-    compiled = _probe()
-    python = _probe(NUMBA_DISABLE_JIT="1")
-    assert compiled["jit"] and not python["jit"]
-    np.testing.assert_allclose(np.hstack(python["values"]), np.hstack(compiled["values"]),
-                               rtol=1e-15)
+    expression = (
+        "[orifice.regularized_sqrt(0.3, 2.0), orifice.regularized_sqrt(-7.0, 2.0), "
+        "orifice.massflow_loss_coefficient(3e3, 998.0, 2.7, 1e-6, 0.5), "
+        "orifice.nozzle_flow_factor(1e-11, 1.4), orifice.nozzle_flow_factor(0.2, 1.4), "
+        "orifice.nozzle_flow_factor(0.8, 1.3), "
+        "orifice.massflow_nozzle(3e5, 2.5e5, 3.5, 1.1e-5, 1.4, 0.6, 1e-6, 0.05), "
+        "orifice.massflow_nozzle(1e5, 6e5, 7.1, 1.2e-5, 1.3, 0.8, 1e-6, 0.05), "
+        "orifice.massflow_iso_6358(3e5, 2.9999e5, 300.0, 1e-8, 0.4, 0.5, 0.999, 1.185, "
+        "293.15), "
+        "orifice.massflow_iso_6358(1e5, 6e5, 300.0, 1e-8, 0.4, 0.7, 0.999, 1.185, 293.15)]")
+    compiled, python, _ = compiled_and_python(expression)
+    np.testing.assert_allclose(python, compiled, rtol=1e-15)
