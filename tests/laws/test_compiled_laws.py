@@ -143,3 +143,27 @@ def test_cache_key_is_the_whole_package_text(tmp_path, monkeypatch):
             if c.__name__.startswith("Softflow")]
     assert len(ours) == 3
     assert all(c.from_function(np.sum, np.__file__) is None for c in ours)
+
+
+@pytest.mark.slow
+def test_no_writable_cache_compiles_in_memory_with_a_warning():
+    """Where numba finds no cache directory it can write, the laws compile in
+    memory for the process, with one warning, instead of failing at import."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import warnings\n"
+        "import softflow.laws as laws\n"
+        "laws._numba_class('CacheImpl')._locator_classes[:] = []\n"
+        "with warnings.catch_warnings(record=True) as caught:\n"
+        "    warnings.simplefilter('always')\n"
+        "    from softflow.laws import gas_pipe\n"
+        "    z = gas_pipe.entry_z(0.2)\n"
+        "assert abs(z * 2.718281828459045 ** -z - 0.2) < 1e-15, z\n"
+        "mine = [w for w in caught if 'cannot be cached' in str(w.message)]\n"
+        "assert len(mine) == 1, [str(w.message) for w in caught]\n"
+        "print('ok')\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          timeout=600, check=False)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr

@@ -84,7 +84,27 @@ def _install_locators():
 
 _install_locators()
 
-#: how every law is compiled: cached; NumPy's floating-point semantics (a
-#: division by zero gives inf or nan, as the array code it replaced did,
-#: instead of raising); no fastmath (the laws' bits are IEEE)
-jit = functools.partial(numba.njit, cache=True, nogil=True, error_model="numpy")
+_NO_CACHE_WARNED = []
+
+
+def jit(function):
+    """Compile ``function`` as every law is: cached (see the module); NumPy's
+    floating-point semantics (a division by zero gives inf or nan, as the
+    array code it replaced did, instead of raising); no fastmath (the laws'
+    bits are IEEE). Where no cache directory can be written (a read-only
+    installation and home), the law is compiled in memory for this process,
+    with one warning, instead of failing."""
+    options = dict(nogil=True, error_model="numpy")
+    try:
+        return numba.njit(cache=True, **options)(function)
+    except RuntimeError as err:         # numba: "cannot cache function ...: no locator"
+        if "cannot cache" not in str(err):
+            raise
+        if not _NO_CACHE_WARNED:
+            import warnings
+            _NO_CACHE_WARNED.append(True)
+            warnings.warn("softflow's compiled laws cannot be cached (no writable cache "
+                          f"directory: {err}); they are compiled in memory at each start. "
+                          "Set NUMBA_CACHE_DIR to a writable directory to keep them",
+                          RuntimeWarning, stacklevel=2)
+        return numba.njit(cache=False, **options)(function)
