@@ -80,7 +80,9 @@ class Bicubic:
 
     def __call__(self, xq, yq, *, grad=False):
         """Value at (xq, yq) (arrays of one shape); with ``grad`` also d/dx and d/dy."""
-        if np.size(xq) <= FEW_POINTS and np.shape(xq) == np.shape(yq) and \
+        # no points at all go to the array path too: it keeps the query's
+        # (empty) shape and, with grad, gives all three (empty) parts
+        if 0 < np.size(xq) <= FEW_POINTS and np.shape(xq) == np.shape(yq) and \
                 _as_float64(xq) and _as_float64(yq):
             few = self._few(xq, yq, grad)
             if few is not None:
@@ -120,7 +122,7 @@ class Cubic:
         self.coef = np.ascontiguousarray(coef)
 
     def __call__(self, xq, *, grad=False):
-        if np.size(xq) <= FEW_POINTS and _as_float64(xq):
+        if 0 < np.size(xq) <= FEW_POINTS and _as_float64(xq):     # (as Bicubic's)
             few = self._few(xq, grad)
             if few is not None:
                 return few

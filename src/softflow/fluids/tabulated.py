@@ -95,8 +95,14 @@ class TableFluid(Fluid):
     # -- evaluation -------------------------------------------------------------------
     def _evaluate(self, prop: str, compute: Callable[[Any, Any], Any], p: Any,
                   T: Any) -> Any:    # p, T: SIArrayLike (Any: rebound to arrays below)
-        """compute(p, T) on the table; out-of-range states raise or go to CoolProp."""
-        if T is None:
+        """compute(p, T) on the table; out-of-range states raise or go to CoolProp.
+
+        With ``out_of_range='eos'`` either part may be empty: the table is asked
+        only for the states inside it, CoolProp only for the others, and a
+        state's value does not depend on the other states of the call (with
+        T=None the inside ones take the isothermal path, as when all are in)."""
+        isothermal = T is None
+        if isothermal:
             pa = np.asarray(p, dtype=float)
             lo, hi = self.p_range
             if pa.ndim == 0:
@@ -112,10 +118,14 @@ class TableFluid(Fluid):
         else:
             (p_lo, p_hi), (T_lo, T_hi) = self.p_range, self.T_range
             inside = (p >= p_lo) & (p <= p_hi) & (T >= T_lo) & (T <= T_hi)
-            out = np.empty(p.shape)
-            out[inside] = compute(p[inside], T[inside])
-            if not inside.all():
-                out[~inside] = getattr(self.eos, prop)(p[~inside], T[~inside])
+            if inside.all():            # the usual call: no selections, no copies
+                out = compute(p, T)
+            else:
+                out = np.empty(p.shape)
+                if inside.any():
+                    out[inside] = compute(p[inside], None if isothermal else T[inside])
+                outside = ~inside
+                out[outside] = getattr(self.eos, prop)(p[outside], T[outside])
         return float(out) if scalar else out
 
     def _get(self, key: str, p: float | Array, T: float | Array | None, grad: bool = False) -> Any:
