@@ -13,15 +13,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..constants import pressure_atmospheric
-from ..correlations.friction import fRe_blended, friction_Haaland, roughness_terms, smoothstep
+from ..correlations.friction import (compiled_kind, fRe_blended, friction_Haaland,
+                                     roughness_terms, smoothstep)
 from ..correlations.orifice import (ISO_6358_RHO0, ISO_6358_T0, _iso_6358_phi, dp_at_reynolds,
                                     loss_coefficient_from_discharge_coefficient,
                                     massflow_ISO_6358, massflow_loss_coefficient,
                                     massflow_nozzle, nozzle_flow_factor)
+from ..fluids.ideal import IdealGas
 from .base import FLUID_PORT, LibraryComponent
-from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, adiabatic_drop, friction_bound_derivative,
+from .tubes import (BLEND_BOUNDS, TUBE_GEOMETRY, _tube_laws, friction_bound_derivative,
                     friction_roughness_derivative, isothermal_drop,
-                    isothermal_drop_parameter_derivative, one_instance, set_isothermal_law,
+                    isothermal_drop_parameter_derivative, set_isothermal_law,
                     set_tube_coefficients, set_tube_geometry, tube_law_derivative)
 
 if TYPE_CHECKING:
@@ -31,6 +33,60 @@ if TYPE_CHECKING:
 TWO_PORTS = (("a", FLUID_PORT), ("b", FLUID_PORT))
 # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: flow law
 TWO_PORT_PATTERN = ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
+
+
+_laws = None
+#: the Jacobian argument of a compiled pass evaluated without one, and the
+#: density arrays of a pass that makes its densities itself
+_NO_JACOBIAN = np.empty((0, 5))
+_NONE = np.empty(0)
+
+
+def _valve_laws():
+    """:mod:`softflow.laws.valves`, imported at the first use (numba's import)."""
+    global _laws
+    if _laws is None:
+        from ..laws import valves
+        _laws = valves
+    return _laws
+
+
+def set_density_law(P):
+    """Whether the group's flow law runs as one compiled pass that makes its
+    densities itself (``P.compiled``): for an ideal gas (``P.law_RT`` = R T,
+    rho = p/(R T)) or an incompressible fluid (``P.law_RT`` = 0, its constant
+    density ``P.law_rho``); else (a gas at the table or eos level, or one whose
+    density is its own) the component takes the densities from the fluid's
+    methods and gives them to the same pass (:func:`_given_density`)."""
+    fl, cls = P.fluid, type(P.fluid)
+    P.law_RT = P.law_rho = 0.0
+    if not fl.compressible:
+        P.compiled, P.law_rho = True, float(fl.rho)
+    elif (isinstance(fl, IdealGas) and cls.density is IdealGas.density
+          and cls.density_dp is IdealGas.density_dp):
+        P.compiled, P.law_RT = True, float(fl.R * fl.temperature)
+    else:
+        P.compiled = False
+
+
+def _flat(x, n):
+    """``x`` as a C-contiguous float64 array of n values."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(x, dtype=float), (n,)))
+
+
+def _given_density(P, p, mean=False):
+    """(rho, d rho/dp) of the group's fluid at the pressures p (arrays of n), from
+    its own methods, for a compiled pass that does not make them
+    (``P.compiled`` False); with ``mean`` at the mean pressure p = (p_a, p_b),
+    its slope per p_a and p_b (half d rho/dp). An incompressible fluid's
+    constant density and 0."""
+    fl, n = P.fluid, P.n
+    if mean:
+        p = 0.5 * (p[0] + p[1])
+    if not fl.compressible:
+        return np.full(n, float(fl.rho)), np.zeros(n)
+    slope = fl.density_dp(p)
+    return _flat(fl.density(p), n), _flat(0.5 * slope if mean else slope, n)
 
 
 def _mean_density(fluid, pa, pb):
@@ -50,26 +106,6 @@ def _tube_fRe(P, mf, terms=None):
     phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, terms=terms)
     return Re, phi, dphi
 
-
-
-def _open_coefficients(c_mu, Re, phi, dphi, jac):
-    """An open snapping valve's tube law as dp = x(mdot) mdot / rho: x =
-    c_mu f·Re, and d(x mdot)/d mdot = c_mu (f·Re + Re d(f·Re)/dRe) (None
-    without ``jac``), on arrays or scalars alike."""
-    return c_mu * phi, (c_mu * (phi + Re * dphi) if jac else None)
-
-
-def _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho):
-    """A snapping valve's equations, mass balance and dp = x(mdot) mdot / rho
-    (``x``: the open tube's or the closed restrictor's coefficient), on arrays
-    or scalars alike: ((F0, F1), the Jacobian entries of F1 in p_a, mf_a, p_b),
-    the entries None without ``dx`` (dx/dmf_a, given for a Jacobian)."""
-    dp_model = x * mfa / rho
-    rows = (mfa + mfb, (pa - pb) - dp_model)
-    if dx is None:
-        return rows, None
-    g = dp_model / rho * drho
-    return rows, (1.0 + g, -dx / rho, -1.0 + g)
 
 
 def _flow_law_jacobian(P, dq):
@@ -216,6 +252,27 @@ def _tube_drop_derivative(P, name, c, mf):
     dp = c * phi * mf
     d_eD = c * mf * friction_roughness_derivative(P, Re)
     return tube_law_derivative(P, name, dp, c * (phi + Re * dphi) * mf, d_eD), dp
+
+
+def set_tube_like_law(P):
+    """The compiled law of a group of Tesla or snapping valves (after
+    :func:`set_tube_coefficients` and :func:`set_isothermal_law`): Haaland's
+    blended friction law (``P.kind``, its id in the compiled laws, and
+    ``P.friction_terms``, its roughness term made once), and whether the group
+    runs as one compiled pass (``P.compiled``, :func:`set_density_law`) with
+    p/rho of an ideal gas ``P.law_c2`` (0 for a liquid)."""
+    P.kind = compiled_kind(friction_Haaland)
+    # Haaland's roughness terms, made once on the group's array (as the array law
+    # makes them: NumPy's ** on a scalar is not its ufunc on an array to the last bit)
+    P.friction_terms = roughness_terms(friction_Haaland, P.eD)
+    set_density_law(P)
+    P.law_c2 = P.c2 if P.compiled and P.isothermal else 0.0
+
+
+def _prepared(n, *columns):
+    """The columns (arrays of n, or floats) as C-contiguous float64 arrays of n."""
+    return [_flat(c, n) for c in columns]
+
 
 class _TubeLike(LibraryComponent):
     """Shared checks of the tube-geometry parameters (length, diameter, roughness, blend)."""
@@ -366,42 +423,32 @@ class Orifice(LibraryComponent):
     def make_params(cls, components):
         P = super().make_params(components)
         P.model = components[0].model
-        if P.model == "ISO 6358":
-            P.T = P.fluid.temperature
+        # the compiled law's id (laws.valves' LOSS, NOZZLE, ISO_6358, written out
+        # here so that making the Params does not import numba)
+        P.law = {"K": 0, "nozzle": 1, "ISO 6358": 2}[P.model]
+        P.T = float(P.fluid.temperature) if P.model == "ISO 6358" else 0.0
+        set_density_law(P)
         return P
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
-        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        fl = P.fluid
-        if P.model == "ISO 6358":
-            q, dq_pa, dq_pb = massflow_ISO_6358(pa, pb, P.T, P.C, P.b, P.subsonic_index,
-                                                P.pr_laminar)
-        elif P.model == "nozzle":
-            q, dq_pa, dq_pb, _ = _nozzle_flow(P, pa, pb)
-        else:
-            forward = pa >= pb
-            if fl.compressible:
-                p_up = np.where(forward, pa, pb)
-                rho, drho = fl.density(p_up), fl.density_dp(p_up)
-            else:
-                rho, drho = fl.rho, 0.0
-            q, dq_dp, dq_rho = massflow_loss_coefficient(pa - pb, rho, P.K, P.area, P.dp_small)
-            dq_up = dq_rho * drho
-            dq_pa = dq_dp + np.where(forward, dq_up, 0.0)
-            dq_pb = -dq_dp + np.where(forward, 0.0, dq_up)
+        """Mass balance and mf_a minus the law's flow, in one compiled pass
+        (:func:`softflow.laws.valves.orifice_residual`); the upstream densities
+        from the fluid's methods where the pass cannot make them (a gas at the
+        table or eos level: :func:`set_density_law`). ISO 6358 takes none."""
+        given = not P.compiled and P.model != "ISO 6358"
+        rho_up = drho_up = _NONE
+        if given:
+            pa, pb = V[:, 0], V[:, 2]
+            p_up = np.maximum(pa, pb) if P.model == "nozzle" else np.where(pa >= pb, pa, pb)
+            rho_up, drho_up = _given_density(P, p_up)
         F = np.empty((P.n, 2))
-        F[:, 0] = mfa + mfb
-        F[:, 1] = mfa - q
-        if not jac:
-            return F, None
-        J = np.empty((P.n, 5))
-        J[:, 0] = 1.0
-        J[:, 1] = 1.0
-        J[:, 2] = -dq_pa
-        J[:, 3] = 1.0
-        J[:, 4] = -dq_pb
-        return F, J
+        J = np.empty((P.n, 5)) if jac else _NO_JACOBIAN
+        _valve_laws().orifice_residual(
+            P.law, V, P.law_RT, P.law_rho, P.K, P.area, P.dp_small, P.gamma, P.Cd, P.T, P.C,
+            P.b, P.subsonic_index, P.pr_laminar, ISO_6358_RHO0, ISO_6358_T0, given, rho_up,
+            drho_up, F, J, jac)
+        return F, (J if jac else None)
 
 
     @classmethod
@@ -526,6 +573,7 @@ class CheckValve(LibraryComponent):
     def make_params(cls, components):
         P = super().make_params(components)
         P.nozzle = bool(P.fluid.compressible) and components[0].gas_law == "nozzle"
+        set_density_law(P)
         return P
 
     @staticmethod
@@ -545,27 +593,23 @@ class CheckValve(LibraryComponent):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
-        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        fl = P.fluid
-        dp = pa - pb
-        rho_m, drho_m = _mean_density(fl, pa, pb)
-        q_open, dq_pa, dq_pb, _ = cls._open_flow(P, pa, pb)
-        w, dw = smoothstep(dp, P.cracking_pressure, P.cracking_pressure + P.opening_band)
-        q_leak = rho_m * P.leakage * dp
+        """Mass balance and mf_a minus the valve's flow, in one compiled pass
+        (:func:`softflow.laws.valves.check_valve_residual`); the densities from
+        the fluid's methods where the pass cannot make them (a gas at the table
+        or eos level: :func:`set_density_law`)."""
+        given = not P.compiled
+        rho_open = drho_open = rho_m = drho_m = _NONE
+        if given:
+            pa, pb = V[:, 0], V[:, 2]
+            rho_open, drho_open = _given_density(P, np.maximum(pa, pb) if P.nozzle else pa)
+            rho_m, drho_m = _given_density(P, (pa, pb), mean=True)
         F = np.empty((P.n, 2))
-        F[:, 0] = mfa + mfb
-        F[:, 1] = mfa - (w * q_open + q_leak)
-        if not jac:
-            return F, None
-        d_dp = dw * q_open + rho_m * P.leakage     # through dp
-        d_rho = drho_m * P.leakage * dp              # through rho_m, per p_a or p_b
-        J = np.empty((P.n, 5))
-        J[:, 0] = 1.0
-        J[:, 1] = 1.0
-        J[:, 2] = -(d_dp + d_rho + w * dq_pa)
-        J[:, 3] = 1.0
-        J[:, 4] = -(-d_dp + d_rho + w * dq_pb)
-        return F, J
+        J = np.empty((P.n, 5)) if jac else _NO_JACOBIAN
+        _valve_laws().check_valve_residual(
+            P.nozzle, V, P.law_RT, P.law_rho, P.K, P.Cd, P.gamma, P.area, P.dp_small,
+            P.cracking_pressure, P.opening_band, P.leakage, given, rho_open, drho_open, rho_m,
+            drho_m, F, J, jac)
+        return F, (J if jac else None)
 
     @classmethod
     def kinks(cls, P, V):
@@ -682,51 +726,59 @@ class TeslaValve(_TubeLike):
         set_tube_coefficients(P)
         set_isothermal_law(P, P.fluid.compressible)
         P.mf_blend = P.Re_blend / P.re_per_mf
+        set_tube_like_law(P)
         return P
-
-    @classmethod
-    def _friction(cls, P, mfa, jac):
-        """The valve's friction term over c_mu, (f Re) mdot D(mdot), and its
-        derivative in mdot (None without ``jac``)."""
-        Re, phi, dphi = _tube_fRe(P, mfa)
-        w, dw = smoothstep(mfa, -P.mf_blend, 0.0)
-        extra = P.diodicity - 1.0
-        mult = 1.0 + extra * (1.0 - w)
-        law = phi * mfa * mult
-        return law, ((phi + Re * dphi) * mult - phi * mfa * extra * dw if jac else None)
 
     @classmethod
     def pressure_drop(cls, P, pa, mfa, pb, jac):
         """p_a - p_b required by the flow mfa entering at ``a`` and its partials in
         p_a, mfa, p_b (None without ``jac``): a gas's isothermal pipe-flow law with
         the friction term times D (:func:`softflow.components.tubes.isothermal_drop`),
-        else the Darcy law at the mean density."""
-        law, dlaw = cls._friction(P, mfa, jac)
-        if P.isothermal:
-            return isothermal_drop(P, pa, mfa, pb, P.c_mu * law,
-                                   None if dlaw is None else P.c_mu * dlaw, None, jac)
-        rho, drho = _mean_density(P.fluid, pa, pb)
-        c = P.c_mu / rho
-        dp = c * law
-        if not jac:
-            return dp, None, None, None
-        g = -dp / rho * drho
-        return dp, g, c * dlaw, g
+        else the Darcy law at the mean density. An ideal gas or a liquid runs as
+        one compiled pass (:func:`softflow.laws.valves.tesla_drop`); a gas at the
+        table or eos level takes p/rho at the mean pressure from its methods."""
+        n = P.n
+        laws = _valve_laws()
+        if P.compiled or not P.isothermal:
+            out = np.empty((4, n))
+            laws.tesla_drop_array(P.kind, P.Re_lo, P.Re_hi, *_prepared(n, pa, mfa, pb),
+                                  P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area,
+                                  P.mf_blend, P.diodicity, P.law_c2, P.law_rho, *out)
+            return tuple(out) if jac else (out[0], None, None, None)
+        # a gas whose p/rho comes from its methods: the friction term, compiled,
+        # into the tube's isothermal law
+        law, dlaw = np.empty(n), np.empty(n)
+        laws.tesla_friction_array(P.kind, P.Re_lo, P.Re_hi, _flat(mfa, n), P.re_per_mf, P.eD,
+                                  P.friction_terms, P.mf_blend, P.diodicity, law, dlaw)
+        return isothermal_drop(P, pa, mfa, pb, P.c_mu * law, P.c_mu * dlaw if jac else None,
+                               None, jac)
 
     @classmethod
     def thermal_drop(cls, P, pa, mfa, pb, T_up, jac):
         """In a thermal scene, for an ideal gas: the adiabatic (Fanno) pipe-flow
         law with the valve's friction term (:func:`softflow.components.tubes.adiabatic_drop`),
         p_a - p_b required and its partials in p_a, mfa, p_b and the upstream
-        temperature; None otherwise (the thermal variant scales the isothermal law)."""
+        temperature, in one compiled pass (:func:`softflow.laws.valves.tesla_adiabatic_drop`);
+        None otherwise (the thermal variant scales the isothermal law)."""
         if P.R_gas is None:
             return None
-        law, dlaw = cls._friction(P, mfa, jac)
-        return adiabatic_drop(P, pa, mfa, pb, T_up, P.c_mu * law,
-                              None if dlaw is None else P.c_mu * dlaw, jac)
+        n = P.n
+        out = np.empty((5, n))
+        _valve_laws().tesla_adiabatic_drop_array(
+            P.kind, P.Re_lo, P.Re_hi, *_prepared(n, pa, mfa, pb, T_up), P.re_per_mf, P.c_mu,
+            P.eD, P.friction_terms, P.area, P.mf_blend, P.diodicity, P.R_gas, P.gamma, *out)
+        return tuple(out) if jac else (out[0], None, None, None, None)
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        if P.compiled or not P.isothermal:
+            # the law in one compiled pass (laws.valves.tesla_residual)
+            F = np.empty((P.n, 2))
+            J = np.empty((P.n, 5)) if jac else _NO_JACOBIAN
+            _valve_laws().tesla_residual(P.kind, P.Re_lo, P.Re_hi, V, P.re_per_mf, P.c_mu,
+                                         P.eD, P.friction_terms, P.area, P.mf_blend,
+                                         P.diodicity, P.law_c2, P.law_rho, F, J, jac)
+            return F, (J if jac else None)
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
         F = np.empty((P.n, 2))
@@ -871,20 +923,16 @@ class SnappingValve(_TubeLike):
         P = super().make_params(components)
         set_tube_coefficients(P)
         set_isothermal_law(P, P.fluid.compressible)
-        # Haaland's roughness terms, made once on the group's array: NumPy's **
-        # on a scalar is not its ufunc on an array to the last bit
-        P.friction_terms = roughness_terms(friction_Haaland, P.eD)
-        # one valve of a liquid: the residual and the switch on NumPy scalars, the
-        # same arithmetic as on arrays (bitwise; 8 -> 2 us a residual, measured)
-        P.one = None if P.isothermal else one_instance(P)
+        set_tube_like_law(P)
         return P
 
     @classmethod
     def switch(cls, P, V, S):
-        if P.one is not None:
-            dp, Q = V[0, 0] - V[0, 2], P.one
-            mode = (1.0 if dp > Q.opening_pressure else
-                    0.0 if dp < Q.closing_pressure else S[0, 0])
+        if P.n == 1:
+            # one valve (the usual): on its floats, the array path's numbers
+            dp = V[0, 0] - V[0, 2]
+            mode = (1.0 if dp > P.opening_pressure[0] else
+                    0.0 if dp < P.closing_pressure[0] else S[0, 0])
             return np.array([[mode]])
         dp = V[:, 0] - V[:, 2]
         mode = np.where(dp > P.opening_pressure, 1.0,
@@ -920,58 +968,40 @@ class SnappingValve(_TubeLike):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
-        if P.one is not None:
-            return cls._residual_one(P.one, V, S, jac)
-        pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
-        is_open = S[:, 0] > 0.5
-        rho, drho = _mean_density(P.fluid, pa, pb)
-        Re, phi, dphi = _tube_fRe(P, mfa, P.friction_terms)
-        # both laws as dp = X(mdot)/rho: open the tube, closed the linear restrictor
-        x_open, dx_open = _open_coefficients(P.c_mu, Re, phi, dphi, jac)
-        x_closed = 1.0 / P.closed_conductance
-        x = np.where(is_open, x_open, x_closed)
-        dx = np.where(is_open, dx_open, x_closed) if jac else None
-        (f0, f1), j = _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho)
-        if P.isothermal and is_open.any():
-            # open with a gas: the tube's isothermal pipe-flow law
-            dp, d_pa, d_mf, d_pb = isothermal_drop(P, pa, mfa, pb, x_open * mfa, dx_open,
-                                                   None, jac)
-            f1 = np.where(is_open, (pa - pb) - dp, f1)
+        """Mass balance and the flow law of each valve's mode, in one compiled
+        pass (:func:`softflow.laws.valves.snapping_residual`): open, the
+        passage's tube law (a gas's isothermal pipe flow, a liquid's Darcy law),
+        closed, the linear restrictor, both at the mean density. A gas at the
+        table or eos level (:func:`set_density_law`) gives the pass its
+        densities from its methods, and its open valves take the tube's
+        isothermal law with p/rho from them
+        (:func:`softflow.components.tubes.isothermal_drop`)."""
+        laws = _valve_laws()
+        n = P.n
+        given = not P.compiled
+        rho_m = drho_m = _NONE
+        if given:
+            rho_m, drho_m = _given_density(P, (V[:, 0], V[:, 2]), mean=True)
+        F = np.empty((n, 2))
+        J = np.empty((n, 5)) if jac else _NO_JACOBIAN
+        laws.snapping_residual(P.kind, P.Re_lo, P.Re_hi, V, S, P.re_per_mf, P.c_mu, P.eD,
+                               P.friction_terms, P.area, P.closed_conductance, P.law_c2,
+                               P.law_RT, P.law_rho, given, rho_m, drho_m, F, J, jac)
+        is_open = S[:, 0] > 0.5 if given and P.isothermal else None
+        if is_open is not None and is_open.any():
+            # open with a gas of the table or eos level: the tube's isothermal
+            # pipe-flow law, its friction term compiled
+            pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
+            Phi, dPhi = np.empty(n), np.empty(n)
+            laws.friction_term_array(P.kind, P.Re_lo, P.Re_hi, _flat(mfa, n), P.re_per_mf,
+                                     P.c_mu, P.eD, P.friction_terms, Phi, dPhi)
+            dp, d_pa, d_mf, d_pb = isothermal_drop(P, pa, mfa, pb, Phi, dPhi, None, jac)
+            F[:, 1] = np.where(is_open, (pa - pb) - dp, F[:, 1])
             if jac:
-                j = (np.where(is_open, 1.0 - d_pa, j[0]), np.where(is_open, -d_mf, j[1]),
-                     np.where(is_open, -1.0 - d_pb, j[2]))
-        F = np.empty((P.n, 2))
-        F[:, 0] = f0
-        F[:, 1] = f1
-        if not jac:
-            return F, None
-        J = np.empty((P.n, 5))
-        J[:, 0] = 1.0
-        J[:, 1] = 1.0
-        J[:, 2], J[:, 3], J[:, 4] = j
-        return F, J
-
-    @staticmethod
-    def _residual_one(Q, V, S, jac):
-        """:meth:`residual` of a group of one (``Q``: its Params on scalars), the
-        same operations on NumPy scalars"""
-        pa, mfa, pb, mfb = V[0]
-        rho, drho = _mean_density(Q.fluid, pa, pb)
-        if S[0, 0] > 0.5:
-            Re = abs(mfa) * Q.re_per_mf
-            if Re <= Q.Re_lo:
-                phi, dphi = 64.0, 0.0
-            else:
-                phi, dphi = fRe_blended(Re, Q.eD, Q.Re_lo, Q.Re_hi, terms=Q.friction_terms)
-            x, dx = _open_coefficients(Q.c_mu, Re, phi, dphi, jac)
-        else:
-            x = 1.0 / Q.closed_conductance
-            dx = x if jac else None
-        (f0, f1), j = _snapping_rows(pa, mfa, pb, mfb, x, dx, rho, drho)
-        F = np.array([[f0, f1]])
-        if not jac:
-            return F, None
-        return F, np.array([[1.0, 1.0, *j]])
+                J[:, 2] = np.where(is_open, 1.0 - d_pa, J[:, 2])
+                J[:, 3] = np.where(is_open, -d_mf, J[:, 3])
+                J[:, 4] = np.where(is_open, -1.0 - d_pb, J[:, 4])
+        return F, (J if jac else None)
 
     @classmethod
     def thermal_rows(cls, P, V, S, T_up, jac):
@@ -982,11 +1012,14 @@ class SnappingValve(_TubeLike):
         temperature); None otherwise."""
         if P.R_gas is None:
             return None
-        pa, mfa, pb = V[:, 0], V[:, 1], V[:, 2]
-        Re, phi, dphi = _tube_fRe(P, mfa, P.friction_terms)
-        law = adiabatic_drop(P, pa, mfa, pb, T_up, P.c_mu * phi * mfa,
-                             P.c_mu * (phi + Re * dphi) if jac else None, jac)
-        return (S[:, 0] > 0.5, *law)
+        # the tube's law in one compiled pass (laws.tube.adiabatic_drop_array)
+        n = P.n
+        out = np.empty((5, n))
+        _tube_laws().adiabatic_drop_array(P.kind, P.Re_lo, P.Re_hi,
+                                          *_prepared(n, V[:, 0], V[:, 1], V[:, 2], T_up),
+                                          P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area,
+                                          P.R_gas, P.gamma, *out)
+        return (S[:, 0] > 0.5, *(out if jac else (out[0], None, None, None, None)))
 
     @classmethod
     def thermal_rows_parameter_derivative(cls, P, V, S, T_up, name):

@@ -430,8 +430,8 @@ def _tile_params(cls, P, comps, m):
 
 
 _PLAIN = (int, float, bool, str, type(None), np.float64, np.int64, np.bool_)
-#: attributes a group of one has (its law on scalars: CircularTube's and
-#: SnappingValve's P.one, Actuator's P.one_curve) and larger groups set to None
+#: attributes a group of one has (its law on scalars: CircularTube's P.one,
+#: Actuator's P.one_curve) and larger groups set to None
 _SINGLE_ONLY = frozenset({"one", "one_curve"})
 
 
