@@ -628,29 +628,33 @@ def test_adiabatic_gas_filled_hysteretic_actuator_snaps_at_its_fold(rtol):
 @pytest.mark.parametrize("extrapolate", ["linear", "clamp", "error"])
 @pytest.mark.parametrize("fluid", [sf.water, sf.air, sf.air.with_level("table")],
                          ids=["water", "air", "air-table"])
-def test_one_actuator_on_a_pvcurve_reads_it_on_floats_bitwise(fluid, extrapolate):
-    """An actuator alone in its group, on an unscaled PVCurve, evaluates its
-    residual on NumPy scalars (P.one_curve): the array path's residual and
-    Jacobian, bitwise (signed zeros included), inside the curve, past its
-    ends, at zero pressure (a gas's density 0: inf or nan, not an exception)
-    and at non-finite points (the same error where the curve refuses); scaled
-    curves, callables and groups of two keep the array path."""
+@pytest.mark.parametrize("n", [1, 3])
+@pytest.mark.parametrize("scale", [1.0, 2.0])
+def test_actuators_on_a_pvcurve_run_one_compiled_pass_bitwise(fluid, extrapolate, n, scale):
+    """A group of actuators on a PVCurve evaluates its residual in one compiled
+    pass (P.pv, laws.volumes.actuator_residual): the path through the curve's
+    Python interface (P.pv = None, the path of a callable curve) gives the same
+    residual and Jacobian, bitwise (signed zeros included), inside the curve,
+    past its ends, scaled or not, at zero pressure (a gas's density 0: inf or
+    nan, not an exception) and at non-finite points (the same error where the
+    curve refuses); callables keep the Python path."""
     from softflow.curves.pvcurve import CurveRangeError
     from softflow.fluids.base import FluidError
     refused = (CurveRangeError, FluidError)
     curve = sf.PVCurve(volume=[1e-6, 3e-6, 6e-6, 1.4e-5], pressure=[1.01e5, 1.3e5, 1.2e5, 1.5e5],
                        extrapolate=extrapolate)
-    act = Actuator("a", fluid, curve)
-    P = Actuator.make_params([act])
-    assert P.one_curve is curve
-    assert Actuator.make_params([act, Actuator("b", fluid, curve)]).one_curve is None
-    assert Actuator.make_params([Actuator("s", fluid, curve, pressure_scale=2.0)]).one_curve is None
+    acts = [Actuator(f"a{k}", fluid, curve, pressure_scale=scale if k == 0 else 1.0)
+            for k in range(n)]
+    P = Actuator.make_params(acts)
+    assert P.pv is curve
     assert Actuator.make_params([Actuator("c", fluid, lambda v: 1e5 + 1e9 * v,
-                                          initial_volume=1e-6)]).one_curve is None
+                                          initial_volume=1e-6)]).pv is None
+    others = np.array([3e-6, 1.2e-5])
     for vol in (1e-6, 2e-6, 3e-6, 4.5e-6, 1.4e-5, 5e-7, 2e-5, 0.0, np.nan):
         for p in (1.1e5, 1.6e5, 0.0, -0.0, np.nan):
-            V = np.array([[p, 1e-5]])
-            S = np.array([[float(fluid.density(max(p, 1e5))) * vol if np.isfinite(p) else vol]])
+            V = np.array([[p, 1e-5]] + [[1.2e5, 0.0]] * (n - 1))
+            m = float(fluid.density(max(p, 1e5))) * vol if np.isfinite(p) else vol
+            S = np.concatenate([[m], float(fluid.density(1.2e5)) * others[:n - 1]])[:, None]
             for jac in (False, True):
                 got = want = None
                 with np.errstate(all="ignore"):
@@ -658,13 +662,13 @@ def test_one_actuator_on_a_pvcurve_reads_it_on_floats_bitwise(fluid, extrapolate
                         got = Actuator.residual(P, V, S, 0.0, jac)
                     except refused as err:
                         got = str(err)
-                    P.one_curve = None
+                    P.pv = None
                     try:
                         want = Actuator.residual(P, V, S, 0.0, jac)
                     except refused as err:
                         want = str(err)
                     finally:
-                        P.one_curve = curve
+                        P.pv = curve
                 if isinstance(want, str):
                     assert got == want
                     continue

@@ -585,7 +585,7 @@ def test_continuation_solves_do_not_count_as_steps():
 
 def test_sensitivity_tiles_groups_of_one_without_their_scalar_view(monkeypatch):
     """Tiling a group of one's Params over several copies (deferred
-    sensitivities) drops its scalar view (P.one, P.one_curve) instead of
+    sensitivities) drops its scalar view (P.one) instead of
     rebuilding the Params for all copies (make_params only for the trial with
     two), and gives what make_params would."""
     from softflow.components.tubes import CircularTube

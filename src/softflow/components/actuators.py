@@ -29,9 +29,9 @@ from ..curves.hysteresis import HysteresisLoop
 from ..curves.pvcurve import PVCurve
 from ..fluids.base import FluidError
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
-from .chambers import _given, initial_mass_jacobian
 from .base import FLUID_PORT, LibraryComponent, Params
-from .chambers import MASS_RATE_PATTERN, mass_rates
+from .chambers import (MASS_RATE_PATTERN, _given, given_densities, initial_mass_jacobian,
+                       mass_rates, set_fluid_law, volume_laws)
 
 if TYPE_CHECKING:
     from .._typing import Curve, HeatTransfer, Scalar
@@ -250,16 +250,16 @@ class Actuator(LibraryComponent):
     # -- kernels --------------------------------------------------------------------------
     @classmethod
     def make_params(cls, components):
-        P = Params(components)
+        P = set_fluid_law(Params(components))
         P.curve = components[0]._curve_fn
         P.scaled = bool(np.any(P.pressure_scale != 1.0))
-        # one actuator on a PVCurve, unscaled: its residual reads the curve on
-        # floats and computes on NumPy scalars (PVCurve's one-volume path, the
-        # same arithmetic), ~1.5x faster
+        # a group on a PVCurve evaluates its residual in one compiled pass over
+        # the curve's table (laws.volumes.actuator_residual); a callable or
+        # another kind of curve object, through its Python function
         curve = components[0].curve
-        P.one_curve = (curve if P.n == 1 and not P.scaled and type(curve) is PVCurve
-                       and cls.residual.__func__ is Actuator.residual.__func__
-                       and cls.curve_pressure is Actuator.curve_pressure else None)
+        P.pv = (curve if compiled_curve(curve)
+                and cls.residual.__func__ is Actuator.residual.__func__
+                and cls.curve_pressure is Actuator.curve_pressure else None)
         return P
 
     @staticmethod
@@ -314,19 +314,18 @@ class Actuator(LibraryComponent):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        pv = P.pv
+        if pv is not None:
+            rho, rho_p = given_densities(P, V[:, 0], jac)
+            F = np.empty((P.n, 1))
+            J = np.empty((P.n, 2)) if jac else _NO_JACOBIAN
+            if volume_laws().actuator_residual(
+                    P.rho_kind, P.rho_c, V, S, rho, rho_p, pv._knots, pv._table, pv._mode,
+                    P.scaled, P.pressure_scale, pressure_atmospheric, F, J, jac) < 0:
+                return F, (J if jac else None)
+            # a volume the curve refuses (extrapolate='error'): the curve's own
+            # error, as the path below raises it
         p, rho, vol = _volume(P, V, S)
-        curve = P.one_curve
-        if curve is not None:
-            # as below on NumPy scalars: PVCurve.fdf_volume on a (1,) array takes
-            # its float path, and +-*/ on np.float64 are the arrays' IEEE
-            # operations, a division by zero included (inf or nan, not an
-            # exception, as Newton expects of a trial point)
-            v = vol[0]
-            pc, dpc = curve._scalar(float(v))
-            if not jac:
-                return np.array([[p[0] - pc]]), None
-            F, d_p, d_m = _curve_law(p[0], rho[0], v, pc, dpc, P.fluid.density_dp(p)[0])
-            return np.array([[F]]), np.array([[d_p, d_m]])
         try:
             pc, dpc = cls.curve_pressure(P, vol, jac)
             if not jac:
@@ -424,19 +423,27 @@ def fold_pressure(pressure_of, fluid, vol, mass, rising):
     return float(pressure_of(np.array([v]))[0])
 
 
-def _curve_law(p, rho, vol, pc, dpc, drho):
-    """p - p_curve(V) with V = m / rho(p), and its derivatives in p and m
-    (``drho``: d rho / dp), on arrays or NumPy scalars alike."""
-    return p - pc, 1.0 + dpc * vol * (drho / rho), -dpc / rho
-
-
 def _residual(P, p, rho, vol, pc, dpc):
-    """:func:`_curve_law` of a group: (F (n, 1), J (n, 2))."""
-    F, d_p, d_m = _curve_law(p, rho, vol, pc, dpc, P.fluid.density_dp(p))
-    J = np.empty((P.n, 2))
-    J[:, 0] = d_p
-    J[:, 1] = d_m
-    return F[:, None], J
+    """The wall law p - p_curve(V), V = m / rho(p), of a group whose curve was
+    evaluated in Python (pc, dpc at vol), with its derivatives in p and m:
+    (F (n, 1), J (n, 2)), by the compiled law (laws.volumes.curve_law_array)."""
+    n = P.n
+    F, J = np.empty((n, 1)), np.empty((n, 2))
+    volume_laws().curve_law_array(*(np.broadcast_to(np.asarray(x, dtype=float), (n,))
+                                    for x in (p, rho, P.fluid.density_dp(p), vol, pc, dpc)),
+                                  F, J)
+    return F, J
+
+
+def compiled_curve(curve):
+    """Whether ``curve`` is a PVCurve that the compiled lookup reads (its table;
+    a subclass that evaluates itself otherwise is not)."""
+    kind = type(curve)
+    return (isinstance(curve, PVCurve) and kind.fdf_volume is PVCurve.fdf_volume
+            and kind._array is PVCurve._array and kind._scalar is PVCurve._scalar)
+
+
+_NO_JACOBIAN = np.empty((0, 2))
 
 
 def _volume_output(fluid):
@@ -567,8 +574,12 @@ class HystereticActuator(LibraryComponent):
 
     @classmethod
     def make_params(cls, components):
-        P = Params(components)
+        P = set_fluid_law(Params(components))
         P.loop = components[0].loop
+        # the loop's branches read by the compiled pass (laws.volumes.hysteretic_residual)
+        P.compiled = (compiled_curve(P.loop.inflation) and compiled_curve(P.loop.deflation)
+                      and type(P.loop).fdf_volume is HysteresisLoop.fdf_volume
+                      and type(P.loop).on_inflation_curve is HysteresisLoop.on_inflation_curve)
         return P
 
     @classmethod
@@ -630,6 +641,17 @@ class HystereticActuator(LibraryComponent):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        if P.compiled:
+            # the branch's curve and the wall law in one compiled pass
+            loop = P.loop
+            up, down = loop.inflation, loop.deflation
+            rho, rho_p = given_densities(P, V[:, 0], jac)
+            F = np.empty((P.n, 1))
+            J = np.empty((P.n, 2)) if jac else _NO_JACOBIAN
+            volume_laws().hysteretic_residual(
+                P.rho_kind, P.rho_c, V, S, 1, rho, rho_p, up._knots, up._table, down._knots,
+                down._table, loop.volume_high, loop.volume_low, F, J, jac)
+            return F, (J if jac else None)
         p, rho, vol = _volume(P, V, S)
         pc, dpc = P.loop.fdf_volume(vol, S[:, 1] > 0.5)
         if not jac:

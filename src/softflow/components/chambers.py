@@ -8,8 +8,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..constants import pressure_atmospheric
+from ..fluids.ideal import ConstantLiquid, IdealGas
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
-from .base import FLUID_PORT, LibraryComponent
+from .base import FLUID_PORT, LibraryComponent, Params
 
 if TYPE_CHECKING:
     from .._typing import HeatTransfer, Scalar
@@ -24,6 +25,51 @@ def accumulator_volume(P, p):
     """The fluid volume of a linear accumulator at pressure p [m^3]: volume +
     compliance (p - reference_pressure). ``P``: its Params, or the component."""
     return P.volume + P.compliance * (p - P.reference_pressure)
+
+
+_LAWS = None
+#: the Jacobian argument of a compiled pass evaluated without one
+NO_JACOBIAN = np.empty((0, 3))
+
+
+def volume_laws():
+    """:mod:`softflow.laws.volumes`, imported at the first use (numba's import)."""
+    global _LAWS
+    if _LAWS is None:
+        from ..laws import volumes
+        _LAWS = volumes
+    return _LAWS
+
+
+def set_fluid_law(P):
+    """How the group's compiled pass gets its fluid's density: ``P.rho_kind``
+    and ``P.rho_c``, an ideal gas at its own temperature (R T: rho = p / (R T))
+    or a liquid of constant density (rho), whose densities the pass computes
+    itself, else densities given per instance from the fluid's own methods
+    (table and eos levels, a custom fluid): the codes of
+    :mod:`softflow.laws.volumes`, written out here so that making the Params
+    does not import numba."""
+    methods = type(P.fluid)
+    if (methods.density is IdealGas.density and methods.density_dp is IdealGas.density_dp
+            and isinstance(P.fluid, IdealGas)):
+        P.rho_kind, P.rho_c = 0, float(P.fluid._RT)          # volumes.IDEAL_GAS
+    elif (methods.density is ConstantLiquid.density
+          and methods.density_dp is ConstantLiquid.density_dp
+          and isinstance(P.fluid, ConstantLiquid)):
+        P.rho_kind, P.rho_c = 1, float(P.fluid.rho0)         # volumes.CONSTANT_LIQUID
+    else:
+        P.rho_kind, P.rho_c = 2, 0.0                         # volumes.GIVEN
+    return P
+
+
+def given_densities(P, p, jac):
+    """(rho, d rho/dp) of the group's fluid at p from its own methods, for a
+    compiled pass of a fluid whose properties come from Python (else the
+    pressures, unread); d rho/dp only with ``jac`` (else rho again)."""
+    if P.rho_kind != 2:
+        return p, p
+    rho = P.fluid.density(p)
+    return rho, (P.fluid.density_dp(p) if jac else rho)
 
 
 def mass_rates(P, V, jac):
@@ -137,24 +183,25 @@ class Container(LibraryComponent):
         return initial_mass_jacobian(self, name)
 
     @classmethod
+    def make_params(cls, components):
+        return set_fluid_law(Params(components))
+
+    @classmethod
     def rates(cls, P, V, S, jac):
         return mass_rates(P, V, jac)
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
-        p, mf = V[:, 0], V[:, 1]
         if not P.fluid.compressible:
             # a rigid chamber of liquid admits no flow (its mass stays the initial one)
-            F = mf[:, None].copy()
+            F = V[:, 1:2].copy()
             return F, (np.tile([0.0, 1.0, 0.0], (P.n, 1)) if jac else None)
-        F = (P.fluid.density(p) * P.volume - S[:, 0])[:, None]
-        if not jac:
-            return F, None
-        J = np.empty((P.n, 3))
-        J[:, 0] = P.fluid.density_dp(p) * P.volume
-        J[:, 1] = 0.0
-        J[:, 2] = -1.0
-        return F, J
+        # F = rho(p) volume - m in one compiled pass (laws.volumes.rigid_residual)
+        rho, rho_p = given_densities(P, V[:, 0], jac)
+        F = np.empty((P.n, 1))
+        J = np.empty((P.n, 3)) if jac else NO_JACOBIAN
+        volume_laws().rigid_residual(P.rho_kind, P.rho_c, P.volume, V, S, rho, rho_p, F, J, jac)
+        return F, (J if jac else None)
 
 
 class LinearAccumulator(LibraryComponent):
@@ -248,21 +295,23 @@ class LinearAccumulator(LibraryComponent):
         return initial_mass_jacobian(self, name)
 
     @classmethod
+    def make_params(cls, components):
+        return set_fluid_law(Params(components))
+
+    @classmethod
     def rates(cls, P, V, S, jac):
         return mass_rates(P, V, jac)
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
-        p = V[:, 0]
-        vol = accumulator_volume(P, p)
-        rho = P.fluid.density(p)
-        F = (rho * vol - S[:, 0])[:, None]
-        if not jac:
-            return F, None
-        J = np.empty((P.n, 2))
-        J[:, 0] = P.fluid.density_dp(p) * vol + rho * P.compliance
-        J[:, 1] = -1.0
-        return F, J
+        # F = rho(p) (volume + compliance (p - p_ref)) - m in one compiled pass
+        # (laws.volumes.compliant_residual)
+        rho, rho_p = given_densities(P, V[:, 0], jac)
+        F = np.empty((P.n, 1))
+        J = np.empty((P.n, 2)) if jac else NO_JACOBIAN
+        volume_laws().compliant_residual(P.rho_kind, P.rho_c, P.volume, P.compliance,
+                                         P.reference_pressure, V, S, rho, rho_p, F, J, jac)
+        return F, (J if jac else None)
 
     def outputs(self):
         if self._thermal is not None:      # gas temperature, internal energy, work

@@ -177,10 +177,16 @@ class PVCurve:
             self._c1[0] = self._c1[-1] = 0.0
         self._lo, self._hi = float(v[0]), float(v[-1])
         self._refuse = self.extrapolate == "error"
+        # what the compiled lookup reads (softflow.laws.volumes): the knots, one
+        # row [base, c0, c1, c2, c3] per piece, the extrapolation's code
+        self._knots = np.ascontiguousarray(v, dtype=float)
+        self._table = np.ascontiguousarray(
+            np.column_stack([self._base, self._c0, self._c1, self._c2, self._c3]))
+        self._mode = EXTRAPOLATE.index(self.extrapolate)
         # the antiderivative (work) at each piece's base, from the first volume
         full = _antiderivative(0.0, p[:-1], d[:-1], c2, c3, h)
         self._w0 = np.concatenate([[0.0, 0.0], np.cumsum(full)])
-        # the scalar path (one volume per call, as in a user component) runs on lists
+        # the work of one volume (an actuator alone in its group) runs on lists
         self._vl = v.tolist()
         self._wl = self._w0.tolist()
         self._tl = list(zip(self._base.tolist(), self._c0.tolist(), self._c1.tolist(),
@@ -195,8 +201,8 @@ class PVCurve:
         """Absolute pressure [Pa] and its derivative dp/dV [Pa/m^3] at ``volume`` [m^3]
         (a float, an array of any shape or a pint Quantity)."""
         if isinstance(volume, float):
-            # as a plain float: NumPy scalars (a user component's arguments) make
-            # the bisection and the polynomial 2.5x slower (0.6 vs 0.25 us, measured)
+            # one volume (a user component's argument, perhaps a NumPy scalar):
+            # the compiled lookup on a float, its result two floats
             return self._scalar(float(volume))
         if type(volume) is np.ndarray and volume.ndim and volume.dtype == np.float64:
             return self._array(volume)
@@ -212,8 +218,8 @@ class PVCurve:
         (its derivative in volume is the pressure)."""
         x = np.asarray(volume, dtype=float)
         if x.shape == (1,):
-            # one volume (an actuator alone in its group): the list path of
-            # fdf_volume, the same arithmetic
+            # one volume (an actuator alone in its group): on floats, the
+            # arithmetic of the arrays below
             v = float(x[0])
             if self._refuse and not self._lo <= v <= self._hi:
                 self._beyond(v)
@@ -237,23 +243,15 @@ class PVCurve:
     def _scalar(self, x: float) -> tuple[float, float]:
         if self._refuse and not self._lo <= x <= self._hi:
             self._beyond(x)
-        b, c0, c1, c2, c3 = self._tl[bisect.bisect_right(self._vl, x)]
-        x -= b
-        return c0 + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
+        return _volume_laws().curve_point(self._knots, self._table, x)
 
     def _array(self, x: Array) -> tuple[Array, Array]:
-        if x.shape == (1,):
-            # one volume (an actuator alone in its group, the usual case in small
-            # scenes): the list path, 1 us against 6 us for the array operations
-            p, d = self._scalar(float(x[0]))
-            return np.array([p]), np.array([d])
-        if self._refuse and x.size and not (self._lo <= np.min(x) and np.max(x) <= self._hi):
+        # the compiled lookup (softflow.laws.volumes.curve_array), any shape
+        p, d = np.empty(x.shape), np.empty(x.shape)
+        if _volume_laws().curve_array(self._knots, self._table, self._mode, x.ravel(),
+                                      p.reshape(-1), d.reshape(-1)) >= 0:
             self._beyond(x)
-        k = np.searchsorted(self.volume, x, side="right")
-        x = x - self._base[k]
-        c2, c3 = self._c2[k], self._c3[k]
-        c1 = self._c1[k]
-        return self._c0[k] + x * (c1 + x * (c2 + x * c3)), c1 + x * (2 * c2 + 3 * x * c3)
+        return p, d
 
     def __repr__(self) -> str:
         policy = "" if self.extrapolate == "linear" else f", extrapolate={self.extrapolate!r}"
@@ -373,6 +371,19 @@ class PVCurve:
 
 
 # -- helpers ------------------------------------------------------------------------------
+_LAWS = None
+
+
+def _volume_laws() -> Any:
+    """:mod:`softflow.laws.volumes`, imported at the first evaluation (numba's
+    import stays out of ``import softflow``)."""
+    global _LAWS
+    if _LAWS is None:
+        from ..laws import volumes
+        _LAWS = volumes
+    return _LAWS
+
+
 def _antiderivative(w0: Any, c0: Any, c1: Any, c2: Any, c3: Any, x: Any) -> Any:
     """w0 plus the integral from 0 to x of c0 + c1 x + c2 x^2 + c3 x^3 (a piece of
     the curve in monomial form: the work along it); floats or arrays alike."""

@@ -430,9 +430,9 @@ def _tile_params(cls, P, comps, m):
 
 
 _PLAIN = (int, float, bool, str, type(None), np.float64, np.int64, np.bool_)
-#: attributes a group of one has (its law on scalars: CircularTube's P.one,
-#: Actuator's P.one_curve) and larger groups set to None
-_SINGLE_ONLY = frozenset({"one", "one_curve"})
+#: attributes a group of one has (its law on scalars: CircularTube's P.one on
+#: the mean-density gas law) and larger groups set to None
+_SINGLE_ONLY = frozenset({"one"})
 
 
 def _solve_stacked(J, R):
