@@ -17,9 +17,10 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _run(builder, case, fig):
-    res, wall = ps.run(builder(case), fig)
+    # (the time each takes is measured by benchmarks/bench_paper_scenes.py: no
+    # wall-clock assertion in tests)
+    res, _ = ps.run(builder(case), fig)
     assert res.success, res.message
-    assert wall < 0.5 * 4      # the paper's 0.5 s, with slack for slow CI machines
     return res
 
 
