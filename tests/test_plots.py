@@ -103,8 +103,6 @@ def test_plotting_what_does_not_exist_lists_what_does(result):
         result.plot_path(("act1", "volume"), ("act3", "volume"))
     with pytest.raises(ValueError, match=r"'volume' is not 'component.variable'.*act1.volume"):
         result.plot("volume")
-    with pytest.raises(ValueError, match="name what to plot"):
-        result.plot()
     with pytest.raises(ValueError, match="components= and names= together"):
         result.plot(components=["act1"])
     with pytest.raises(sf.UnitError, match=r"act1.volume is a volume \[m\*\*3\].*'bar'"):
@@ -115,6 +113,17 @@ def test_plotting_what_does_not_exist_lists_what_does(result):
         result.plot("act1.volume", "act1.pressure", ax=plt.subplots()[1])
     with pytest.raises(TypeError, match=r"\(component, variable\[, terminal\]\)"):
         result.plot(42)
+
+
+def test_plot_without_variables_draws_the_nodes_that_hold_something(result):
+    """result.plot() draws the pressures of the one-port components (source,
+    actuators) and the actuators' volumes, which change: two stacked axes."""
+    axes = result.plot()
+    assert len(axes) == 2
+    assert set(_lines(axes[0])) == {"src.pressure", "act1.pressure", "act2.pressure"}
+    assert set(_lines(axes[1])) == {"act1.volume", "act2.volume"}
+    np.testing.assert_allclose(_lines(axes[1])["act2.volume"].get_ydata(),
+                               result["act2.volume"])
 
 
 def test_pvcurve_plot(curve):

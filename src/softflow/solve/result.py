@@ -453,6 +453,9 @@ class Result:
         ----------
         *variables : str or tuple
             ``'act.volume'``, ``('act', 'volume')`` or ``('tube', 'massflow', 'a')``.
+            With no variables (and no ``components``), the pressure of every
+            one-port component (sources, volumes, actuators) and every volume
+            that changes (actuators'): a first look at a run.
         components, names : list of str, optional
             Every name of every component, after ``variables``:
             ``plot(components=['act1', 'act2'], names=['pressure', 'volume'])``.
@@ -476,6 +479,8 @@ class Result:
         if bool(components) != bool(names):
             raise ValueError(f"{where}: give components= and names= together")
         if not specs:
+            specs = self._default_plot()
+        if not specs:
             raise ValueError(f"{where}: name what to plot, e.g. plot('{next(iter(self._where), 'act')}"
                              f".pressure'); columns: {self.columns()}")
         series = [self._series(spec, units, gauge, where) for spec in specs]
@@ -492,6 +497,22 @@ class Result:
             a.legend()
         axes[-1].set_xlabel(t_axis)
         return axes[0] if len(axes) == 1 else axes
+
+    def _default_plot(self) -> list[Spec]:
+        """What :meth:`plot` draws when named nothing: the pressure of every
+        one-port component (sources, volumes, actuators: the network's nodes
+        that hold something) and every volume that changes over the run (an
+        actuator's)."""
+        out: list[Spec] = []
+        for column in self.columns():
+            label, name = column.split(".", 1)
+            if name == "pressure":
+                out.append(column)
+            elif name == "volume":
+                values = self[column]
+                if len(values) and np.ptp(values) > 0.0:
+                    out.append(column)
+        return out
 
     def plot_path(self, x: Spec, y: Spec, *, units: Units = None, gauge: bool = False,
                   ax: Axes | None = None, label: str | None = None) -> Axes:
