@@ -242,3 +242,24 @@ def test_cli_run_reports_bad_scenes_in_one_line(tmp_path, capsys):
     assert "cannot read" in capsys.readouterr().err
     assert main(["run", str(path), "--duration", "1 s", "--output", str(tmp_path / "x.xlsx")]) == 1
     assert ".csv, .nc for the data" in capsys.readouterr().err
+
+
+def test_simulation_table_sets_beyond_limits_and_max_steps(tmp_path):
+    """[simulation] takes beyond_limits and max_steps as Simulation does (issue
+    40: a scene file could not set beyond_limits); a bad value is Simulation's
+    own error."""
+    path = tmp_path / "fill.toml"
+    path.write_text(FILL.replace('duration = "50 ms"',
+                                 'duration = "50 ms"\nbeyond_limits = "warn"\nmax_steps = 3'))
+    sc = scene.read(path)
+    assert sc.simulation["beyond_limits"] == "warn" and sc.simulation["max_steps"] == 3
+    res = sc.simulate().run(raise_on_failure=False)
+    assert res.status == "failed" and "more than max_steps = 3 steps" in res.message
+    path.write_text(FILL.replace('duration = "50 ms"',
+                                 'duration = "50 ms"\nbeyond_limits = "ignore"'))
+    with pytest.raises(ValueError, match="beyond_limits must be 'error' or 'warn'"):
+        scene.read(path).simulate()
+    # and it is written back
+    out = tmp_path / "again.toml"
+    scene.save(sc.system, out, simulation=sc.simulation)
+    assert scene.read(out).simulation["beyond_limits"] == "warn"

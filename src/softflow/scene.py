@@ -85,7 +85,8 @@ BUILTIN_FLUIDS = ("air", "nitrogen", "water", "ethylene_glycol")
 SIMULATION_KEYS = {"duration": "s", "step": "s", "step_min": "s", "step_max": "s",
                    "rtol": "", "method": None, "max_order": None, "thermal": None,
                    "newton_rtol": "", "linear_solver": None, "allow_unconnected": None,
-                   "record": None, "breakpoints": "s"}
+                   "record": None, "breakpoints": "s", "beyond_limits": None,
+                   "max_steps": None}
 _SOURCE_SIGNAL = {"PressureSource": ("pressure", "Pa"), "MassFlowSource": ("massflow", "kg/s"),
                   "VolumeFlowSource": ("volumeflow", "m**3/s")}
 _CURVE_PARAMS = ("curve", "inflation_curve", "deflation_curve")
