@@ -39,11 +39,11 @@ def test_bicubic_reproduces_a_bicubic_polynomial_with_its_gradient():
 
 
 @pytest.mark.parametrize("shape", [(), (1,), (3,), (2, 2), (5,), (40,)])
-def test_few_point_path_gives_the_array_paths_numbers_bitwise(shape, monkeypatch):
-    """Up to hermite.FEW_POINTS points are evaluated on Python floats: the same
-    numbers, types and shapes as the array path, at cell borders, past the
-    axis ends (the end cells extended) and for the 1-D slice too."""
-    from softflow.fluids import hermite
+def test_scalar_and_array_queries_give_the_same_numbers(shape):
+    """A query of any shape gives, point by point, the numbers of one-point
+    queries (Python floats, NumPy floats, 0-d arrays: NumPy floats back), at
+    cell borders, past the axis ends (the end cells extended) and for the
+    1-D slice too; arrays come back in the query's shape."""
     x, y = UniformAxis(-1.0, 2.0, 7), UniformAxis(0.0, 5.0, 9)
     rng = np.random.default_rng(11)
     interp = Bicubic(x, y, rng.normal(size=(7, 9)))
@@ -52,44 +52,48 @@ def test_few_point_path_gives_the_array_paths_numbers_bitwise(shape, monkeypatch
     b = rng.uniform(-0.5, 5.5, shape)
     if a.size:
         a.flat[0], b.flat[0] = x.nodes[3], y.nodes[4]          # on a border
-    outs = {}
-    for few in (hermite.FEW_POINTS, -1):
-        monkeypatch.setattr(hermite, "FEW_POINTS", few)
-        outs[few] = [interp(a, b), *interp(a, b, grad=True), line(a), *line(a, grad=True)]
-    for got, want in zip(*outs.values()):
-        assert type(got) is type(want) and np.shape(got) == np.shape(want)
-        assert np.array_equal(got, want)
+    parts = [interp(a, b), *interp(a, b, grad=True), line(a), *line(a, grad=True)]
+    assert all(type(v) is (np.float64 if shape == () else np.ndarray) and np.shape(v) == shape
+               for v in parts)
+    for k in np.ndindex(shape):
+        for xq, yq in ((float(a[k]), float(b[k])), (a[k], b[k]), (np.array(a[k]), b[k])):
+            one = [interp(xq, yq), *interp(xq, yq, grad=True), line(xq), *line(xq, grad=True)]
+            assert all(type(v) is np.float64 for v in one)
+            assert [v[k] for v in parts] == one
 
 
-def test_few_point_path_leaves_other_queries_to_the_array_path(monkeypatch):
-    """Queries of two shapes (broadcast) and float32 ones (computed in float32
-    there) keep the array path's answer."""
-    from softflow.fluids import hermite
+def test_queries_broadcast_and_are_computed_in_float64():
+    """Queries of two shapes broadcast; integer and float32 ones are
+    evaluated as float64 (the float32 values converted first)."""
     x, y = UniformAxis(0.0, 1.0, 6), UniformAxis(0.0, 2.0, 7)
     interp = Bicubic(x, y, np.random.default_rng(2).normal(size=(6, 7)))
-    queries = [(0.3, np.array([0.1, 0.9, 1.7])), (np.array([0.3]), np.array([0.1, 0.9])),
-               (np.float32([0.3, 0.7]), np.float32([0.4, 1.1]))]
-    outs = {}
-    for few in (hermite.FEW_POINTS, -1):
-        monkeypatch.setattr(hermite, "FEW_POINTS", few)
-        outs[few] = [v for xq, yq in queries for v in interp(xq, yq, grad=True)]
-    for got, want in zip(*outs.values()):
-        assert got.dtype == want.dtype and got.shape == want.shape
-        assert np.array_equal(got, want)
+    got = interp(0.3, np.array([0.1, 0.9, 1.7]), grad=True)
+    want = interp(np.full(3, 0.3), np.array([0.1, 0.9, 1.7]), grad=True)
+    assert all(np.array_equal(g, w) for g, w in zip(got, want))
+    got = interp(np.array([[0.3], [0.6]]), np.array([0.1, 0.9]))
+    assert got.shape == (2, 2) and got[1, 0] == interp(0.6, 0.1)
+    f32 = np.float32([0.3, 0.7]), np.float32([0.4, 1.1])
+    got = interp(*f32, grad=True)
+    want = interp(*(v.astype(np.float64) for v in f32), grad=True)
+    assert all(g.dtype == np.float64 and np.array_equal(g, w) for g, w in zip(got, want))
+    assert interp(np.array([0, 1]), np.array([1, 2])).dtype == np.float64
+    assert np.array_equal(interp([0, 1], [1, 2]), interp(np.array([0.0, 1.0]),
+                                                         np.array([1.0, 2.0])))
 
 
-def test_few_point_path_leaves_non_finite_points_to_the_array_path(monkeypatch):
-    from softflow.fluids import hermite
+def test_nan_points_give_nan_in_every_part():
+    """NaN gives NaN in every part (one query of many: the others keep their
+    numbers)."""
     x, y = UniformAxis(0.0, 1.0, 5), UniformAxis(0.0, 1.0, 5)
     interp = Bicubic(x, y, np.arange(25.0).reshape(5, 5))
-    calls = []
-    array_path = UniformAxis.locate
-    monkeypatch.setattr(UniformAxis, "locate",
-                        lambda self, v: calls.append(v) or array_path(self, v))
-    interp(np.array([0.5]), np.array([0.5]))
-    assert not calls                                    # one finite point: floats
-    interp(np.array([np.nan]), np.array([0.5]))         # whatever the array path gives
-    assert calls
+    line = interp.slice_at_y(0.5)
+    xq = np.array([0.5, np.nan, 0.2])
+    f, fx, fy = interp(xq, np.array([0.5, 0.5, np.nan]), grad=True)
+    assert np.isnan(f[1:]).all() and np.isnan(fx[1:]).all() and np.isnan(fy[1:]).all()
+    assert (f[0], fx[0], fy[0]) == interp(0.5, 0.5, grad=True)
+    g, gx = line(xq, grad=True)
+    assert np.isnan(g[1]) and np.isnan(gx[1]) and g[2] == line(0.2)
+    assert all(np.isnan(v) for v in interp(np.nan, 0.5, grad=True))
 
 
 @pytest.mark.parametrize("name", NAMES)

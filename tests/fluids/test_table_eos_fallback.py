@@ -26,7 +26,6 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from softflow.fluids import hermite
 from softflow.fluids.base import PROPERTY_UNITS
 from softflow.fluids.hermite import Bicubic, UniformAxis
 from softflow.fluids.tabulated import TableFluid
@@ -233,22 +232,20 @@ def test_empty_queries_at_out_of_range_raise(name, method):
 
 
 @pytest.mark.parametrize("shape", [(0,), (0, 3), (2, 0)])
-def test_interpolants_of_no_points_give_empty_parts(shape, monkeypatch):
+def test_interpolants_of_no_points_give_empty_parts(shape):
     """The root of issue 41: with grad, a query of no points gave () instead of
-    (value, d/dx[, d/dy]); the few-point and the array path now agree there."""
+    (value, d/dx[, d/dy]); every part is an empty float64 array of the
+    query's shape."""
     x, y = UniformAxis(0.0, 1.0, 6), UniformAxis(0.0, 2.0, 7)
     interp = Bicubic(x, y, np.random.default_rng(3).normal(size=(6, 7)))
     line = interp.slice_at_y(0.7)
     a = np.zeros(shape)
-    outs = {}
-    for few in (hermite.FEW_POINTS, -1):
-        monkeypatch.setattr(hermite, "FEW_POINTS", few)
-        parts = [interp(a, a), *interp(a, a, grad=True), line(a), *line(a, grad=True)]
-        outs[few] = parts
-        assert len(parts) == 1 + 3 + 1 + 2
-        assert all(isinstance(v, np.ndarray) and v.shape == shape for v in parts)
-    for got, want in zip(*outs.values()):
-        assert got.dtype == want.dtype
+    parts = [interp(a, a), *interp(a, a, grad=True), line(a), *line(a, grad=True)]
+    assert len(parts) == 1 + 3 + 1 + 2
+    assert all(isinstance(v, np.ndarray) and v.shape == shape and v.dtype == np.float64
+               for v in parts)
+    got = interp(a, np.zeros(shape[:-1] + (1,)), grad=True)         # broadcast to no points
+    assert len(got) == 3 and all(v.shape == shape for v in got)
 
 
 # -- in a simulation ----------------------------------------------------------------------

@@ -7,20 +7,15 @@ corners; since neighbouring cells share those corner values, value and first
 derivatives are continuous across cell borders, which Newton's method needs.
 
 The per-cell polynomial is stored as 16 power-basis coefficients in local
-coordinates t, u in [0, 1], so an evaluation is one gather plus a few multiply-adds
-on NumPy vectors: no search (the grid is uniform) and no Python loop.
+coordinates t, u in [0, 1], contiguous per cell, so that an evaluation is a cell
+index (no search: the grid is uniform), one gather and a few multiply-adds. That
+evaluation is compiled, one point at a time (:mod:`softflow.laws.tables`, which
+compiled component code can call too); the classes here build the coefficients
+and apply it to scalars and arrays.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
-
-#: Up to this many points an interpolant is evaluated point by point on Python
-#: floats (the same operations in the same order, so the same numbers): on a
-#: few points each NumPy operation costs ~1 us, and a bicubic value with its
-#: gradient is ~40 of them (a thermal scene's residual asks for a dozen such).
-FEW_POINTS = 4
 
 # Maps [f(0), f(1), h f'(0), h f'(1)] to power coefficients [c0, c1, c2, c3] of a cubic
 # on [0, 1] (the cubic Hermite basis).
@@ -28,6 +23,19 @@ _HERMITE = np.array([[1.0, 0.0, 0.0, 0.0],
                      [0.0, 0.0, 1.0, 0.0],
                      [-3.0, 3.0, -2.0, -1.0],
                      [2.0, -2.0, 1.0, 1.0]])
+
+_laws = None
+
+
+def compiled():
+    """:mod:`softflow.laws.tables`, imported at the first evaluation (importing
+    numba costs about 0.35 s: not at ``import softflow``, nor where a table is
+    only read)."""
+    global _laws
+    if _laws is None:
+        from ..laws import tables
+        _laws = tables
+    return _laws
 
 
 class UniformAxis:
@@ -42,10 +50,13 @@ class UniformAxis:
         self.nodes = np.linspace(self.lo, self.hi, self.n)
 
     def locate(self, x):
-        """Cell index and local coordinate in [0, 1] of each x (x assumed in range)."""
-        s = (x - self.lo) * (1.0 / self.step)
-        i = np.minimum(np.maximum(np.floor(s), 0.0), self.n - 2).astype(np.intp)
-        return i, s - i
+        """Cell index and local coordinate of each x: t in [0, 1] inside the
+        axis, below 0 or above 1 in the end cells past its ends (the
+        compiled :func:`softflow.laws.tables.cell`)."""
+        shape, xs = _points(x)
+        i, t = np.empty(xs.size, dtype=np.intp), np.empty(xs.size)
+        compiled().cell_array(self.lo, self.step, self.n, xs, i, t)
+        return i.reshape(shape), t.reshape(shape)
 
 
 def _spline_slopes(values, nodes, axis):
@@ -74,44 +85,44 @@ class Bicubic:
                 for ay in (0, 1):
                     G[:, :, 2 * dx + ax, 2 * dy + ay] = arr[ax:ax + nx, ay:ay + ny]
         A = np.einsum("ik,xykl,jl->xyij", _HERMITE, G, _HERMITE)
-        #: coefficients (16, n_cells): row 4 i + j multiplies t^i u^j
-        self.coef = np.ascontiguousarray(A.reshape(-1, 16).T)
-        self._ny_cells = y.n - 1
+        #: coefficients (x cells, y cells, 16), each cell's contiguous: entry 4 i + j
+        #: multiplies t^i u^j (the layout :mod:`softflow.laws.tables` reads)
+        self.cells = np.ascontiguousarray(A.reshape(nx, ny, 16))
+
+    @property
+    def coef(self):
+        """The coefficients as (16, n_cells), cell k = i * (y cells) + j (a view)."""
+        return self.cells.reshape(-1, 16).T
 
     def __call__(self, xq, yq, *, grad=False):
-        """Value at (xq, yq) (arrays of one shape); with ``grad`` also d/dx and d/dy."""
-        # no points at all go to the array path too: it keeps the query's
-        # (empty) shape and, with grad, gives all three (empty) parts
-        if 0 < np.size(xq) <= FEW_POINTS and np.shape(xq) == np.shape(yq) and \
-                _as_float64(xq) and _as_float64(yq):
-            few = self._few(xq, yq, grad)
-            if few is not None:
-                return few
-        i, t = self.x.locate(xq)
-        j, u = self.y.locate(yq)
-        c = np.take(self.coef, i * self._ny_cells + j, axis=1)   # ~4x faster than c[:, k]
-        return _bicubic(c, t, u, grad, self.x.step, self.y.step)
-
-    def _few(self, xq, yq, grad):
-        """:meth:`__call__` point by point on floats, or None where a point is
-        not finite (the array path then decides what it gives)."""
-        X, Y = self.x, self.y
-        coef, ny = self.coef, self._ny_cells
-        values = []
-        for xv, yv in zip(np.ravel(xq).tolist(), np.ravel(yq).tolist()):
-            i, t = _locate(X, xv)
-            j, u = _locate(Y, yv)
-            if i is None or j is None:
-                return None
-            values.append(_bicubic(coef[:, i * ny + j].tolist(), t, u, grad, X.step, Y.step))
-        return _shaped_all(values, np.shape(xq), grad)
+        """Value at (xq, yq) (scalars, or arrays that broadcast); with ``grad``
+        also d/dx and d/dy. Scalars give NumPy floats, arrays arrays of the
+        broadcast shape (float64; no points: empty parts)."""
+        law, X, Y = compiled(), self.x, self.y
+        if _scalar(xq) and _scalar(yq):
+            if grad:
+                f, fx, fy = law.bicubic_grad(self.cells, X.lo, X.step, Y.lo, Y.step,
+                                             float(xq), float(yq))
+                return np.float64(f), np.float64(fx), np.float64(fy)
+            return np.float64(law.bicubic(self.cells, X.lo, X.step, Y.lo, Y.step,
+                                          float(xq), float(yq)))
+        shape, xs, ys = _points(xq, yq)
+        f = np.empty(xs.size)
+        if not grad:
+            law.bicubic_array(self.cells, X.lo, X.step, Y.lo, Y.step, xs, ys, f)
+            return f.reshape(shape)
+        fx, fy = np.empty(xs.size), np.empty(xs.size)
+        law.bicubic_grad_array(self.cells, X.lo, X.step, Y.lo, Y.step, xs, ys, f, fx, fy)
+        return f.reshape(shape), fx.reshape(shape), fy.reshape(shape)
 
     def slice_at_y(self, y0: float) -> "Cubic":
         """The interpolant restricted to y = y0: a piecewise cubic in x (same values)."""
-        j, u = self.y.locate(np.float64(y0))
-        c = self.coef.reshape(4, 4, self.x.n - 1, self._ny_cells)[:, :, :, int(j)]
-        powers = u ** np.arange(4)
-        return Cubic(self.x, np.einsum("ijc,j->ic", c, powers))
+        j, u = compiled().cell(float(y0), self.y.lo, self.y.step, self.y.n)
+        c = self.cells[:, j, :].reshape(-1, 4, 4)           # (cell, power of t, power of u)
+        w = np.float64(u) ** np.arange(4)
+        # the coefficient of t^i: sum_k c_ik u^k, summed in the order k = 0, 1, 2, 3
+        return Cubic(self.x, (c[:, :, 0] * w[0] + c[:, :, 1] * w[1] + c[:, :, 2] * w[2]
+                              + c[:, :, 3] * w[3]).T)
 
 
 class Cubic:
@@ -119,81 +130,56 @@ class Cubic:
 
     def __init__(self, x: UniformAxis, coef):
         self.x = x
-        self.coef = np.ascontiguousarray(coef)
+        #: coefficients (cells, 4), each cell's contiguous: entry i multiplies t^i
+        self.cells = np.ascontiguousarray(np.asarray(coef, dtype=float).T)
+
+    @property
+    def coef(self):
+        """The coefficients as (4, n_cells) (a view)."""
+        return self.cells.T
 
     def __call__(self, xq, *, grad=False):
-        if 0 < np.size(xq) <= FEW_POINTS and _as_float64(xq):     # (as Bicubic's)
-            few = self._few(xq, grad)
-            if few is not None:
-                return few
-        i, t = self.x.locate(xq)
-        return _cubic(np.take(self.coef, i, axis=1), t, grad, self.x.step)
-
-    def _few(self, xq, grad):
-        """:meth:`__call__` point by point on floats (as :meth:`Bicubic._few`)."""
-        X, coef = self.x, self.coef
-        values = []
-        for xv in np.ravel(xq).tolist():
-            i, t = _locate(X, xv)
-            if i is None:
-                return None
-            values.append(_cubic(coef[:, i].tolist(), t, grad, X.step))
-        return _shaped_all(values, np.shape(xq), grad)
+        """Value at xq (as :meth:`Bicubic.__call__`); with ``grad`` also d/dx."""
+        law, X = compiled(), self.x
+        if _scalar(xq):
+            if grad:
+                f, fx = law.cubic_grad(self.cells, X.lo, X.step, float(xq))
+                return np.float64(f), np.float64(fx)
+            return np.float64(law.cubic(self.cells, X.lo, X.step, float(xq)))
+        shape, xs = _points(xq)
+        f = np.empty(xs.size)
+        if not grad:
+            law.cubic_array(self.cells, X.lo, X.step, xs, f)
+            return f.reshape(shape)
+        fx = np.empty(xs.size)
+        law.cubic_grad_array(self.cells, X.lo, X.step, xs, f, fx)
+        return f.reshape(shape), fx.reshape(shape)
 
 
-def _bicubic(c, t, u, grad, sx, sy):
-    """A cell's bicubic at local coordinates (t, u) by Horner's scheme, from
-    its 16 power coefficients ``c`` (row 4 i + j multiplies t^i u^j: rows of
-    arrays, or floats: the same operations either way); with ``grad`` also
-    d/dx and d/dy (sx, sy: the cells' sizes)."""
-    # r_i(u) = sum_j A_ij u^j for each power i of t
-    r = [((c[4 * k + 3] * u + c[4 * k + 2]) * u + c[4 * k + 1]) * u + c[4 * k]
-         for k in range(4)]
-    f = ((r[3] * t + r[2]) * t + r[1]) * t + r[0]
-    if not grad:
-        return f
-    ft = (3.0 * r[3] * t + 2.0 * r[2]) * t + r[1]
-    dr = [(3.0 * c[4 * k + 3] * u + 2.0 * c[4 * k + 2]) * u + c[4 * k + 1] for k in range(4)]
-    fu = ((dr[3] * t + dr[2]) * t + dr[1]) * t + dr[0]
-    return f, ft / sx, fu / sy
+def _scalar(v):
+    """Whether ``v`` is one number (a Python or NumPy scalar, or a 0-d array)."""
+    kind = type(v)
+    if kind is float or kind is np.float64:
+        return True
+    return v.ndim == 0 if kind is np.ndarray else np.ndim(v) == 0
 
 
-def _cubic(c, t, grad, sx):
-    """A cell's cubic at local coordinate t from its 4 power coefficients
-    (as :func:`_bicubic`); with ``grad`` also d/dx."""
-    f = ((c[3] * t + c[2]) * t + c[1]) * t + c[0]
-    if not grad:
-        return f
-    return f, ((3.0 * c[3] * t + 2.0 * c[2]) * t + c[1]) / sx
-
-
-def _as_float64(v):
-    """Whether the array path computes ``v`` in float64 (as the float path
-    does): Python numbers, float64, integer and boolean arrays; not float32."""
-    dt = getattr(v, "dtype", None)
-    return dt is None or dt == np.float64 or dt.kind in "iub"
-
-
-def _locate(axis, v):
-    """:meth:`UniformAxis.locate` of one float: (cell, local coordinate), or
-    (None, None) where v is not finite."""
-    s = (v - axis.lo) * (1.0 / axis.step)
-    if not math.isfinite(s):
-        return None, None
-    i = min(max(math.floor(s), 0), axis.n - 2)
-    return i, s - i
-
-
-def _shaped(values, shape):
-    """Floats as the array path returns them: a NumPy scalar for a 0-d query."""
-    if not shape:
-        return np.float64(values[0])
-    return np.array(values).reshape(shape)
-
-
-def _shaped_all(values, shape, grad):
-    """The points' values (or, with ``grad``, their tuples) as the array path
-    returns them (:func:`_shaped`)."""
-    if not grad:
-        return _shaped(values, shape)
-    return tuple(_shaped(part, shape) for part in zip(*values))
+def _points(x, y=None):
+    """The broadcast shape of the queries x (and y) and each as a 1-D
+    C-contiguous float64 array of that many points (a view where it can be):
+    one type signature for the compiled loops. (Written out for one and two
+    queries: a few-point call pays its overhead, comparable to the loop's.)"""
+    x = np.asarray(x, dtype=np.float64)
+    shape = x.shape
+    if y is None:
+        return shape, x.ravel()
+    y = np.asarray(y, dtype=np.float64)
+    if y.shape != shape:
+        # (only the smaller is broadcast: a read-only view of a full-shape
+        # query would be another type to compile for)
+        shape = np.broadcast_shapes(shape, y.shape)
+        if x.shape != shape:
+            x = np.broadcast_to(x, shape)
+        if y.shape != shape:
+            y = np.broadcast_to(y, shape)
+    return shape, x.ravel(), y.ravel()

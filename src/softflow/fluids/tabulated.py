@@ -20,6 +20,7 @@ import numpy as np
 
 from .base import Fluid, FluidError, broadcast_state
 from .eos import EosFluid, check_state_range
+from .hermite import compiled
 from .tables import load_table, table_files, tables_directory
 
 if TYPE_CHECKING:
@@ -102,30 +103,37 @@ class TableFluid(Fluid):
         state's value does not depend on the other states of the call (with
         T=None the inside ones take the isothermal path, as when all are in)."""
         isothermal = T is None
+        p_range, T_range = self.p_range, self.T_range
         if isothermal:
             pa = np.asarray(p, dtype=float)
-            lo, hi = self.p_range
             if pa.ndim == 0:
-                inside = lo <= pa <= hi
-            else:
-                inside = pa.size == 0 or (pa.min() >= lo and pa.max() <= hi)
-            if inside:
-                return compute(pa, None) if pa.ndim else float(compute(pa, None))
+                pf = float(pa)
+                if p_range[0] <= pf <= p_range[1]:
+                    return float(compute(pf, None))
+            elif _inside(pa, p_range):
+                return compute(pa, None)
         p, T, scalar = broadcast_state(self, p, T)
+        if scalar:
+            # one state inside: computed on floats (NumPy scalars through the
+            # interpolants), the numbers the 0-d arrays below give, sooner
+            pf, Tf = float(p), float(T)
+            if p_range[0] <= pf <= p_range[1] and T_range[0] <= Tf <= T_range[1]:
+                return float(compute(pf, Tf))
+        inside_all = _inside(p, p_range, T, T_range)
         if self.out_of_range == "raise":
-            check_state_range(self, p, T, self.T_range, self.p_range, "table")
+            if not inside_all:      # raises, but for states within its round-off slack
+                check_state_range(self, p, T, T_range, p_range, "table")
+            out = compute(p, T)
+        elif inside_all:                # the usual call: no selections, no copies
             out = compute(p, T)
         else:
-            (p_lo, p_hi), (T_lo, T_hi) = self.p_range, self.T_range
+            (p_lo, p_hi), (T_lo, T_hi) = p_range, T_range
             inside = (p >= p_lo) & (p <= p_hi) & (T >= T_lo) & (T <= T_hi)
-            if inside.all():            # the usual call: no selections, no copies
-                out = compute(p, T)
-            else:
-                out = np.empty(p.shape)
-                if inside.any():
-                    out[inside] = compute(p[inside], None if isothermal else T[inside])
-                outside = ~inside
-                out[outside] = getattr(self.eos, prop)(p[outside], T[outside])
+            out = np.empty(p.shape)
+            if inside.any():
+                out[inside] = compute(p[inside], None if isothermal else T[inside])
+            outside = ~inside
+            out[outside] = getattr(self.eos, prop)(p[outside], T[outside])
         return float(out) if scalar else out
 
     def _get(self, key: str, p: float | Array, T: float | Array | None, grad: bool = False) -> Any:
@@ -193,7 +201,8 @@ class TableFluid(Fluid):
         p, T, scalar = broadcast_state(self, p, T)
         if scalar:
             return None
-        check_state_range(self, p, T, self.T_range, self.p_range, "table")
+        if not _inside(p, self.p_range, T, self.T_range):
+            check_state_range(self, p, T, self.T_range, self.p_range, "table")
         if key not in self.table.values:
             raise NotImplementedError(self._missing(key))
         interp = self.table.interpolant(key)
@@ -281,6 +290,16 @@ class TableFluid(Fluid):
             return self._evaluate("compressibility", lambda p, T: p / (
                 self._density(p, T) * self.R * self._Tv(T)), p, T)
         return self._evaluate("compressibility", lambda p, T: self._get("Z", p, T), p, T)
+
+
+def _inside(p: Array, p_range: tuple[float, float], T: Array | None = None,
+            T_range: tuple[float, float] | None = None) -> bool:
+    """Whether every state lies in the table's closed ranges (no NaN; True for
+    none), in one compiled pass instead of a reduction per bound."""
+    law = compiled()
+    if T is None or T_range is None:
+        return bool(law.inside_span(p.ravel(), *p_range))
+    return bool(law.inside_box(p.ravel(), T.ravel(), *p_range, *T_range))
 
 
 def _metadata_range(spec: FluidSpec, tables_dir: str | Path | None) -> tuple[float, float] | None:
