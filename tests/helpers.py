@@ -166,9 +166,9 @@ def compiled_and_python(expression, env=None):
     probe = (
         "import json\n"
         "import softflow.laws as laws\n"
-        "from softflow.laws import fanno, friction, gas_pipe, orifice\n"
+        "from softflow.laws import fanno, friction, gas_pipe, orifice, tables\n"
         f"out = {expression}\n"
-        "hits = sum(len(f.stats.cache_hits) for m in (fanno, friction, gas_pipe, orifice)\n"
+        "hits = sum(len(f.stats.cache_hits) for m in (fanno, friction, gas_pipe, orifice, tables)\n"
         "           for f in vars(m).values() if hasattr(f, 'stats'))\n"
         "print(json.dumps({'values': out, 'jit': not laws.numba.config.DISABLE_JIT,\n"
         "                  'hits': hits}))\n")

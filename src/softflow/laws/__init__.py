@@ -14,7 +14,9 @@ The cache: numba keys a cached function on its own source file only, so an
 edit of a law in another file that it calls would leave a stale cache. The
 locators below (tried before numba's own, for the functions of this package
 only) key every function here on the text of all of this package's modules
-and softflow's version instead. Writes are numba's own (a temporary file
+and softflow's version instead, as they were when the function's module was
+imported (a process that compiles a law later saves it under the text it was
+built from). Writes are numba's own (a temporary file
 renamed into place), so concurrent first compiles (pytest-xdist or Dask
 workers) are safe: the last one wins with identical contents.
 """
@@ -32,15 +34,27 @@ from .. import __version__
 _PACKAGE = Path(__file__).resolve().parent
 
 
-@functools.lru_cache(maxsize=1)
+@functools.lru_cache(maxsize=8)
+def _stamp_of(files: tuple) -> bytes:
+    h = hashlib.sha256(__version__.encode())
+    for name, _, _ in files:
+        h.update(name.encode())
+        h.update((_PACKAGE / name).read_bytes())
+    return h.digest()
+
+
 def source_stamp() -> bytes:
     """SHA-256 of softflow's version and of every module of this package (name
-    and text): the key of every cached compiled law."""
-    h = hashlib.sha256(__version__.encode())
-    for path in sorted(_PACKAGE.glob("*.py")):
-        h.update(path.name.encode())
-        h.update(path.read_bytes())
-    return h.digest()
+    and text, as they are now: files are hashed again when their modification
+    time or size changes): the key of every cached compiled law."""
+    files = tuple(sorted((path.name, st.st_mtime_ns, st.st_size)
+                         for path in _PACKAGE.glob("*.py") for st in [path.stat()]))
+    return _stamp_of(files)
+
+
+#: each compiled law's stamp, taken when its module was imported (the text the
+#: process compiles is the text it imported, whatever the files say later)
+_STAMPS: dict = {}
 
 
 def _ours(py_file) -> bool:
@@ -56,13 +70,16 @@ def _keyed_on_package(base):
 
     class Locator(base):
         def get_source_stamp(self):
-            return source_stamp()
+            return self.stamp
 
         @classmethod
         def from_function(cls, py_func, py_file):
             if not _ours(py_file):
                 return None
-            return super().from_function(py_func, py_file)
+            self = super().from_function(py_func, py_file)
+            if self is not None:
+                self.stamp = _STAMPS.get(py_func) or source_stamp()
+            return self
 
     Locator.__name__ = Locator.__qualname__ = "Softflow" + base.__name__
     return Locator
@@ -95,6 +112,11 @@ def jit(function):
     installation and home), the law is compiled in memory for this process,
     with one warning, instead of failing."""
     options = dict(nogil=True, error_model="numpy")
+    # the stamp of the package's text now, as this module is imported: a law
+    # compiled later in a long process is saved under the text it was built
+    # from, not under the text of files edited since (which would hand their
+    # stamp a stale compilation)
+    _STAMPS[function] = source_stamp()
     try:
         return numba.njit(cache=True, **options)(function)
     except RuntimeError as err:         # numba: "cannot cache function ...: no locator"
