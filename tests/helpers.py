@@ -154,7 +154,7 @@ def crossing_time(t, y, level, i):
 def compiled_and_python(expression, env=None):
     """The value of ``expression`` (Python source giving a list of numbers and
     tuples of numbers, with ``softflow.laws``' modules imported as ``laws``,
-    ``friction``, ``gas_pipe``, ``fanno``, ``orifice``) evaluated in a fresh
+    ``friction``, ``gas_pipe``, ``fanno``, ``orifice``, ``tables``) evaluated in a fresh
     interpreter compiled and again with NUMBA_DISABLE_JIT=1: (compiled, python)
     as flat float arrays, after asserting that each process ran in its mode.
     Also returns the compiled process's cache hits of the laws it called."""
