@@ -8,15 +8,32 @@ import softflow as sf
 P0 = sf.pressure_atmospheric
 
 
-def test_negative_pressure_at_a_node_names_its_components():
+def _suction(volumeflow):
+    """A pump drawing water from 1 atm through two 1 m x 0.5 mm tubes in series
+    (laminar: 1e-7 m^3/s takes 1.3 bar across them)."""
     s = sf.System()
     s += sf.PressureSource("src", pressure=P0)
     s += sf.CircularTube("t0", sf.water, 1.0, 0.5e-3)
     s += sf.CircularTube("t1", sf.water, 1.0, 0.5e-3)
-    s += sf.VolumeFlowSource("v1", volumeflow=-1e-5, fluid=sf.water)
+    s += sf.VolumeFlowSource("v1", volumeflow=volumeflow, fluid=sf.water)
     s.connect("src", "t0")
     s.connect("t0", "t1")
     s.connect("t1", "v1")
+    return s
+
+
+def test_negative_pressure_at_a_node_names_its_components():
+    # the pump's node balances alone (tube t0's end held at 1 atm: 36 kPa),
+    # the two tubes in series do not: Newton's start ends below zero there
     with pytest.raises(sf.SimulationError, match=r"components at that node: 't1', 'v1'") as info:
-        sf.Simulation(s, duration=0.1).run()
+        sf.Simulation(_suction(-1e-7), duration=0.1).run()
     assert info.value.component == "t1" and info.value.time == 0.0
+
+
+def test_a_pump_drawing_more_than_its_node_can_supply_names_it_and_the_node():
+    # 100 times that: not even the pump's node alone balances at any pressure
+    # down to 1 Pa (softflow.solve.sourcenodes): refused, naming both
+    with pytest.raises(sf.SimulationError, match=r"VolumeFlowSource 'v1' draws more from "
+                       r"node\(t1.b, v1.a\), a node without volume") as info:
+        sf.Simulation(_suction(-1e-5), duration=0.1).run()
+    assert info.value.component == "v1" and info.value.time == 0.0

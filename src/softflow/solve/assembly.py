@@ -495,6 +495,10 @@ class Assembly:
         # unknowns and rows are numbered here; their names (for messages) are
         # spelled out on first use (_Names), from the lists of what they name
         across_of, row_of, across_named, node_through = self._node_numbering(layouts, n_nodes)
+        #: per quantity, an array over the nodes of the node's across unknown
+        #: (``node_across['pressure'][k]``) and of its conservation row
+        #: (``node_rows['massflow'][k]``), -1 where the node has none
+        self.node_across, self.node_rows = across_of, row_of
         if isinstance(across_named, tuple):      # (nodes, the quantities of each)
             quantities = list(across_named[1]) * across_named[0]
             self.n_node_rows = len(node_through[1]) * node_through[0]

@@ -30,7 +30,9 @@ import math
 
 import numpy as np
 
+from . import sourcenodes
 from .linalg import make_linear_solver
+from .newton import StepLimitError
 from .progress import SILENT
 
 #: steps in a row the loop solves by continuation where Newton failed at the
@@ -134,6 +136,15 @@ class Integrator:
     progress = SILENT
     #: forward sensitivities carried along (softflow.solve.sensitivity), or None
     sens = None
+    #: Simulation(max_steps=): the most steps a run may take, accepted and
+    #: rejected (``stats.steps + stats.rejected_steps``, as the run's stats
+    #: report them; a step whose failed solve continuation rescued counts as
+    #: that rejected try and the accepted step), or None. The solves that are
+    #: no steps are not counted: the consistent start's, BDF's restart probes
+    #: (three at t = 0 and at each breakpoint, switch or fold jump), a fold
+    #: jump's, continuation's. The batched engine (softflow.solve.clocks)
+    #: counts each variant's tries alike
+    max_steps = None
     #: None, or a callable that, after the consistent point at t = 0 is recorded,
     #: says whether the run should stop there (a model past its own maximum from
     #: the start: Simulation.run refuses every later point anyway)
@@ -153,7 +164,12 @@ class Integrator:
         tick = self.progress.step
         t, t_stop = 0.0, self.T * (1 - 1e-14)
         rescues = 0      # steps in a row solved by continuation (_rescue)
+        max_steps = math.inf if self.max_steps is None else self.max_steps
         while t < t_stop:
+            if stats.steps + stats.rejected_steps >= max_steps:
+                raise StepLimitError(
+                    f"more than max_steps = {self.max_steps} steps (accepted and rejected) "
+                    f"by t = {t:.6g} s; pass a larger Simulation(max_steps=...) to go on")
             x_pred, psi, t_new, t_eval, c = propose(t, x, S)
             out = solve(x_pred, psi, t_eval, c)
             if not out.converged:
@@ -266,7 +282,13 @@ class Integrator:
         (confirmed on a Jacobian at it, else solved again from it, up to
         INITIAL_CONFIRMS times), and the dense linear solver of its own that
         solve factored (None: the run's solver, for sparse and condensed
-        systems)."""
+        systems). Where that fails, or puts a node above
+        :data:`softflow.solve.sourcenodes.PRESSURE_CAP`, it is solved again
+        from a start with each node without volume that a flow source feeds
+        at the pressure that balances it alone
+        (:func:`softflow.solve.sourcenodes.balanced_start`), or the run is
+        refused where no pressure does; a start that converges from the
+        initial values is taken as it always was."""
         asm, newton = self.asm, self.newton
         lin0 = make_linear_solver(asm, "dense") if newton.lin.kind == "dense" else None
         run_lin = newton.lin
@@ -274,24 +296,42 @@ class Integrator:
             lin0.note_scale = True
             newton.lin = lin0
         try:
-            # each point is confirmed on a Jacobian of its own, else solved
-            # again from it: chord iterations on the slopes at the initial
-            # values (an orifice's laminar slope at rest, many times its slope
-            # at the flow it reaches) stop where their updates are small,
-            # which such a slope makes them far from the root
-            start = asm.x0.copy()
-            for tries in range(INITIAL_CONFIRMS + 1):
-                out = newton.continued(newton.solve(start, asm.S0, 0.0, 0.0), start,
-                                       asm.S0, 0.0, 0.0)
-                if (not out.converged or tries == INITIAL_CONFIRMS
-                        or newton.confirms(out.x, asm.S0, 0.0, 0.0)):
-                    break
-                start = out.x
+            out = self._solve_from(asm.x0.copy())
+            if not out.converged or sourcenodes.above_cap(asm, out.x):
+                # a flow source at a node without volume, whose balance needs a
+                # pressure far from the initial one: each such node balanced
+                # alone first (softflow.solve.sourcenodes), or the run refused
+                # where no pressure up to the cap balances it
+                start, refusal = sourcenodes.balanced_start(
+                    asm, asm.x0, asm.S0, newton.atol, self.stats)
+                if refusal is not None:
+                    raise StepFailure(0.0, 0.0, refusal)
+                if start is not None:
+                    again = self._solve_from(start)
+                    if again.converged and not sourcenodes.above_cap(asm, again.x):
+                        out = again
         finally:
             newton.lin = run_lin
         if not out.converged:
             raise StepFailure(0.0, 0.0, _with_scale_hint(out, lin0))
         return out.x, lin0
+
+    def _solve_from(self, start):
+        """The Outcome of the consistent point at t = 0 solved for from
+        ``start`` (:meth:`_solve_initial`)."""
+        newton, S0 = self.newton, self.asm.S0
+        # each point is confirmed on a Jacobian of its own, else solved
+        # again from it: chord iterations on the slopes at the initial
+        # values (an orifice's laminar slope at rest, many times its slope
+        # at the flow it reaches) stop where their updates are small,
+        # which such a slope makes them far from the root
+        for tries in range(INITIAL_CONFIRMS + 1):
+            out = newton.continued(newton.solve(start, S0, 0.0, 0.0), start, S0, 0.0, 0.0)
+            if (not out.converged or tries == INITIAL_CONFIRMS
+                    or newton.confirms(out.x, S0, 0.0, 0.0)):
+                break
+            start = out.x
+        return out
 
 
 #: How many times the consistent point at t = 0 is solved again from where the

@@ -135,7 +135,8 @@ SMALL = 32
 
 
 class StepLimitError(RuntimeError):
-    """A run went past ``Simulation(max_steps=...)`` solves."""
+    """A run went past ``Simulation(max_steps=...)`` steps, accepted and
+    rejected (:meth:`softflow.solve.integrator.Integrator.run` counts them)."""
 
 
 @dataclass
@@ -242,8 +243,6 @@ class Newton:
         self._regimes = asm.regimes if asm.has_regimes else None
         self._jac_x = None
         self._jac_regime = None
-        self.max_solves = None  # Simulation(max_steps=): the most solves (steps tried) of a run
-        self._solves = 0
         self._T_range = None    # (lo, hi) [K]: the iterates' temperatures stay inside
         #: per quantity (q_names order), magnitudes the tolerances are at least
         #: relative to (BDF: the largest of the run so far; a list on small
@@ -302,11 +301,10 @@ class Newton:
         if not all_finite(F0):
             return None
         x, lam, step = x0, 0.0, CONTINUATION_FIRST
-        rtol, max_solves = self.rtol, self.max_solves
+        rtol = self.rtol
         self.rtol = min(rtol, CONTINUATION_RTOL)
-        # its solves are not steps: Simulation(max_steps=) does not count them
-        # (CONTINUATION_SOLVES bounds them)
-        self.max_solves = None
+        # (its solves are not steps: Simulation(max_steps=) counts the steps
+        # of the integration loop; CONTINUATION_SOLVES bounds these)
         try:
             for _ in range(CONTINUATION_SOLVES):
                 target = min(1.0, lam + step)
@@ -323,7 +321,7 @@ class Newton:
             return None
         finally:
             self.offset = None
-            self.rtol, self.max_solves = rtol, max_solves
+            self.rtol = rtol
 
     def continued(self, out, x0, S, t, dt):
         """After the solve from x0 that gave ``out``: ``out`` where it
@@ -553,14 +551,7 @@ class Newton:
         """The step equations F(x; S, t, dt) = 0 from the predictor x0 by the
         stages of the module docstring (a small dense system's usual step in
         one frame, :meth:`_quick`): the converged Outcome, or the last
-        stage's failed one (its reason and worst equation). Counts a solve
-        against ``max_solves`` (Simulation(max_steps=))."""
-        if self.max_solves is not None:
-            self._solves += 1
-            if self._solves > self.max_solves:
-                raise StepLimitError(
-                    f"more than max_steps = {self.max_solves} steps (accepted and rejected) "
-                    f"by t = {t:.6g} s; pass a larger Simulation(max_steps=...) to go on")
+        stage's failed one (its reason and worst equation)."""
         F0 = first = None
         # the usual step of a dense system: a step size and factors the last ones serve
         if (self._quick_ok and not self.stale and self._dt_lo <= dt <= self._dt_hi

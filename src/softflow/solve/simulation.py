@@ -168,7 +168,10 @@ class Simulation:
         whole run with a ModelWarning. Validity findings
         short of that are always warnings (``result.warnings``).
     max_steps : int, default 10**7
-        Most steps a run may take (accepted and rejected). A fixed ``step``
+        Most steps a run may take, accepted and rejected (as ``result.stats``
+        counts them, ``steps + rejected_steps``; the solves of the consistent
+        start, of the adaptive method's restarts at t = 0 and at breakpoints
+        and of continuation are not steps). A fixed ``step``
         (or a ``step_max``) that needs more over ``duration`` is refused at
         construction with the estimate; pass a larger ``max_steps`` to confirm.
     model : {None, 'auto'}, default None
@@ -455,7 +458,6 @@ class Simulation:
         lin = make_linear_solver(asm, self.linear_solver_kind)
         newton = Newton(asm, lin, stats, rtol=self._newton_rtol(),
                         atol=self._atol_vector(asm.x_quantity, 1e-3))
-        newton.max_solves = self.max_steps
         gas = None if self.thermal == "isothermal" else next(
             (c.fluid for c in components
              if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
@@ -482,6 +484,7 @@ class Simulation:
         else:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
+        integ.max_steps = self.max_steps
         integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
         sens: Sensitivities | None = None
         if sensitivities:

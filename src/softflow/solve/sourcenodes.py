@@ -1,0 +1,413 @@
+"""The consistent start at t = 0 at nodes without volume that carry a flow source.
+
+Every unknown pressure starts at its initial value (1 atm where none is
+given). A flow source (a VolumeFlowSource, a MassFlowSource: in general a
+component at one node whose flows the node's state alone sets) at a node
+without volume fixes the flow that the node's other components must pass,
+and the pressure at which they pass it can lie far from 1 atm: 23 bar to push
+7.9 mL/s of air through a 0.3 mm tube and a leaking check valve. From 1 atm
+Newton's first step overshoots to a negative pressure (a volume flow
+source's slope rho'(p) Q exceeds the slope of tubes at rest), where an ideal
+gas's density p/RT stays finite, and Newton settles on a root below zero.
+
+Where the consistent start from the initial values fails, or puts such a
+node above :data:`PRESSURE_CAP`, :func:`balanced_start` solves each such
+node's mass balance alone for its pressure: the other nodes' pressures held
+at their start values, the flows (and the other unknowns) of the node's
+components solved for at each trial pressure, a bracketing search from the
+start pressure up or down, then a safeguarded Newton iteration in the
+bracket. The start is solved again from there
+(:meth:`softflow.solve.integrator.Integrator._solve_initial`). Where no
+pressure up to the cap balances the node (the components there pass less
+than the source pushes in: closed, at rest, dead ends, past their choked
+capacity), or none down to :data:`PRESSURE_FLOOR` (a source that draws more
+than they can supply), the run is refused with a message that names the
+source and the node.
+
+Nothing here knows component classes: the nodes, their sources and whether
+a volume sets a node's pressure are read off the Jacobian at the start
+(dt = 0), and the balances are the network's residual rows.
+
+* A *flow source* at node k: a component whose across unknowns are all node
+  k's and whose block of the Jacobian (its equations, its own unknowns: the
+  flows at its terminals and its locals) is square and regular: its flows
+  follow from the node's state. A volume at dt = 0 (its equations set the
+  pressure from its mass, whatever flows in) and a pressure source have a
+  singular block.
+* A node *without volume*: with the node's pressure held, its components'
+  equations, its other balances (energy) and those of the dead ends behind
+  them (nodes whose every flow belongs to those components) determine their
+  unknowns and the node's other across unknowns: that block of the Jacobian
+  is square and regular. A volume or a pressure source at the node makes it
+  singular (the pressure is theirs to set, not the balance's).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fluids.base import FluidError
+from .assembly import _is_regular_dense
+from .newton import Outcome
+from .validity import ComponentError
+
+#: [Pa] the highest absolute pressure a consistent start may put at a node
+#: without volume that a flow source feeds: a balance that needs more (a
+#: source pushing against a closed valve, an inertial tube at rest, a
+#: choked nozzle) is refused, not reported as a kilobar answer
+PRESSURE_CAP = 1e9
+#: [Pa] the lowest absolute pressure the search goes down to, for a source
+#: that draws from such a node
+PRESSURE_FLOOR = 1.0
+#: the factor between the pressures the bracketing search tries
+MARCH = 2.0
+#: the most pressures the bracketing search tries (from 1 atm to the cap
+#: or the floor: 14 or 17; more near the edge of a fluid's range)
+MARCH_TRIALS = 200
+#: Newton iterations of one trial pressure's solve for the other unknowns,
+#: and the relative update (besides Newton's atol) it stops at
+INNER_ITERATIONS = 30
+INNER_RTOL = 1e-9
+#: iterations of the bracketed search for the balancing pressure, and the
+#: relative width it stops at (a start: the network's Newton finishes it)
+SEARCH_ITERATIONS = 80
+SEARCH_RTOL = 1e-10
+
+
+@dataclass
+class Local:
+    """A node without volume that carries a flow source: its pressure
+    unknown ``p``, its mass balance ``row``, the equations ``rows`` that
+    determine the unknowns ``cols`` for the pressure held, the flow
+    sources (components) and the first equation of each."""
+
+    node: int
+    p: int
+    row: int
+    rows: np.ndarray
+    cols: np.ndarray
+    sources: list
+    source_rows: list
+    #: the pressures of the dead ends behind the node: each trial starts
+    #: them at the node's (at rest, what leads to a dead end passes nothing
+    #: at equal pressures; a choked orifice's flow does not depend on its
+    #: outlet's pressure, and Newton's step from 1 atm would not find it)
+    ends: np.ndarray
+
+
+def _regular(A):
+    """A square block numerically regular after row and column equilibration."""
+    return A.shape[0] == A.shape[1] and np.isfinite(A).all() and _is_regular_dense(A)
+
+
+def _block(J, rows, cols):
+    return J[rows][:, cols].toarray()
+
+
+def local_nodes(asm, x, S):
+    """The nodes without volume that carry a flow source (module docstring),
+    read off the Jacobian at (x, S) at t = 0 and dt = 0, as :class:`Local`
+    s; [] where the network has no pressures or no mass balances at its
+    nodes, or where the residual cannot be evaluated at x."""
+    p_of = asm.node_across.get("pressure")
+    m_of = asm.node_rows.get("massflow")
+    if p_of is None or m_of is None:
+        return []
+    n, na = asm.n, asm.n_across
+    try:
+        F = asm.residual(x, S, 0.0, 0.0, jac=True)
+    except (FluidError, ComponentError):
+        return []
+    if not np.isfinite(F).all():
+        return []
+    J = asm.jacobian_csc().tocsr()
+    # the node of each across unknown
+    node_of_col = np.full(na, -1, dtype=np.int64)
+    for arr in asm.node_across.values():
+        have = arr >= 0
+        node_of_col[arr[have]] = np.flatnonzero(have)
+    # each component instance: its equations and its unknowns; the owner of
+    # each own unknown (the flows at its terminals, its locals)
+    owner = np.full(n, -1, dtype=np.int64)
+    inst = []                 # (group, index in the group)
+    single = []               # instances whose across unknowns are all one node's
+    for g in asm.groups:
+        C = np.asarray(g.col, dtype=np.int64)
+        if C.size == 0:
+            continue
+        base = len(inst)
+        own = C >= na
+        ids = np.broadcast_to(base + np.arange(g.n)[:, None], C.shape)
+        owner[C[own]] = ids[own]
+        at = np.where(own, -1, node_of_col[np.minimum(C, na - 1)])
+        lo = np.where(own, np.iinfo(np.int64).max, at).min(axis=1)
+        hi = at.max(axis=1)
+        inst.extend((g, i) for i in range(g.n))
+        single.extend((base + i, int(hi[i])) for i in np.flatnonzero((lo == hi) & (hi >= 0)))
+
+    def rows_of(k):
+        g, i = inst[k]
+        return np.arange(g.r0 + i * g.neq, g.r0 + (i + 1) * g.neq)
+
+    def own_of(k):
+        g, i = inst[k]
+        c = np.asarray(g.col[i], dtype=np.int64)
+        return c[c >= na]
+
+    def across_of(k):
+        g, i = inst[k]
+        c = np.asarray(g.col[i], dtype=np.int64)
+        return c[c < na]
+
+    # the flow sources, by node
+    sources = {}
+    for k, node in single:
+        own = own_of(k)
+        if own.size and _regular(_block(J, rows_of(k), own)):
+            sources.setdefault(node, []).append(k)
+    if not sources:
+        return []
+    order = np.argsort(asm.through_rows, kind="stable")
+    t_rows, t_cols = asm.through_rows[order], asm.through_cols[order]
+
+    def node_rows(node):
+        return [int(arr[node]) for arr in asm.node_rows.values() if arr[node] >= 0]
+
+    def node_across(node):
+        return [int(arr[node]) for arr in asm.node_across.values() if arr[node] >= 0]
+
+    def owners_at(node):
+        out = set()
+        for r in node_rows(node):
+            a, b = np.searchsorted(t_rows, [r, r + 1])
+            out.update(owner[t_cols[a:b]].tolist())
+        out.discard(-1)
+        return out
+
+    found = []
+    for node, srcs in sources.items():
+        p, row = int(p_of[node]), int(m_of[node])
+        if p < 0 or row < 0:
+            continue
+        comps = owners_at(node)
+        rows = [r for r in node_rows(node) if r != row]
+        cols = [c for c in node_across(node) if c != p]
+        # dead ends behind the node's components: their balances are these
+        # components' alone
+        behind = {int(node_of_col[c]) for k in comps for c in across_of(k)} - {node}
+        ends = []
+        for j in sorted(behind):
+            if j >= 0 and owners_at(j) <= comps:
+                rows += node_rows(j)
+                cols += node_across(j)
+                if p_of[j] >= 0:
+                    ends.append(int(p_of[j]))
+        for k in sorted(comps):
+            rows += rows_of(k).tolist()
+            cols += own_of(k).tolist()
+        rows, cols = np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
+        if rows.size != cols.size or not _regular(_block(J, rows, cols)):
+            continue          # a volume or a pressure source sets the pressure there
+        found.append(Local(node, p, row, rows, cols,
+                           [inst[k][0].comps[inst[k][1]] for k in srcs],
+                           [int(rows_of(k)[0]) for k in srcs], np.array(ends, dtype=np.int64)))
+    return found
+
+
+class _Balance:
+    """The mass balance of one :class:`Local` node as a function of its
+    pressure: g(p) = the sum of the flows into its components (its
+    conservation row's residual), the other unknowns of ``local.cols``
+    solved for at each p, the rest of x held."""
+
+    def __init__(self, asm, local, x, S, atol, stats):
+        self.asm, self.local, self.S, self.stats = asm, local, S, stats
+        self.x = x.copy()
+        self.atol = np.broadcast_to(np.asarray(atol, dtype=float), (asm.n,))[local.cols]
+        # absolute pressures and temperatures among the unknowns: each update
+        # of theirs is clipped to [-50 %, +100 %] of their value (as Newton
+        # clips node temperatures)
+        q = np.asarray(asm.x_quantity, dtype=object)[local.cols]
+        self.positive = np.flatnonzero((q == "pressure") | (q == "temperature"))
+
+    #: the last FluidError met at a trial pressure (a fluid's range left), or None
+    range_error = None
+
+    def _eval(self, x):
+        self.stats.residual_evaluations += 1
+        self.stats.jacobian_evaluations += 1
+        try:
+            F = self.asm.residual(x, self.S, 0.0, 0.0, jac=True)
+        except FluidError as err:
+            self.range_error = err
+            return None, None
+        except ComponentError:
+            return None, None
+        if not np.isfinite(F).all():
+            return None, None
+        return F, self.asm.jacobian_csc().tocsr()
+
+    def __call__(self, p):
+        """(g(p), dg/dp), with self.x the point solved for at p; None where
+        the solve fails (a fluid's range left, a singular block, no
+        convergence)."""
+        loc = self.local
+        self.range_error = None
+        x = self.x.copy()
+        x[loc.p] = p
+        x[loc.ends] = p
+        rows, cols, atol, pos = loc.rows, loc.cols, self.atol, self.positive
+        for _ in range(INNER_ITERATIONS):
+            F, J = self._eval(x)
+            if F is None:
+                return None
+            A = _block(J, rows, cols)
+            try:
+                du = -np.linalg.solve(A, F[rows])
+            except np.linalg.LinAlgError:
+                return None
+            if not np.isfinite(du).all():
+                return None
+            if (np.abs(du) <= atol + INNER_RTOL * np.abs(x[cols])).all():
+                # the balance and its slope along the solution at p:
+                # dg/dp = J[row, p] - J[row, cols] A^-1 J[rows, p]
+                j_row = _block(J, [loc.row], np.append(cols, loc.p))[0]
+                dp = np.linalg.solve(A, _block(J, rows, [loc.p])[:, 0])
+                x[cols] += du
+                self.x = x
+                return float(F[loc.row] + j_row[:-1] @ du), float(j_row[-1] - j_row[:-1] @ dp)
+            if pos.size:
+                v = x[cols[pos]]
+                du[pos] = np.minimum(np.maximum(du[pos], -0.5 * v), v)
+            x[cols] += du
+        return None
+
+
+def _search(bal, p0):
+    """The pressure that balances ``bal`` (:class:`_Balance`) nearest p0 in
+    the direction its balance points (up where the components take less
+    than the source gives, down where they take more): ('root', p) with
+    bal.x solved there; ('above', p) or ('below', p) where none lies up to
+    PRESSURE_CAP or down to PRESSURE_FLOOR, or to the edge of a fluid's
+    range (p: the last pressure solved for; with the edge, bal.range_error
+    says what lies past it); None where a trial pressure cannot be solved
+    for otherwise."""
+    at = bal(p0)
+    if at is None:
+        return None
+    g0, slope = at
+    if g0 == 0.0:
+        return "root", p0
+    up = g0 < 0.0
+    p_prev, g_prev = p0, g0
+    factor, edge = MARCH, None
+    for _ in range(MARCH_TRIALS):
+        if up and p_prev >= PRESSURE_CAP:
+            return "above", p_prev
+        if not up and p_prev <= PRESSURE_FLOOR:
+            return "below", p_prev
+        p = min(p_prev * factor, PRESSURE_CAP) if up else max(p_prev / factor, PRESSURE_FLOOR)
+        at = bal(p)
+        if at is None:
+            if bal.range_error is None:
+                return None
+            # past a fluid's range: closer to its edge, down to 0.1 % of it
+            edge = bal.range_error
+            factor = math.sqrt(factor)
+            if factor < 1.001:
+                bal.range_error = edge
+                return ("above" if up else "below"), p_prev
+            continue
+        g, slope = at
+        if (g >= 0.0) if up else (g <= 0.0):
+            break
+        p_prev, g_prev = p, g
+        factor = min(factor * factor, MARCH)
+    else:
+        return None
+    # a bracket [a, b] with g(a) < 0 <= g(b) or the reverse: safeguarded Newton
+    a, b = (p_prev, p) if p_prev < p else (p, p_prev)
+    ga = g_prev if a == p_prev else g
+    if g == 0.0:
+        return "root", p
+    for _ in range(SEARCH_ITERATIONS):
+        step = -g / slope if slope != 0.0 and math.isfinite(slope) else math.nan
+        q = p + step
+        if not a < q < b:
+            # bisection, geometric while the bracket spans more than a factor 4
+            q = math.sqrt(a * b) if b > 4.0 * a else 0.5 * (a + b)
+        at = bal(q)
+        if at is None:
+            return None
+        gq, slope = at
+        if gq == 0.0 or abs(q - p) <= SEARCH_RTOL * q:
+            return "root", q
+        if (gq < 0.0) == (ga < 0.0):
+            a, ga = q, gq
+        else:
+            b = q
+        p, g = q, gq
+        if b - a <= SEARCH_RTOL * b:
+            return "root", q
+    return "root", p
+
+
+def balanced_start(asm, x, S, atol, stats, locals_=None):
+    """A start for the consistent point at t = 0 with each node without
+    volume that carries a flow source at the pressure that balances its
+    flows (module docstring), the other nodes' pressures as in x; and a
+    failed Outcome that refuses the run where a node has no such pressure
+    between PRESSURE_FLOOR and PRESSURE_CAP (else None). The start is None
+    where there is no such node, or none could be solved for.
+
+    ``atol``: the absolute tolerances of the unknowns (Newton's), for the
+    solves at each trial pressure; ``stats``: their residual evaluations are
+    counted there."""
+    if locals_ is None:
+        locals_ = local_nodes(asm, x, S)
+    x = x.copy()
+    moved = False
+    for loc in locals_:
+        bal = _Balance(asm, loc, x, S, atol, stats)
+        found = _search(bal, float(x[loc.p]))
+        if found is None:
+            continue
+        kind, p = found
+        if kind == "root":
+            x, moved = bal.x, True
+            continue
+        return None, Outcome(False, x, 0, _refusal(asm, loc, kind, p, bal.range_error),
+                             loc.source_rows[0], unknown=loc.p)
+    return (x if moved else None), None
+
+
+def _refusal(asm, loc, kind, p, edge):
+    """The reason a run is refused where node ``loc`` has no balancing
+    pressure up to (``kind`` 'above') or down to ('below') ``p``; ``edge``:
+    the FluidError past p, where a fluid's range ends there."""
+    names = ", ".join(c.describe() for c in loc.sources)
+    node = asm.nodes[loc.node].name
+    where = "" if edge is None else f", where the fluid's range ends ({edge})"
+    # (the wording avoids 'choked': a failure that says so reads as a stop on
+    # a gas law's limit, which this is not)
+    why = ("(closed, at rest, dead ends, or a gas's flow at its sonic limit); give the "
+           "node a volume (a Container), or ")
+    if kind == "above":
+        return (f"no consistent start at t = 0: {names} pushes more into {node}, a node "
+                f"without volume, than the components there pass at any pressure up to "
+                f"{p:.4g} Pa{where} {why}outlets that pass the flow")
+    return (f"no consistent start at t = 0: {names} draws more from {node}, a node "
+            f"without volume, than the components there supply at any pressure down to "
+            f"{p:.4g} Pa{where} {why}inlets that supply the flow")
+
+
+def above_cap(asm, x):
+    """Whether a node's absolute pressure in x exceeds PRESSURE_CAP."""
+    cols = asm.__dict__.get("_node_pressures")
+    if cols is None:
+        p_of = asm.node_across.get("pressure")
+        cols = asm._node_pressures = (np.zeros(0, dtype=np.int64) if p_of is None
+                                      else p_of[p_of >= 0])
+    return bool(cols.size) and float(x[cols].max()) > PRESSURE_CAP
