@@ -50,6 +50,8 @@ import softflow as sf  # noqa: E402
 #: (label, substrings of the message, all of which) in order: the first that matches
 CAUSES = (
     ("chokes", ("chok",)),
+    ("no consistent start: a flow source's node balances at no pressure",
+     ("no consistent start",)),
     ("pressure <= 0 at a node", ("absolute pressure", "<= 0")),
     ("non-finite residual: a trial pressure outside the fluid's range",
      ("not finite", "pressure", "range")),
