@@ -1,12 +1,14 @@
 """Volumes that store fluid: rigid containers and linear accumulators."""
 from __future__ import annotations
 
+import functools
 import inspect
 
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._laws import law_module
 from ..constants import pressure_atmospheric
 from ..fluids.ideal import ConstantLiquid, IdealGas
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
@@ -27,18 +29,11 @@ def accumulator_volume(P, p):
     return P.volume + P.compliance * (p - P.reference_pressure)
 
 
-_LAWS = None
 #: the Jacobian argument of a compiled pass evaluated without one
 NO_JACOBIAN = np.empty((0, 3))
 
 
-def volume_laws():
-    """:mod:`softflow.laws.volumes`, imported at the first use (numba's import)."""
-    global _LAWS
-    if _LAWS is None:
-        from ..laws import volumes
-        _LAWS = volumes
-    return _LAWS
+volume_laws = functools.partial(law_module, "volumes")
 
 
 def set_fluid_law(P):

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._laws import law_module
 from ..constants import pressure_atmospheric
 from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, compiled_kind,
                                      fRe_blended, friction_Haaland, resolve_friction,
@@ -290,17 +291,10 @@ def set_compiled_law(P, own_law=True):
     P.kind_terms = P.eD if P.friction_terms is None else P.friction_terms
 
 
-_laws = None
 _NO_JACOBIAN = np.empty((0, 5))
 
 
-def _tube_laws():
-    """:mod:`softflow.laws.tube`, imported at the first use (numba's import)."""
-    global _laws
-    if _laws is None:
-        from ..laws import tube
-        _laws = tube
-    return _laws
+_tube_laws = partial(law_module, "tube")
 
 
 def set_isothermal_law(P, isothermal, adiabatic=True):

@@ -7,11 +7,13 @@ mdot = mf_a > 0 is flow from a to b and dp = p_a - p_b.
 """
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .._laws import law_module
 from ..constants import pressure_atmospheric
 from ..correlations.friction import (compiled_kind, fRe_blended, friction_Haaland,
                                      roughness_terms, smoothstep)
@@ -35,20 +37,13 @@ TWO_PORTS = (("a", FLUID_PORT), ("b", FLUID_PORT))
 TWO_PORT_PATTERN = ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
 
 
-_laws = None
 #: the Jacobian argument of a compiled pass evaluated without one, and the
 #: density arrays of a pass that makes its densities itself
 _NO_JACOBIAN = np.empty((0, 5))
 _NONE = np.empty(0)
 
 
-def _valve_laws():
-    """:mod:`softflow.laws.valves`, imported at the first use (numba's import)."""
-    global _laws
-    if _laws is None:
-        from ..laws import valves
-        _laws = valves
-    return _laws
+_valve_laws = functools.partial(law_module, "valves")
 
 
 def set_density_law(P):

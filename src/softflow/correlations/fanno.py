@@ -73,22 +73,16 @@ for tests, the documentation and the model checks' estimates, not the law.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from .._laws import law_module
 from .friction import prepared, shaped
 
-_laws = None
 
-
-def compiled():
-    """:mod:`softflow.laws.fanno`, imported at the first use."""
-    global _laws
-    if _laws is None:
-        from ..laws import fanno
-        _laws = fanno
-    return _laws
+compiled = functools.partial(law_module, "fanno")
 
 
 def _gamma(gamma):

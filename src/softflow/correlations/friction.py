@@ -8,22 +8,17 @@ the tests compare against them.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from .._laws import law_module
+
 _LN10 = np.log(10.0)
-_laws = None
 
 
-def compiled():
-    """:mod:`softflow.laws.friction`, imported at the first use (importing numba
-    costs about 0.35 s: not at ``import softflow``)."""
-    global _laws
-    if _laws is None:
-        from ..laws import friction
-        _laws = friction
-    return _laws
+compiled = functools.partial(law_module, "friction")
 
 
 def prepared(*xs):

@@ -47,20 +47,15 @@ Each function works on floats and NumPy arrays alike.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
+from .._laws import law_module
 from .friction import prepared, shaped
 
-_laws = None
 
-
-def compiled():
-    """:mod:`softflow.laws.gas_pipe`, imported at the first use."""
-    global _laws
-    if _laws is None:
-        from ..laws import gas_pipe
-        _laws = gas_pipe
-    return _laws
+compiled = functools.partial(law_module, "gas_pipe")
 
 
 def entry_z(a):

@@ -21,24 +21,19 @@ Reference implementations for the tests: ``fluids.core.dP_from_K``,
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
+from .._laws import law_module
 from .friction import prepared, shaped
 
 #: ISO 6358 standard reference atmosphere (ANR): density [kg/m^3] and temperature [K].
 ISO_6358_RHO0 = 1.185
 ISO_6358_T0 = 293.15
 
-_laws = None
 
-
-def compiled():
-    """:mod:`softflow.laws.orifice`, imported at the first use."""
-    global _laws
-    if _laws is None:
-        from ..laws import orifice
-        _laws = orifice
-    return _laws
+compiled = functools.partial(law_module, "orifice")
 
 
 def _run(loop, n_out, *args):

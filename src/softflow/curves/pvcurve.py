@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import bisect
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 
+from .._laws import law_module
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from ..units import to_si
@@ -371,17 +373,9 @@ class PVCurve:
 
 
 # -- helpers ------------------------------------------------------------------------------
-_LAWS = None
 
 
-def _volume_laws() -> Any:
-    """:mod:`softflow.laws.volumes`, imported at the first evaluation (numba's
-    import stays out of ``import softflow``)."""
-    global _LAWS
-    if _LAWS is None:
-        from ..laws import volumes
-        _LAWS = volumes
-    return _LAWS
+_volume_laws = functools.partial(law_module, "volumes")
 
 
 def _antiderivative(w0: Any, c0: Any, c1: Any, c2: Any, c3: Any, x: Any) -> Any:

@@ -15,7 +15,11 @@ and apply it to scalars and arrays.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+
+from .._laws import law_module
 
 # Maps [f(0), f(1), h f'(0), h f'(1)] to power coefficients [c0, c1, c2, c3] of a cubic
 # on [0, 1] (the cubic Hermite basis).
@@ -24,18 +28,8 @@ _HERMITE = np.array([[1.0, 0.0, 0.0, 0.0],
                      [-3.0, 3.0, -2.0, -1.0],
                      [2.0, -2.0, 1.0, 1.0]])
 
-_laws = None
 
-
-def compiled():
-    """:mod:`softflow.laws.tables`, imported at the first evaluation (importing
-    numba costs about 0.35 s: not at ``import softflow``, nor where a table is
-    only read)."""
-    global _laws
-    if _laws is None:
-        from ..laws import tables
-        _laws = tables
-    return _laws
+compiled = functools.partial(law_module, "tables")
 
 
 class UniformAxis:

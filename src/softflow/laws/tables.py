@@ -42,15 +42,21 @@ def cell(x, start, step, count):
 
 
 @jit
+def _in_u(c, u):
+    """A cell's cubics in u, by Horner's scheme: r_a(u), the coefficient of t^a."""
+    return (((c[3] * u + c[2]) * u + c[1]) * u + c[0],
+            ((c[7] * u + c[6]) * u + c[5]) * u + c[4],
+            ((c[11] * u + c[10]) * u + c[9]) * u + c[8],
+            ((c[15] * u + c[14]) * u + c[13]) * u + c[12])
+
+
+@jit
 def bicubic(cells, x_start, x_step, y_start, y_step, x, y):
     """The 2-D interpolant at (x, y): Horner's scheme in u, then in t."""
     i, t = cell(x, x_start, x_step, cells.shape[0] + 1)
     j, u = cell(y, y_start, y_step, cells.shape[1] + 1)
     c = cells[i, j]
-    r0 = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
-    r1 = ((c[7] * u + c[6]) * u + c[5]) * u + c[4]
-    r2 = ((c[11] * u + c[10]) * u + c[9]) * u + c[8]
-    r3 = ((c[15] * u + c[14]) * u + c[13]) * u + c[12]
+    r0, r1, r2, r3 = _in_u(c, u)
     return ((r3 * t + r2) * t + r1) * t + r0
 
 
@@ -61,10 +67,7 @@ def bicubic_grad(cells, x_start, x_step, y_start, y_step, x, y):
     j, u = cell(y, y_start, y_step, cells.shape[1] + 1)
     c = cells[i, j]
     # r_a(u): the coefficient of t^a; q_a = dr_a/du
-    r0 = ((c[3] * u + c[2]) * u + c[1]) * u + c[0]
-    r1 = ((c[7] * u + c[6]) * u + c[5]) * u + c[4]
-    r2 = ((c[11] * u + c[10]) * u + c[9]) * u + c[8]
-    r3 = ((c[15] * u + c[14]) * u + c[13]) * u + c[12]
+    r0, r1, r2, r3 = _in_u(c, u)
     q0 = (3.0 * c[3] * u + 2.0 * c[2]) * u + c[1]
     q1 = (3.0 * c[7] * u + 2.0 * c[6]) * u + c[5]
     q2 = (3.0 * c[11] * u + 2.0 * c[10]) * u + c[9]

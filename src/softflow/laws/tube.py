@@ -53,6 +53,22 @@ def darcy_drop_array(kind, lo, hi, mf, re_per_mf, c, eD, a, dp, d_mf):
 
 
 @jit
+def two_port_row(i, V, f1, j_pa, j_mf, j_pb, F, J, jac):
+    """Row i of a two-port group's residual (mass balance mf_a + mf_b, and the
+    flow law's equation f1) and, with ``jac``, its Jacobian's nonzeros in the
+    two-port pattern (0, mf_a) (0, mf_b) (1, p_a) (1, mf_a) (1, p_b): 1, 1 and
+    the law's partials j_pa, j_mf, j_pb."""
+    F[i, 0] = V[i, 1] + V[i, 3]
+    F[i, 1] = f1
+    if jac:
+        J[i, 0] = 1.0
+        J[i, 1] = 1.0
+        J[i, 2] = j_pa
+        J[i, 3] = j_mf
+        J[i, 4] = j_pb
+
+
+@jit
 def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, F, J, jac):
     """A group of tubes' residual F (n, 2) (mass balance; p_a - p_b minus the
     required drop) and, with ``jac``, its nonzeros J (n, 5) in the tube's
@@ -67,14 +83,7 @@ def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, F, J, jac):
         else:
             dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf[i], c[i], eD[i], a[i])
             d_pa = d_pb = 0.0
-        F[i, 0] = mf + V[i, 3]
-        F[i, 1] = (pa - pb) - dp
-        if jac:
-            J[i, 0] = 1.0
-            J[i, 1] = 1.0
-            J[i, 2] = 1.0 - d_pa
-            J[i, 3] = -d_mf
-            J[i, 4] = -1.0 - d_pb
+        two_port_row(i, V, (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb, F, J, jac)
 
 
 @jit

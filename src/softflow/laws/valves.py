@@ -25,7 +25,7 @@ from .friction import fRe_blended, smoothstep
 from .gas_pipe import isothermal_pipe
 from .orifice import (_maximum, massflow_iso_6358, massflow_loss_coefficient,
                       massflow_nozzle)
-from .tube import isothermal_drop
+from .tube import isothermal_drop, two_port_row
 
 #: an orifice's law (Orifice.model): the loss coefficient (K, or a liquid's Cd),
 #: the isentropic nozzle (a gas's Cd), ISO 6358 (C, b)
@@ -102,14 +102,7 @@ def orifice_residual(model, V, RT, rho, K, area, dp_small, gamma, Cd, T, C, b, m
         q, q_pa, q_pb = orifice_flow(model, pa, pb, r, dr, K[i], area[i], dp_small[i],
                                      gamma[i], Cd[i], T, C[i], b[i], m[i], pr_laminar[i],
                                      rho0, T0)
-        F[i, 0] = mf + V[i, 3]
-        F[i, 1] = mf - q
-        if jac:
-            J[i, 0] = 1.0
-            J[i, 1] = 1.0
-            J[i, 2] = -q_pa
-            J[i, 3] = 1.0
-            J[i, 4] = -q_pb
+        two_port_row(i, V, mf - q, -q_pa, 1.0, -q_pb, F, J, jac)
 
 
 # -- check valves -----------------------------------------------------------------------
@@ -152,14 +145,7 @@ def check_valve_residual(nozzle, V, RT, rho, K, Cd, gamma, area, dp_small, crack
         q, q_pa, q_pb = check_valve_flow(pa, pb, nozzle, ro, dro, rm, drm, K[i], Cd[i],
                                          gamma[i], area[i], dp_small[i], cracking[i],
                                          cracking[i] + band[i], leakage[i])
-        F[i, 0] = mf + V[i, 3]
-        F[i, 1] = mf - q
-        if jac:
-            J[i, 0] = 1.0
-            J[i, 1] = 1.0
-            J[i, 2] = -q_pa
-            J[i, 3] = 1.0
-            J[i, 4] = -q_pb
+        two_port_row(i, V, mf - q, -q_pa, 1.0, -q_pb, F, J, jac)
 
 
 # -- Tesla valves -----------------------------------------------------------------------
@@ -206,14 +192,7 @@ def tesla_residual(kind, lo, hi, V, re_per_mf, c_mu, eD, a, area, mf_blend, diod
         dp, d_pa, d_mf, d_pb = tesla_drop(kind, lo, hi, pa, mf, pb, re_per_mf[i], c_mu[i],
                                           eD[i], a[i], area[i], mf_blend[i], diodicity[i],
                                           c2, rho, 0.0)
-        F[i, 0] = mf + V[i, 3]
-        F[i, 1] = (pa - pb) - dp
-        if jac:
-            J[i, 0] = 1.0
-            J[i, 1] = 1.0
-            J[i, 2] = 1.0 - d_pa
-            J[i, 3] = -d_mf
-            J[i, 4] = -1.0 - d_pb
+        two_port_row(i, V, (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb, F, J, jac)
 
 
 @jit
@@ -277,14 +256,7 @@ def snapping_residual(kind, lo, hi, V, S, re_per_mf, c_mu, eD, a, area, conducta
                 dX = 1.0 / conductance[i]
                 X = dX * mf
             f1, j_pa, j_mf, j_pb = restrictor_row(pa, pb, X, dX, r, dr)
-        F[i, 0] = mf + V[i, 3]
-        F[i, 1] = f1
-        if jac:
-            J[i, 0] = 1.0
-            J[i, 1] = 1.0
-            J[i, 2] = j_pa
-            J[i, 3] = j_mf
-            J[i, 4] = j_pb
+        two_port_row(i, V, f1, j_pa, j_mf, j_pb, F, J, jac)
 
 
 # -- array loops (the arrays' shapes are made equal by the caller) ----------------------
