@@ -3,10 +3,11 @@ tutorials "A first network", "A more complex network", custom components,
 waves and exporting results, and its API reference), one function each.
 
 Each takes the module the script imports as ``fons`` (``fonsim`` itself, or
-``softflow.fons``) and the fluids to use, runs the script as written for
-fonsim, and returns its key numbers. The bodies use fonsim's API only: that
-they run under ``softflow.fons`` is what the tests check; that the numbers
-agree with fonsim's is what the side-by-side tests check.
+``softflow.fons``) and, for the tutorials, the fluid to use (the scripts of
+fonsim's conventions, below, use the module's own), runs the script as
+written for fonsim, and returns its key numbers. The bodies use fonsim's API
+only: that they run under ``softflow.fons`` is what the tests check; that the
+numbers agree with fonsim's is what the side-by-side tests check.
 """
 import contextlib
 import io
@@ -226,3 +227,259 @@ def check_valve(fons, air, threshold=0.0, step=1e-3):
     t = np.asarray(sim.times)
     return {"tank pressure [Pa]": at(t, system.get("tank").get("pressure"),
                                      (0.05, 0.1, 0.25, 0.45, 0.75, 1.0))}
+
+
+# -- one script per convention of fonsim's model (issue 39) ------------------------------
+# Each takes the module imported as ``fons``, the Simulation's step and, for
+# softflow.fons, its own options (rtol=...); it uses the module's own fluids and
+# constants and returns its outputs at SAMPLES evenly spaced times of the run (none
+# at a jump of a source). The tubes stay laminar (Re < 2300) so that a script shows
+# its own convention, not the tubes' laminar-turbulent blend
+# (``tube_transition``).
+SAMPLES = 40
+
+
+def _samples(sim, duration, series):
+    t = np.asarray(sim.times)
+    grid = np.linspace(0.0, duration, SAMPLES)
+    return {k: np.interp(grid, t, np.asarray(v, dtype=float)) for k, v in series.items()}
+
+
+def air_tank_with_leak(fons, step=(None, None), **options):
+    """fons.air and the atmosphere: a 1.25 bar source fills a 20 mL tank
+    through a 1 m, 0.8 mm tube while a thinner tube leaks it to a Sink at
+    the default (atmospheric) pressure; absolute pressure, mass and both flows."""
+    system = fons.System()
+    system += fons.PressureSource("supply", pressure=1.25e5)
+    system += fons.CircularTube("feed", fluid=fons.air, length=1.0, diameter=0.8e-3)
+    system += fons.Container("tank", fluid=fons.air, volume=20e-6)
+    system += fons.CircularTube("leak", fluid=fons.air, length=1.0, diameter=0.5e-3)
+    vent = fons.Sink("vent")
+    system += vent
+    system.connect("supply", "feed", "tank")
+    system.connect(("tank", "a"), ("leak", "a"))
+    # by object: fonsim 0.6's Sink stores itself as its label, so its label fails there
+    system.connect(("leak", "b"), vent)
+    sim = fons.Simulation(system, duration=1.0, step=step, **options)
+    _run(sim)
+    tank = system.get("tank")
+    return _samples(sim, 1.0, {
+        "tank pressure [Pa]": tank.get("pressure"),
+        "tank mass [kg]": tank.get_state("mass"),
+        "feed massflow [kg/s]": system.get("feed").get("massflow", "a"),
+        "leak massflow [kg/s]": system.get("leak").get("massflow", "a"),
+    })
+
+
+def water_into_accumulator(fons, step=(None, None), **options):
+    """fons.water: a 0.4 bar (gauge) step pushes water through a 1 m, 1 mm
+    tube into a LinearAccumulator that holds 2 mL at 1 atm; pressure, mass and
+    the tube's flow (the water's viscosity sets the time constant)."""
+    p_atm = fons.pressure_atmospheric
+    system = fons.System()
+    system += fons.PressureSource("pump", pressure=p_atm + 0.4e5)
+    system += fons.CircularTube("line", fluid=fons.water, length=1.0, diameter=1e-3)
+    system += fons.LinearAccumulator("acc", fluid=fons.water, k=2e10, v0=2e-6)
+    system.connect("pump", "line", "acc")
+    sim = fons.Simulation(system, duration=1.0, step=step, **options)
+    _run(sim)
+    acc = system.get("acc")
+    return _samples(sim, 1.0, {
+        "acc pressure [Pa]": acc.get("pressure"),
+        "acc mass [kg]": acc.get_state("mass"),
+        "line massflow [kg/s]": system.get("line").get("massflow", "a"),
+    })
+
+
+def tube_transition(fons, fluid_name="air", step=(None, None), **options):
+    """Steady flows through a tube (1 m, 0.8 mm) into the atmosphere from
+    a range of pressures: laminar, then across the laminar-turbulent band
+    (Re 2300 to 4000), where fonsim weighs the two laws linearly in Re."""
+    fluid = getattr(fons, fluid_name)
+    gauges = ((0.02e5, 0.1e5, 0.3e5, 0.45e5, 0.6e5, 0.8e5, 1.0e5) if fluid_name == "air"
+              else (0.1e5, 0.5e5, 1.0e5, 1.5e5, 2.0e5, 3.0e5))
+    system = fons.System()
+    for i, gauge in enumerate(gauges):
+        system += fons.PressureSource(f"high_{i}", pressure=fons.pressure_atmospheric + gauge)
+        system += fons.CircularTube(f"tube_{i}", fluid=fluid, length=1.0, diameter=0.8e-3)
+        system += fons.PressureSource(f"low_{i}", pressure=fons.pressure_atmospheric)
+        system.connect(f"high_{i}", f"tube_{i}")
+        system.connect((f"tube_{i}", "b"), f"low_{i}")
+    sim = fons.Simulation(system, duration=0.01, step=1e-3)
+    _run(sim)
+    return {"massflow [kg/s]": np.array([system.get(f"tube_{i}").get("massflow", "a")[-1]
+                                         for i in range(len(gauges))])}
+
+
+def constants_and_module_paths(fons):
+    """fonsim's module paths and constants, imported the way a fonsim script
+    does (``import fonsim.constants.norm as cnorm`` ...), with their values."""
+    import importlib
+    base = fons.__name__
+    norm = importlib.import_module(f"{base}.constants.norm")
+    physical = importlib.import_module(f"{base}.constants.physical")
+    pvcurve = importlib.import_module(f"{base}.data.pvcurve")
+    custom = importlib.import_module(f"{base}.wave.custom")
+    plotting = importlib.import_module(f"{base}.visual.plotting")
+    assert fons.wave.wave.sine is fons.wave.sine
+    assert fons.visual.plotting.plot is fons.plot
+    assert fons.cnorm is norm and fons.cphy is physical
+    assert pvcurve.PVCurve is fons.data.PVCurve and custom.Custom is fons.wave.Custom
+    assert plotting.plot_state is fons.plot_state
+    return {
+        "atmospheric pressure [Pa]": np.array([norm.pressure_atmospheric,
+                                               fons.pressure_atmospheric]),
+        "temperature [K]": np.array([norm.temperature, fons.temperature]),
+        "gas constant [J/mol/K]": np.array([physical.gas_constant, fons.gas_constant]),
+        "air rho_stp, mu": np.array([fons.air.rho_stp, fons.air.mu]),
+        "water rho, mu": np.array([fons.water.rho, fons.water.mu]),
+    }
+
+
+def pv_curve_conventions(fons):
+    """fons.data.PVCurve read as fonsim reads it: the pressure beyond the
+    data (held by default, whatever the derivative option), the interpolated
+    initial volume at a pressure, and the autocorrected series."""
+    rel = fons.data.PVCurve(str(DATA), pressure_reference="relative")
+    held = fons.data.PVCurve(str(DATA), extrapolate=True)
+    held_d = fons.data.PVCurve(str(DATA), extrapolate_derivative=True)
+    shifted = fons.data.PVCurve(str(DATA), autocorrect=True)
+    outside = (0.2e-6, 0.9e-6, 58e-6, 80e-6)
+    p_atm = fons.pressure_atmospheric
+    return {
+        "pressure beyond the data [Pa]": np.array(
+            [c.fdf_volume(v)[0] - p_atm for c in (rel, held, held_d) for v in outside]),
+        "slope beyond the data, default [Pa/m^3]": np.array([rel.fdf_volume(v)[1]
+                                                             for v in outside]),
+        "initial volume at pressure [m^3]": np.array([rel.get_initial_volume(p_atm + dp)
+                                                      for dp in (0.1e5, 0.2e5, 0.5e5, 0.8e5)]),
+        "autocorrected volumes [m^3]": np.asarray(shifted.v, dtype=float),
+        "autocorrected gauge pressures [Pa]": np.asarray(shifted.p, dtype=float) - p_atm,
+    }
+
+
+def pv_curve_between_samples(fons):
+    """A PV curve between its samples: fonsim interpolates straight lines,
+    softflow monotone cubics (PCHIP)."""
+    curve = fons.data.PVCurve(str(DATA))
+    v = np.asarray(curve.v, dtype=float)
+    mid = 0.5 * (v[:-1] + v[1:])
+    return {"pressure between samples [Pa]": np.array([curve.fdf_volume(x)[0] for x in mid])
+            - fons.pressure_atmospheric}
+
+
+def actuator_drained_below_its_data(fons, step=(None, None), **options):
+    """A water-filled balloon (a PVCurve object: its data start at 1 mL and
+    22 mbar) at 3 mL drains through a tube to the atmosphere, past its first
+    sample, where the curve holds its first pressure."""
+    curve = fons.data.pvcurve.PVCurve(str(DATA), pressure_reference="relative")
+    system = fons.System()
+    system += fons.FreeActuator("balloon", fluid=fons.water, curve=curve, initial_volume=3e-6)
+    system += fons.CircularTube("tube", fluid=fons.water, length=0.5, diameter=0.8e-3)
+    system += fons.PressureSource("atmosphere", pressure=fons.pressure_atmospheric)
+    system.connect(("balloon", "a"), "tube", "atmosphere")
+    sim = fons.Simulation(system, duration=8.0, step=step, **options)
+    _run(sim)
+    balloon = system.get("balloon")
+    return _samples(sim, 8.0, {
+        "balloon gauge pressure [Pa]": balloon.get("pressure", "a") - fons.pressure_atmospheric,
+        "balloon mass [kg]": balloon.get_state("mass"),
+        "tube massflow [kg/s]": system.get("tube").get("massflow", "a"),
+    })
+
+
+def _inflate(fons, fluid, curve, duration, gauge, tube, step, initial_volume=None, **options):
+    system = fons.System()
+    system += fons.PressureSource("source", pressure=fons.pressure_atmospheric + gauge)
+    system += fons.CircularTube("tube", fluid=fluid, length=tube[0], diameter=tube[1])
+    kw = {} if curve is None else {"curve": curve}
+    if initial_volume is not None:
+        kw["initial_volume"] = initial_volume
+    system += fons.FreeActuator("actuator", fluid=fluid, **kw)
+    system.connect("source", "tube", "actuator")
+    sim = fons.Simulation(system, duration=duration, step=step, **options)
+    _run(sim)
+    act = system.get("actuator")
+    return _samples(sim, duration, {
+        "actuator gauge pressure [Pa]": act.get("pressure", "a") - fons.pressure_atmospheric,
+        "actuator mass [kg]": act.get_state("mass"),
+        "tube massflow [kg/s]": system.get("tube").get("massflow", "a"),
+    })
+
+
+def actuator_curve_file_water(fons, step=(None, None), **options):
+    """FreeActuator(curve='file.csv') with water, filled from 0.5 bar gauge:
+    fonsim shifts the file's curve to start at 0 mL and 1 atm and starts the
+    actuator there, empty."""
+    return _inflate(fons, fons.water, str(DATA), 3.0, 0.5e5, (1.0, 1e-3), step, **options)
+
+
+def actuator_curve_file_air(fons, step=(None, None), **options):
+    """FreeActuator(curve='file.csv') with air, filled from 0.3 bar gauge."""
+    return _inflate(fons, fons.air, str(DATA), 0.4, 0.3e5, (1.0, 0.8e-3), step, **options)
+
+
+def actuator_default_curve(fons, step=(None, None), **options):
+    """FreeActuator without a curve: fonsim's default, the 60 mm latex
+    balloon it ships, read as a curve file."""
+    return _inflate(fons, fons.water, None, 3.0, 0.5e5, (1.0, 1e-3), step, **options)
+
+
+def actuator_initial_volume_minimum_air(fons, step=(None, None), **options):
+    """FreeActuator(initial_volume='minimum') on a PVCurve object (its data
+    start at 1 mL, 22 mbar), air: fonsim gives it the mass 1 mL holds at
+    1 atm, so it starts slightly compressed."""
+    curve = fons.data.PVCurve(str(DATA))
+    return _inflate(fons, fons.air, curve, 0.4, 0.3e5, (1.0, 0.8e-3), step,
+                    initial_volume="minimum", **options)
+
+
+def actuator_initial_volume_auto_water(fons, step=(None, None), **options):
+    """FreeActuator(initial_volume='auto') on a curve whose data cross 1 atm
+    (the file shifted down by 0.1 bar): fonsim starts where the straight line
+    between the two samples around 1 atm reaches it."""
+    curve = fons.data.PVCurve(str(DATA), autocorrect=(False, lambda p: p - 0.1e5))
+    return _inflate(fons, fons.water, curve, 3.0, 0.4e5, (1.0, 1e-3), step,
+                    initial_volume="auto", **options)
+
+
+def empty_accumulator(fons, fluid_name, step=(None, None), **options):
+    """LinearAccumulator with fonsim's default v0 = 0 (empty at p0), filled
+    through a tube from 0.25 bar gauge, then emptied to 0.1 bar gauge."""
+    fluid = getattr(fons, fluid_name)
+    p_atm = fons.pressure_atmospheric
+    k = 5e10 if fluid_name == "water" else 2e9
+    tube = (0.5, 1e-3) if fluid_name == "water" else (1.0, 0.8e-3)
+    system = fons.System()
+    system += fons.PressureSource("source", pressure=fons.wave.Custom(
+        [(0.0, p_atm + 0.25e5), (0.5, p_atm + 0.1e5)]))
+    system += fons.CircularTube("tube", fluid=fluid, length=tube[0], diameter=tube[1])
+    system += fons.LinearAccumulator("acc", fluid=fluid, k=k)
+    system.connect("source", "tube", "acc")
+    sim = fons.Simulation(system, duration=1.0, step=step, **options)
+    _run(sim)
+    acc = system.get("acc")
+    return _samples(sim, 1.0, {
+        "acc gauge pressure [Pa]": acc.get("pressure") - p_atm,
+        "acc mass [kg]": acc.get_state("mass"),
+        "tube massflow [kg/s]": system.get("tube").get("massflow", "a"),
+    })
+
+
+def gas_accumulator_off_atmosphere(fons, step=(None, None), **options):
+    """LinearAccumulator(air, p0 = 1.5 bar, v0 = 5 mL): fonsim fills it with
+    the mass 5 mL hold at 1 atm, so it starts below p0, and a 1.3 bar source
+    tops it up."""
+    system = fons.System()
+    system += fons.PressureSource("source", pressure=1.3e5)
+    system += fons.CircularTube("tube", fluid=fons.air, length=1.0, diameter=0.8e-3)
+    system += fons.LinearAccumulator("acc", fluid=fons.air, k=1e10, p0=1.5e5, v0=5e-6)
+    system.connect("source", "tube", "acc")
+    sim = fons.Simulation(system, duration=0.5, step=step, **options)
+    _run(sim)
+    acc = system.get("acc")
+    return _samples(sim, 0.5, {
+        "acc pressure [Pa]": acc.get("pressure"),
+        "acc mass [kg]": acc.get_state("mass"),
+        "tube massflow [kg/s]": system.get("tube").get("massflow", "a"),
+    })

@@ -9,8 +9,7 @@ API: ``docs/coming-from-fonsim.md``.
 """
 from __future__ import annotations
 
-from ..constants import gas_constant, pressure_atmospheric, temperature_standard
-from . import data, fluid, fluids, wave
+from . import constants, data, fluid, fluids, visual, wave
 from ._unsupported import FonsimNameError, unsupported
 from .components import (CheckValve, CircularTube, Container, FlowRestrictor, FreeActuator,
                          LinearAccumulator, MassflowSource, PressureSource, Sink,
@@ -18,17 +17,25 @@ from .components import (CheckValve, CircularTube, Container, FlowRestrictor, Fr
 from .core import Component, Simulation, System, Terminal, Variable, terminal_fluidic
 from .data import pvcurve
 from .fluids import air, water
-from .visual import plot, plot_state
+from .visual.plotting import plot, plot_state
 
-#: softflow's fluid temperature [K] (fonsim's reference is 288.15 K)
-temperature = temperature_standard
+#: fonsim's constants modules, under fonsim's names
+cnorm = constants.norm
+cphy = constants.physical
+#: fonsim's atmospheric pressure [Pa] (101 300 Pa; softflow's: 101 325 Pa)
+pressure_atmospheric = cnorm.pressure_atmospheric
+#: fonsim's reference temperature [K] (288.15 K; softflow's fluids: 293.15 K)
+temperature = cnorm.temperature
+#: fonsim's molar gas constant [J/(mol K)]
+gas_constant = cphy.gas_constant
 
 __all__ = [
     "Variable", "Terminal", "Component", "System", "Simulation", "terminal_fluidic",
     "PressureSource", "Sink", "MassflowSource", "VolumeflowSource", "CircularTube",
     "Container", "FlowRestrictor", "CheckValve", "LinearAccumulator", "FreeActuator",
-    "air", "water", "fluid", "fluids", "wave", "data", "pvcurve", "plot", "plot_state",
-    "pressure_atmospheric", "gas_constant", "temperature", "FonsimNameError",
+    "air", "water", "fluid", "fluids", "wave", "data", "pvcurve", "visual", "plot",
+    "plot_state", "constants", "cnorm", "cphy", "pressure_atmospheric", "gas_constant",
+    "temperature", "FonsimNameError",
 ]
 
 

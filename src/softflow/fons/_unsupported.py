@@ -21,9 +21,6 @@ ADVICE = {
     "colors": "use matplotlib's colours directly",
     "indexmatch": "softflow matches result names exactly (Component.get lists the names)",
     "conversion": "use pint through softflow: sf.Q_(1, 'bar').to('Pa')",
-    "cnorm": "use fons.pressure_atmospheric (softflow's constants: softflow.constants)",
-    "cphy": "use fons.gas_constant (softflow.constants)",
-    "constants": "use fons.pressure_atmospheric, fons.gas_constant (softflow.constants)",
 }
 for _n in ("core", "solver", "node", "component", "system", "simulation", "variable",
            "terminal", "terminals", "containers", "containers_autodiff", "restrictors",

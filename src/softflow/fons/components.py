@@ -5,20 +5,39 @@ they are mapped here, once.
 """
 from __future__ import annotations
 
+import os
+from importlib import resources
+
+import numpy as np
+from scipy.optimize import brentq
+
 from .. import components as _sf
 from ..components.base import LibraryComponent
-from ..constants import pressure_atmospheric
+from ..units import to_si
+from .constants.norm import pressure_atmospheric
 from .core import ResultsMixin
-from .data import PVCurve
+from .data.pvcurve import PVCurve
+from .data.pvcurve import initial_volume as initial_volume_at
 
 #: An ideal check valve (fonsim's: no resistance once open) as softflow's
 #: CheckValve: a passage this wide opening over this band above the threshold.
 IDEAL_VALVE_DIAMETER = 20e-3      # [m]
 IDEAL_VALVE_OPENING_BAND = 300.0  # [Pa] (100 Pa: the t = 0 Newton solve failed with a threshold)
 
-#: fonsim's LinearAccumulator starts empty by default (v0 = 0); softflow needs a
-#: positive fluid volume, so an empty one starts at this pressure above p0 [Pa].
+#: fonsim's LinearAccumulator starts empty by default (v0 = 0); softflow's needs a
+#: positive fluid volume, so an empty one starts at this pressure above p0 [Pa]
+#: (with k = 1e9 Pa/m^3: 1e-12 m^3 of fluid).
 EMPTY_ACCUMULATOR_OFFSET = 1e-3
+
+#: fonsim's FreeActuator starts empty on a curve given as a file (shifted to
+#: start at 0 m^3); softflow's Actuator needs a positive volume, so an empty one
+#: starts at this fraction of its curve's volume range (1e-9: 6e-14 m^3 on the
+#: 60 mm balloon's curve, a pressure 2e-3 Pa above the curve's first).
+EMPTY_ACTUATOR_FRACTION = 1e-9
+
+#: The PV curve fonsim's FreeActuator takes when given none: the 60 mm latex
+#: balloon measured for the FONS paper (fonsim ships the same file).
+DEFAULT_CURVE = "latex_balloon_60mm_pv.csv"
 
 
 def _label(label, cls):
@@ -47,9 +66,10 @@ class PressureSource(ResultsMixin, _sf.PressureSource):
 
 
 class Sink(PressureSource):
-    """fonsim's ``Sink(label, pressure=1 atm)``: a pressure source at the
-    atmosphere. (fonsim 0.6 stores the Sink object as its own label, so
-    connecting it by label fails there; here the label is the label.)"""
+    """fonsim's ``Sink(label, pressure=1 atm)``: a pressure source at
+    fonsim's atmosphere (101 300 Pa). (fonsim 0.6 stores the Sink object as
+    its own label, so connecting it by label fails there; here the label is
+    the label.)"""
 
     def __init__(self, label=None, pressure=pressure_atmospheric):
         super().__init__(_label(label, "Sink"), pressure=pressure)
@@ -92,13 +112,15 @@ class CircularTube(ResultsMixin, _sf.CircularTube):
 
 
 class Container(ResultsMixin, _sf.Container):
-    """fonsim's ``Container(label, fluid, volume)`` [m^3], starting at 1 atm."""
+    """fonsim's ``Container(label, fluid, volume)`` [m^3], starting at fonsim's
+    1 atm (101 300 Pa)."""
 
     def __init__(self, label=None, fluid=None, volume=None):
         label = _label(label, "Container")
         if volume is None:
             raise TypeError(f"fons.Container {label!r}: give volume= [m^3]")
-        super().__init__(label, _fluid(fluid, "Container", label), volume)
+        super().__init__(label, _fluid(fluid, "Container", label), volume,
+                         initial_pressure=pressure_atmospheric)
 
 
 class FlowRestrictor(ResultsMixin, _sf.Orifice):
@@ -147,48 +169,167 @@ class CheckValve(ResultsMixin, _sf.CheckValve):
 class LinearAccumulator(ResultsMixin, _sf.LinearAccumulator):
     """fonsim's ``LinearAccumulator(label, fluid, k, p0=1 atm, v0=0)``:
     p = k (V - v0) + p0 [Pa, Pa/m^3, m^3], i.e. softflow's LinearAccumulator
-    with compliance 1/k, reference pressure p0 and fluid volume v0 there,
-    starting at rest at p0. (fonsim starts a gas-filled one with the mass
-    rho_stp·v0, which is at rest at p0 only when p0 is atmospheric.) With
-    v0 = 0 it starts ``EMPTY_ACCUMULATOR_OFFSET`` above p0 with the volume that
-    gives (softflow needs some fluid)."""
+    with compliance 1/k and fluid volume v0 at p0.
+
+    It starts, as fonsim's, with the mass v0 · density at 1 atm (fonsim's
+    101 300 Pa), at the pressure where that mass fills V(p): at p0 for a
+    liquid, and for a gas when p0 is 1 atm; by default (v0 = 0) empty at p0.
+    softflow needs some fluid in it: an empty one starts
+    ``EMPTY_ACCUMULATOR_OFFSET`` (1 mPa) above p0 with the volume that gives.
+    """
 
     def __init__(self, label=None, fluid=None, k=None, p0=pressure_atmospheric, v0=0.0):
         label = _label(label, "LinearAccumulator")
+        fluid = _fluid(fluid, "LinearAccumulator", label)
         if k is None or not float(k) > 0:
             raise ValueError(f"fons.LinearAccumulator {label!r}: k must be a stiffness > 0 "
                              f"[Pa/m^3], got {k!r}")
         if v0 < 0:
             raise ValueError(f"fons.LinearAccumulator {label!r}: v0 must be >= 0 m^3, got {v0}")
         k, p0, v0 = float(k), float(p0), float(v0)
-        start = p0 if v0 > 0 else p0 + EMPTY_ACCUMULATOR_OFFSET
-        # V(p) = v0 + (p - p0)/k, written about the starting pressure
-        super().__init__(label, _fluid(fluid, "LinearAccumulator", label),
-                         volume=v0 + (start - p0) / k, compliance=1.0 / k,
-                         reference_pressure=start, initial_pressure=start)
+        if v0 > 0:
+            mass = v0 * float(fluid.density(pressure_atmospheric))
+            start = _accumulator_start(fluid, k, p0, v0, mass)
+            super().__init__(label, fluid, volume=v0, compliance=1.0 / k,
+                             reference_pressure=p0, initial_pressure=start)
+        else:
+            # V(p) = (p - p0)/k, written about the starting pressure
+            start = p0 + EMPTY_ACCUMULATOR_OFFSET
+            super().__init__(label, fluid, volume=(start - p0) / k, compliance=1.0 / k,
+                             reference_pressure=start, initial_pressure=start)
+        self.k, self.p0, self.v0 = k, p0, v0
+
+
+def _accumulator_start(fluid, k, p0, v0, mass):
+    """The pressure at which ``mass`` fills the accumulator's V(p) = v0 + (p - p0)/k."""
+    if not fluid.compressible:
+        return p0
+
+    def excess(p):          # increasing in p: V(p) rises, mass/rho(p) falls
+        return v0 + (p - p0) / k - mass / float(fluid.density(p))
+    lo, hi = sorted((p0, pressure_atmospheric))
+    if excess(lo) * excess(hi) > 0:    # (cannot happen for an ideal gas)
+        lo, hi = 1e-3 * lo, 1e3 * hi
+    return brentq(excess, lo, hi, xtol=1e-9, rtol=1e-14) if lo < hi else lo
 
 
 class FreeActuator(ResultsMixin, _sf.Actuator):
-    """fonsim's ``FreeActuator(label, fluid, curve, initial_volume=None)``:
-    softflow's Actuator on the PV curve ``curve`` (a CSV file name, read as
-    ``fons.data.PVCurve(curve)`` with gauge pressures, a PVCurve, or an object
-    with ``fdf_volume``). It starts at ``initial_volume`` [m^3], by default the
-    curve's data point closest to 1 atm. fonsim's two terminals 'a' and 'b'
-    are one node here ('b' connects to 'a'), as they share the volume's
-    pressure. ``get_state('mass')`` is the stored mass, ``get_state('volume')``
-    the volume. (fonsim 0.6 starts an actuator whose curve is given as a file
-    name empty, below its curve's data; here it starts at the initial volume
-    either way, as fonsim does for a PVCurve object.)"""
+    """fonsim's ``FreeActuator(label, fluid, curve=None, initial_volume=None)``:
+    softflow's Actuator on the PV curve ``curve``.
+
+    ``curve`` is a CSV file name, read as fonsim reads it:
+    ``fons.data.PVCurve(curve, autocorrect=True)`` (shifted to start at 0 m^3
+    and 1 atm, the end pressures held beyond the data); ``None`` (fonsim's
+    default): the 60 mm latex balloon's measured curve, which fonsim ships
+    and softflow too (``softflow/data/latex_balloon_60mm_pv.csv``), read the
+    same way; or a curve object (a fons or softflow PVCurve, or any object
+    with ``fdf_volume``), taken as it is.
+
+    ``initial_volume`` [m^3]: None or 'auto' (where the curve first reaches
+    1 atm, :meth:`fons.data.PVCurve.get_initial_volume`), 'minimum' (the
+    curve's smallest volume) or a number. As in fonsim, the actuator starts
+    with the mass that volume holds at 1 atm (fonsim's 101 300 Pa), at the
+    point of the curve where that mass is: at the volume itself for a
+    liquid, slightly below it for a gas above 1 atm. An empty one (volume 0,
+    a curve given as a file) starts ``EMPTY_ACTUATOR_FRACTION`` of its curve's
+    volume range above 0 (softflow needs some fluid).
+
+    fonsim's two terminals 'a' and 'b' are one node here ('b' connects to
+    'a'), as they share the volume's pressure. ``get_state('mass')`` is the
+    stored mass, ``get_state('volume')`` the volume.
+    """
 
     _terminal_aliases = {"b": "a"}
 
     def __init__(self, label=None, fluid=None, curve=None, initial_volume=None):
         label = _label(label, "FreeActuator")
+        fluid = _fluid(fluid, "FreeActuator", label)
+        owner = f"fons.FreeActuator {label!r}"
         if curve is None:
-            raise TypeError(f"fons.FreeActuator {label!r}: give curve= (a CSV file or a PVCurve)")
-        if isinstance(curve, str) or hasattr(curve, "__fspath__"):
-            curve = PVCurve(curve)
-        if initial_volume is None and hasattr(curve, "get_initial_volume"):
-            initial_volume = curve.get_initial_volume(pressure_atmospheric)
-        super().__init__(label, _fluid(fluid, "FreeActuator", label), curve,
-                         initial_volume=initial_volume)
+            curve = _fonsim_file_curve(resources.files("softflow") / "data" / DEFAULT_CURVE)
+        elif isinstance(curve, bytes):
+            raise TypeError(f"{owner}: softflow reads PV curves from files only; write the "
+                            f"bytes to a CSV file and give its path as curve=")
+        elif isinstance(curve, (str, os.PathLike)):
+            curve = _fonsim_file_curve(curve)
+        elif not hasattr(curve, "fdf_volume"):
+            raise TypeError(f"{owner}: curve must be a CSV file name, a PVCurve or an object "
+                            f"with fdf_volume(volume) -> (pressure, dp/dV), got {curve!r}")
+        v0 = _actuator_volume(curve, initial_volume, owner)
+        start = _actuator_start(curve, fluid, v0, owner)
+        if not start > 0:
+            data = _data_volumes(curve)
+            span = (data[-1] - data[0]) if data is not None else 1e-6
+            start = EMPTY_ACTUATOR_FRACTION * span
+        super().__init__(label, fluid, curve, initial_volume=start)
+
+    @property
+    def pvcurve(self):
+        """The PV curve (fonsim's attribute name)."""
+        return self.curve
+
+
+def _fonsim_file_curve(path):
+    """A PV curve file as fonsim's FreeActuator reads one: autocorrected, the
+    end pressures held beyond the data (fonsim: extrapolate=False,
+    extrapolate_derivative=True)."""
+    return PVCurve(path, autocorrect=True, extrapolate=False, extrapolate_derivative=True)
+
+
+def _data_volumes(curve):
+    v = getattr(curve, "volume", None)
+    if v is None:
+        v = getattr(curve, "v", None)
+    return None if v is None else np.asarray(v, dtype=float)
+
+
+def _actuator_volume(curve, initial_volume, owner):
+    """fonsim's starting volume [m^3] for ``initial_volume``."""
+    if initial_volume is None or (isinstance(initial_volume, str) and initial_volume == "auto"):
+        if hasattr(curve, "get_initial_volume"):
+            return float(curve.get_initial_volume(pressure_atmospheric))
+        v = _data_volumes(curve)
+        if v is not None and hasattr(curve, "pressure"):   # a softflow PVCurve
+            return initial_volume_at(v, curve.pressure, pressure_atmospheric)
+        raise ValueError(f"{owner}: the curve {curve!r} has no get_initial_volume(p0) nor "
+                         f"data; give initial_volume= [m^3]")
+    if isinstance(initial_volume, str):
+        if initial_volume == "minimum":
+            v = _data_volumes(curve)
+            if v is None:
+                raise ValueError(f"{owner}: initial_volume='minimum' needs a curve with data "
+                                 f"(v or volume); give initial_volume= [m^3]")
+            return float(np.min(v))
+        raise ValueError(f"{owner}: initial_volume must be None, 'auto', 'minimum' or a "
+                         f"volume [m^3], got {initial_volume!r}")
+    v0 = to_si(initial_volume, "m**3", name="initial_volume", owner=owner)
+    if not v0 >= 0:
+        raise ValueError(f"{owner}: initial_volume must be >= 0 m^3, got {initial_volume!r}")
+    return v0
+
+
+def _actuator_start(curve, fluid, v0, owner):
+    """The volume [m^3] at which the mass ``v0`` holds at 1 atm (fonsim's
+    initial mass) sits on the curve: V with V · density(curve(V)) = that mass."""
+    if not fluid.compressible or v0 == 0:
+        return v0
+    mass = v0 * float(fluid.density(pressure_atmospheric))
+
+    def excess(v):
+        return v * float(fluid.density(float(curve.fdf_volume(float(v))[0]))) - mass
+
+    here = excess(v0)
+    if here == 0:
+        return v0
+    if here > 0:             # above 1 atm at v0: the gas is compressed, V < v0
+        lo, hi = 0.0, v0
+    else:
+        lo, hi = v0, 2 * v0
+        for _ in range(60):
+            if excess(hi) > 0:
+                break
+            lo, hi = hi, 2 * hi
+        else:
+            raise ValueError(f"{owner}: no volume on the curve holds the starting mass "
+                             f"{mass:.6g} kg")
+    return brentq(excess, lo, hi, xtol=1e-15 * v0, rtol=1e-13)

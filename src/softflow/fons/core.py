@@ -9,13 +9,13 @@ import warnings
 
 import numpy as np
 
-from ..constants import pressure_atmospheric
 from ..network import Component as _Component
 from ..network import NetworkError
 from ..network import System as _System
 from ..network import Terminal as _Terminal
 from ..network import Variable as _Variable
 from ..solve import Simulation as _Simulation
+from .constants.norm import pressure_atmospheric
 
 _ROLES = {"across": "across", "through": "through", "local": "local", "free": "local"}
 
@@ -101,8 +101,10 @@ class Terminal(_Terminal):
     __call__ = get_variable
 
 
-#: fonsim's standard fluid port: absolute pressure (across) and mass flow (through)
-terminal_fluidic = [Variable("pressure", "across", initial_value=pressure_atmospheric),
+#: fonsim's standard fluid port: absolute pressure (across, starting at fonsim's
+#: 1 atm, >= 0) and mass flow (through)
+terminal_fluidic = [Variable("pressure", "across", initial_value=pressure_atmospheric,
+                             range=(0, math.inf)),
                     Variable("massflow", "through", initial_value=0.0)]
 
 

@@ -1,28 +1,13 @@
-"""fonsim's wave generators (``fons.wave``) over softflow's waveforms.
-
-``Custom(wave_array, time_notation='absolute', kind='previous')`` is a
-:class:`softflow.curves.waveforms.PiecewiseConstant` (kind 'previous' or
-'zero') or :class:`~softflow.curves.waveforms.PiecewiseLinear` (kind
-'linear' or 'slinear'), so a source driven by it declares its jumps to the
-adaptive integrator. ``Custom(...) * 1e5 + fons.pressure_atmospheric`` scales
-and offsets the values and returns a new wave (fonsim changes the wave in place
-and returns it).
-
-The periodic shapes ``sine``, ``square``, ``sawtooth``, ``triangle`` and
-``unity`` take an angle [rad]; ``time_to_angle(time, frequency, phase)`` gives
-it. A source driven by them is a plain callable (no declared jumps: the
-adaptive step finds them by rejection); softflow's own ``waveforms.Sine`` and
-``waveforms.Square`` declare theirs.
-"""
+"""fonsim's ``fons.wave.custom``: a wave through given points, as a softflow
+waveform (:class:`softflow.curves.waveforms.PiecewiseConstant` or
+:class:`~softflow.curves.waveforms.PiecewiseLinear`)."""
 from __future__ import annotations
 
-import math
 from numbers import Real
-from types import SimpleNamespace
 
 import numpy as np
 
-from ..curves.waveforms import PiecewiseConstant, PiecewiseLinear, Waveform
+from ...curves.waveforms import PiecewiseConstant, PiecewiseLinear, Waveform
 
 _KINDS = {"previous": PiecewiseConstant, "zero": PiecewiseConstant,
           "linear": PiecewiseLinear, "slinear": PiecewiseLinear}
@@ -120,42 +105,6 @@ class Custom(Waveform):
                f"{self.times[-1]:g} s>"
 
 
-#: fonsim's module path ``fons.wave.custom.Custom``
-custom = SimpleNamespace(Custom=Custom)
-
-
-def time_to_angle(time, frequency, phase=0.0):
-    """Angle [rad] in [0, 2 pi) at ``time`` [s] of a wave of ``frequency`` [Hz]
-    started at ``phase`` [rad]."""
-    return ((np.asarray(time) * frequency + phase / (2 * math.pi)) % 1.0) * 2 * math.pi
-
-
-def sine(angle):
-    """sin(angle)."""
-    return np.sin(angle)
-
-
-def square(angle):
-    """+1 on the first half of each period (its end included), -1 on the second."""
-    return np.where(np.asarray(angle) % (2 * math.pi) <= math.pi, 1.0, -1.0)
-
-
-def sawtooth(angle):
-    """Falls linearly from +1 to -1 over each period."""
-    return 1.0 - (np.asarray(angle) % (2 * math.pi)) / math.pi
-
-
-def triangle(angle):
-    """0 -> 1 -> 0 -> -1 -> 0 over each period, linear in between."""
-    x = (np.asarray(angle) % (2 * math.pi)) / (2 * math.pi)
-    return np.where(x < 0.25, 4 * x, np.where(x < 0.75, 2 - 4 * x, 4 * x - 4))
-
-
-def unity(angle):
-    """1 at every angle."""
-    return np.ones_like(np.asarray(angle, dtype=float))
-
-
 def __getattr__(name):
-    from ._unsupported import unsupported
-    return unsupported(f"wave.{name}", __name__)
+    from .._unsupported import unsupported
+    return unsupported(f"wave.custom.{name}", __name__)

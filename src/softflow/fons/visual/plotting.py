@@ -1,9 +1,10 @@
-"""fonsim's quick plots (``fons.plot``, ``fons.plot_state``) of a run's results."""
+"""fonsim's ``fons.visual.plotting``: quick plots (``fons.plot``, ``fons.plot_state``)
+of a run's results."""
 from __future__ import annotations
 
 import pint
 
-from ..units import UnitError, quantity_unit, ureg
+from ...units import UnitError, quantity_unit, ureg
 
 
 def _component_and_terminal(system, item):
@@ -65,3 +66,8 @@ def plot_state(axs, sim, label, unit, components):
     """Plot a state (e.g. 'mass') or output (e.g. 'volume') of components over
     time; arguments as :func:`plot`."""
     _plot(axs, sim, label, unit, components, states=True)
+
+
+def __getattr__(name):
+    from .._unsupported import unsupported
+    return unsupported(f"visual.plotting.{name}", __name__)
