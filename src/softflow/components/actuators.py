@@ -26,9 +26,10 @@ from scipy.optimize import brentq
 
 from ..constants import pressure_atmospheric
 from ..curves.hysteresis import HysteresisLoop
-from ..curves.pvcurve import PVCurve
+from ..curves.pvcurve import CurveRangeError, PVCurve
 from ..fluids.base import FluidError
 from ..solve.thermal import THERMAL_VOLUME_DOC, thermal_volume_fields
+from ..solve.validity import ValidityRecord, _curves_of
 from .base import FLUID_PORT, LibraryComponent, Params
 from .chambers import (MASS_RATE_PATTERN, _given, given_densities, initial_mass_jacobian,
                        mass_rates, set_fluid_law, volume_laws)
@@ -149,11 +150,21 @@ class Actuator(LibraryComponent):
         with step ``1e-6 * max(|V|, initial volume)``.
     initial_volume : float [m^3] or Quantity, optional
         Volume at t = 0. Default: the first volume of a PVCurve; a callable
-        curve needs it.
+        curve needs it. A volume outside the PV curve's data (its first to
+        last sample) starts the actuator on the curve's extension, not on
+        measured data: a curve with ``extrapolate='error'`` refuses it here
+        (CurveRangeError, a ValueError, naming the actuator and the data's
+        range); with 'linear' or 'clamp' every run warns at its start
+        (ModelWarning, in ``result.warnings`` as check
+        ``'initial_volume_range'``) with the volume, the data's range and the
+        pressure the actuator starts at. (A callable curve has no data range:
+        nothing is checked.)
     initial_pressure : float [Pa] or Quantity, optional
         Absolute pressure at t = 0 instead of ``initial_volume`` (PVCurve only):
         the actuator starts at the smallest volume where the curve reaches it,
-        i.e. on the first rising branch of a peak–valley curve.
+        i.e. on the first rising branch of a peak–valley curve. A pressure
+        beyond the data's, reached on a 'linear' extension, gives a volume
+        outside the data: warned as for ``initial_volume``.
     curve_derivative : callable, optional
         dp/dV [Pa/m^3] of a callable curve, V [m^3] -> float or array.
     pressure_scale : float [-], default 1
@@ -189,7 +200,11 @@ class Actuator(LibraryComponent):
         v0 = self._initial_volume(curve, initial_volume, initial_pressure)
         self._curve_fn = _CurveFunction(curve, curve_derivative, abs(v0) or 1e-9,
                                         self.describe())
-        _set_initial_state(self, v0, self._scaled(float(self._curve_fn.value(np.array([v0]))[0])))
+        try:
+            p0 = float(self._curve_fn.value(np.array([v0]))[0])
+        except CurveRangeError as err:      # extrapolate='error': say whose and which
+            raise _refused_initial_volume(self, v0) from err
+        _set_initial_state(self, v0, self._scaled(p0))
         thermal_volume_fields(self, initial_temperature, wall_temperature,
                               heat_transfer_coefficient, area, hA, thermal)
 
@@ -370,6 +385,84 @@ def _set_initial_state(comp, v0, p0):
     comp._check_fluid_state(p0, "the initial pressure (from the PV curve)")
 
 
+#: An initial volume is outside its curve's data when it lies past the first or
+#: last sample by more than this fraction of the data's volume range: the
+#: round-off of unit conversions (6 mL given in mL against data in m^3), no more.
+#: (The check after a run allows validity.PV_CURVE_SLACK, the adaptive steps'
+#: overshoot; an initial volume is the user's own number.)
+INITIAL_VOLUME_SLACK = 1e-9
+
+_BEYOND_DATA = {"linear": "continued in a straight line with its end slope",
+                "clamp": "held at its end pressure"}
+
+
+def _data_range(comp):
+    """(first volume, last volume [m^3], where the data came from, extrapolation
+    policy) of the data of ``comp``'s PV curve (both curves of a hysteresis
+    loop), or None where the curve has no data (a callable)."""
+    curves = _curves_of(comp)
+    if not curves:
+        return None
+    lo = min(float(c.volume[0]) for c in curves)
+    hi = max(float(c.volume[-1]) for c in curves)
+    policies = sorted({c.extrapolate for c in curves})
+    origin = curves[0].origin if len(curves) == 1 else "inflation/deflation curves"
+    return lo, hi, origin, "/".join(policies)
+
+
+def _refused_initial_volume(comp, v0):
+    """The error of an initial volume that a curve with extrapolate='error' refuses."""
+    lo, hi, origin, _ = _data_range(comp)
+    return CurveRangeError(
+        f"{comp.describe()}: initial_volume {v0 * 1e6:.6g} mL ({v0:.6g} m^3) is outside "
+        f"its PV curve's data, {lo * 1e6:.6g} ... {hi * 1e6:.6g} mL ({origin}), which the "
+        "curve refuses (extrapolate='error'); expected an initial volume within the data, "
+        "or a curve built with extrapolate='linear' or 'clamp' (a warning then)")
+
+
+def initial_volume_records(comps):
+    """ValidityRecords (check ``'initial_volume_range'``) of the actuators among
+    ``comps`` (one compiled group: one curve, or one hysteresis loop) whose
+    initial volume lies outside their PV curve's data by more than
+    :data:`INITIAL_VOLUME_SLACK` of its range: the run starts them on the
+    curve's extension. Each names the actuator, the volume, the data's range
+    and the pressure it starts at. Empty for curves without data."""
+    found = _data_range(comps[0])
+    if found is None:
+        return []
+    lo, hi, origin, policy = found
+    span = hi - lo
+    slack = INITIAL_VOLUME_SLACK * span
+    v0 = np.fromiter((c.initial_volume for c in comps), dtype=float, count=len(comps))
+    out = []
+    for k in np.flatnonzero((v0 < lo - slack) | (v0 > hi + slack)):
+        comp, v = comps[k], float(v0[k])
+        above = v > hi
+        limit = hi if above else lo
+        past = abs(v - limit)
+        side = "last" if above else "first"
+        how = _BEYOND_DATA.get(policy, f"extrapolated ({policy})")
+        given = (" (from its initial_pressure)" if isinstance(comp, Actuator)
+                 and _given(comp, "initial_pressure") else "")
+        suggestion = ("give an initial volume within the data, or measure the PV curve over "
+                      "the volumes the actuator starts at")
+        message = (f"{comp.describe()}: initial volume {v * 1e6:.6g} mL{given} is outside "
+                   f"its PV curve's data, {lo * 1e6:.6g} ... {hi * 1e6:.6g} mL ({origin}): "
+                   f"{past * 1e6:.3g} mL ({100 * past / span:.3g} % of the data's range) "
+                   f"beyond its {side} sample. It starts there at "
+                   f"{comp.initial_pressure / 1e5:.6g} bar (absolute), where the curve is "
+                   f"{how}, not measured. "
+                   f"Suggestion: {suggestion}")
+        out.append(ValidityRecord(component=comp.label, check="initial_volume_range",
+                                  measured=v, limit=limit, unit="m^3", suggestion=suggestion,
+                                  message=message,
+                                  details={"beyond": past, "fraction_of_range": past / span,
+                                           "first_time": 0.0, "policy": policy, "side": side,
+                                           "data_range": (lo, hi),
+                                           "initial_pressure": comp.initial_pressure}))
+    return out
+
+
 def _volume(P, V, S):
     """Pressure, density and volume of the stored mass S[:, 0]."""
     p = V[:, 0]
@@ -493,7 +586,10 @@ class HystereticActuator(LibraryComponent):
         (``HystereticActuator(label, fluid, *loop)`` takes a
         :class:`~softflow.curves.HysteresisLoop`.)
     initial_volume : float [m^3] or Quantity, optional
-        Default: the first volume of the inflation curve.
+        Default: the first volume of the inflation curve. A volume outside the
+        loop's data (the lowest first sample to the highest last sample of
+        its two curves) is warned at the start of every run, as for
+        :class:`Actuator`.
     initial_branch : {'inflation', 'deflation'}, optional
         Default: deflation if initial_volume >= V_hi, else inflation. Past the
         end of the named branch the actuator starts on the other one.

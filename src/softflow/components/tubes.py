@@ -43,6 +43,22 @@ def set_tube_geometry(comp, fluid, length, diameter, roughness, Re_laminar, Re_t
                          f"Re_laminar ({comp.Re_laminar})")
 
 
+def laminar_conductance(fluid, length, diameter, pressure):
+    """Hagen–Poiseuille mass conductance [kg/(s Pa)] of circular tubes, mdot / (p_a -
+    p_b) = rho pi D^4 / (128 mu L), with rho and mu of ``fluid`` at ``pressure``
+    [Pa] (arrays broadcast). At the higher of a tube's end pressures it bounds
+    the tube's flow per pascal of difference from above: turbulence, the
+    gas's acceleration and entry, and choking only lower the flow at a given
+    difference, and a gas is densest at the higher end. A validation helper (a
+    tube whose flow is negligible, :mod:`softflow.solve.simulation`), not the
+    tube's law."""
+    p = np.asarray(pressure, dtype=float)
+    d = np.asarray(diameter, dtype=float)
+    return (np.asarray(fluid.density(p), dtype=float) * np.pi * d ** 4
+            / (128.0 * np.asarray(fluid.viscosity(p), dtype=float)
+               * np.asarray(length, dtype=float)))
+
+
 def set_tube_coefficients(P):
     """Laminar/turbulent law coefficients of a group of tubes (or tube-like valves)
     on its Params namespace: Re = |mdot| re_per_mf, dp = c_mu/rho (f Re) mdot,

@@ -24,8 +24,9 @@ from .newton import Newton, Stats
 from .params import rebuild
 from .params import split as split_params
 from .result import Result
-from .validity import (ComponentError, beyond, can_refuse, check_result, checks_version,
-                       issue)
+from .input_checks import negligible_tubes
+from .validity import (PV_CURVE_SLACK, ComponentError, beyond, can_refuse,
+                       check_result, checks_version, issue)
 from .thermal import check_model, configure_like, configure_thermal
 
 if TYPE_CHECKING:
@@ -36,6 +37,12 @@ if TYPE_CHECKING:
 #: Default bound on the steps of one run (``max_steps=``): a fixed step or a step_max
 #: that asks for more is refused at construction, and a run stops past it.
 MAX_STEPS = 10_000_000
+
+#: Relative round-off allowed where a time must lie within the run: a fixed step
+#: up to duration·(1 + ROUND_OFF) (duration=0.3 with step=3*0.1, 0.30000000000000004),
+#: breakpoints from -ROUND_OFF·duration to duration·(1 + ROUND_OFF). The fixed-step
+#: grid allows the same (ImplicitEuler: ceil(duration / step - 1e-9) steps).
+ROUND_OFF = 1e-9
 
 #: Largest ``refine=`` (points recorded per adaptive step).
 MAX_REFINE = 64
@@ -88,10 +95,14 @@ class Simulation:
     duration : float [s] or Quantity
     step : float [s] or Quantity, or a tuple (step_min, step_max), optional
         Constant step: backward Euler on a fixed grid (the FONS paper's
-        scheme). Without it the step is adaptive (and ``step`` is the first
-        step when ``adaptive=True`` is given). A pair ``(min, max)``, as fonsim
-        writes it, asks for adaptive steps within those bounds (either may be
-        None for the default); it replaces ``step_min`` and ``step_max``.
+        scheme). At most ``duration`` (``step == duration`` takes one step; a
+        step longer by more than round-off, :data:`ROUND_OFF` relative, is
+        refused with a ValueError naming both); a step that does not divide
+        the duration ends with a shorter last step. Without it the step is
+        adaptive (and ``step`` is the first step when ``adaptive=True`` is
+        given). A pair ``(min, max)``, as fonsim writes it, asks for adaptive
+        steps within those bounds (either may be None for the default); it
+        replaces ``step_min`` and ``step_max``.
     adaptive : bool, optional
         Force adaptive (True) or fixed (False) stepping.
     method : {'bdf', 'euler'}, default 'bdf'
@@ -132,9 +143,13 @@ class Simulation:
         components' own unknowns eliminated, SuperLU on the node system; see
         :mod:`softflow.solve.condense`) where any component can be condensed,
         else 'sparse' (SuperLU on the whole Jacobian).
-    breakpoints : sequence of float [s]
+    breakpoints : sequence of float [s] or Quantity
         Extra times the integrator must land on (input discontinuities);
-        components' waveforms declare theirs themselves.
+        components' waveforms declare theirs themselves. Each must lie in
+        [0, duration] (to within :data:`ROUND_OFF` of the duration): a negative
+        time, one after the end or nan is refused with a ValueError that names
+        them. 0 and ``duration`` themselves are accepted and change nothing
+        (every run starts and ends there anyway).
     refine : int, default 1
         Points recorded per adaptive step: ``refine - 1`` more, evenly inside
         each step, from the BDF's own interpolating polynomial (its
@@ -221,6 +236,14 @@ class Simulation:
         self.adaptive = (self.step is None) if adaptive is None else bool(adaptive)
         if not self.adaptive and self.step is None:
             raise ValueError("Simulation: adaptive=False needs a step")
+        if not self.adaptive and self.step > self.duration * (1.0 + ROUND_OFF):
+            step_s, duration_s = f"{self.step:.6g}", f"{self.duration:.6g}"
+            if step_s == duration_s:         # just above: show the digits that differ
+                step_s, duration_s = repr(self.step), repr(self.duration)
+            raise ValueError(f"Simulation: step={step_s} s is longer than "
+                             f"duration={duration_s} s; expected a fixed step of at "
+                             "most the duration (step=duration takes one step), or no step "
+                             "for adaptive steps")
         self.step_min = (self.duration * 1e-9 if step_min is None
                          else to_si(step_min, "s", name="step_min", owner=owner))
         if method not in METHODS:
@@ -267,8 +290,7 @@ class Simulation:
             if not (self.atol[q] > 0 and math.isfinite(self.atol[q])):
                 raise ValueError(f"Simulation: atol[{q!r}] must be a finite number > 0, "
                                  f"got {self.atol[q]}")
-        self.breakpoints = tuple(to_si(b, "s", name="breakpoints", owner=owner)
-                                 for b in breakpoints)
+        self.breakpoints = _check_breakpoints(breakpoints, self.duration, owner)
         if (isinstance(refine, bool) or not isinstance(refine, (int, np.integer))
                 or not 1 <= refine <= MAX_REFINE):
             raise ValueError(f"Simulation: refine must be an integer from 1 to {MAX_REFINE} "
@@ -446,6 +468,14 @@ class Simulation:
         standard error is a terminal (None), always (True) or never (False);
         solver events go to the logger 'softflow' (:mod:`softflow.solve.progress`).
 
+        Before it integrates, the run judges its inputs (with the run-time
+        parameters in force) and warns at once (ModelWarning): an actuator
+        whose initial volume lies outside its PV curve's data (check
+        ``'initial_volume_range'``), a circular tube whose flow is negligible
+        over the duration (``'tube_negligible_flow'``,
+        :func:`softflow.solve.input_checks.negligible_tubes`). These records come first in
+        ``result.warnings``, before the findings on the solution.
+
         ``sensitivities``: parameters (``"label.argument"``, numeric, as in
         ``params``) to differentiate the run with respect to, alongside it
         (:mod:`softflow.solve.sensitivity`); read them with
@@ -453,6 +483,11 @@ class Simulation:
         """
         self._set_parameters(params)
         asm = self.asm
+        # what the inputs alone show (an actuator starting beyond its curve's data,
+        # a tube too thin to matter): warned now, before the run's time, and kept
+        # in result.warnings with the findings on the solution
+        found = self._input_records()
+        issue(found)
         components = [g.comps[i] for g, i in asm.where.values()]
         stats = Stats()
         lin = make_linear_solver(asm, self.linear_solver_kind)
@@ -551,7 +586,7 @@ class Simulation:
         if sens is not None:
             xs, ss = ((slice(None), slice(None)) if self.record is None else self.record[:2])
             result._set_sensitivities(sens, xs, ss, len(t))
-        records = check_result(asm, result, rtol=self._checks_rtol)   # model validity
+        records = _with_inputs(found, check_result(asm, result, rtol=self._checks_rtol))
         result.validity, result.warnings = records, beyond(records)
         fatal = [w for w in result.warnings if w.details.get("fatal")]
         if fatal and error is None and self.beyond_limits == "error":
@@ -567,7 +602,8 @@ class Simulation:
             result.validity, result.warnings = records, beyond(records)
             if sens is not None:
                 result._set_sensitivities(sens, xs, ss, cut)
-        issue(result.warnings)
+        warned = {id(r) for r in found}          # at the start
+        issue([w for w in result.warnings if id(w) not in warned])
         self.result = result
         remember_result(self.system.components, result)
         if error is not None:
@@ -575,6 +611,32 @@ class Simulation:
             if raise_on_failure:
                 raise error
         return result
+
+    def _input_records(self):
+        """ValidityRecords of the inputs in force, found before the run: actuators
+        whose initial volume is outside their curve's data
+        (:func:`softflow.components.actuators.initial_volume_records`) and tubes
+        whose flow is negligible (:func:`~softflow.solve.input_checks.negligible_tubes`). Found again only
+        where run-time parameters replaced components."""
+        asm = self.asm
+        rtol = self._checks_rtol if self._checks_rtol is not None else self.rtol
+        # the components in force where parameters replaced them (held, so compared
+        # as objects)
+        key = (rtol, tuple(asm.where[label][0].comps[asm.where[label][1]]
+                           for label in sorted(self._applied)))
+        known = getattr(self, "_inputs_found", None)
+        if (known is not None and known[0][0] == key[0] and len(known[0][1]) == len(key[1])
+                and all(map(operator.is_, known[0][1], key[1]))):
+            return list(known[1])
+        from ..components.actuators import (Actuator, HystereticActuator,
+                                            initial_volume_records)
+        out = []
+        for g in asm.groups:
+            if isinstance(g.comps[0], (Actuator, HystereticActuator)):
+                out.extend(initial_volume_records(g.comps))
+        out.extend(negligible_tubes(asm, self.duration, rtol))
+        self._inputs_found = (key, tuple(out))
+        return out
 
     def _fatal_at_start(self, rec):
         """Whether the checks that can refuse a run (a choked tube) refuse it at the
@@ -669,6 +731,45 @@ def _quantities(system):
     for c in system.components:
         out.update(v.quantity for _, v in c.interface_variables())
         out.update(sv.quantity for sv in c.states)
+    return out
+
+
+def _with_inputs(found, records):
+    """The records of the inputs (``found``) first, then those of the solution,
+    without a PV-curve record that only repeats an initial volume's: reached on
+    the same side, within validity.PV_CURVE_SLACK of the data's range of the
+    initial volume (the run went no further out than where it started)."""
+    if not found:
+        return records
+    start = {r.component: r for r in found if r.check == "initial_volume_range"}
+
+    def repeats(r):
+        s = start.get(r.component)
+        if (s is None or r.check != "pv_curve_range"
+                or r.details.get("side") != s.details["side"]):
+            return False
+        lo, hi = s.details["data_range"]
+        return abs(r.measured - s.measured) <= PV_CURVE_SLACK * (hi - lo)
+    return list(found) + [r for r in records if not repeats(r)]
+
+
+def _check_breakpoints(breakpoints, duration, owner):
+    """``breakpoints`` as a tuple of floats [s], each checked to lie in [0, duration]
+    (within :data:`ROUND_OFF` of it, relative to the duration)."""
+    try:
+        items = None if isinstance(breakpoints, str) else list(breakpoints)
+    except TypeError:              # a number, or a Quantity that is one
+        items = None
+    if items is None:
+        raise TypeError(f"{owner}: breakpoints must be a sequence of times [s], got "
+                        f"{breakpoints!r} (one breakpoint: breakpoints=[t])")
+    out = tuple(to_si(b, "s", name="breakpoints", owner=owner) for b in items)
+    tol = ROUND_OFF * duration
+    bad = [b for b in out if not -tol <= b <= duration + tol]      # nan too
+    if bad:
+        shown = ", ".join(f"{b:.6g}" for b in bad[:5]) + (", ..." if len(bad) > 5 else "")
+        raise ValueError(f"{owner}: breakpoints must lie within the run, [0, duration] = "
+                         f"[0, {duration:.6g}] s; got {shown} s")
     return out
 
 
