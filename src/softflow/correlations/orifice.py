@@ -46,9 +46,9 @@ def _run(loop, n_out, *args):
 
 
 def regularized_sqrt(x, x_small):
-    """sign(x)·sqrt(|x|), made C1 with a finite slope at x = 0; returns (y, dy/dx).
+    """sign(x)·sqrt(abs(x)), made C1 with a finite slope at x = 0; returns (y, dy/dx).
 
-    For |x| >= x_small it is exact. Inside, y = x/sqrt(x_small) · (5/4 - (x/x_small)^2/4),
+    For abs(x) >= x_small it is exact. Inside, y = x/sqrt(x_small) · (5/4 - (x/x_small)^2/4),
     the odd cubic matching value and slope at ±x_small: slope 5/(4 sqrt(x_small)) at
     zero, never below 1/(2 sqrt(x_small)), so the law stays strictly increasing.
 
@@ -68,10 +68,10 @@ def massflow_loss_coefficient(dp, rho, K, area, dp_small):
 
         dp = K · rho · v^2 / 2   <=>   mdot = A · sqrt(2 rho dp / K)
 
-    signed with dp, the square root regularized below |dp| = dp_small (see
+    signed with dp, the square root regularized below abs(dp) = dp_small (see
     :func:`regularized_sqrt`). A discharge coefficient Cd is K = 1/Cd^2 (see
     :func:`loss_coefficient_from_discharge_coefficient`). Valid for liquids, and
-    for gases while |dp| stays well below the upstream pressure (no expansion,
+    for gases while abs(dp) stays well below the upstream pressure (no expansion,
     no choking; use :func:`massflow_ISO_6358` beyond that).
 
     dp : pressure drop [Pa], rho : density [kg/m^3], K : loss coefficient [-],
@@ -150,7 +150,7 @@ def massflow_nozzle(p_a, p_b, rho_up, gamma, Cd, area, dp_small, drho_up=None):
 
     Near pr = 1 the slope in p is infinite (the square root of dp). As for
     :func:`massflow_loss_coefficient`, sqrt(dp) is replaced by the odd cubic of
-    :func:`regularized_sqrt` below |dp| = dp_small (the laminar-like band, placed
+    :func:`regularized_sqrt` below abs(dp) = dp_small (the laminar-like band, placed
     at an orifice Reynolds number by :func:`dp_at_reynolds`), where Y = 1 to
     within 3 dp_small/(4 gamma p0): the flow reverses C1-smoothly through
     p_a = p_b with a finite, non-zero slope, and for small dp the law is the
