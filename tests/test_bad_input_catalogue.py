@@ -232,6 +232,9 @@ CASES = [
     ("actuator curve raises at the start", lambda d: sf.Actuator(
         "a", sf.air, curve=lambda v: 1 / 0, initial_volume=1e-6),
      ValueError, ["Actuator 'a'", "curve", "failed"]),
+    ("strict actuator starting beyond its curve", lambda d: sf.Actuator(
+        "a", sf.air, curve(extrapolate="error"), initial_volume=Q_(600, "mL")),
+     ValueError, ["Actuator 'a'", "initial_volume 600 mL", "1 ... 6 mL", "extrapolate='error'"]),
     ("actuator curve derivative with a PVCurve", lambda d: sf.Actuator(
         "a", sf.air, curve(), curve_derivative=lambda v: 1.0),
      ValueError, ["Actuator 'a'", "curve_derivative"]),
@@ -403,6 +406,16 @@ CASES = [
      ValueError, ["Simulation", "step must be > 0 s"]),
     ("step infinite", lambda d: simulate(step=math.inf),
      ValueError, ["Simulation", "step must be > 0 s and finite"]),
+    ("step longer than the duration", lambda d: simulate(duration=0.01, step=0.02),
+     ValueError, ["Simulation", "step=0.02 s", "longer than duration=0.01 s"]),
+    ("breakpoint before the start", lambda d: simulate(breakpoints=[-1e-3, 5e-3]),
+     ValueError, ["Simulation", "breakpoints", "[0, 0.01] s", "-0.001"]),
+    ("breakpoint after the end", lambda d: simulate(breakpoints=[5e-3, Q_(20, "ms")]),
+     ValueError, ["Simulation", "breakpoints", "[0, 0.01] s", "got 0.02 s"]),
+    ("breakpoint NaN", lambda d: simulate(breakpoints=[math.nan]),
+     ValueError, ["Simulation", "breakpoints", "[0, 0.01] s", "nan"]),
+    ("breakpoints a single number", lambda d: simulate(breakpoints=5e-3),
+     TypeError, ["Simulation", "breakpoints must be a sequence", "breakpoints=[t]"]),
     ("step count beyond max_steps", lambda d: simulate(duration=1.0, step=1e-9),
      ValueError, ["Simulation", "step=1e-09 s", "1e+09 steps", "max_steps"]),
     ("max_steps not a count", lambda d: simulate(max_steps=2.5),
@@ -452,7 +465,33 @@ CASES = [
      sf.UnitError, ["Result.plot", "tank.pressure", "'barr'"]),
     # scale and validity: the run itself says what is wrong where
     # (a 1 nm x 1 km tube, a 1e-18 m^3 tank: extreme but valid, solved since
-    # 2026-12-03; tests/test_no_silent_answers.py)
+    # 2026-12-03, tests/test_no_silent_answers.py; the tube, whose flow is
+    # negligible, warns since issue 41, tests/test_issue41_inputs.py)
+    ("1 nm x 1 km tube in air", lambda d: run(tube_tank(
+        tube=sf.CircularTube("tube", sf.air, length=1e3, diameter=1e-9))),
+     sf.ModelWarning, ["CircularTube 'tube'", "flow is negligible", "Container 'tank'",
+                       "time constant", "length = 1e+03 m", "diameter = 1e-09 m"]),
+    ("1 nm x 1 km tube in water", lambda d: run(tube_tank(
+        tube=sf.CircularTube("tube", sf.water, length=1e3, diameter=1e-9),
+        tank=sf.LinearAccumulator("tank", sf.water, volume=1e-5, compliance=1e-11),
+        fluid=sf.water)),
+     sf.ModelWarning, ["CircularTube 'tube'", "flow is negligible",
+                       "LinearAccumulator 'tank'"]),
+    ("actuator starting 100x beyond its curve", lambda d: run(actuator_scene(
+        sf.Actuator("act", sf.water, curve(), initial_volume=Q_(600, "mL")), fluid=sf.water)),
+     sf.ModelWarning, ["Actuator 'act'", "initial volume 600 mL", "1 ... 6 mL",
+                       "beyond its last sample"]),
+    ("actuator starting below its curve", lambda d: run(actuator_scene(
+        sf.Actuator("act", sf.air, curve(), initial_volume=Q_(0.5, "mL")))),
+     sf.ModelWarning, ["Actuator 'act'", "initial volume 0.5 mL", "1 ... 6 mL",
+                       "beyond its first sample"]),
+    ("actuator starting at a pressure beyond its curve", lambda d: run(actuator_scene(
+        sf.Actuator("act", sf.air, curve(), initial_pressure=Q_(2, "bar")))),
+     sf.ModelWarning, ["Actuator 'act'", "(from its initial_pressure)", "1 ... 6 mL"]),
+    ("hysteretic actuator starting beyond its loop", lambda d: run(actuator_scene(
+        sf.HystereticActuator("act", sf.air, *snapping_loop(), initial_volume=Q_(70, "mL")))),
+     sf.ModelWarning, ["HystereticActuator 'act'", "initial volume 70 mL", "1 ... 7 mL",
+                       "inflation/deflation curves"]),
     ("1 nm short tube into a 1000 m^3 tank", lambda d: run(tube_tank(
         tube=sf.CircularTube("tube", sf.air, length=1e-9, diameter=1e-2),
         tank=sf.Container("tank", sf.air, volume=1e3))),
@@ -462,8 +501,12 @@ CASES = [
      sf.ModelWarning, ["Actuator 'act'", "beyond the last sample of its PV curve", "6 mL",
                        "extrapolate="]),
     ("actuator drawn below its curve", lambda d: run(actuator_scene(
-        sf.Actuator("act", sf.air, curve()), source=ATM - 3e4), duration=1.0),
+        sf.Actuator("act", sf.air, curve()), source=ATM - 5e3), duration=1.0),
      sf.ModelWarning, ["Actuator 'act'", "beyond the first sample", "1 mL"]),
+    # (at ATM - 30 kPa the curve's straight continuation below 1 mL reaches no volume)
+    ("actuator drawn to no volume", lambda d: run(actuator_scene(
+        sf.Actuator("act", sf.air, curve()), source=ATM - 3e4), duration=1.0),
+     sf.SimulationError, ["Actuator 'act'", "fluid volume reached zero at t = 0.0248"]),
     ("clamped actuator past its curve", lambda d: run(actuator_scene(
         sf.Actuator("act", sf.air, curve(extrapolate="clamp"))), duration=0.2),
      sf.ModelWarning, ["Actuator 'act'", "held at its end pressure"]),

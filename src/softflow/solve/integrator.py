@@ -22,6 +22,32 @@ The steppers are the controllers of that loop:
 
 (Batched variants on clocks of their own run the BDF's controller vectorized
 over the variants, :mod:`softflow.solve.clocks`.)
+
+Chambers and actuators that empty
+---------------------------------
+A chamber or actuator cannot hold less than no fluid. The loop watches the
+stored mass of every library volume (:class:`VolumeWatch`): a solved step
+that takes one below zero by more than its slack (:data:`EMPTY_SLACK_ATOL`
+times its absolute tolerance: within that it is at zero as far as the run
+resolves it) is a step failure. (An actuator whose PV curve's data start at a
+volume <= 0, volumes given as changes from a rest volume, defines the volumes
+down to that first sample: its limit is there.) A step past the limit may
+only be too long (a higher-order step overshooting a state that levels off
+at its limit), so the stepper first retries it shortened to end just short
+of the crossing (:data:`EMPTY_PAST` of it; the crossing from a secant of the
+state between the step's ends, as BDF places a mode switch; up to
+:data:`EMPTY_TRIES` times, then by quarters). The state truly reaches its
+limit where the step right after such a located one goes past it again, or
+the smallest step does: the run stops there with
+:class:`softflow.solve.validity.EmptiedError` (Simulation.run: a
+SimulationError naming the component and the time of the crossing, status
+'failed', the result up to the located step, just short of it). A linear
+drain costs two solves more than the steps up to it. A rigid container of
+gas empties by its mass (a mass flow source drawing it), which takes its
+pressure through zero, which Newton refuses: a solve that failed on an
+absolute pressure <= 0 is asked the same, from the states of its refused
+solution. Checked after BDF's error test: one comparison over the volumes
+per step (~1 us; the paper scenes' steps cost ~150 us each).
 """
 from __future__ import annotations
 
@@ -30,15 +56,30 @@ import math
 
 import numpy as np
 
+from ..fluids.base import FluidError
 from . import sourcenodes
 from .linalg import make_linear_solver
 from .newton import StepLimitError
 from .progress import SILENT
+from .validity import EmptiedError, curve_first_volume
 
 #: steps in a row the loop solves by continuation where Newton failed at the
 #: smallest step (:meth:`Integrator._rescue`); the next such failure stops the
 #: run (each rescue costs up to 2 x CONTINUATION_SOLVES Newton solves)
 RESCUES_IN_A_ROW = 8
+
+#: A watched volume's state (:class:`VolumeWatch`) counts as past its limit
+#: where it ends a step below it by more than this many times its absolute
+#: tolerance (the BDF's atol of the state; 1e-12 kg at fixed steps), or by
+#: more than EMPTY_SLACK_SHARE of its initial distance from the limit where
+#: that is smaller (a 1e-15 m^3 container of gas holds ~1e-15 kg): within that,
+#: the state is at its limit as far as the run resolves it.
+EMPTY_SLACK_ATOL, EMPTY_SLACK_SHARE = 10.0, 1e-3
+#: absolute tolerance of a stored mass at fixed steps (Simulation's default)
+EMPTY_ATOL_FIXED = 1e-12
+#: a step retried to locate where a volume empties ends this fraction of the
+#: located crossing short of it; EMPTY_TRIES such placements, then quarters
+EMPTY_PAST, EMPTY_TRIES = 1e-3, 4
 
 
 class StepFailure(Exception):
@@ -50,6 +91,74 @@ class StoppedAtStart(Exception):
     """The run ends after its consistent point at t = 0 (see
     :attr:`Integrator.stop_at_start`): what it would compute from there on is
     refused anyway."""
+
+
+class VolumeWatch:
+    """The stored fluid of a network's chambers and actuators, watched at every
+    step of the loop (module docstring, "Chambers and actuators that empty").
+
+    Attributes
+    ----------
+    index : ndarray of int
+        The watched states: the stored mass of every library volume
+        (Container, LinearAccumulator, Actuator, HystereticActuator and their
+        thermal variants).
+    limit : ndarray
+        Each one's limit [kg]: 0, or, for an actuator whose PV curve's data
+        start at a volume v0 <= 0 (the curve defines the volumes down to
+        v0), rho(p0) v0 at the density of its fluid at that sample's pressure.
+    slack : ndarray
+        How far below its limit a state may end a step and still count as at
+        it [kg] (:data:`EMPTY_SLACK_ATOL`, :data:`EMPTY_SLACK_SHARE`).
+    floor : ndarray
+        limit - slack: a step that ends a state below its floor went past it.
+    owner : list of (group, member)
+        The component of each watched state.
+    """
+
+    def __init__(self, index, limit, slack, owner):
+        self.index, self.limit, self.slack, self.owner = index, limit, slack, owner
+        self.floor = limit - slack
+
+    @classmethod
+    def of(cls, asm, S, atol=None):
+        """The watch of ``asm``'s volumes at the states S of t = 0 (their
+        initial distances from their limits), or None where it has none.
+        ``atol``: absolute tolerances per state (the BDF's), else
+        :data:`EMPTY_ATOL_FIXED`."""
+        from ..components.thermal import VOLUME_CLASSES
+        index, limit, owner = [], [], []
+        for g in asm.groups:
+            c0 = g.comps[0]
+            if not g.ns or not isinstance(c0, VOLUME_CLASSES):
+                continue
+            labels = [v.label for v in c0.states]
+            if "mass" not in labels:
+                continue
+            first = curve_first_volume(c0)        # a group shares its curve
+            lim = 0.0
+            if first is not None and first[0] <= 0.0:
+                lim = first[0] * float(c0.fluid.density(first[1]))
+            index.append(g.s0 + np.arange(g.n) * g.ns + labels.index("mass"))
+            limit.append(np.full(g.n, lim))
+            owner.extend((g, k) for k in range(g.n))
+        if not index:
+            return None
+        index, limit = np.concatenate(index), np.concatenate(limit)
+        tol = (np.full(index.size, EMPTY_ATOL_FIXED) if atol is None
+               else np.broadcast_to(np.asarray(atol, dtype=float), S.shape)[index])
+        share = EMPTY_SLACK_SHARE * np.abs(S[index] - limit)
+        slack = EMPTY_SLACK_ATOL * tol
+        slack = np.where((share > 0.0) & (share < slack), share, slack)
+        return cls(index, limit, slack, owner)
+
+    def past(self, S):
+        """Whether a watched state of S is below its floor."""
+        return bool(_min(S[self.index] - self.floor) < 0.0)
+
+
+#: the ufunc method: a reduction without np.min's dispatch
+_min = np.minimum.reduce
 
 
 class Recorder:
@@ -118,7 +227,11 @@ class Integrator:
         where it is rejected (the stepper having shrunk its step);
     ``_take(t, x, S, x_new, psi, c, S_new, t_new)``
         the accepted step recorded and the stepper's own bookkeeping; returns
-        the new point (x, S, t).
+        the new point (x, S, t);
+    ``_shrink(factor)``, ``_h``, ``step_min``
+        the next try at ``factor`` times the step being tried (``_h``), down
+        to ``step_min``: the loop's own rejection of a step that emptied a
+        volume (:meth:`_emptied`).
     """
 
     def __init__(self, asm, newton, stats, *, duration, breakpoints=(), record=None,
@@ -165,6 +278,10 @@ class Integrator:
         t, t_stop = 0.0, self.T * (1 - 1e-14)
         rescues = 0      # steps in a row solved by continuation (_rescue)
         max_steps = math.inf if self.max_steps is None else self.max_steps
+        watch = self._watch = VolumeWatch.of(asm, S, getattr(self, "atol", None))
+        # tries in a row at locating where a volume empties; whether the last
+        # step taken was one (it ended just short of the crossing)
+        self._empty_tries, self._approached = 0, False
         while t < t_stop:
             if stats.steps + stats.rejected_steps >= max_steps:
                 raise StepLimitError(
@@ -174,6 +291,11 @@ class Integrator:
             out = solve(x_pred, psi, t_eval, c)
             if not out.converged:
                 stats.rejected_steps += 1
+                # a rigid volume of gas emptied: its pressure went through zero
+                # with its mass (the solve's solution, refused, says how far)
+                if (watch is not None and out.reason.startswith("absolute pressure")
+                        and self._emptied(t, S, out.x, update(out.x, psi, c), t_new, True)):
+                    continue
                 try:
                     # a controller may go on from another point at t (BDF: past
                     # an actuator's fold)
@@ -199,11 +321,79 @@ class Integrator:
             t_new = judge(t, x, S, x_new, S_new, t_new)
             if t_new is None:
                 continue
+            if watch is not None and watch.past(S_new):
+                stats.rejected_steps += 1
+                self._emptied(t, S, x_new, S_new, t_new)
+                continue
+            if watch is not None:
+                self._approached = self._empty_tries > 0
+                self._empty_tries = 0
             stats.steps += 1
             x, S, t = take(t, x, S, x_new, psi, c, S_new, t_new)
             tick(t)
             if begin is not None:
                 begin(x, S)
+
+    def _emptied(self, t, S, x_new, S_new, t_new, refused=False):
+        """After a step from t (states S) to t_new that ended with states S_new
+        (unknowns x_new): False where no watched volume went past its limit;
+        else True, the step rejected and shortened to end just short of the
+        crossing (:meth:`_shrink`), or :class:`EmptiedError` where the volume
+        truly reaches its limit (module docstring). ``refused``: the states
+        of a solution Newton refused for a pressure <= 0, where a volume at
+        its limit within its slack has emptied too (its pressure went with it)."""
+        w = self._watch
+        m0 = S[w.index] - w.limit            # distances from the limits
+        m1 = S_new[w.index] - w.limit
+        gone = m1 <= 0.0 if refused else m1 < -w.slack
+        if not gone.any():
+            return False
+        # where each state crossed its limit, as a fraction of the step (linear)
+        with np.errstate(all="ignore"):
+            theta = np.where(gone, np.clip(m0 / (m0 - m1), 0.0, 1.0), np.inf)
+        j = int(np.argmin(theta))
+        th, h = float(theta[j]), self._h
+        if self._approached or h <= self.step_min * 1.0000001:
+            raise self._emptied_error(j, t, t + th * h, x_new, S_new)
+        self.progress.rejected(t_new, h, "emptied")
+        tries = self._empty_tries = self._empty_tries + 1
+        factor = th * (1.0 - EMPTY_PAST) if tries <= EMPTY_TRIES else 0.25
+        self._shrink(max(factor, self.step_min / h))
+        return True
+
+    def _emptied_error(self, j, t, t_cross, x_new, S_new):
+        """The EmptiedError of watched state j, which reaches its limit at
+        t_cross (the last step taken ends at t; the failed one's unknowns and
+        states x_new, S_new)."""
+        from ..components.chambers import Container
+        w = self._watch
+        g, k = w.owner[j]
+        comp = g.comps[k]
+        mass, lim = float(S_new[w.index[j]]), float(w.limit[j])
+        try:          # its volume at the failed step's pressure (terminal a)
+            volume = mass / float(comp.fluid.density(float(x_new[g.col[k, 0]])))
+        except FluidError:          # a pressure outside the fluid's range
+            volume = math.nan
+        curve = curve_first_volume(comp)
+        if isinstance(comp, Container):         # rigid: only its mass can go
+            what, value = "its stored mass", mass
+            reached = f"{mass:.4g} kg"
+        else:
+            what, value = "its fluid volume", volume
+            reached = f"{volume:.4g} m^3 (a stored mass of {mass:.4g} kg)"
+        limit = ("zero" if lim == 0.0 else
+                 f"the first sample of its PV curve's data, {curve[0]:.6g} m^3 (the least "
+                 "volume the curve defines)")
+        msg = (f"{comp.describe()}: {what} reached {limit} at t = {t_cross:.6g} s (a "
+               f"step past it leaves {reached}): a chamber or actuator cannot hold less "
+               "than no fluid, so the run stops there (its result ends at t = "
+               f"{t:.6g} s). What flows out of it takes more fluid than it holds: check "
+               "the sources, pumps and pressures that draw from it"
+               + (" (or, for a curve given as volume changes, give its data down to the "
+                  "volumes it reaches)" if curve is not None else "") + ".")
+        return EmptiedError(msg, component=comp.label, time=t_cross,
+                            quantity="mass" if what == "its stored mass" else "volume",
+                            value=value)
 
     def _rescue(self, x_pred, x, psi, t_eval, c, out):
         """The converged Outcome of a step whose Newton solve failed at the
@@ -426,6 +616,12 @@ class ImplicitEuler(Integrator):
         if h / 4 < self.step_min:
             raise StepFailure(t + h, h, out)
         self._h_cut = h / 4
+        self._extrapolate = False
+
+    def _shrink(self, factor):
+        """The next try at ``factor`` times the step (a step rejected by the
+        loop: a volume emptied within it), from the last point."""
+        self._h_cut = self._h * factor
         self._extrapolate = False
 
     def _judge(self, t, x, S, x_new, S_new, t_new):

@@ -67,6 +67,17 @@ Checks
     (a sphere of the volume's size, 10 K difference: an estimate). Faster than a tenth of it,
     the gas is closer to adiabatic than to isothermal. Fraction: a tenth of
     the thermal time constant / the fill time.
+``cavitation``
+    A liquid whose absolute pressure fell below its vapour pressure at its
+    temperature, at any node where a component of that liquid meets (a
+    check of the whole network, one record per liquid: its lowest pressure,
+    the node, the time): there the liquid would boil, which softflow does not
+    model (a liquid is one phase, its pressure free to fall as if it could
+    hold any tension). The vapour pressure comes from the liquid's table
+    metadata (:mod:`softflow.fluids.vapour`: water from CoolProp's
+    saturation pressure, water-glycol by Raoult's law), at any fluid level,
+    without CoolProp; a liquid without one is not checked. Fraction: the
+    vapour pressure / the lowest pressure.
 ``adiabatic_time_scale``
     The reverse: an adiabatic gas volume of a thermal scene (no wall heat)
     whose temperature stayed away from its wall's, by more than
@@ -457,6 +468,85 @@ def gas_compressibility(g, result):
     return out
 
 
+# -- liquids --------------------------------------------------------------------------
+def _liquid_nodes(asm):
+    """{id(fluid): (fluid, node pressure unknowns, [(group, their positions in its
+    members' interface)])} of the network's liquids: the node pressures where a
+    component of each liquid meets (x[:n_across] of quantity 'pressure')."""
+    n_across = asm.n_across
+    found: dict = {}
+    for g in asm.groups:
+        fluid = getattr(g.comps[0], "fluid", None)
+        if fluid is None or getattr(fluid, "compressible", True):
+            continue
+        col = g.col.reshape(len(g.comps), -1)
+        first = col[0]
+        pos = [k for k, i in enumerate(first.tolist())
+               if i < n_across and asm.x_quantity[i] == "pressure"]
+        if not pos:
+            continue
+        entry = found.setdefault(id(fluid), (fluid, [], []))
+        entry[1].append(col[:, pos].ravel())
+        entry[2].append((g, pos))
+    return {key: (fluid, np.unique(np.concatenate(cols)), owners)
+            for key, (fluid, cols, owners) in found.items()}
+
+
+def cavitation(asm, result):
+    """(A network check, :func:`softflow.solve.validity.register_network`.) The
+    lowest pressure of each liquid against its vapour pressure (module doc)."""
+    from ..fluids.vapour import vapour_pressure
+    out = []
+    X, xcol = result.X, result._xcol
+    for fluid, nodes, owners in _liquid_nodes(asm).values():
+        cols = xcol[nodes]
+        recorded = cols >= 0
+        if not recorded.any():
+            continue
+        nodes, cols = nodes[recorded], cols[recorded]
+        P = X[:, cols]
+        low = np.fmin.reduce(P, axis=0)        # per node, NaN left out
+        low[np.isnan(low)] = np.inf            # (a node without a number at all)
+        j = int(np.argmin(low))
+        p_min = float(low[j])
+        p_vap = vapour_pressure(fluid)
+        if p_vap is None or not p_min > 0:
+            continue
+        fraction = p_vap / p_min
+        if not grade(fraction):
+            continue
+        node = int(nodes[j])
+        k = int(np.nanargmin(P[:, j]))
+        # the liquid's component at that node: a recorded one where there is one
+        at = [(g, int(i)) for g, pos in owners for i in
+              np.flatnonzero((g.col.reshape(len(g.comps), -1)[:, pos] == node).any(axis=1))]
+        comp_g, i = next(((g, i) for g, i in at if g.comps[i].label in result._where), at[0])
+        comp = comp_g.comps[i]
+        t = float(group_times(comp_g, result, [i])[k, 0])
+        where = str(asm.x_names[node]).removesuffix(" pressure")
+        T = float(fluid.temperature)
+        liquid = f"{fluid.name} at {T:.5g} K ({T - 273.15:.4g} degC)"
+        if fraction > 1:
+            message = (f"the pressure of its liquid, {liquid}, fell to {p_min:.4g} Pa "
+                       f"(absolute) at {where} at t = {t:.6g} s, below the liquid's vapour "
+                       f"pressure {p_vap:.4g} Pa: there the liquid would boil (cavitate), "
+                       "which softflow does not model (the liquid stays one phase, its "
+                       "pressure free to fall as if it held any tension): the flows and "
+                       "pressures near there are not physical.")
+        else:
+            message = (f"the pressure of its liquid, {liquid}, fell to {p_min:.4g} Pa "
+                       f"(absolute) at {where} at t = {t:.6g} s, within a factor "
+                       f"{1 / fraction:.3g} of the liquid's vapour pressure {p_vap:.4g} Pa, "
+                       "below which it would boil (cavitate), which softflow does not model.")
+        out.append(_record(
+            comp, "cavitation", p_min, p_vap, "Pa", fraction,
+            "keep the liquid above its vapour pressure where it is drawn: a higher "
+            "pressure on the suction side (source, tank), a shorter or wider suction "
+            "line, or a slower pump",
+            message, time=t, node=where, temperature=T, vapour_pressure=p_vap))
+    return out
+
+
 # -- thermal -------------------------------------------------------------------------
 def fill_and_thermal_times(g, result):
     """For the isothermal gas volumes of group ``g`` (but those the user holds
@@ -706,7 +796,7 @@ def tube_inertia(g, result):
 tube_mach.can_refuse = True  # type: ignore[attr-defined]
 
 
-def register_all(register):
+def register_all(register, register_network):
     from ..components.actuators import Actuator, HystereticActuator
     from ..components.chambers import Container, LinearAccumulator
     from ..components.tubes import CircularTube
@@ -720,3 +810,4 @@ def register_all(register):
         register(cls, gas_compressibility)
         register(cls, thermal_time_scale)
         register(cls, adiabatic_time_scale)
+    register_network(cavitation)

@@ -26,7 +26,9 @@ beyond its limit, and only on those.
 Checks are registered per component class with :func:`register` (the first
 one: PV curves beyond their data). A check is ``check(group, result) ->
 [ValidityRecord]`` for one group of components compiled together (same class,
-fluid and curve), reading the result's arrays.
+fluid and curve), reading the result's arrays. A check about the network's
+nodes (a liquid below its vapour pressure) is registered once with
+:func:`register_network`, ``check(asm, result)`` on the whole network.
 
 Also here: :class:`ComponentError`, how an exception raised inside a user's
 code (``evaluate``, ``update_state``, ``state_rates``, a curve function)
@@ -106,6 +108,24 @@ class ComponentError(RuntimeError):
         self.component, self.method, self.time = component, method, time
 
 
+class EmptiedError(ComponentError):
+    """A chamber's or actuator's stored fluid reached zero (or, for an actuator
+    whose PV curve defines volumes down to a first sample <= 0, that sample)
+    during a run: raised by the integration loop
+    (:mod:`softflow.solve.integrator`), reported by ``Simulation.run`` as a
+    SimulationError (status 'failed', the result up to the last step taken)
+    with ``component`` and ``time`` (when it reached it, located within the
+    step that went past). ``quantity`` is 'volume' or 'mass' (a rigid
+    container's), ``value`` what the step past the limit would have left
+    [m^3 or kg]."""
+
+    def __init__(self, message: str, component: str | None = None,
+                 time: float | None = None, quantity: str = "volume",
+                 value: float = float("nan")) -> None:
+        super().__init__(message, component=component, time=time)
+        self.quantity, self.value = quantity, value
+
+
 def user_code_error(err: BaseException, describe: str, label: str, method: str,
                     t: float | None, what: str = "") -> ComponentError:
     """The ComponentError for ``err`` raised in ``method`` of a component
@@ -154,11 +174,26 @@ _CHECKS: dict[type, list[Callable[[Any, Any], list[ValidityRecord]]]] = {}
 _VERSION = 0
 
 
+#: checks of a whole network, each check(asm, result) -> [ValidityRecord], run
+#: once per result (a finding about nodes rather than one class's components)
+_NETWORK_CHECKS: list[Callable[[Any, Any], list[ValidityRecord]]] = []
+
+
 def register(cls: type, check: Callable[[Any, Any], list[ValidityRecord]]) -> None:
     """Run ``check(group, result)`` after every run on each compiled group of
     components that are instances of ``cls``."""
     global _VERSION
     _CHECKS.setdefault(cls, []).append(check)
+    _VERSION += 1
+
+
+def register_network(check: Callable[[Any, Any], list[ValidityRecord]]) -> None:
+    """Run ``check(asm, result)`` once after every run, on the whole compiled
+    network ``asm`` (:class:`softflow.solve.assembly.Assembly`): a finding
+    about its nodes (the liquid's pressure below its vapour pressure), which a
+    check per group would make once for each component at the node."""
+    global _VERSION
+    _NETWORK_CHECKS.append(check)
     _VERSION += 1
 
 
@@ -175,8 +210,8 @@ def _register_library_checks() -> None:
     from ..components.actuators import Actuator, HystereticActuator
     register(Actuator, pv_curve_range)
     register(HystereticActuator, pv_curve_range)
-    from .model_checks import register_all     # tubes, orifices, gases, thermal
-    register_all(register)
+    from .model_checks import register_all     # tubes, orifices, gases, thermal, nodes
+    register_all(register, register_network)
 
 
 def _group_checks(asm: Any, fatal_only: bool = False) -> Iterator[tuple[Any, Any]]:
@@ -211,13 +246,14 @@ def check_result(asm: Any, result: Any, fatal_only: bool = False,
             try:
                 records.extend(check(g, result))
             except FluidError as err:    # a check must never fail the run it checks
-                c = g.comps[0]
-                records.append(ValidityRecord(
-                    component=c.label, check=check.__name__, measured=float("nan"),
-                    limit=float("nan"), unit="",
-                    suggestion="use a fluid level whose range covers the run's states",
-                    message=f"{c.describe()}: the {check.__name__} check could not "
-                            f"be evaluated ({err}); its finding is unknown"))
+                records.append(_not_evaluated(g.comps[0], check, err))
+        for check in _NETWORK_CHECKS:
+            if fatal_only and not getattr(check, "can_refuse", False):
+                continue
+            try:
+                records.extend(check(asm, result))
+            except FluidError as err:
+                records.append(_not_evaluated(asm.groups[0].comps[0], check, err))
     finally:
         if rtol is not None:
             if own is None:
@@ -227,10 +263,21 @@ def check_result(asm: Any, result: Any, fatal_only: bool = False,
     return records
 
 
+def _not_evaluated(c: Any, check: Any, err: Exception) -> ValidityRecord:
+    """The record of a check that could not be evaluated (a fluid's range)."""
+    return ValidityRecord(
+        component=c.label, check=check.__name__, measured=float("nan"),
+        limit=float("nan"), unit="",
+        suggestion="use a fluid level whose range covers the run's states",
+        message=f"{c.describe()}: the {check.__name__} check could not "
+                f"be evaluated ({err}); its finding is unknown")
+
+
 def can_refuse(asm: Any) -> bool:
     """Whether a check that can refuse a run (``can_refuse``) is registered for
-    a group of the network (a gas tube's choke check)."""
-    return any(True for _ in _group_checks(asm, fatal_only=True))
+    a group of the network (a gas tube's choke check), or for networks."""
+    return (any(True for _ in _group_checks(asm, fatal_only=True))
+            or any(getattr(check, "can_refuse", False) for check in _NETWORK_CHECKS))
 
 
 def issue(records: list[ValidityRecord], stacklevel: int = 3) -> None:
@@ -338,6 +385,17 @@ def _curves_of(comp: Any) -> list[Any]:
         return [loop.inflation, loop.deflation]
     curve = getattr(comp, "curve", None)
     return [curve] if hasattr(curve, "volume") and hasattr(curve, "extrapolate") else []
+
+
+def curve_first_volume(comp: Any) -> tuple[float, float] | None:
+    """(volume [m^3], absolute pressure [Pa]) of the first sample of an
+    actuator's PV curve data (the smaller of a hysteresis loop's two), or None
+    for a component without curve data (a curve given as a function)."""
+    curves = _curves_of(comp)
+    if not curves:
+        return None
+    first = min(curves, key=lambda c: float(c.volume[0]))
+    return float(first.volume[0]), float(first.pressure[0])
 
 
 def pv_curve_range(g: Any, result: Any) -> list[ValidityRecord]:

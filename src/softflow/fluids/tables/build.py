@@ -19,6 +19,7 @@ import numpy as np
 
 from ..catalog import BUILTIN
 from ..hermite import Bicubic, UniformAxis
+from ..vapour import SOLUTE_MOLAR_MASS, water_mole_fraction
 from . import FORMAT, FluidTableError, coolprop_version, sha256_of, table_files
 
 #: Range of each built-in table: ((p_lo, p_hi) [Pa], (T_lo, T_hi) [K]). The gases
@@ -50,6 +51,97 @@ def table_properties(spec, liquid: bool) -> tuple:
     if spec.backend != "INCOMP":
         rest += ("speed_of_sound",)
     return first + rest
+
+
+def _water_fraction(spec) -> float:
+    """Mole fraction of water in the solution ``spec`` (water's molar mass from
+    CoolProp)."""
+    from ..eos import abstract_state
+    M_water = abstract_state(BUILTIN["water"], True).molar_mass()
+    return water_mole_fraction(spec.coolprop_name, spec.fraction, M_water)
+
+
+def _saturation_pressures(spec, T) -> np.ndarray | None:
+    """The vapour pressure [Pa] of the liquid ``spec`` at temperatures ``T``
+    (:func:`vapour_pressure_record`), or None where there is none to give."""
+    import CoolProp.CoolProp as CP
+    T = np.asarray(T, dtype=float)
+    if spec.backend == "HEOS":
+        return np.array([CP.PropsSI("P", "T", t, "Q", 0, spec.coolprop_id) for t in T.tolist()])
+    if spec.coolprop_name in SOLUTE_MOLAR_MASS and spec.fraction is not None:
+        water = np.array([CP.PropsSI("P", "T", t, "Q", 0, "HEOS::Water") for t in T.tolist()])
+        return _water_fraction(spec) * water
+    return None
+
+
+def vapour_pressure_record(spec, temperatures) -> dict | None:
+    """The ``vapour_pressure`` entry of a liquid's table metadata: its vapour
+    (saturation) pressure at ``temperatures`` [K] (the table's temperature
+    nodes), read back by :func:`softflow.fluids.vapour.vapour_pressure`
+    without CoolProp (importing it costs seconds), ln p interpolated linearly
+    in 1/T (the Clausius-Clapeyron form, exact for a constant heat of
+    vaporization); None for a fluid without one.
+
+    Pure fluids (HEOS): CoolProp's saturated liquid (Q = 0). Water-glycol
+    solutions (CoolProp's INCOMP::MEG has no saturation pressure below
+    373.15 K): Raoult's law for an ideal solution, x_water times the vapour
+    pressure of water (CoolProp HEOS::Water), x_water the mole fraction of
+    water at the table's mass fraction of glycol
+    (:data:`softflow.fluids.vapour.SOLUTE_MOLAR_MASS`); glycol's own vapour pressure is neglected
+    (it boils at 197 degC at 1 atm). Water-glycol solutions are reported to
+    deviate negatively from Raoult's law, which would make this an upper
+    bound: a cavitation warning on it errs on the early side. The entry
+    records its source and the largest relative error of the interpolation
+    at the midpoints between the nodes, against the same source."""
+    T = np.asarray(temperatures, dtype=float)
+    p = _saturation_pressures(spec, T)
+    if p is None:
+        return None
+    mid = 0.5 * (T[1:] + T[:-1])
+    ref = _saturation_pressures(spec, mid)
+    got = np.exp(np.interp(-1.0 / mid, -1.0 / T, np.log(p)))
+    if spec.backend == "HEOS":
+        source = (f"CoolProp {coolprop_version()} {spec.coolprop_id}, saturated liquid "
+                  "(PropsSI('P', 'T', T, 'Q', 0))")
+    else:
+        x_w = _water_fraction(spec)
+        source = (f"Raoult's law: x_water = {x_w:.6f} (mole fraction of water at mass "
+                  f"fraction {spec.fraction:g} of {spec.coolprop_name}, molar mass "
+                  f"{SOLUTE_MOLAR_MASS[spec.coolprop_name]} kg/mol) times the vapour "
+                  f"pressure of water from CoolProp {coolprop_version()} HEOS::Water; "
+                  "the solute's own vapour pressure neglected; CoolProp's INCOMP "
+                  "backend has no saturation pressure below 373.15 K; an estimate "
+                  "(an upper bound where the solution deviates negatively from "
+                  "Raoult's law)")
+    return {"unit": "Pa", "temperature": T.tolist(), "pressure": p.tolist(),
+            "interpolation": "ln p linear in 1/T between the nodes (Clausius-Clapeyron "
+                             "form), and along the end segments up to 5 K beyond them",
+            "max_error": float(np.max(np.abs(got / ref - 1.0))),
+            "error_measure": "relative, at the midpoints between the nodes",
+            "source": source}
+
+
+def add_vapour_pressure(names=None, directory=None, log=print) -> None:
+    """Add (or renew) the ``vapour_pressure`` entry of existing liquid tables'
+    metadata without rebuilding them (their npz and its SHA-256 stay as they
+    are), for the built-in liquids by default. The shipped water and
+    ethylene_glycol-0.6 tables got theirs so (CoolProp 8.0.0)."""
+    from ..catalog import resolve
+    from . import read_table, tables_directory
+    directory = tables_directory(directory)
+    for name in names or [n for n in BUILTIN_RANGES if BUILTIN[n].liquid]:
+        spec = resolve(name)
+        npz_path, json_path = table_files(spec.table_stem, directory)
+        meta = read_table(npz_path, json_path).meta
+        T = UniformAxis(*meta["temperature_range"], meta["grid"]["temperature_nodes"]).nodes
+        record = vapour_pressure_record(spec, T)
+        if record is None:
+            log(f"{spec.name}: no vapour pressure to record")
+            continue
+        meta["vapour_pressure"] = record
+        json_path.write_text(json.dumps(meta, indent=1) + "\n")
+        log(f"{spec.name}: vapour pressure at {len(T)} temperatures, interpolation "
+            f"error {record['max_error']:.1e} -> {json_path.name}")
 
 
 def _getters(state):
@@ -150,6 +242,7 @@ def build_table(spec, p_range, T_range, directory, *, pressure_nodes=PRESSURE_NO
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     npz_path, json_path = table_files(spec.table_stem, directory)
+    vapour = vapour_pressure_record(spec, T_axis.nodes) if liquid else None
     np.savez_compressed(npz_path, pressure=p_axis.nodes, temperature=T_axis.nodes, **values)
     meta = {
         "format": FORMAT,
@@ -181,6 +274,7 @@ def build_table(spec, p_range, T_range, directory, *, pressure_nodes=PRESSURE_NO
         "error_check": {"points": int(pc.size),
                         "where": "cell centres, edge midpoints and "
                                  f"{random_points} random points"},
+        **({} if vapour is None else {"vapour_pressure": vapour}),
         "built": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "built_with": "python -m softflow.fluids.tables build",
         "sha256": sha256_of(npz_path),
