@@ -184,3 +184,23 @@ def compiled_and_python(expression, env=None):
     assert compiled["jit"] and not python["jit"]
     flat = [np.hstack(r["values"]).astype(float) for r in (compiled, python)]
     return flat[0], flat[1], compiled["hits"]
+
+
+def four_point_curve(**kw):
+    """A gauge PV curve from 1 to 6 mL (0 to 400 mbar, four samples), with
+    PVCurve's keywords ``kw``: the actuator of the bad-input tests."""
+    Q_ = sf.Q_
+    return sf.PVCurve(volume=Q_([1, 2, 4, 6], "mL"), pressure=Q_([0, 100, 200, 400], "mbar"),
+                      gauge=True, **kw)
+
+
+def actuator_scene(act, source=2e5, fluid=sf.air):
+    """A pressure source (``source`` [Pa]) filling the actuator ``act`` through
+    a 0.3 m x 1 mm tube of ``fluid``."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=source)
+    s += sf.CircularTube("tube", fluid, length=0.3, diameter=1e-3)
+    s += act
+    s.connect("tube", "src")
+    s.connect("tube", act.label)
+    return s

@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import actuator_scene
+from helpers import four_point_curve as curve
 from softflow.curves.csvdata import DataFileError
 
 Q_ = sf.Q_
@@ -38,21 +40,6 @@ def simulate(system=None, **kw):
 
 def run(system=None, **kw):
     return simulate(system, **kw).run()
-
-
-def curve(**kw):
-    return sf.PVCurve(volume=Q_([1, 2, 4, 6], "mL"), pressure=Q_([0, 100, 200, 400], "mbar"),
-                      gauge=True, **kw)
-
-
-def actuator_scene(act, source=2e5, fluid=sf.air):
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=source)
-    s += sf.CircularTube("tube", fluid, length=0.3, diameter=1e-3)
-    s += act
-    s.connect("tube", "src")
-    s.connect("tube", act.label)
-    return s
 
 
 def csv(tmp, text, name="pv.csv"):

@@ -3,6 +3,7 @@ step longer than the duration, breakpoints outside the run, and a tube whose flo
 is negligible (1 nm x 1 km). The bad-input catalogue
 (tests/test_bad_input_catalogue.py) holds one case of each; here the details:
 where the limits lie, what the records hold, how often they warn."""
+import functools
 import math
 import warnings
 
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from helpers import actuator_scene, four_point_curve
 from softflow.components.actuators import INITIAL_VOLUME_SLACK
 from softflow.components.tubes import laminar_conductance
 from softflow.curves.pvcurve import CurveRangeError
@@ -20,19 +22,8 @@ Q_ = sf.Q_
 ATM = sf.pressure_atmospheric
 
 
-def _curve(**kw):
-    return sf.PVCurve(volume=Q_([1, 2, 4, 6], "mL"), pressure=Q_([0, 100, 200, 400], "mbar"),
-                      gauge=True, **kw)
-
-
-def _actuator_scene(act, fluid=sf.water, source=2e5):
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=source)
-    s += sf.CircularTube("tube", fluid, length=0.3, diameter=1e-3)
-    s += act
-    s.connect("tube", "src")
-    s.connect("tube", act.label)
-    return s
+#: the actuator scenes here are of water unless they say otherwise
+_actuator_scene = functools.partial(actuator_scene, fluid=sf.water)
 
 
 def _tube_scene(length, diameter, fluid=sf.air, tank=None, source=ATM + 1e5):
@@ -59,7 +50,7 @@ def _checked(res, check):
 
 # -- 1. an actuator whose initial volume is outside its curve's data ---------------------
 def test_an_initial_volume_100x_beyond_the_data_warns_with_the_volume_and_the_range():
-    act = sf.Actuator("act", sf.water, _curve(), initial_volume=Q_(600, "mL"))
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_volume=Q_(600, "mL"))
     res, caught = _run(sf.Simulation(_actuator_scene(act), duration=0.1))
     assert res.status == "success"
     (rec,) = _checked(res, "initial_volume_range")
@@ -91,7 +82,7 @@ def test_the_warning_comes_at_the_start_of_the_run_even_where_it_fails():
             raise ValueError("waveform broke")
         return 2e5
 
-    act = sf.Actuator("act", sf.water, _curve(), initial_volume=Q_(600, "mL"))
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_volume=Q_(600, "mL"))
     sim = sf.Simulation(_actuator_scene(act, source=source), duration=0.1)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -105,7 +96,7 @@ def test_the_warning_comes_at_the_start_of_the_run_even_where_it_fails():
 def test_an_actuator_left_out_of_the_record_still_warns():
     """The check after the run reads recorded volumes only (record=): the start
     is judged on the inputs, recorded or not (it was silent before)."""
-    act = sf.Actuator("act", sf.water, _curve(), initial_volume=Q_(600, "mL"))
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_volume=Q_(600, "mL"))
     res, caught = _run(sf.Simulation(_actuator_scene(act), duration=0.1, record=["tube"]))
     assert [r.component for r in _checked(res, "initial_volume_range")] == ["act"]
     assert sum("initial volume 600 mL" in m for m in caught) == 1
@@ -114,7 +105,7 @@ def test_an_actuator_left_out_of_the_record_still_warns():
 def test_a_run_that_goes_further_out_keeps_both_records():
     """Starting just past the data and pushed further: the start and how far it went
     are two findings."""
-    act = sf.Actuator("act", sf.air, _curve(), initial_volume=Q_(6.1, "mL"))
+    act = sf.Actuator("act", sf.air, four_point_curve(), initial_volume=Q_(6.1, "mL"))
     res, caught = _run(sf.Simulation(_actuator_scene(act, fluid=sf.air), duration=0.1))
     (start,) = _checked(res, "initial_volume_range")
     (reached,) = _checked(res, "pv_curve_range")
@@ -126,7 +117,7 @@ def test_a_run_that_goes_further_out_keeps_both_records():
 @pytest.mark.parametrize("v0", [Q_(1, "mL"), Q_(3.5, "mL"), Q_(6, "mL"), 6e-6,
                                 6e-6 * (1 + INITIAL_VOLUME_SLACK / 10)])
 def test_an_initial_volume_within_the_data_or_its_round_off_is_no_finding(v0):
-    act = sf.Actuator("act", sf.water, _curve(), initial_volume=v0)
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_volume=v0)
     res, _ = _run(sf.Simulation(_actuator_scene(act, source=1.1e5), duration=0.05))
     assert not _checked(res, "initial_volume_range")
 
@@ -135,14 +126,14 @@ def test_an_initial_volume_within_the_data_or_its_round_off_is_no_finding(v0):
 def test_any_volume_outside_the_data_warns(v0, side):
     """Past the round-off, a little is enough: the start is the user's number, not an
     adaptive step's overshoot (the check after the run allows 1 % of the range)."""
-    act = sf.Actuator("act", sf.water, _curve(), initial_volume=v0)
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_volume=v0)
     res, _ = _run(sf.Simulation(_actuator_scene(act, source=1.1e5), duration=0.05))
     (rec,) = _checked(res, "initial_volume_range")
     assert rec.details["side"] == side and f"beyond its {side} sample" in rec.message
 
 
 def test_an_initial_pressure_beyond_the_data_warns_naming_it():
-    act = sf.Actuator("act", sf.water, _curve(), initial_pressure=Q_(2, "bar"))
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_pressure=Q_(2, "bar"))
     assert act.initial_volume > 6e-6          # on the curve's linear extension
     res, _ = _run(sf.Simulation(_actuator_scene(act), duration=0.05))
     (rec,) = _checked(res, "initial_volume_range")
@@ -150,7 +141,7 @@ def test_an_initial_pressure_beyond_the_data_warns_naming_it():
 
 
 def test_a_clamped_curve_says_it_holds_the_end_pressure():
-    act = sf.Actuator("act", sf.water, _curve(extrapolate="clamp"), initial_volume=Q_(60, "mL"))
+    act = sf.Actuator("act", sf.water, four_point_curve(extrapolate="clamp"), initial_volume=Q_(60, "mL"))
     res, _ = _run(sf.Simulation(_actuator_scene(act, source=1.3e5), duration=0.05))
     (rec,) = _checked(res, "initial_volume_range")
     assert "held at its end pressure" in rec.message
@@ -158,7 +149,7 @@ def test_a_clamped_curve_says_it_holds_the_end_pressure():
 
 def test_a_strict_curve_refuses_the_initial_volume_naming_the_actuator():
     with pytest.raises(CurveRangeError) as info:
-        sf.Actuator("act", sf.air, _curve(extrapolate="error"), initial_volume=Q_(600, "mL"))
+        sf.Actuator("act", sf.air, four_point_curve(extrapolate="error"), initial_volume=Q_(600, "mL"))
     msg = str(info.value)
     assert msg.startswith("Actuator 'act': initial_volume 600 mL (0.0006 m^3) is outside")
     assert "1 ... 6 mL (arrays)" in msg and "extrapolate='error'" in msg
@@ -183,7 +174,7 @@ def test_a_callable_curve_has_no_data_to_leave():
 
 
 def test_run_time_parameters_are_judged_per_run():
-    act = sf.Actuator("act", sf.water, _curve(), initial_volume=Q_(2, "mL"))
+    act = sf.Actuator("act", sf.water, four_point_curve(), initial_volume=Q_(2, "mL"))
     sim = sf.Simulation(_actuator_scene(act, source=1.1e5), duration=0.05)
     res, _ = _run(sim)
     assert not _checked(res, "initial_volume_range")

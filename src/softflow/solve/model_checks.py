@@ -184,6 +184,18 @@ def tube_reynolds(g, result):
     return out
 
 
+def two_port_values(g, result):
+    """(indices in the group, mf_a, p_a, p_b) of the recorded members of a
+    group of two-ports (times x members each); the values None where none of
+    them is recorded."""
+    keep, mf = group_values(g, result, "massflow_a")
+    if not keep:
+        return keep, None, None, None
+    _, pa = group_values(g, result, "pressure_a")
+    _, pb = group_values(g, result, "pressure_b")
+    return keep, mf, pa, pb
+
+
 def tube_mach(g, result):
     comp0 = g.comps[0]
     fluid = comp0.fluid
@@ -191,11 +203,9 @@ def tube_mach(g, result):
     if (fluid is None or not fluid.compressible
             or getattr(comp0, "compressible", None) != "mean_density"):
         return []
-    keep, mf = group_values(g, result, "massflow_a")
+    keep, mf, pa, pb = two_port_values(g, result)
     if not keep:
         return []
-    _, pa = group_values(g, result, "pressure_a")
-    _, pb = group_values(g, result, "pressure_b")
     area = np.array([math.pi * g.comps[i].diameter ** 2 / 4 for i in keep])
     p_low = np.minimum(pa, pb)
     try:
@@ -252,11 +262,9 @@ def tube_isothermal_flow(g, result):
             or getattr(comp0, "compressible", None) != "pipe_flow"
             or not isinstance(fluid, IdealGas)):
         return []
-    keep, mf = group_values(g, result, "massflow_a")
+    keep, mf, pa, pb = two_port_values(g, result)
     if not keep:
         return []
-    _, pa = group_values(g, result, "pressure_a")
-    _, pb = group_values(g, result, "pressure_b")
     comps = [g.comps[i] for i in keep]
     area = np.array([math.pi * c.diameter ** 2 / 4 for c in comps])
     RT = fluid.R * fluid.temperature
@@ -750,11 +758,11 @@ def tube_inertia(g, result):
     fluid = comp0.fluid
     if fluid is None or fluid.compressible or getattr(comp0, "state_spec", ()):
         return []          # gases: compressibility dominates; inertial tubes model it
-    keep, mf = group_values(g, result, "massflow_a")
-    if not keep or len(result.times) < 3:
+    if len(result.times) < 3:
         return []
-    _, pa = group_values(g, result, "pressure_a")
-    _, pb = group_values(g, result, "pressure_b")
+    keep, mf, pa, pb = two_port_values(g, result)
+    if not keep:
+        return []
     t = group_times(g, result, keep)
     limit = _limit(result, 1e-2)
     jump = np.abs(np.diff(mf, axis=0))
