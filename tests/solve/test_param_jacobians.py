@@ -65,6 +65,24 @@ def _cases():
         ("InertialCircularTube-water", [sf.CircularTube(f"t{i}", water, 0.5, 2e-3,
                                                         inertance=True) for i in range(4)],
          tube_params, lambda r: _two_port(r, np.array([1e-4, -3e-3, 2e-2, 5e-3])), None),
+        # minor losses K (added to f L/D): the Darcy, isothermal, mean-density and
+        # inertial paths, each instance with its own K
+        ("CircularTube-K-air", [sf.CircularTube(f"t{i}", air, 0.5, 1e-3, K=0.25 + 0.5 * i)
+                                for i in range(4)],
+         tube_params + ["K"], lambda r: _two_port(r, AIR_FLOWS), None),
+        ("CircularTube-K-mean-density", [sf.CircularTube(f"t{i}", air, 0.5, 1e-3, K=0.25 + 0.5 * i,
+                                                         compressible="mean_density")
+                                         for i in range(4)],
+         tube_params + ["K"], lambda r: _two_port(r, AIR_FLOWS), None),
+        ("CircularTube-K-water", [sf.CircularTube(f"t{i}", water, 0.5, 1e-3 * (i + 1),
+                                                  K=1.6 - 0.5 * i) for i in range(4)],
+         tube_params + ["K"],
+         lambda r: _two_port(r, np.array([2.5e-3, -5.5e-3, 2e-2, 1.2e-2])), None),
+        ("InertialCircularTube-K-water", [sf.CircularTube(f"t{i}", water, 0.5, 2e-3,
+                                                          inertance=True, K=0.8)
+                                          for i in range(4)],
+         tube_params + ["K"], lambda r: _two_port(r, np.array([1e-4, -3e-3, 2e-2, 5e-3])),
+         None),
         ("Orifice-K", [sf.Orifice(f"o{i}", air, diameter=1e-3, K=2.0) for i in range(4)],
          ["diameter", "K", "Re_laminar"],
          lambda r: _two_port(r, np.zeros(4), dp=np.array([0.01, -0.02, 3e3, -2e4])), None),
@@ -759,17 +777,22 @@ def test_every_numeric_parameter_matches_central_differences_of_runs(scene):
         names = _numeric_parameters(sim)
         res = sim.run(sensitivities=[n for n, _ in names])
         for key, value in names:
-            h = (1e-3 if key.endswith("leakage") else 1e-5) * abs(value)
-            up, down = sim.run(params={key: value + h}), sim.run(params={key: value - h})
+            # a parameter at zero (a tube's minor losses K by default, which no
+            # negative value extends): a forward difference of an absolute step
+            ref = abs(value) or 1.0
+            h = (1e-3 if key.endswith("leakage") else 1e-5) * ref
+            up = sim.run(params={key: value + h})
+            down = sim.run(params={key: value - h}) if value else res
+            width = 2 * h if value else h
             for label in sim._compiled:
                 for var in ("pressure", "mass", "massflow_a", "temperature", "stored_energy"):
                     try:
                         y = res.get(label, var)
                     except KeyError:
                         continue
-                    fd = (up.get(label, var) - down.get(label, var)) / (2 * h)
+                    fd = (up.get(label, var) - down.get(label, var)) / width
                     s = res.sensitivity(label, var, key)
-                    small = (1e-4 if thermal else 1e-6) * np.max(np.abs(y)) / abs(value)
+                    small = (1e-4 if thermal else 1e-6) * np.max(np.abs(y)) / ref
                     scale = max(np.max(np.abs(fd)), small)
                     assert np.max(np.abs(s - fd)) <= 1e-3 * scale, (key, label, var)
 
@@ -900,16 +923,19 @@ def test_every_constructor_argument_is_differentiable_or_refused():
                     refused += 1
                     continue
                 assert sensitivity._differentiable(compiled, name), (sid, key)
-                h = 1e-5 * abs(value)
-                up, down = sim.run(params={key: value + h}), sim.run(params={key: value - h})
+                # at zero (minor losses K by default): a forward difference
+                ref = abs(value) or 1.0
+                h = 1e-5 * ref
+                up = sim.run(params={key: value + h})
+                down = sim.run(params={key: value - h}) if value else res
                 for label in sim._compiled:
                     for var in ("pressure", "mass", "massflow_a", "temperature"):
                         try:
                             y = res.get(label, var)
                         except KeyError:
                             continue
-                        fd = (up.get(label, var) - down.get(label, var)) / (2 * h)
-                        small = 1e-4 * np.max(np.abs(y)) / abs(value)
+                        fd = (up.get(label, var) - down.get(label, var)) / (2 * h if value else h)
+                        small = 1e-4 * np.max(np.abs(y)) / ref
                         scale = max(np.max(np.abs(fd)), small)
                         s = res.sensitivity(label, var, key)
                         assert np.max(np.abs(s - fd)) <= 1e-3 * scale, (sid, key, label, var)

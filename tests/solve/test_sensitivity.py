@@ -102,7 +102,7 @@ def test_a_sensitivity_to_a_choice_names_it_and_lists_the_numbers(key, given):
     key and listing the component's numeric parameters."""
     sim = sf.Simulation(_hysteretic_scene(), duration=0.01)
     numbers = {"act": "initial_volume, meet_tolerance$",
-               "tube": "length, diameter, roughness, Re_laminar, Re_turbulent$"}[key.split(".")[0]]
+               "tube": "length, diameter, roughness, Re_laminar, Re_turbulent, K$"}[key.split(".")[0]]
     with pytest.raises(NetworkError, match=rf"sensitivities\['{key}'\].*is not a number "
                                            rf"\({given}.*not differentiable.*are {numbers}"):
         sim.run(sensitivities=[key])

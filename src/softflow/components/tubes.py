@@ -62,7 +62,10 @@ def laminar_conductance(fluid, length, diameter, pressure):
 def set_tube_coefficients(P):
     """Laminar/turbulent law coefficients of a group of tubes (or tube-like valves)
     on its Params namespace: Re = |mdot| re_per_mf, dp = c_mu/rho (f Re) mdot,
-    with mu at 1 atm."""
+    with mu at 1 atm; the minor losses K of tubes that state them (``P.K``) as
+    ``P.kre`` = K D / L, the term kre·Re they add to f Re
+    (:func:`softflow.laws.tube.friction_law`), zero for the tube-like valves,
+    and ``P.minor``, whether any is nonzero."""
     P.area = np.pi * P.diameter ** 2 / 4.0
     P.eD = P.roughness / P.diameter
     P.mu = P.fluid.viscosity(np.full(P.n, pressure_atmospheric))
@@ -70,6 +73,9 @@ def set_tube_coefficients(P):
     P.Re_hi = float(P.Re_turbulent[0])
     P.re_per_mf = P.diameter / (P.mu * P.area)
     P.c_mu = P.mu * P.length / (2.0 * P.area * P.diameter ** 2)
+    K = getattr(P, "K", None)
+    P.kre = np.zeros(P.n) if K is None else K * P.diameter / P.length
+    P.minor = bool(np.any(P.kre > 0.0))
 
 
 
@@ -157,9 +163,10 @@ def viscosity_log_slope(P, pm, mu):
 
 def _friction_term(P, pa, mf, pb, jac):
     """The friction term Phi = c_mu (f Re) mf of a group of tubes (f Re by the
-    group's blended law; for a real fluid mu at the mean pressure, else at
-    1 atm), with the pieces its derivatives need: (Phi, pm, c_mu, mu_ratio,
-    Re, f Re, d(f Re)/dRe)."""
+    group's blended law plus its minor losses kre·Re, as
+    :func:`softflow.laws.tube.friction_law`; for a real fluid mu at the mean
+    pressure, else at 1 atm), with the pieces its derivatives need: (Phi, pm,
+    c_mu, mu_ratio, Re, f Re, d(f Re)/dRe)."""
     pm = 0.5 * (pa + pb)
     re_per_mf, c_mu, mu_ratio = P.re_per_mf, P.c_mu, None
     if P.variable_mu:
@@ -171,6 +178,8 @@ def _friction_term(P, pa, mf, pb, jac):
     else:
         phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent, derivative=jac,
                                 terms=P.friction_terms)
+    if P.minor:
+        phi, dphi = phi + P.kre * Re, (None if dphi is None else dphi + P.kre)
     return c_mu * phi * mf, pm, c_mu, mu_ratio, Re, phi, dphi
 
 
@@ -251,7 +260,8 @@ def gas_pipe_drop(P, pa, mf, pb, jac):
         n = P.n
         out = np.empty((4, n))
         _tube_laws().isothermal_drop_array(P.kind, P.Re_lo, P.Re_hi, pa, mf, pb, P.re_per_mf,
-                                           P.c_mu, P.eD, P.kind_terms, P.area, P.c2, *out)
+                                           P.c_mu, P.eD, P.kind_terms, P.area, P.c2, P.kre,
+                                           *out)
         return (out[0], out[1], out[2], out[3]) if jac else (out[0], None, None, None)
     Phi, pm, c_mu, mu_ratio, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
     if not jac:
@@ -263,16 +273,26 @@ def gas_pipe_drop(P, pa, mf, pb, jac):
 
 def friction_parameter_derivative(P, V, name):
     """(Phi, d(Phi)/d theta, the mean pressure) of a group of tubes' friction term
-    Phi = c_mu (f Re) mf, for a parameter of :data:`TUBE_GEOMETRY` or
-    :data:`BLEND_BOUNDS`: Phi scales as a Darcy pressure drop does (c_mu ∝ L/D^4,
-    Re ∝ 1/D, eD = roughness/D), so both gas laws and the mean-density law
-    take their parameter derivatives from it."""
+    Phi = c_mu (f Re) mf, for a parameter of :data:`TUBE_GEOMETRY`,
+    :data:`BLEND_BOUNDS` or the minor-loss coefficient ``K``: the friction part
+    scales as a Darcy pressure drop does (c_mu ∝ L/D^4, Re ∝ 1/D, eD =
+    roughness/D), the minor losses' part Phi_K = K mf |mf| / (2 A^2) as D^-4
+    and not with L, so both gas laws and the mean-density law take their
+    parameter derivatives from it."""
     pa, mf, pb = V[:, 0], V[:, 1], V[:, 2]
     Phi, pm, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, True)
     if name in BLEND_BOUNDS:
         return Phi, c_mu * mf * friction_bound_derivative(P, Re, name), pm
+    # the minor losses' share of Phi (kre Re of f Re) and of mf dPhi/dmf (2 kre Re)
+    Phi_K = c_mu * P.kre * Re * mf
+    if name == "K":
+        return Phi, c_mu * (P.diameter / P.length) * Re * mf, pm
     d_eD = c_mu * mf * friction_roughness_derivative(P, Re)
-    return Phi, tube_law_derivative(P, name, Phi, mf * c_mu * (phi + Re * dphi), d_eD), pm
+    d = tube_law_derivative(P, name, Phi - Phi_K, mf * c_mu * (phi + Re * dphi) - 2.0 * Phi_K,
+                            d_eD)
+    if name == "diameter":
+        d = d - 4.0 * Phi_K / P.diameter
+    return Phi, d, pm
 
 
 def gas_pipe_parameter_derivative(P, V, name, T_up=None):
@@ -400,10 +420,22 @@ class CircularTube(LibraryComponent):
     inertance : bool, default False
         Add the fluid inertance L/A · d(mdot)/dt (rho L / A per volume flow)
         to the pressure drop, with the mass flow as a state.
+    K : float [-], default 0
+        Minor losses: the sum of the loss coefficients of the tube's entrance,
+        bends and fittings, each referred to the velocity in the bore (a
+        sharp-edged entrance about 0.5, a well-rounded one 0.04; Crane
+        TP-410, Idelchik). K is added to f L/D in every law (the Darcy law of
+        a liquid gains K rho u^2/2; the gas laws' friction term K G^2/2, the
+        practice of Crane TP-410 for compressible flow), with K constant in
+        Re (loss coefficients grow at low Reynolds numbers: below ~10^3 take
+        K from data at the flow's Re). Leave out the exit's loss for a gas
+        with the pipe-flow law, which already loses the exit's dynamic
+        pressure in the volume downstream; the liquid's Darcy law has no
+        entrance or exit loss of its own (an exit into a volume is K = 1).
     """
 
     terminal_spec = (("a", FLUID_PORT), ("b", FLUID_PORT))
-    param_names = ("length", "diameter", "roughness", "Re_laminar", "Re_turbulent")
+    param_names = ("length", "diameter", "roughness", "Re_laminar", "Re_turbulent", "K")
     # V = [p_a, mf_a, p_b, mf_b]; eq 0: mass balance, eq 1: pressure drop
     jac_pattern = ((0, 1), (0, 3), (1, 0), (1, 1), (1, 2))
 
@@ -415,9 +447,11 @@ class CircularTube(LibraryComponent):
     def __init__(self, label: str, fluid: Fluid, length: Scalar, diameter: Scalar,
                  roughness: Scalar = 1.5e-6, Re_laminar: float = 2300.0,
                  Re_turbulent: float = 4000.0, *, friction: str = "Haaland",
-                 compressible: str = "pipe_flow", inertance: bool = False) -> None:
+                 compressible: str = "pipe_flow", inertance: bool = False,
+                 K: float = 0.0) -> None:
         super().__init__(label, fluid=None)
         set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
+        self.K = self._si(K, "", "K", nonnegative=True)
         try:
             self.friction = resolve_friction(friction)
         except KeyError as err:
@@ -459,7 +493,7 @@ class CircularTube(LibraryComponent):
         # one product, 0.3 us against 2.2 us for the general path, measured)
         P.lin_map = None
         # (not for a subclass with its own pressure-drop law)
-        if (P.c_per_rho is not None and not P.isothermal
+        if (P.c_per_rho is not None and not P.isothermal and not P.minor
                 and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__):
             P.lin_map = np.array([[0.0, 1.0], [1.0, 0.0], [0.0, -1.0], [1.0, 0.0]])
             P.lam_map = P.lin_map.copy()
@@ -506,7 +540,7 @@ class CircularTube(LibraryComponent):
         if P.kind is not None:
             dp, d_mf = np.empty(P.n), np.empty(P.n)
             _tube_laws().darcy_drop_array(P.kind, P.Re_lo, P.Re_hi, mf, P.re_per_mf, P.kind_c,
-                                          P.eD, P.kind_terms, dp, d_mf)
+                                          P.eD, P.kind_terms, P.kre, dp, d_mf)
             return (dp, 0.0, d_mf, 0.0) if jac else (dp, None, None, None)
         if P.compressible or P.variable_mu:
             pm = 0.5 * (pa + pb)
@@ -524,7 +558,10 @@ class CircularTube(LibraryComponent):
         # ~0.8 us for a max); the max decides when the sum exceeds Re_lo. Large
         # groups skip the dot: OpenBLAS threads it, which is slow on a loaded machine.
         # One tube compares its Reynolds number itself
-        if P.turbulent is None:
+        if P.minor:
+            laminar = False      # f Re = 64 + kre Re: not the constant below
+            Re = abs_mf * re_per_mf
+        elif P.turbulent is None:
             laminar = True
         elif P.n == 1:
             Re = abs_mf * re_per_mf
@@ -536,10 +573,14 @@ class CircularTube(LibraryComponent):
                 laminar = Re.max() <= P.Re_lo
         if laminar:
             phi, dphi = 64.0, None
+        elif P.turbulent is None:         # 'laminar' with minor losses
+            phi, dphi = 64.0 + P.kre * Re, P.kre
         else:
             # without jac, the value alone (the same arithmetic)
             phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent, derivative=jac,
                                     terms=P.friction_terms)
+            if P.minor:
+                phi, dphi = phi + P.kre * Re, (0.0 if dphi is None else dphi) + P.kre
         # a liquid at constant viscosity: c_mu / rho is a constant of the group,
         # and so is c·64 when all flow is laminar (the same product, made once)
         c = P.c_per_rho if P.c_per_rho is not None else c_mu / rho
@@ -572,7 +613,7 @@ class CircularTube(LibraryComponent):
             out = np.empty((5, P.n))
             _tube_laws().adiabatic_drop_array(P.kind, P.Re_lo, P.Re_hi, pa, mf, pb, T_up,
                                               P.re_per_mf, P.c_mu, P.eD, P.kind_terms, P.area,
-                                              P.R_gas, P.gamma, *out)
+                                              P.R_gas, P.gamma, P.kre, *out)
             return tuple(out) if jac else (out[0], None, None, None, None)
         Phi, _, c_mu, _, Re, phi, dphi = _friction_term(P, pa, mf, pb, jac)
         return adiabatic_drop(P, pa, mf, pb, T_up, Phi,
@@ -588,8 +629,7 @@ class CircularTube(LibraryComponent):
     def thermal_drop_parameter_derivative(cls, P, V, T_up, name):
         """d(p_a - p_b required)/d theta of :meth:`thermal_drop`; None where that
         law is not the adiabatic one or states no derivative for ``name``."""
-        if (P.R_gas is None or not cls._own_law() or (name not in BLEND_BOUNDS and (
-                name not in TUBE_GEOMETRY or isinstance(P.turbulent, FrictionTable)))):
+        if P.R_gas is None or not cls._own_law() or not cls._has_derivative(P, name):
             return None
         return gas_pipe_parameter_derivative(P, V, name, T_up)
 
@@ -626,7 +666,7 @@ class CircularTube(LibraryComponent):
             F = np.empty((P.n, 2))
             J = np.empty((P.n, 5)) if jac else _NO_JACOBIAN
             _tube_laws().residual(P.kind, P.Re_lo, P.Re_hi, V, P.re_per_mf, P.kind_c, P.eD,
-                                  P.kind_terms, P.area, P.kind_c2, F, J, jac)
+                                  P.kind_terms, P.area, P.kind_c2, P.kre, F, J, jac)
             return F, (J if jac else None)
         if P.one is not None:
             # one tube: the same law on NumPy scalars (see make_params)
@@ -652,16 +692,23 @@ class CircularTube(LibraryComponent):
         return F, J
 
 
+    @staticmethod
+    def _has_derivative(P, name):
+        """Whether the law states d/d ``name``: the blend's bounds, the minor
+        losses K, and the geometry where the friction correlation is analytic
+        (a tabulated one is made for the roughness; its table starts at
+        Re_laminar, which the bounds' derivative leaves out: the table
+        interpolates the same correlation)."""
+        return name in BLEND_BOUNDS or name == "K" or (
+            name in TUBE_GEOMETRY and not isinstance(P.turbulent, FrictionTable))
+
     @classmethod
     def drop_parameter_derivative(cls, P, V, name):
         """d(p_a - p_b required)/d theta of the group's pressure-drop law for a
-        parameter of :data:`TUBE_GEOMETRY` or :data:`BLEND_BOUNDS` (each instance's
-        own bound moved: its row depends on its own law alone); None for others
-        and, for the geometry, for a tabulated friction correlation (made for the
-        roughness; its table starts at Re_laminar, which the bounds' derivative
-        leaves out: the table interpolates the same correlation)."""
-        if name not in BLEND_BOUNDS and (name not in TUBE_GEOMETRY
-                                         or isinstance(P.turbulent, FrictionTable)):
+        parameter of :data:`TUBE_GEOMETRY`, :data:`BLEND_BOUNDS` (each instance's
+        own bound moved: its row depends on its own law alone) or the minor
+        losses ``K``; None for others (see :meth:`_has_derivative`)."""
+        if not cls._has_derivative(P, name):
             return None
         if P.isothermal:
             return gas_pipe_parameter_derivative(P, V, name)
@@ -672,7 +719,7 @@ class CircularTube(LibraryComponent):
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta (n, 2), dr/d theta (n, 0)) for length, diameter, roughness,
-        Re_laminar, Re_turbulent; None for other parameters (see :func:`softflow.solve.discretize.param_step_derivative`)."""
+        Re_laminar, Re_turbulent, K; None for other parameters (see :func:`softflow.solve.discretize.param_step_derivative`)."""
         d = cls.drop_parameter_derivative(P, V, name)
         if d is None:
             return None
@@ -725,8 +772,8 @@ class InertialCircularTube(CircularTube):
     @classmethod
     def param_jacobian(cls, P, V, S, t, name):
         """(dF/d theta (n, 2) = 0, dr/d theta (n, 1)) of the flow's rate
-        dq/dt = A/L (p_a - p_b - dp_friction) for length, diameter, roughness and
-        the blend's bounds."""
+        dq/dt = A/L (p_a - p_b - dp_friction) for length, diameter, roughness,
+        the blend's bounds and K."""
         d = cls.drop_parameter_derivative(P, V, name)
         if d is None:
             return None

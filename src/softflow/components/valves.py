@@ -1013,7 +1013,7 @@ class SnappingValve(_TubeLike):
         _tube_laws().adiabatic_drop_array(P.kind, P.Re_lo, P.Re_hi,
                                           *_prepared(n, V[:, 0], V[:, 1], V[:, 2], T_up),
                                           P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area,
-                                          P.R_gas, P.gamma, *out)
+                                          P.R_gas, P.gamma, P.kre, *out)
         return (S[:, 0] > 0.5, *(out if jac else (out[0], None, None, None, None)))
 
     @classmethod

@@ -1,5 +1,5 @@
 """A tube's pressure-drop law, compiled: the blended friction law
-(:mod:`.friction`) feeding isothermal pipe flow (:mod:`.gas_pipe`), adiabatic
+(:mod:`.friction`) with the tube's minor losses (:func:`friction_law`) feeding isothermal pipe flow (:mod:`.gas_pipe`), adiabatic
 pipe flow in thermal scenes (:mod:`.fanno`), or a liquid's Darcy law.
 
 The one evaluation of a group of gas tubes with constant viscosity and an
@@ -16,40 +16,54 @@ from .gas_pipe import isothermal_pipe
 
 
 @jit
-def isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu, eD, a, area, c2):
-    """p_a - p_b required by the flow mf through a gas tube (isothermal pipe
-    flow, the friction term Phi = c_mu (f Re) mf with Re = |mf| re_per_mf),
-    and its partials in p_a, mf, p_b: (dp, d_pa, d_mf, d_pb)."""
-    Re = abs(mf) * re_per_mf
+def friction_law(kind, Re, eD, a, lo, hi, kre):
+    """f·Re of a tube with minor losses, and its derivative in Re: the blended
+    friction law plus the loss coefficient K as K D/L · Re (``kre`` = K D / L),
+    which is K added to f L/D, the practice of Crane TP-410 for incompressible
+    and compressible pipe flow alike (the friction term c_mu (f Re) mf then
+    carries K mf |mf| / (2 A^2))."""
     phi, dphi = fRe_blended(kind, Re, eD, a, lo, hi)
+    return phi + kre * Re, dphi + kre
+
+
+@jit
+def isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu, eD, a, area, c2, kre):
+    """p_a - p_b required by the flow mf through a gas tube (isothermal pipe
+    flow, the friction term Phi = c_mu (f Re) mf with Re = |mf| re_per_mf and
+    f Re with the minor losses ``kre`` of :func:`friction_law`), and its
+    partials in p_a, mf, p_b: (dp, d_pa, d_mf, d_pb)."""
+    Re = abs(mf) * re_per_mf
+    phi, dphi = friction_law(kind, Re, eD, a, lo, hi, kre)
     Phi = c_mu * phi * mf
     R, R_pa, R_mf, R_pb, _, R_phi, _ = isothermal_pipe(pa, mf, pb, area, c2, Phi)
     return (pa - pb) - R, 1.0 - R_pa, -(R_mf + R_phi * c_mu * (phi + Re * dphi)), -1.0 - R_pb
 
 
 @jit
-def isothermal_drop_array(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu, eD, a, area, c2,
+def isothermal_drop_array(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu, eD, a, area, c2, kre,
                           dp, d_pa, d_mf, d_pb):
     for i in range(pa.size):
         dp[i], d_pa[i], d_mf[i], d_pb[i] = isothermal_drop(
             kind, lo, hi, pa[i], mf[i], pb[i], re_per_mf[i], c_mu[i], eD[i], a[i], area[i],
-            c2)
+            c2, kre[i])
 
 
 @jit
-def darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a):
+def darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a, kre):
     """p_a - p_b required by the flow mf through a tube of a liquid of constant
-    density and viscosity (the Darcy law, c = c_mu/rho), and its partial in
-    mf: (dp, d_mf); the pressures do not enter."""
+    density and viscosity (the Darcy law, c = c_mu/rho, minor losses ``kre``
+    as in :func:`friction_law`), and its partial in mf: (dp, d_mf); the
+    pressures do not enter."""
     Re = abs(mf) * re_per_mf
-    phi, dphi = fRe_blended(kind, Re, eD, a, lo, hi)
+    phi, dphi = friction_law(kind, Re, eD, a, lo, hi, kre)
     return c * phi * mf, c * (phi + Re * dphi)
 
 
 @jit
-def darcy_drop_array(kind, lo, hi, mf, re_per_mf, c, eD, a, dp, d_mf):
+def darcy_drop_array(kind, lo, hi, mf, re_per_mf, c, eD, a, kre, dp, d_mf):
     for i in range(mf.size):
-        dp[i], d_mf[i] = darcy_drop(kind, lo, hi, mf[i], re_per_mf[i], c[i], eD[i], a[i])
+        dp[i], d_mf[i] = darcy_drop(kind, lo, hi, mf[i], re_per_mf[i], c[i], eD[i], a[i],
+                                    kre[i])
 
 
 @jit
@@ -69,35 +83,36 @@ def two_port_row(i, V, f1, j_pa, j_mf, j_pb, F, J, jac):
 
 
 @jit
-def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, F, J, jac):
+def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, kre, F, J, jac):
     """A group of tubes' residual F (n, 2) (mass balance; p_a - p_b minus the
     required drop) and, with ``jac``, its nonzeros J (n, 5) in the tube's
     pattern, from V = [p_a, mf_a, p_b, mf_b] (n, 4): isothermal pipe flow of
     an ideal gas (c2 > 0; c = c_mu) or the Darcy law of a liquid (c2 = 0;
-    c = c_mu/rho)."""
+    c = c_mu/rho), with the minor losses ``kre`` (:func:`friction_law`)."""
     for i in range(V.shape[0]):
         pa, mf, pb = V[i, 0], V[i, 1], V[i, 2]
         if c2 > 0.0:
             dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf[i],
-                                                   c[i], eD[i], a[i], area[i], c2)
+                                                   c[i], eD[i], a[i], area[i], c2, kre[i])
         else:
-            dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf[i], c[i], eD[i], a[i])
+            dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf[i], c[i], eD[i], a[i], kre[i])
             d_pa = d_pb = 0.0
         two_port_row(i, V, (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb, F, J, jac)
 
 
 @jit
 def adiabatic_drop_array(kind, lo, hi, pa, mf, pb, T_up, re_per_mf, c_mu, eD, a, area, R, gamma,
-                         dp, d_pa, d_mf, d_pb, d_T):
+                         kre, dp, d_pa, d_mf, d_pb, d_T):
     """p_a - p_b required by the flow mf through gas tubes in a thermal scene
     (adiabatic pipe flow from the upstream stagnation temperature T_up, the
-    friction term Phi = c_mu (f Re) mf), and its partials in p_a, mf, p_b and
-    T_up, into the output arrays."""
+    friction term Phi = c_mu (f Re) mf, minor losses ``kre`` as in
+    :func:`friction_law`), and its partials in p_a, mf, p_b and T_up, into the
+    output arrays."""
     gas = gas_constants(gamma)
     for i in range(pa.size):
         m = mf[i]
         Re = abs(m) * re_per_mf[i]
-        phi, dphi = fRe_blended(kind, Re, eD[i], a[i], lo, hi)
+        phi, dphi = friction_law(kind, Re, eD[i], a[i], lo, hi, kre[i])
         r = adiabatic_pipe_gas(pa[i], m, pb[i], T_up[i], area[i], R, gas, c_mu[i] * phi * m)
         dp[i] = (pa[i] - pb[i]) - r[0]
         d_pa[i] = 1.0 - r[1]

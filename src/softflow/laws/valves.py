@@ -243,7 +243,7 @@ def snapping_residual(kind, lo, hi, V, S, re_per_mf, c_mu, eD, a, area, conducta
         is_open = S[i, 0] > 0.5
         if is_open and c2 > 0.0:
             dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf[i],
-                                                   c_mu[i], eD[i], a[i], area[i], c2)
+                                                   c_mu[i], eD[i], a[i], area[i], c2, 0.0)
             f1, j_pa, j_mf, j_pb = (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb
         else:
             if given:
