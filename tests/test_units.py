@@ -238,3 +238,32 @@ def test_simulation_step_quantity():
 def test_simulation_duration_wrong_dimension():
     with pytest.raises(sf.UnitError, match=re.escape("Simulation: duration expects a time")):
         sf.Simulation(_rc_system(), duration=sf.Q_(1, "m"))
+
+
+def test_the_registry_cache_is_used_and_a_broken_one_is_built_around(tmp_path):
+    """pint's parsed definitions are cached in the user's cache directory
+    (XDG_CACHE_HOME here); a truncated cache file (pint writes in place: a
+    process may read one still being written) and an unwritable cache
+    directory each give the registry built without the cache, the same units."""
+    import os
+    import subprocess
+    import sys
+    code = "import softflow as sf; print(sf.Q_(2.5, 'bar').to('Pa').magnitude)"
+
+    def run(cache):
+        env = dict(os.environ, XDG_CACHE_HOME=str(cache))
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, timeout=120)
+        assert out.returncode == 0, out.stderr
+        return float(out.stdout.strip().splitlines()[-1])
+
+    assert run(tmp_path) == 2.5e5
+    pickles = list(tmp_path.rglob("*.pickle"))
+    if not pickles:
+        pytest.skip("pint's cache directory does not follow XDG_CACHE_HOME on this platform")
+    for p in pickles:
+        p.write_bytes(p.read_bytes()[:100])
+    assert run(tmp_path) == 2.5e5
+    blocked = tmp_path / "a_file"
+    blocked.write_text("not a directory")
+    assert run(blocked) == 2.5e5

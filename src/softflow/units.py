@@ -11,7 +11,21 @@ from typing import Any
 import numpy as np
 import pint
 
-ureg: pint.UnitRegistry = pint.UnitRegistry()
+
+def _registry() -> pint.UnitRegistry:
+    """pint's registry with its parsed unit definitions cached on disk by pint
+    itself (``cache_folder=':auto:'``, the user's cache directory): parsing
+    them costs each process ~0.12 s of CPU, loading the cache ~0.01 s. Where
+    the cache cannot be written or read (no writable home, a cache file
+    another process is still writing: pint writes in place), the registry is
+    built without it, as before."""
+    try:
+        return pint.UnitRegistry(cache_folder=":auto:")
+    except Exception:       # OSError, a truncated pickle (EOFError, UnpicklingError), ...
+        return pint.UnitRegistry()
+
+
+ureg: pint.UnitRegistry = _registry()
 Q_ = ureg.Quantity
 
 #: SI unit of each physical quantity name used by Variables and results.

@@ -22,7 +22,6 @@ import functools
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..constants import pressure_atmospheric
 from ..curves.hysteresis import HysteresisLoop
@@ -559,6 +558,7 @@ def volume_at_pressure(curve, pressure):
         return v[-1] + (pressure - p[-1]) / s[-1] if s[-1] > 0 else None
     if p[i] == pressure:
         return float(v[i])
+    from scipy.optimize import brentq     # lazy: scipy.optimize costs a process ~0.5 s
     return brentq(lambda x: float(curve(x)) - pressure, v[i - 1], v[i],
                   xtol=1e-13 * (v[i] - v[i - 1]), rtol=1e-14)
 
