@@ -26,6 +26,7 @@ from ..fluids.base import FluidError
 from ..network.system import NetworkError
 from .compiled import function
 from .discretize import step_functions
+from .netcore import compiled_residual
 from .userkernel import UserKernel
 from .validity import ComponentError, user_code_error
 
@@ -164,6 +165,7 @@ class Group:
         self.regime = None  # regime(V): the piece of a piecewise law each instance is on
         self.kinks = None  # kinks(V): the side of the law's kinks each instance is on
         self.row = None    # a single user component's kernel (1-D calls), or None
+        self.cls = self.params = None   # a library group's class and Params
         self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
         self.col = None  # (n, nv) global unknown index of each interface variable
         self.r0 = self.r1 = self.s0 = self.s1 = self.j0 = self.j1 = 0
@@ -198,7 +200,7 @@ def _fluid_failure(g, err):
 #: What _library_group makes of a class's Params: Assembly.replace takes all of
 #: them from a group made anew (one left behind would keep the old numbers).
 _FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold", "regime",
-                "kinks")
+                "kinks", "cls", "params")
 
 
 def _library_group(cls, comps):
@@ -213,6 +215,7 @@ def _library_group(cls, comps):
     g = Group(comps, kernel=kernel, update=update,
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
+    g.cls, g.params = cls, P      # the compiled network residual reads them (netcore)
     g.affine = cls.affine(P)
     sw = getattr(cls, "switching", None)
     if sw is not None and cls.discrete_states:
@@ -1007,8 +1010,14 @@ class Assembly:
             inc = np.zeros((nr, self.n))
             np.add.at(inc, (self.through_rows, self.through_cols), 1.0)
             self._incidence = inc
+        self.__dict__.pop("residual", None)
         if len(self.groups) <= UNROLL_MAX_GROUPS:
             self.residual = self._unrolled_residual()
+        # the per-group path, kept for comparison where the compiled one serves
+        self.python_residual = self.residual
+        compiled = compiled_residual(self, self._failure_env())
+        if compiled is not None:
+            self.residual = compiled
         self._regime_plan = [(g.regime, g.col) for g in self.groups if g.regime is not None]
         self._kink_plan = [(g.kinks, g.col) for g in self.groups if g.kinks is not None]
 

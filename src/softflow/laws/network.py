@@ -1,0 +1,157 @@
+"""A network's step equations in one compiled pass: the loop over its groups.
+
+The assembly (:mod:`softflow.solve.assembly`) describes each group of
+components by integers and floats; this loop evaluates the node rows (the
+sum of the through variables at each node) and then each group by its class
+id, calling the same compiled laws the groups call one at a time
+(:mod:`.tube`, :mod:`.volumes`), with the step's states X = psi + c·r(V)
+formed as :mod:`softflow.solve.discretize` forms them. It replaces a Python
+call and its NumPy glue per group and per evaluation; what it covers is listed
+in :data:`softflow.solve.netcore` (the rest of the library, user components
+and real fluids keep the per-group path).
+
+Layout. ``groups`` holds one row per group (:data:`GROUP_FIELDS`): its class
+id, its size n, its number of interface variables nv, the offset of its
+columns in ``cols`` (n·nv global indices of its variables, instance by
+instance), the offsets of its states in S, of its rows in F and of its
+Jacobian entries in ``raw`` (n·neq rows and n·nj entries, instance by
+instance, each in the class's ``jac_pattern`` order), the offset of its
+floats in ``fpar`` (group constants first, then a fixed number per
+instance), an integer option (a friction correlation's id, a fluid's kind)
+and the offset of its time-dependent values in ``u`` (source values, set
+before each call by the caller). Settings come in as arguments, never as
+globals (numba freezes globals into its cache).
+"""
+from __future__ import annotations
+
+from . import jit
+from .tube import darcy_drop, isothermal_drop
+from .volumes import compliant_mass, density, rigid_mass
+
+#: class ids
+PRESSURE_SOURCE, MASS_FLOW_SOURCE, VOLUME_FLOW_SOURCE = 1, 2, 3
+TUBE, RIGID_GAS, RIGID_LIQUID, ACCUMULATOR = 4, 5, 6, 7
+
+#: the columns of a row of ``groups``
+GROUP_FIELDS = ("cls", "n", "nv", "col", "s0", "r0", "neq", "j0", "nj", "f0", "option", "u0")
+CLS, N, NV, COL, S0, R0, NEQ, J0, NJ, F0, OPTION, U0 = range(12)
+
+#: floats per instance (after the group's own) of the classes that take them
+TUBE_FLOATS = 6            # re_per_mf, c, eD, a, area, kre; group: Re_lo, Re_hi, c2
+TUBE_GROUP_FLOATS = 3
+
+
+@jit
+def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, fpar, u):
+    """F(x) of the network's step equations (states S = psi, step coefficient
+    dt = c) into F, and with ``jac`` the Jacobian's entries into ``raw``."""
+    for k in range(n_node_rows):
+        F[k] = 0.0
+    for k in range(trows.size):
+        F[trows[k]] += x[tcols[k]]
+    for g in range(groups.shape[0]):
+        cls = groups[g, CLS]
+        if cls == TUBE:
+            _tube(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == PRESSURE_SOURCE or cls == MASS_FLOW_SOURCE:
+            _source(x, F, raw, jac, groups[g], cols, u, cls == PRESSURE_SOURCE)
+        elif cls == VOLUME_FLOW_SOURCE:
+            _volume_flow_source(x, F, raw, jac, groups[g], cols, fpar, u)
+        elif cls == RIGID_GAS or cls == ACCUMULATOR:
+            _volume(x, S, dt, F, raw, jac, groups[g], cols, fpar, cls == ACCUMULATOR)
+        elif cls == RIGID_LIQUID:
+            _rigid_liquid(x, S, dt, F, raw, jac, groups[g], cols)
+
+
+@jit
+def _source(x, F, raw, jac, gr, cols, u, pressure):
+    """F = p - value (a pressure source) or mf + value (a flow source), dF = 1."""
+    n, c0, r0, j0, u0 = gr[N], gr[COL], gr[R0], gr[J0], gr[U0]
+    for i in range(n):
+        if pressure:
+            F[r0 + i] = x[cols[c0 + 2 * i]] - u[u0 + i]
+        else:
+            F[r0 + i] = x[cols[c0 + 2 * i + 1]] + u[u0 + i]
+        if jac:
+            raw[j0 + i] = 1.0
+
+
+@jit
+def _volume_flow_source(x, F, raw, jac, gr, cols, fpar, u):
+    """F = mf + rho(p) q, the density by the fluid kind ``option`` (constant
+    ``fpar[f0]``); entries (dF/dp, dF/dmf)."""
+    n, c0, r0, j0, u0 = gr[N], gr[COL], gr[R0], gr[J0], gr[U0]
+    kind, c = gr[OPTION], fpar[gr[F0]]
+    for i in range(n):
+        p = x[cols[c0 + 2 * i]]
+        q = u[u0 + i]
+        rho, rho_p = density(kind, c, p)
+        F[r0 + i] = x[cols[c0 + 2 * i + 1]] + rho * q
+        if jac:
+            raw[j0 + 2 * i] = rho_p * q
+            raw[j0 + 2 * i + 1] = 1.0
+
+
+@jit
+def _tube(x, F, raw, jac, gr, cols, fpar):
+    """A group of tubes (:func:`.tube.residual`: isothermal pipe flow of an
+    ideal gas where c2 > 0, else the Darcy law of a liquid), correlation id
+    ``option``."""
+    n, c0, r0, j0, f0 = gr[N], gr[COL], gr[R0], gr[J0], gr[F0]
+    kind = gr[OPTION]
+    lo, hi, c2 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
+    for i in range(n):
+        k = c0 + 4 * i
+        pa, mfa, pb, mfb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]], x[cols[k + 3]]
+        f = f0 + TUBE_GROUP_FLOATS + TUBE_FLOATS * i
+        re_per_mf, c, eD, a, area, kre = (fpar[f], fpar[f + 1], fpar[f + 2], fpar[f + 3],
+                                          fpar[f + 4], fpar[f + 5])
+        if c2 > 0.0:
+            dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mfa, pb, re_per_mf, c, eD,
+                                                   a, area, c2, kre)
+        else:
+            dp, d_mf = darcy_drop(kind, lo, hi, mfa, re_per_mf, c, eD, a, kre)
+            d_pa = d_pb = 0.0
+        F[r0 + 2 * i] = mfa + mfb
+        F[r0 + 2 * i + 1] = (pa - pb) - dp
+        if jac:
+            j = j0 + 5 * i
+            raw[j] = 1.0
+            raw[j + 1] = 1.0
+            raw[j + 2] = 1.0 - d_pa
+            raw[j + 3] = -d_mf
+            raw[j + 4] = -1.0 - d_pb
+
+
+@jit
+def _volume(x, S, dt, F, raw, jac, gr, cols, fpar, compliant):
+    """Rigid volumes of a compressible fluid (F = rho(p) volume - m) or linear
+    accumulators (F = rho(p)(volume + compliance (p - p_ref)) - m), at the
+    step's mass m = psi + c·mdot; entries (dF/dp, dF/dmdot = -c). Floats: the
+    fluid's constant, then volume (and compliance, p_ref) per instance."""
+    n, c0, s0, r0, j0, f0 = gr[N], gr[COL], gr[S0], gr[R0], gr[J0], gr[F0]
+    kind, c = gr[OPTION], fpar[f0]
+    per = 3 if compliant else 1
+    for i in range(n):
+        p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
+        rho, rho_p = density(kind, c, p)
+        f = f0 + 1 + per * i
+        if compliant:
+            m, m_p = compliant_mass(rho, rho_p, p, fpar[f], fpar[f + 1], fpar[f + 2])
+        else:
+            m, m_p = rigid_mass(rho, rho_p, fpar[f])
+        F[r0 + i] = m - (S[s0 + i] + dt * mf)
+        if jac:
+            raw[j0 + 2 * i] = m_p
+            raw[j0 + 2 * i + 1] = -dt
+
+
+@jit
+def _rigid_liquid(x, S, dt, F, raw, jac, gr, cols):
+    """A rigid chamber of liquid admits no flow: F = mdot; entries (0, 1)."""
+    n, c0, r0, j0 = gr[N], gr[COL], gr[R0], gr[J0]
+    for i in range(n):
+        F[r0 + i] = x[cols[c0 + 2 * i + 1]]
+        if jac:
+            raw[j0 + 2 * i] = 0.0
+            raw[j0 + 2 * i + 1] = 1.0

@@ -1,0 +1,130 @@
+"""The network residual as one compiled call (issue 38, the compiled core's
+second step): where every group of a network is of a class the compiled loop
+:func:`softflow.laws.network.residual` covers, the assembly's ``residual``
+is that loop, described once per network by integer and float arrays,
+instead of one Python kernel call (and its NumPy glue) per group.
+
+Covered (isothermal scenes, the classes themselves, not subclasses or
+thermal variants): pressure and mass flow sources; volume flow sources,
+containers and linear accumulators of an ideal gas or a constant-density
+liquid (a rigid container of any liquid); tubes whose law runs as one
+compiled pass (an ideal gas on the pipe-flow law or a liquid of constant
+properties, with an analytic friction correlation: ``P.kind``), without
+inertance. Any other group (valves, actuators, user components, real
+fluids, thermal scenes) keeps the whole network on the per-group path.
+The values are the per-group path's to round-off (tested); time-dependent
+source values are evaluated by their sources in Python before each call.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .._laws import law_module
+from ..fluids.base import FluidError
+
+
+def _covered(g):
+    """(class id, option, group floats, per-instance floats (n, k) or None,
+    values source or None) of a group the compiled loop evaluates, or None."""
+    from ..components.chambers import Container, LinearAccumulator, set_fluid_law
+    from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
+    from ..components.tubes import CircularTube
+    net = law_module("network")
+    cls, P = getattr(g, "cls", None), getattr(g, "params", None)
+    if cls is None or P is None or g.row is not None:
+        return None
+    if cls is PressureSource or cls is MassFlowSource:
+        kind = net.PRESSURE_SOURCE if cls is PressureSource else net.MASS_FLOW_SOURCE
+        return kind, 0, (), None, P
+    if cls is VolumeFlowSource:
+        set_fluid_law(P)
+        if P.rho_kind == 2:
+            return None
+        return net.VOLUME_FLOW_SOURCE, P.rho_kind, (P.rho_c,), None, P
+    if cls is CircularTube:
+        if P.kind is None:
+            return None
+        per = np.column_stack([P.re_per_mf, P.kind_c, P.eD, P.kind_terms, P.area, P.kre])
+        return net.TUBE, P.kind, (P.Re_lo, P.Re_hi, P.kind_c2), per, None
+    if cls is Container:
+        if not P.fluid.compressible:
+            return net.RIGID_LIQUID, 0, (), None, None
+        if P.rho_kind == 2:
+            return None
+        return net.RIGID_GAS, P.rho_kind, (P.rho_c,), P.volume[:, None], None
+    if cls is LinearAccumulator:
+        if P.rho_kind == 2:
+            return None
+        per = np.column_stack([P.volume, P.compliance, P.reference_pressure])
+        return net.ACCUMULATOR, P.rho_kind, (P.rho_c,), per, None
+    return None
+
+
+def compiled_residual(asm, failures):
+    """``residual(x, S, t, dt, jac=False)`` of the assembly ``asm`` as one
+    compiled call, or None where a group is not covered (see the module).
+    ``failures``: the assembly's error wrappers (``PASS``, ``failure``,
+    ``fluid_failure``), which name the source whose signal raised."""
+    covered = [_covered(g) for g in asm.groups]
+    if not asm.groups or any(c is None for c in covered):
+        return None
+    net = law_module("network")
+    rows, cols, fpar, varying = [], [], [], []
+    n_u = 0
+    u_parts = []
+    for g, (cls_id, option, group_floats, per, values) in zip(asm.groups, covered):
+        row = np.zeros(len(net.GROUP_FIELDS), dtype=np.int64)
+        row[net.CLS], row[net.N], row[net.NV] = cls_id, g.n, g.col.shape[1]
+        row[net.COL] = sum(c.size for c in cols)
+        cols.append(np.ascontiguousarray(g.col, dtype=np.int64).ravel())
+        row[net.S0], row[net.R0], row[net.NEQ] = g.s0, g.r0, g.neq
+        row[net.J0], row[net.NJ] = g.j0, len(g.pattern)
+        row[net.F0] = sum(f.size for f in fpar)
+        fpar.append(np.asarray(group_floats, dtype=float))
+        if per is not None:
+            fpar.append(np.ascontiguousarray(per, dtype=float).ravel())
+        row[net.OPTION] = option
+        row[net.U0] = n_u
+        if values is not None:
+            u_parts.append(np.asarray(values.values(0.0), dtype=float).copy())
+            if values._varying:
+                varying.append((values, n_u, n_u + g.n, g))
+            n_u += g.n
+        rows.append(row)
+    groups = np.array(rows, dtype=np.int64)
+    cols = np.concatenate(cols) if cols else np.zeros(0, dtype=np.int64)
+    fpar = np.concatenate(fpar) if fpar else np.zeros(0)
+    u = np.concatenate(u_parts) if u_parts else np.zeros(0)
+    raw, n, nr = asm.raw, asm.n, asm.n_node_rows
+    trows = np.ascontiguousarray(asm.through_rows, dtype=np.int64)
+    tcols = np.ascontiguousarray(asm.through_cols, dtype=np.int64)
+    loop = net.residual
+
+    if varying:
+        passed, failure = failures["PASS"], failures["failure"]
+        fluid_failure = failures["fluid_failure"]
+
+        def residual(x, S, t, dt, jac=False):
+            for P, a, b, g in varying:
+                try:
+                    u[a:b] = P.values(t)
+                except FluidError as err:
+                    raise fluid_failure(g, err) from None
+                except passed:
+                    raise
+                except Exception as err:      # a user's signal: name the source
+                    raise failure(g, err, t)
+            F = np.empty(n)
+            loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups, cols,
+                 fpar, u)
+            return F
+    else:
+        def residual(x, S, t, dt, jac=False):
+            F = np.empty(n)
+            loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups, cols,
+                 fpar, u)
+            return F
+    residual.__doc__ = ("F(x) for states S at the start of the step; with jac, also fills "
+                        "the assembly's raw Jacobian entries (one compiled call: "
+                        "softflow.solve.netcore).")
+    return residual

@@ -1,0 +1,150 @@
+"""The network residual in one compiled call (softflow.solve.netcore,
+softflow.laws.network): where it serves, its F and Jacobian entries are the
+per-group path's to round-off (at random states, steps and times, every
+covered class), whole runs agree, a new parameter value reaches it, and
+networks with a group it does not cover keep the per-group path."""
+from __future__ import annotations
+
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.curves.waveforms import Ramp, Sine
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from scenes import chain  # noqa: E402
+
+P0 = sf.pressure_atmospheric
+
+
+def _mixed(fluid):
+    """Every covered class once at least: a pressure source on a waveform
+    (gauge), tubes of two correlations and with minor losses, a rigid
+    container, a linear accumulator, mass and volume flow sources."""
+    s = sf.System()
+    s += sf.PressureSource("ps", pressure=Sine(0.02, 2e4, 1e4), gauge=True)
+    s += sf.CircularTube("t1", fluid, 0.3, 1e-3)
+    s += sf.CircularTube("t2", fluid, 0.2, 2e-3, friction="Colebrook", K=0.8)
+    s += sf.CircularTube("t3", fluid, 0.5, 1.5e-3)
+    s += sf.Container("c", fluid, 2e-5, initial_pressure=P0 + 5e3)
+    s += sf.LinearAccumulator("acc", fluid, 1e-5, 1e-10)
+    s += sf.MassFlowSource("ms", massflow=Ramp(0.0, 0.05, 0.0, 2e-6))
+    s += sf.VolumeFlowSource("vs", volumeflow=-1e-7, fluid=fluid)
+    s.connect(("t1", "a"), ("ps", "a"))
+    s.connect(("t1", "b"), ("c", "a"))
+    s.connect(("t2", "a"), ("c", "a"))
+    s.connect(("t2", "b"), ("acc", "a"))
+    s.connect(("ms", "a"), ("acc", "a"))
+    s.connect(("t3", "a"), ("c", "a"))
+    s.connect(("t3", "b"), ("vs", "a"))
+    return s
+
+
+SCENES = {
+    "air chain 8": lambda: chain(8),
+    "water chain 3": lambda: chain(3, fluid=sf.water, p_source=P0 + 2e3),
+    "air mixed": lambda: _mixed(sf.air),
+    "water mixed": lambda: _mixed(sf.water),
+}
+
+
+def _sim(name, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        return sf.Simulation(SCENES[name](), duration=0.05, **kw)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_the_compiled_residual_is_the_per_group_one(name):
+    sim = _sim(name)
+    asm = sim.asm
+    assert asm.residual is not asm.python_residual
+    rng = np.random.default_rng(7)
+    x0, S0 = asm.x0, asm.S0
+    for k in range(20):
+        x = x0 * (1.0 + 0.05 * rng.standard_normal(asm.n)) + 1e-6 * rng.standard_normal(asm.n)
+        S = S0 * (1.0 + 0.05 * rng.standard_normal(S0.size))
+        t, dt = float(rng.uniform(0, 0.05)), float(10.0 ** rng.uniform(-6, -2))
+        for jac in (False, True):
+            asm.raw[:] = np.nan
+            F1 = asm.residual(x, S, t, dt, jac)
+            raw1 = asm.raw.copy()
+            asm.raw[:] = np.nan
+            F2 = asm.python_residual(x, S, t, dt, jac)
+            raw2 = asm.raw.copy()
+            # the node rows sum in another order: round-off of their terms
+            scale = np.abs(x).max(initial=1.0) * 1e-14 + 1e-14 * np.abs(F2).max()
+            np.testing.assert_allclose(F1, F2, rtol=1e-13, atol=scale)
+            if jac:
+                np.testing.assert_allclose(raw1, raw2, rtol=1e-13, atol=0.0)
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("step", [None, 1e-3])
+def test_whole_runs_agree_with_the_per_group_path(name, step):
+    """Fixed steps to 1e-10 relative, adaptive within the run's tolerance."""
+    kw = {} if step is None else {"step": step}
+    ours, theirs = _sim(name, **kw), _sim(name, **kw)
+    theirs.asm.residual = theirs.asm.python_residual
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        a, b = ours.run(), theirs.run()
+    assert a.success and b.success
+    for label in ("c", "cont2", "acc"):
+        try:
+            pa, pb = a.get(label, "pressure"), b.get(label, "pressure")
+        except KeyError:
+            continue
+        if step is not None:
+            np.testing.assert_allclose(pa, pb, rtol=1e-10)
+        else:
+            assert abs(pa[-1] - pb[-1]) <= 1e-3 * abs(pb[-1])
+
+
+def test_a_parameter_run_reaches_the_compiled_residual():
+    """run(params=...) rebuilds the groups' numbers: the compiled residual
+    follows (a wider first tube fills the last tank faster), and a later run
+    without params is the first again."""
+    sim = _sim("air chain 8", step=1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        base = sim.run().get("cont7", "pressure")[-1]
+        wide = sim.run(params={"tube0.diameter": 3e-3}).get("cont7", "pressure")[-1]
+        again = sim.run().get("cont7", "pressure")[-1]
+        check = _sim("air chain 8", step=1e-3)
+        check.asm.residual = check.asm.python_residual
+        ref = check.run(params={"tube0.diameter": 3e-3}).get("cont7", "pressure")[-1]
+    assert wide > base
+    assert wide == pytest.approx(ref, rel=1e-10)
+    assert again == base
+    assert sim.asm.residual is not sim.asm.python_residual
+
+
+def _with(extra):
+    s = chain(2)
+    s += extra
+    s.connect(("cont1", "a"), (extra.label, "a"))
+    return s
+
+
+@pytest.mark.parametrize("make, kw", [
+    (lambda: _with(sf.Orifice("o", sf.air, diameter=1e-3, Cd=0.6)), {}),
+    (lambda: _with(sf.CheckValve("cv", sf.air, diameter=1e-3)), {}),
+    (lambda: chain(2, fluid=sf.Fluid("air", level="table")), {}),
+    (lambda: chain(2), {"thermal": "adiabatic"}),
+    (lambda: chain(2, compressible="mean_density"), {}),
+])
+def test_a_network_with_an_uncovered_group_keeps_the_per_group_path(make, kw):
+    s = make()
+    if "o" in [c.label for c in s.components] or "cv" in [c.label for c in s.components]:
+        s += sf.Container("end", sf.air, 1e-5)
+        label = "o" if "o" in [c.label for c in s.components] else "cv"
+        s.connect((label, "b"), ("end", "a"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(s, duration=0.01, **kw)
+    assert sim.asm.residual is sim.asm.python_residual
