@@ -1,6 +1,6 @@
 """The scenes of sf.assess's benchmark (bench_assess.py) and tests
 (tests/test_assess.py): each builder returns (system, duration [s], outputs).
-They span README's "Choosing a model level" table: one or two axes matter in
+They span docs/guide/choosing-a-model.md's "Choosing a model level" table: one or two axes matter in
 each. (The notebook examples/validation/assess.ipynb writes its three out, to
 stand alone.)
 

@@ -1,6 +1,6 @@
 """sf.assess against an exhaustive search (issue 15's targets).
 
-Nine scenes (benchmarks/assess_scenes.py) spanning README's "Choosing a
+Nine scenes (benchmarks/assess_scenes.py) spanning docs/guide/choosing-a-model.md's "Choosing a
 model level" table. For each: an exhaustive search over the axes assess
 decides (thermal: isothermal or the scene's thermal model, adiabatic or heat
 transfer where the volumes have walls, and per volume: wall-less volumes held

@@ -3,8 +3,9 @@
 Sphinx rather than MkDocs: the docstrings are numpydoc (napoleon reads them as
 they are), myst-nb executes the validation notebooks at build time with a
 cache (jupyter-cache: a rebuild runs only the notebooks that changed), MyST's
-``include`` reuses README's sections verbatim instead of a second copy that
-drifts, and ``-W`` turns every warning into an error in CI.
+``include`` makes benchmarks/README.md the benchmarks page without a second copy
+that drifts (the guide pages are written for readers and include no README), and
+``-W`` turns every warning into an error in CI.
 """
 from __future__ import annotations
 

@@ -1,5 +1,11 @@
 """What a wheel carries: the fluid tables and the PEP 561 marker as package data, the
-licence, one version. (Building and installing a wheel is .ci/run's wheel_smoke.)"""
+licence, one version; what each install needs: the demo runs on the runtime
+dependencies alone, and the `dev` extra holds what the tests import. (Building and
+installing a wheel is .ci/run's wheel_smoke.)"""
+import os
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -55,3 +61,75 @@ def test_version_has_one_source(pyproject):
     attr = pyproject["tool"]["setuptools"]["dynamic"]["version"]["attr"]
     assert attr == "softflow.__version__"
     assert sf.__version__.count(".") == 2
+
+
+#: packages of the `dev` extra (and the other extras) that are not runtime
+#: dependencies: the first set-up command, `pip install -e . && softflow demo`,
+#: does not install them, so the demo must not import them
+NOT_RUNTIME = ("pandas", "xarray", "fonsim", "dask", "distributed", "hypothesis", "pytest",
+               "xdist", "nbclient", "nbformat", "ipykernel", "IPython", "mypy", "sksundae",
+               "sphinx", "myst_nb")
+
+_BLOCKING_DEMO = """
+import importlib.machinery
+import sys
+
+blocked = set(sys.argv[1].split(","))
+
+
+class RuntimeOnly:  # finds what the path finder finds, but not what only extras install
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if name.partition(".")[0] in blocked:
+            return None
+        return importlib.machinery.PathFinder.find_spec(name, path, target)
+
+    @staticmethod
+    def invalidate_caches():
+        importlib.machinery.PathFinder.invalidate_caches()
+
+
+sys.meta_path[:] = [RuntimeOnly if f is importlib.machinery.PathFinder else f
+                    for f in sys.meta_path]
+from softflow.cli import main
+code = main(["demo", "--output", "demo.png"])
+imported = sorted(m for m in blocked if m in sys.modules)
+print("imported:", imported)
+sys.exit(code)
+"""
+
+
+def test_the_demo_runs_on_the_runtime_dependencies_alone(tmp_path):
+    """As if only `pip install -e .` had run: every package that only an extra
+    installs is made unimportable, and `softflow demo` still writes its plot."""
+    env = dict(os.environ, MPLBACKEND="Agg",
+               PYTHONPATH=os.pathsep.join([str(PACKAGE.parent),
+                                           os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, "-c", _BLOCKING_DEMO, ",".join(NOT_RUNTIME)],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "imported: []" in done.stdout
+    assert (tmp_path / "demo.png").stat().st_size > 10_000
+
+
+def _names(requirements):
+    return {re.split(r"[\s\[<>=!~;]", r, maxsplit=1)[0].lower().replace("_", "-")
+            for r in requirements}
+
+
+def test_runtime_dependencies_hold_none_of_the_test_stack(pyproject):
+    runtime = _names(pyproject["project"]["dependencies"])
+    extras = pyproject["project"]["optional-dependencies"]
+    dev = _names(extras["dev"])
+    assert {"pytest", "pandas", "xarray", "fonsim"} <= dev
+    assert not runtime & {"pytest", "pytest-xdist", "pandas", "xarray", "fonsim", "dask",
+                          "hypothesis", "mypy", "scikit-sundae"}
+    # every comparison-only package a test imports is in dev: fonsim (tests/fons)
+    tests = Path(__file__).resolve().parent
+    imported = {m for f in tests.rglob("*.py")
+                for m in re.findall(r"^\s*(?:import|from)\s+(fonsim|sksundae)\b",
+                                    f.read_text(), re.M)}
+    imported |= {m for f in tests.rglob("*.py")
+                 for m in re.findall(r"importorskip\(\"(fonsim|sksundae)", f.read_text())}
+    wanted = {"fonsim": "fonsim", "sksundae": "scikit-sundae"}
+    assert {wanted[m] for m in imported} <= dev

@@ -133,7 +133,7 @@ class Actuator(LibraryComponent):
     state ``mass`` and the output ``volume`` [m^3]. Filled with a gas, where
     the curve falls more steeply than the gas expands, the mass it holds
     folds: the adaptive BDF snaps it there to the far volume that holds the
-    same mass (:meth:`fold_pressure`; README, Solver).
+    same mass (:meth:`fold_pressure`; docs/guide/solver.md).
 
     Parameters
     ----------
