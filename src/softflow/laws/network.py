@@ -26,11 +26,15 @@ from __future__ import annotations
 
 from . import jit
 from .tube import darcy_drop, isothermal_drop
+from .orifice import _maximum
+from .valves import check_valve_flow, mean_density, orifice_flow, orifice_upstream
+from .valves import density as valve_density
 from .volumes import compliant_mass, density, rigid_mass
 
 #: class ids
 PRESSURE_SOURCE, MASS_FLOW_SOURCE, VOLUME_FLOW_SOURCE = 1, 2, 3
 TUBE, RIGID_GAS, RIGID_LIQUID, ACCUMULATOR = 4, 5, 6, 7
+ORIFICE, CHECK_VALVE = 8, 9
 
 #: the columns of a row of ``groups``
 GROUP_FIELDS = ("cls", "n", "nv", "col", "s0", "r0", "neq", "j0", "nj", "f0", "option", "u0")
@@ -39,6 +43,10 @@ CLS, N, NV, COL, S0, R0, NEQ, J0, NJ, F0, OPTION, U0 = range(12)
 #: floats per instance (after the group's own) of the classes that take them
 TUBE_FLOATS = 6            # re_per_mf, c, eD, a, area, kre; group: Re_lo, Re_hi, c2
 TUBE_GROUP_FLOATS = 3
+ORIFICE_FLOATS = 9         # K, area, dp_small, gamma, Cd, C, b, m, pr_laminar
+ORIFICE_GROUP_FLOATS = 5   # R T (0: a liquid), rho (a liquid's), T, ISO 6358's rho0, T0
+CHECK_VALVE_FLOATS = 8     # K, Cd, gamma, area, dp_small, cracking, band, leakage
+CHECK_VALVE_GROUP_FLOATS = 2   # R T, rho
 
 
 @jit
@@ -61,6 +69,67 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
             _volume(x, S, dt, F, raw, jac, groups[g], cols, fpar, cls == ACCUMULATOR)
         elif cls == RIGID_LIQUID:
             _rigid_liquid(x, S, dt, F, raw, jac, groups[g], cols)
+        elif cls == ORIFICE:
+            _orifice(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == CHECK_VALVE:
+            _check_valve(x, F, raw, jac, groups[g], cols, fpar)
+
+
+@jit
+def _two_port(x, F, raw, jac, gr, cols, i, f1, j_pa, j_mf, j_pb):
+    """Instance i of a two-port group: rows (mf_a + mf_b, f1) and, with jac,
+    the entries (1, 1, j_pa, j_mf, j_pb) of the two-port pattern
+    (:func:`.tube.two_port_row`)."""
+    c, r, j = gr[COL] + 4 * i, gr[R0] + 2 * i, gr[J0] + 5 * i
+    F[r] = x[cols[c + 1]] + x[cols[c + 3]]
+    F[r + 1] = f1
+    if jac:
+        raw[j] = 1.0
+        raw[j + 1] = 1.0
+        raw[j + 2] = j_pa
+        raw[j + 3] = j_mf
+        raw[j + 4] = j_pb
+
+
+@jit
+def _orifice(x, F, raw, jac, gr, cols, fpar):
+    """A group of orifices (:func:`.valves.orifice_residual`), law ``option``
+    (loss coefficient, nozzle, ISO 6358), densities made here (an ideal gas
+    or a liquid)."""
+    n, c0, f0, model = gr[N], gr[COL], gr[F0], gr[OPTION]
+    RT, rho, T, rho0, T0 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3], fpar[f0 + 4]
+    for i in range(n):
+        k = c0 + 4 * i
+        pa, mf, pb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
+        f = f0 + ORIFICE_GROUP_FLOATS + ORIFICE_FLOATS * i
+        if model == 2:                          # ISO 6358 takes no density
+            r, dr = 0.0, 0.0
+        else:
+            r, dr = valve_density(orifice_upstream(model, pa, pb), RT, rho)
+        q, q_pa, q_pb = orifice_flow(model, pa, pb, r, dr, fpar[f], fpar[f + 1], fpar[f + 2],
+                                     fpar[f + 3], fpar[f + 4], T, fpar[f + 5], fpar[f + 6],
+                                     fpar[f + 7], fpar[f + 8], rho0, T0)
+        _two_port(x, F, raw, jac, gr, cols, i, mf - q, -q_pa, 1.0, -q_pb)
+
+
+@jit
+def _check_valve(x, F, raw, jac, gr, cols, fpar):
+    """A group of check valves (:func:`.valves.check_valve_residual`), the
+    open passage a nozzle where ``option`` is 1."""
+    n, c0, f0 = gr[N], gr[COL], gr[F0]
+    nozzle = gr[OPTION] == 1
+    RT, rho = fpar[f0], fpar[f0 + 1]
+    for i in range(n):
+        k = c0 + 4 * i
+        pa, mf, pb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
+        f = f0 + CHECK_VALVE_GROUP_FLOATS + CHECK_VALVE_FLOATS * i
+        ro, dro = valve_density(_maximum(pa, pb) if nozzle else pa, RT, rho)
+        rm, drm = mean_density(pa, pb, RT, rho)
+        cracking = fpar[f + 5]
+        q, q_pa, q_pb = check_valve_flow(pa, pb, nozzle, ro, dro, rm, drm, fpar[f], fpar[f + 1],
+                                         fpar[f + 2], fpar[f + 3], fpar[f + 4], cracking,
+                                         cracking + fpar[f + 6], fpar[f + 7])
+        _two_port(x, F, raw, jac, gr, cols, i, mf - q, -q_pa, 1.0, -q_pb)
 
 
 @jit

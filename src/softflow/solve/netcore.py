@@ -10,8 +10,10 @@ containers and linear accumulators of an ideal gas or a constant-density
 liquid (a rigid container of any liquid); tubes whose law runs as one
 compiled pass (an ideal gas on the pipe-flow law or a liquid of constant
 properties, with an analytic friction correlation: ``P.kind``), without
-inertance. Any other group (valves, actuators, user components, real
-fluids, thermal scenes) keeps the whole network on the per-group path.
+inertance; orifices (loss coefficient, nozzle, ISO 6358) and check valves of
+an ideal gas or a liquid. Any other group (Tesla and snapping valves,
+actuators, user components, real fluids, thermal scenes) keeps the whole
+network on the per-group path.
 The values are the per-group path's to round-off (tested); time-dependent
 source values are evaluated by their sources in Python before each call.
 """
@@ -29,6 +31,8 @@ def _covered(g):
     from ..components.chambers import Container, LinearAccumulator, set_fluid_law
     from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
     from ..components.tubes import CircularTube
+    from ..components.valves import CheckValve, Orifice
+    from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
     net = law_module("network")
     cls, P = getattr(g, "cls", None), getattr(g, "params", None)
     if cls is None or P is None or g.row is not None:
@@ -52,6 +56,19 @@ def _covered(g):
         if P.rho_kind == 2:
             return None
         return net.RIGID_GAS, P.rho_kind, (P.rho_c,), P.volume[:, None], None
+    if cls is Orifice:
+        if not P.compiled:
+            return None
+        per = np.column_stack([P.K, P.area, P.dp_small, P.gamma, P.Cd, P.C, P.b,
+                               P.subsonic_index, P.pr_laminar])
+        return (net.ORIFICE, P.law, (P.law_RT, P.law_rho, P.T, ISO_6358_RHO0, ISO_6358_T0),
+                per, None)
+    if cls is CheckValve:
+        if not P.compiled:
+            return None
+        per = np.column_stack([P.K, P.Cd, P.gamma, P.area, P.dp_small, P.cracking_pressure,
+                               P.opening_band, P.leakage])
+        return net.CHECK_VALVE, int(bool(P.nozzle)), (P.law_RT, P.law_rho), per, None
     if cls is LinearAccumulator:
         if P.rho_kind == 2:
             return None
