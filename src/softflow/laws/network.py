@@ -27,14 +27,15 @@ from __future__ import annotations
 from . import jit
 from .tube import darcy_drop, isothermal_drop
 from .orifice import _maximum
-from .valves import check_valve_flow, mean_density, orifice_flow, orifice_upstream
+from .valves import (check_valve_flow, friction_term, mean_density, orifice_flow,
+                     orifice_upstream, restrictor_row, tesla_drop)
 from .valves import density as valve_density
 from .volumes import compliant_mass, density, rigid_mass
 
 #: class ids
 PRESSURE_SOURCE, MASS_FLOW_SOURCE, VOLUME_FLOW_SOURCE = 1, 2, 3
 TUBE, RIGID_GAS, RIGID_LIQUID, ACCUMULATOR = 4, 5, 6, 7
-ORIFICE, CHECK_VALVE = 8, 9
+ORIFICE, CHECK_VALVE, TESLA_VALVE, SNAPPING_VALVE, INERTIAL_TUBE = 8, 9, 10, 11, 12
 
 #: the columns of a row of ``groups``
 GROUP_FIELDS = ("cls", "n", "nv", "col", "s0", "r0", "neq", "j0", "nj", "f0", "option", "u0")
@@ -47,6 +48,10 @@ ORIFICE_FLOATS = 9         # K, area, dp_small, gamma, Cd, C, b, m, pr_laminar
 ORIFICE_GROUP_FLOATS = 5   # R T (0: a liquid), rho (a liquid's), T, ISO 6358's rho0, T0
 CHECK_VALVE_FLOATS = 8     # K, Cd, gamma, area, dp_small, cracking, band, leakage
 CHECK_VALVE_GROUP_FLOATS = 2   # R T, rho
+TESLA_FLOATS = 7           # re_per_mf, c_mu, eD, a, area, mf_blend, diodicity
+SNAPPING_FLOATS = 6        # re_per_mf, c_mu, eD, a, area, closed conductance
+VALVE_GROUP_FLOATS = 5     # Re_lo, Re_hi, c2 (p/rho of an ideal gas, else 0), R T, rho
+INERTIAL_FLOATS = 7        # the tube's six, then A/L (1 / (L/A))
 
 
 @jit
@@ -73,6 +78,87 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
             _orifice(x, F, raw, jac, groups[g], cols, fpar)
         elif cls == CHECK_VALVE:
             _check_valve(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == TESLA_VALVE:
+            _tesla_valve(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == SNAPPING_VALVE:
+            _snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar)
+        elif cls == INERTIAL_TUBE:
+            _inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+
+
+@jit
+def _tube_drop(kind, lo, hi, c2, pa, mf, pb, fpar, f):
+    """A tube's required p_a - p_b and its partials (dp, d_pa, d_mf, d_pb) from
+    its six floats at fpar[f:]: isothermal pipe flow of an ideal gas (c2 > 0)
+    or a liquid's Darcy law (:mod:`.tube`)."""
+    re_per_mf, c, eD, a, area, kre = (fpar[f], fpar[f + 1], fpar[f + 2], fpar[f + 3],
+                                      fpar[f + 4], fpar[f + 5])
+    if c2 > 0.0:
+        return isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c, eD, a, area, c2, kre)
+    dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a, kre)
+    return dp, 0.0, d_mf, 0.0
+
+
+@jit
+def _inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar):
+    """A group of tubes with inertance: the flow a state q with rate
+    dq/dt = A/L ((p_a - p_b) - dp(mf)) (dp the tube's law), the rows
+    (mf_a + mf_b, mf_a - q) at q = psi + c·rate, entries in the tube's pattern
+    (the rate's partials times -c, as discretize combines them)."""
+    n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
+    lo, hi, c2 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
+    for i in range(n):
+        k = c0 + 4 * i
+        pa, mfa, pb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
+        f = f0 + TUBE_GROUP_FLOATS + INERTIAL_FLOATS * i
+        dp, d_pa, d_mf, d_pb = _tube_drop(kind, lo, hi, c2, pa, mfa, pb, fpar, f)
+        a_l = fpar[f + 6]
+        q = S[s0 + i] + dt * (a_l * ((pa - pb) - dp))
+        # rows (mass balance, mf_a - q); entries (1, 1, dq/dp_a, 1 - dq/dmf, dq/dp_b)·
+        _two_port(x, F, raw, jac, gr, cols, i, mfa - q, (dt * (a_l * (1.0 - d_pa))) * -1.0,
+                  1.0 + (dt * (-a_l * d_mf)) * -1.0, (dt * (-a_l * (1.0 + d_pb))) * -1.0)
+
+
+@jit
+def _tesla_valve(x, F, raw, jac, gr, cols, fpar):
+    """A group of Tesla valves (:func:`.valves.tesla_residual`)."""
+    n, c0, f0, kind = gr[N], gr[COL], gr[F0], gr[OPTION]
+    lo, hi, c2, rho = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 4]
+    for i in range(n):
+        k = c0 + 4 * i
+        pa, mf, pb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
+        f = f0 + VALVE_GROUP_FLOATS + TESLA_FLOATS * i
+        dp, d_pa, d_mf, d_pb = tesla_drop(kind, lo, hi, pa, mf, pb, fpar[f], fpar[f + 1],
+                                          fpar[f + 2], fpar[f + 3], fpar[f + 4], fpar[f + 5],
+                                          fpar[f + 6], c2, rho, 0.0)
+        _two_port(x, F, raw, jac, gr, cols, i, (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb)
+
+
+@jit
+def _snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
+    """A group of snapping valves (:func:`.valves.snapping_residual`), the
+    mode of each (> 0.5 open) its state at the step's start."""
+    n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
+    lo, hi, c2, RT, rho = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3], fpar[f0 + 4]
+    for i in range(n):
+        k = c0 + 4 * i
+        pa, mf, pb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
+        f = f0 + VALVE_GROUP_FLOATS + SNAPPING_FLOATS * i
+        re_per_mf, c_mu, eD, a = fpar[f], fpar[f + 1], fpar[f + 2], fpar[f + 3]
+        is_open = S[s0 + i] > 0.5
+        if is_open and c2 > 0.0:
+            dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu,
+                                                   eD, a, fpar[f + 4], c2, 0.0)
+            f1, j_pa, j_mf, j_pb = (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb
+        else:
+            r, dr = mean_density(pa, pb, RT, rho)
+            if is_open:
+                X, dX = friction_term(kind, lo, hi, mf, re_per_mf, c_mu, eD, a)
+            else:
+                dX = 1.0 / fpar[f + 5]
+                X = dX * mf
+            f1, j_pa, j_mf, j_pb = restrictor_row(pa, pb, X, dX, r, dr)
+        _two_port(x, F, raw, jac, gr, cols, i, f1, j_pa, j_mf, j_pb)
 
 
 @jit

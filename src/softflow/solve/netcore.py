@@ -9,10 +9,10 @@ thermal variants): pressure and mass flow sources; volume flow sources,
 containers and linear accumulators of an ideal gas or a constant-density
 liquid (a rigid container of any liquid); tubes whose law runs as one
 compiled pass (an ideal gas on the pipe-flow law or a liquid of constant
-properties, with an analytic friction correlation: ``P.kind``), without
-inertance; orifices (loss coefficient, nozzle, ISO 6358) and check valves of
-an ideal gas or a liquid. Any other group (Tesla and snapping valves,
-actuators, user components, real fluids, thermal scenes) keeps the whole
+properties, with an analytic friction correlation: ``P.kind``), with or
+without inertance; orifices (loss coefficient, nozzle, ISO 6358), check,
+Tesla and snapping valves of an ideal gas or a liquid. Any other group
+(actuators, user components, real fluids, thermal scenes) keeps the whole
 network on the per-group path.
 The values are the per-group path's to round-off (tested); time-dependent
 source values are evaluated by their sources in Python before each call.
@@ -30,8 +30,8 @@ def _covered(g):
     values source or None) of a group the compiled loop evaluates, or None."""
     from ..components.chambers import Container, LinearAccumulator, set_fluid_law
     from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
-    from ..components.tubes import CircularTube
-    from ..components.valves import CheckValve, Orifice
+    from ..components.tubes import CircularTube, InertialCircularTube
+    from ..components.valves import CheckValve, Orifice, SnappingValve, TeslaValve
     from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
     net = law_module("network")
     cls, P = getattr(g, "cls", None), getattr(g, "params", None)
@@ -45,11 +45,25 @@ def _covered(g):
         if P.rho_kind == 2:
             return None
         return net.VOLUME_FLOW_SOURCE, P.rho_kind, (P.rho_c,), None, P
-    if cls is CircularTube:
+    if cls is CircularTube or cls is InertialCircularTube:
         if P.kind is None:
             return None
-        per = np.column_stack([P.re_per_mf, P.kind_c, P.eD, P.kind_terms, P.area, P.kre])
-        return net.TUBE, P.kind, (P.Re_lo, P.Re_hi, P.kind_c2), per, None
+        per = [P.re_per_mf, P.kind_c, P.eD, P.kind_terms, P.area, P.kre]
+        if cls is InertialCircularTube:
+            # dq/dt = k (...) with k = 1 / (L/A), as the class's rates make it
+            per.append(1.0 / P.length_per_area)
+        return ((net.TUBE if cls is CircularTube else net.INERTIAL_TUBE), P.kind,
+                (P.Re_lo, P.Re_hi, P.kind_c2), np.column_stack(per), None)
+    if cls is TeslaValve or cls is SnappingValve:
+        if not P.compiled:
+            return None
+        valve = (P.Re_lo, P.Re_hi, P.law_c2, P.law_RT, P.law_rho)
+        if cls is TeslaValve:
+            per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.mf_blend,
+                   P.diodicity]
+            return net.TESLA_VALVE, P.kind, valve, np.column_stack(per), None
+        per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.closed_conductance]
+        return net.SNAPPING_VALVE, P.kind, valve, np.column_stack(per), None
     if cls is Container:
         if not P.fluid.compressible:
             return net.RIGID_LIQUID, 0, (), None, None
