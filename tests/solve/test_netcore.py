@@ -89,6 +89,22 @@ def _valves(fluid):
     return s
 
 
+def _actuators(fluid):
+    """Actuators on a PV curve (one scaled) and a hysteretic actuator, the
+    paper's curves, filled through tubes by a pressure source."""
+    from softflow.paper_scenes import curve_peak_valley, loop_hysteretic
+    s = sf.System()
+    s += sf.PressureSource("ps", pressure=P0 + 2.5e4)
+    s += sf.Actuator("a1", fluid, curve_peak_valley())
+    s += sf.Actuator("a2", fluid, curve_peak_valley(), pressure_scale=1.2)
+    s += sf.HystereticActuator("h", fluid, *loop_hysteretic(), initial_volume=2e-6)
+    for k, end in enumerate(("a1", "a2", "h")):
+        s += sf.CircularTube(f"t{k}", fluid, 0.3, 1e-3)
+        s.connect((f"t{k}", "a"), ("ps", "a"))
+        s.connect((f"t{k}", "b"), (end, "a"))
+    return s
+
+
 SCENES = {
     "air chain 8": lambda: chain(8),
     "water chain 3": lambda: chain(3, fluid=sf.water, p_source=P0 + 2e3),
@@ -96,6 +112,8 @@ SCENES = {
     "water mixed": lambda: _mixed(sf.water),
     "air valves": lambda: _valves(sf.air),
     "water valves": lambda: _valves(sf.water),
+    "air actuators": lambda: _actuators(sf.air),
+    "water actuators": lambda: _actuators(sf.water),
 }
 
 
@@ -141,7 +159,7 @@ def test_whole_runs_agree_with_the_per_group_path(name, step):
         warnings.simplefilter("ignore", sf.ModelWarning)
         a, b = ours.run(), theirs.run()
     assert a.success and b.success
-    for label in ("c", "cont2", "acc", "v1", "v2"):
+    for label in ("c", "cont2", "acc", "v1", "v2", "a1", "a2", "h"):
         try:
             pa, pb = a.get(label, "pressure"), b.get(label, "pressure")
         except KeyError:
@@ -188,8 +206,7 @@ def _with(extra, two_port=False):
 
 
 @pytest.mark.parametrize("make, kw", [
-    (lambda: _with(sf.Actuator("act", sf.air, sf.PVCurve(volume=[1e-6, 2e-6, 4e-6],
-                                                         pressure=[1.0e5, 1.3e5, 1.5e5]))), {}),
+    (lambda: __import__("softflow.demo", fromlist=["paper_system"]).paper_system(), {}),
     (lambda: _with(sf.CheckValve("cv", sf.Fluid("air", level="table"), diameter=1e-3),
                    two_port=True), {}),
     (lambda: chain(2, fluid=sf.Fluid("air", level="table")), {}),
@@ -197,9 +214,40 @@ def _with(extra, two_port=False):
     (lambda: chain(2, compressible="mean_density"), {}),
 ])
 def test_a_network_with_an_uncovered_group_keeps_the_per_group_path(make, kw):
-    """An actuator, a real fluid, a thermal scene, the mean-density law: not
-    (yet) in the compiled loop, so the whole network keeps the per-group path."""
+    """A user component (the paper's actuator), a real fluid, a thermal scene,
+    the mean-density law: not (yet) in the compiled loop, so the whole network
+    keeps the per-group path."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(make(), duration=0.01, **kw)
     assert sim.asm.residual is sim.asm.python_residual
+
+
+def test_a_volume_a_curve_refuses_raises_the_curves_error():
+    """An actuator whose curve does not extrapolate (extrapolate='error'),
+    driven past its data: the compiled loop hands that evaluation to the
+    per-group path, which raises the curve's own error, the same as without
+    the compiled loop."""
+    def build():
+        s = sf.System()
+        s += sf.PressureSource("ps", pressure=P0 + 2e5)
+        s += sf.CircularTube("t", sf.water, 0.3, 1e-3)
+        curve = sf.PVCurve(volume=[1e-6, 2e-6, 3e-6], pressure=[P0, P0 + 2e4, P0 + 3e4],
+                           extrapolate="error")
+        s += sf.Actuator("act", sf.water, curve, initial_volume=1.5e-6)
+        s.connect("t", "ps")
+        s.connect("t", "act")
+        return s
+
+    messages = []
+    for compiled in (True, False):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sim = sf.Simulation(build(), duration=0.5)
+            assert (sim.asm.residual is not sim.asm.python_residual) is True
+            if not compiled:
+                sim.asm.residual = sim.asm.python_residual
+            res = sim.run(raise_on_failure=False)
+        assert not res.success
+        messages.append(res.message)
+    assert "act" in messages[0] and messages[0] == messages[1]

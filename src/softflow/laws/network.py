@@ -30,12 +30,14 @@ from .orifice import _maximum
 from .valves import (check_valve_flow, friction_term, mean_density, orifice_flow,
                      orifice_upstream, restrictor_row, tesla_drop)
 from .valves import density as valve_density
-from .volumes import compliant_mass, density, rigid_mass
+from .volumes import (compliant_mass, curve_law, curve_point, density, on_inflation, refused,
+                      rigid_mass, scaled_curve)
 
 #: class ids
 PRESSURE_SOURCE, MASS_FLOW_SOURCE, VOLUME_FLOW_SOURCE = 1, 2, 3
 TUBE, RIGID_GAS, RIGID_LIQUID, ACCUMULATOR = 4, 5, 6, 7
 ORIFICE, CHECK_VALVE, TESLA_VALVE, SNAPPING_VALVE, INERTIAL_TUBE = 8, 9, 10, 11, 12
+ACTUATOR, HYSTERETIC_ACTUATOR = 13, 14
 
 #: the columns of a row of ``groups``
 GROUP_FIELDS = ("cls", "n", "nv", "col", "s0", "r0", "neq", "j0", "nj", "f0", "option", "u0")
@@ -57,7 +59,10 @@ INERTIAL_FLOATS = 7        # the tube's six, then A/L (1 / (L/A))
 @jit
 def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, fpar, u):
     """F(x) of the network's step equations (states S = psi, step coefficient
-    dt = c) into F, and with ``jac`` the Jacobian's entries into ``raw``."""
+    dt = c) into F, and with ``jac`` the Jacobian's entries into ``raw``.
+    Returns -1, or the index of a group that met a state its law refuses (an
+    actuator's volume beyond a curve that does not extrapolate): the caller
+    evaluates that network on the per-group path, which raises the error."""
     for k in range(n_node_rows):
         F[k] = 0.0
     for k in range(trows.size):
@@ -84,6 +89,76 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
             _snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar)
         elif cls == INERTIAL_TUBE:
             _inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+        elif cls == ACTUATOR:
+            if not _actuator(x, S, dt, F, raw, jac, groups[g], cols, fpar):
+                return g
+        elif cls == HYSTERETIC_ACTUATOR:
+            _hysteretic(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+    return -1
+
+
+@jit
+def _wall_law(F, raw, jac, gr, i, p, rho, rho_p, vol, pc, dpc, dt):
+    """Row and entries of a volume on a PV curve, F = p - p_curve(m / rho(p))
+    at the step's mass (:func:`.volumes.curve_law`): (dF/dp, dF/dmdot = c dF/dm)."""
+    f, d_p, d_m = curve_law(p, rho, rho_p, vol, pc, dpc)
+    F[gr[R0] + i] = f
+    if jac:
+        raw[gr[J0] + 2 * i] = d_p
+        raw[gr[J0] + 2 * i + 1] = (dt * 1.0) * d_m
+
+
+@jit
+def _curve(fpar, at):
+    """A PV curve stored at fpar[at:]: (knots, table, the offset past it), as
+    [n knots, n rows, knots..., table rows of 5...]."""
+    nk, nr = int(fpar[at]), int(fpar[at + 1])
+    k0 = at + 2
+    t0 = k0 + nk
+    return fpar[k0:t0], fpar[t0:t0 + 5 * nr].reshape((nr, 5)), t0 + 5 * nr
+
+
+@jit
+def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar):
+    """A group of actuators on one compiled PV curve
+    (:func:`.volumes.actuator_residual`); floats: the fluid's constant, p_atm,
+    whether scaled, the curve's extrapolation code, the curve, then each one's
+    pressure scale. False where a volume is beyond a curve that refuses it."""
+    n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
+    c, p_atm, scaled, mode = fpar[f0], fpar[f0 + 1], fpar[f0 + 2] > 0.5, int(fpar[f0 + 3])
+    knots, table, end = _curve(fpar, f0 + 4)
+    for i in range(n):
+        p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
+        rho, rho_p = density(kind, c, p)
+        vol = (S[s0 + i] + dt * mf) / rho
+        if refused(mode, knots, vol):
+            return False
+        pc, dpc = curve_point(knots, table, vol)
+        if scaled:
+            pc, dpc = scaled_curve(pc, dpc, fpar[end + i], p_atm)
+        _wall_law(F, raw, jac, gr, i, p, rho, rho_p, vol, pc, dpc, dt)
+    return True
+
+
+@jit
+def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar):
+    """A group of hysteretic actuators on one loop
+    (:func:`.volumes.hysteretic_residual`), states (mass, branch) per
+    instance; floats: the fluid's constant, V_hi, V_lo, then the inflation
+    and deflation curves."""
+    n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
+    c, v_hi, v_lo = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
+    knots_up, table_up, end = _curve(fpar, f0 + 3)
+    knots_down, table_down, _ = _curve(fpar, end)
+    for i in range(n):
+        p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
+        rho, rho_p = density(kind, c, p)
+        vol = (S[s0 + 2 * i] + dt * mf) / rho
+        if on_inflation(vol, S[s0 + 2 * i + 1] > 0.5, v_hi, v_lo):
+            pc, dpc = curve_point(knots_up, table_up, vol)
+        else:
+            pc, dpc = curve_point(knots_down, table_down, vol)
+        _wall_law(F, raw, jac, gr, i, p, rho, rho_p, vol, pc, dpc, dt)
 
 
 @jit

@@ -11,9 +11,12 @@ liquid (a rigid container of any liquid); tubes whose law runs as one
 compiled pass (an ideal gas on the pipe-flow law or a liquid of constant
 properties, with an analytic friction correlation: ``P.kind``), with or
 without inertance; orifices (loss coefficient, nozzle, ISO 6358), check,
-Tesla and snapping valves of an ideal gas or a liquid. Any other group
-(actuators, user components, real fluids, thermal scenes) keeps the whole
-network on the per-group path.
+Tesla and snapping valves of an ideal gas or a liquid; actuators on a
+compiled PV curve and hysteretic actuators on a loop of them. Any other group
+(user components, callable curves, real fluids, thermal scenes) keeps the
+whole network on the per-group path. A state a law refuses (an actuator's
+volume beyond a curve given ``extrapolate='error'``) is evaluated again on
+the per-group path, which raises the law's own error.
 The values are the per-group path's to round-off (tested); time-dependent
 source values are evaluated by their sources in Python before each call.
 """
@@ -28,7 +31,9 @@ from ..fluids.base import FluidError
 def _covered(g):
     """(class id, option, group floats, per-instance floats (n, k) or None,
     values source or None) of a group the compiled loop evaluates, or None."""
+    from ..components.actuators import Actuator, HystereticActuator
     from ..components.chambers import Container, LinearAccumulator, set_fluid_law
+    from ..constants import pressure_atmospheric
     from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
     from ..components.tubes import CircularTube, InertialCircularTube
     from ..components.valves import CheckValve, Orifice, SnappingValve, TeslaValve
@@ -83,12 +88,33 @@ def _covered(g):
         per = np.column_stack([P.K, P.Cd, P.gamma, P.area, P.dp_small, P.cracking_pressure,
                                P.opening_band, P.leakage])
         return net.CHECK_VALVE, int(bool(P.nozzle)), (P.law_RT, P.law_rho), per, None
+    if cls is Actuator:
+        if P.pv is None or P.rho_kind == 2:
+            return None
+        pv = P.pv
+        floats = (P.rho_c, pressure_atmospheric, float(P.scaled), float(pv._mode),
+                  *_curve_floats(pv))
+        return net.ACTUATOR, P.rho_kind, floats, P.pressure_scale[:, None], None
+    if cls is HystereticActuator:
+        if not P.compiled or P.rho_kind == 2:
+            return None
+        loop = P.loop
+        floats = (P.rho_c, loop.volume_high, loop.volume_low,
+                  *_curve_floats(loop.inflation), *_curve_floats(loop.deflation))
+        return net.HYSTERETIC_ACTUATOR, P.rho_kind, floats, None, None
     if cls is LinearAccumulator:
         if P.rho_kind == 2:
             return None
         per = np.column_stack([P.volume, P.compliance, P.reference_pressure])
         return net.ACCUMULATOR, P.rho_kind, (P.rho_c,), per, None
     return None
+
+
+def _curve_floats(curve):
+    """A compiled PV curve as the loop reads it: [knots, rows, knots...,
+    table...] (:func:`softflow.laws.network._curve`)."""
+    knots, table = np.asarray(curve._knots, dtype=float), np.asarray(curve._table, dtype=float)
+    return (float(knots.size), float(table.shape[0]), *knots, *table.ravel())
 
 
 def compiled_residual(asm, failures):
@@ -146,14 +172,16 @@ def compiled_residual(asm, failures):
                 except Exception as err:      # a user's signal: name the source
                     raise failure(g, err, t)
             F = np.empty(n)
-            loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups, cols,
-                 fpar, u)
+            if loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups,
+                    cols, fpar, u) >= 0:
+                return asm.python_residual(x, S, t, dt, jac)    # raises the law's error
             return F
     else:
         def residual(x, S, t, dt, jac=False):
             F = np.empty(n)
-            loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups, cols,
-                 fpar, u)
+            if loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups,
+                    cols, fpar, u) >= 0:
+                return asm.python_residual(x, S, t, dt, jac)    # raises the law's error
             return F
     residual.__doc__ = ("F(x) for states S at the start of the step; with jac, also fills "
                         "the assembly's raw Jacobian entries (one compiled call: "
