@@ -819,8 +819,10 @@ class Assembly:
         label, _ = self.component_of_row(row)
         g, i = self.where[label]
         comp = g.comps[i]
+        # (a tube's minor losses K = 0, the default, are no scale of it)
         params = [f"{name} = {getattr(comp, name):.3g}" for name in _SCALE_PARAMETERS
-                  if isinstance(getattr(comp, name, None), (int, float))]
+                  if isinstance(getattr(comp, name, None), (int, float))
+                  and not (name == "K" and getattr(comp, name) == 0)]
         shown = f" ({', '.join(params)})" if params else ""
         msg = (f"the scale of {comp.describe()}{shown} is extreme relative to the rest of "
                f"the network: {what}. Check its dimensions (units), or leave it out if it "
