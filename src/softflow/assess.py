@@ -444,8 +444,10 @@ class _Assessor:
             # Simulation compiled for them, set to that rtol, not a new one
             sim = self._simulations.get((key, config.thermal))
             if sim is None:
+                # (compared at the steps, refine=1: difference() reads the
+                # points a run returns, which refine='auto' adds inside them)
                 sim = Simulation(self._systems[key], self.duration, thermal=config.thermal,
-                                 rtol=config.rtol, **self.options)
+                                 rtol=config.rtol, **{"refine": 1, **self.options})
                 self._simulations[(key, config.thermal)] = sim
             else:
                 _set_rtol(sim, config.rtol, self.options.get("atol"))

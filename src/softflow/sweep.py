@@ -274,12 +274,19 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
     engine : {'serial', 'processes', 'dask', 'batched'}
         See :mod:`softflow.sweep`.
     times : array_like [s] or Quantity, optional
-        Common time grid, within [0, duration], increasing. Default: the fixed
-        step grid (k·step, and the duration) for fixed-step Simulations, else
-        201 points over the duration. Adaptive runs are interpolated linearly
-        between the run's own steps (so a grid finer than the steps shows
-        straight lines between them; the error-controlled values are those at
-        the steps).
+        Common time grid, within [0, duration], increasing. Default: the
+        Simulation's own ``times=`` where it was built with them, else the
+        fixed step grid (k·step, and the duration) for fixed-step
+        Simulations, else 201 points over the duration. Each run's values at
+        these times come from its integrator's own interpolant
+        (:meth:`softflow.Result.at`: the adaptive BDF's polynomial of the
+        step that covers each time, backward Euler's straight line between
+        its steps), as accurate as the steps themselves, for every engine but
+        one: a batched sweep whose variants keep their own clocks
+        (:mod:`softflow.solve.clocks`, from 64 variants) records their steps
+        alone, and reads them linearly between the steps (``stats['clocks']
+        == 'own'``; engine='processes', or 'batched' with fewer variants,
+        reads the polynomials).
     progress : bool, optional
         A tqdm bar over the variants: None shows it where standard error is a
         terminal, True always, False never.
@@ -361,9 +368,8 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
                 if len(results) != n:
                     raise RuntimeError(f"sweep: the batched engine returned {len(results)} "
                                        f"results for {n} variants")
-                from .solve.batched import sample
                 outcomes = [_outcome(r, outputs, times, v)
-                            for r, v in zip(results, sample(results, outputs, times))]
+                            for r, v in zip(results, _sample(results, outputs, times))]
                 del results
     finally:
         if bar is not None:
@@ -521,6 +527,8 @@ def _outputs(outputs: OutputSpec | Sequence[OutputSpec] | None,
 def _times(sim: Simulation, times: ArrayLike | None) -> Array:
     from .units import to_si
     T = sim.duration
+    if times is None and getattr(sim, "times_requested", None) is not None:
+        return np.asarray(sim.times_requested, dtype=float)
     if times is None:
         if not sim.adaptive:
             # the fixed-step integrator's grid t_k = k * step, ending on the duration
@@ -634,10 +642,36 @@ def _outcome(result: Result, outputs: list[str], times: Array,
     its variants at once), else sampled here, the same way
     (:func:`softflow.solve.batched.sample`)."""
     if values is None:
-        from .solve.batched import sample
-        values = sample([result], outputs, times)[0]
+        values = _sample([result], outputs, times)[0]
     return (result.status, result.message, values,
             [str(w) for w in getattr(result, "warnings", [])])
+
+
+def _sample(results: Sequence[Any], outputs: list[str], times: Array) -> list[Array]:
+    """Each result's ``outputs`` at ``times`` (:func:`softflow.solve.batched.sample`:
+    NaN past the end of a run that stopped early), read from the run's own
+    interpolant where it has one (:meth:`Result.at`; a batch that shares its
+    steps interpolated once for all its variants), else linearly between its
+    points (variants on own clocks)."""
+    from .solve.batched import VariantResult, sample
+    from .solve.result import Result
+    batches: dict[int, Any] = {}
+    dense: list[Any] = []
+    for r in results:
+        if type(r) is VariantResult:
+            held = r._result
+            if r._n is None and getattr(held, "_dense", None) is not None:
+                if id(held) not in batches:
+                    batches[id(held)] = held._at_times(times)
+                at = batches[id(held)]
+                twin = object.__new__(VariantResult)
+                twin.__dict__.update(r.__dict__)
+                twin._result, twin.times = at, at.times
+                r = twin
+        elif isinstance(r, Result) and getattr(r, "_dense", None) is not None:
+            r = r._at_times(times)
+        dense.append(r)
+    return sample(dense, outputs, times)
 
 
 def _run_variant(sim: Simulation, variant: dict[str, Any], outputs: list[str],

@@ -53,6 +53,13 @@ the order and the next step. A step size change re-interpolates the
 difference table onto the new spacing ("quasi-constant step size"), which
 is the Nordsieck-array rescaling in difference form.
 
+Dense output (:mod:`softflow.solve.dense`): every accepted step records the
+recorded columns of its difference table (D_1..D_k, order k, step h), so
+that values between the steps come from the step's own interpolating
+polynomial (``Result.at``, ``Simulation(times=)``, the points of ``refine``),
+each polynomial over its own step only; a step across a law's kink is read
+as the straight line between its ends.
+
 Every restart (t = 0, a declared breakpoint, a discrete-state switch) starts
 at order 1 from the rate at the restart point, found with a tiny backward
 Euler probe, and chooses its first step from the first and second
@@ -76,6 +83,7 @@ import math
 
 import numpy as np
 
+from .dense import DenseRecorder, insert_interior, refine_counts
 from .integrator import Integrator, StepFailure
 from .newton import Outcome, gauge_offsets
 
@@ -237,7 +245,8 @@ class BDF(Integrator):
         self.step_min, self.step_max = step_min, step_max
         self.max_order = max_order
         self.first_step = first_step
-        self.refine = int(refine)      # points recorded per step (_interior)
+        # points recorded per step (finish): an int, or None to choose per step
+        self.refine = None if refine is None else int(refine)
         # a jump declared at the end point: the last step sees its left limit too
         # (else the error test, seeing the new value, would never let it land)
         if any(b == duration for b in breakpoints):
@@ -288,6 +297,17 @@ class BDF(Integrator):
         xi = self.rec.x_index
         self._q_sel = slice(None) if isinstance(xi, int) else xi
         self.rec.keep_integrals()
+        # dense output (softflow.solve.dense): per accepted step the recorded
+        # columns of its difference table, states, unknowns, quadratures
+        ns, n = asm.S0.size, asm.n
+        if isinstance(xi, int):
+            cols, width = None, ns + 2 * n
+        else:
+            si = np.asarray(self.rec.s_index, dtype=np.int64)
+            xi = np.asarray(xi, dtype=np.int64)
+            cols = np.concatenate([si, ns + xi, ns + n + np.arange(xi.size)])
+            width = cols.size
+        self.dense = DenseRecorder(cols, width)
 
     # -- norms ---------------------------------------------------------------------
     def _weights(self, S_a, S_b, x):
@@ -461,6 +481,7 @@ class BDF(Integrator):
     # -- the loop's controller (Integrator.run) --------------------------------------------
     def _setup(self, x, S):
         self._check_affine_updates(x, S)
+        self.dense.point(0.0, len(self.rec.t) - 1)      # the consistent start
         asm = self.asm
         self._disc = asm.s_discrete if asm.has_discrete else None
         ns, n = S.size, x.size
@@ -593,6 +614,7 @@ class BDF(Integrator):
             return None
         self._fold_at = t
         x_far = snapped.x
+        self.dense.point(t, len(self.rec.t))
         self.rec.add(t, x_far, self._point[1], self._Q)
         self._restart_due = True
         self._h_cap = self._fail_cap = math.inf
@@ -750,9 +772,15 @@ class BDF(Integrator):
                 xdot = (1.0 / np.arange(1, k + 1)) @ D[1:k + 1, self._iX] / h
                 self._jump = (x, S, x_new, S_new, psi, c, xdot)
         self._Q = Q_new
-        if self.refine > 1:
-            self._interior(t_new, h, k, S)
-        self.rec.add(t_new, x_new, S_new, Q_new)
+        # a law's kink (a check valve that has just shut) inside the step: the
+        # solution is not smooth there, and the step's polynomial, smooth
+        # through the points before, overshoots it (a shut valve's flow read
+        # negative inside): dense output reads the step as the straight line
+        # between its ends instead (D_0, D_1 of its table)
+        kinked = self._kinks is not None and self._across_kink(x, x_new)
+        rec = self.rec
+        self.dense.step(t_new, h, 1 if kinked else k, len(rec.t), D)
+        rec.add(t_new, x_new, S_new, Q_new)
         if switched and h <= CHATTER_STEP * self.step_min:
             self._chatter += 1
             if self._chatter >= CHATTER_SWITCHES:
@@ -769,8 +797,7 @@ class BDF(Integrator):
         forced = self._forced and FORCED_RESTART and self._passed
         if not self._forced:
             self._passed = True
-        if self._kinks is not None and self._across_kink(x, x_new) and not (
-                self._at_break or switched or forced):
+        if kinked and not (self._at_break or switched or forced):
             # the history from before a kink (a valve that has just shut)
             # extrapolates a smooth trajectory past it: on at order 1, and
             # the order may rise only once k + 1 steps lie past the kink
@@ -823,26 +850,44 @@ class BDF(Integrator):
         self._kink_x, self._kink_at = x_new, now
         return now != before
 
-    def _interior(self, t_new, h, k, S):
-        """Record refine - 1 points evenly inside the step just taken, on the
-        method's own interpolating polynomial: the difference table at the new
-        point, order k (Newton's backward formula, p(t) = D0 + sum_j Dj
-        prod_{m<j} (t - t_new + m h) / ((m + 1) h); as scipy's BDF dense
-        output). Discrete states keep their values at the step's start (a
-        switch takes effect at its end)."""
-        r = self.refine
-        tau = t_new - h + h * np.arange(1, r) / r
-        m = np.arange(k)
-        coef = np.cumprod((tau[:, None] - t_new + m * h) / ((m + 1) * h), axis=1)
-        D = self._D
-        Y = D[0] + coef @ D[1:k + 1]
-        iS, iX, iQ = self._iS, self._iX, self._iQ
-        disc = self._disc
-        for i in range(r - 1):
-            Si = Y[i, iS]
-            if disc is not None:
-                Si[disc] = S[disc]
-            self.rec.add(float(tau[i]), Y[i, iX], Si, Y[i, iQ])
+    def finish(self, t, X, S, Q):
+        """The recorded points (t, X, S, Q: the steps' end points) with the
+        points ``refine`` asks for inside each step, and the run's
+        :class:`~softflow.solve.dense.DenseOutput` on them: (t, X, S, Q,
+        dense). The inside points lie evenly on each step's own polynomial
+        (its difference table; Newton's backward formula, as scipy's BDF
+        dense output), discrete states at their values at the step's start
+        (a switch takes effect at its end): ``refine`` of them per step, or
+        where it is None as many as keep straight lines between them within
+        the run's tolerance of the polynomial (:func:`dense.refine_counts`,
+        weighed as the error test weighs: atol + rtol x the run's largest
+        magnitude of each state, and of each unknown's quantity)."""
+        if not self.dense.t:          # stopped at its consistent start
+            self.dense.point(0.0, 0)
+        dense = self.dense.output(X, S, Q, self._recorded_discrete())
+        if self.refine is None:
+            counts = refine_counts(dense, self._read_weights(S))
+        else:
+            counts = np.full(dense.k.size, self.refine)
+        t, X, S, Q, dense = insert_interior(dense, counts, t, X, S, Q)
+        return t, X, S, Q, dense
+
+    def _read_weights(self, S):
+        """Weights of the recorded states, then unknowns, for reading the
+        result between its points (:meth:`finish`): atol + rtol x the run's
+        largest magnitude of each state (discrete ones: inf), and of each
+        unknown's quantity (as the error test weighs them, :meth:`_weights`)."""
+        si, xi = self.rec.s_index, self.rec.x_index
+        s_sel = slice(None) if isinstance(si, int) else si
+        x_sel = slice(None) if isinstance(xi, int) else xi
+        wS = self._atol_s[s_sel] + self.rtol * (np.abs(S).max(axis=0) if len(S) else 0.0)
+        qmax = self._qmax_run
+        key = self._bq_key if self._n_blocks > 1 else self.asm.q_id
+        if qmax is None or not self.asm.n:
+            wX = np.full(self.asm.n, math.inf)[x_sel]
+        else:
+            wX = (self.atol_x + self.rtol * qmax[key])[x_sel]
+        return np.concatenate([wS, wX])
 
     # -- difference table ------------------------------------------------------------
     @staticmethod

@@ -58,6 +58,7 @@ import numpy as np
 
 from ..fluids.base import FluidError
 from . import sourcenodes
+from .dense import DenseOutput
 from .linalg import make_linear_solver
 from .newton import StepLimitError
 from .progress import SILENT
@@ -333,6 +334,27 @@ class Integrator:
             tick(t)
             if begin is not None:
                 begin(x, S)
+
+    def finish(self, t, X, S, Q):
+        """The recorded points (t, X, S and Q, the integrals or None) as the
+        run's result holds them, and the run's
+        :class:`~softflow.solve.dense.DenseOutput` on them: (t, X, S, Q,
+        dense). Here (backward Euler, and any stepper that states no
+        interpolant of its own) the points as they are, and between them the
+        straight line from each point to the next: backward Euler's own
+        interpolant (its order 1 polynomial). BDF states its own
+        (:meth:`softflow.solve.bdf.BDF.finish`)."""
+        dense = DenseOutput.linear_between(t, X, S, self._recorded_discrete())
+        return t, X, S, Q, dense
+
+    def _recorded_discrete(self):
+        """A mask of the recorded states that are discrete (a valve's mode), or
+        None."""
+        asm = self.asm
+        if not asm.has_discrete:
+            return None
+        si = self.rec.s_index
+        return asm.s_discrete if isinstance(si, int) else asm.s_discrete[si]
 
     def _emptied(self, t, S, x_new, S_new, t_new, refused=False):
         """After a step from t (states S) to t_new that ended with states S_new

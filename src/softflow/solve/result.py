@@ -4,6 +4,7 @@ exports (dict, CSV, pandas, xarray) and plots (matplotlib) under one naming:
 from __future__ import annotations
 
 import csv
+import math
 import os
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Literal, Union, overload
@@ -65,10 +66,14 @@ class Result:
 
     def __init__(self, asm: Any, times: Array, X: Array, S: Array, status: str = "success",
                  message: str = "", stats: Mapping[str, Any] | None = None,
-                 recorded: tuple | None = None, integrals: Array | None = None) -> None:
+                 recorded: tuple | None = None, integrals: Array | None = None,
+                 dense: Any = None) -> None:
         self.times = times
         self.X = X
         self.S = S
+        # the integrator's interpolant between its steps (softflow.solve.dense),
+        # or None: what at() and interpolate() read
+        self._dense = dense
         # time integrals of the recorded unknowns as the integrator formed them
         # (BDF runs), or None: backward Euler's are sums of step times end value
         self._Q = integrals
@@ -279,6 +284,142 @@ class Result:
     def get_times(self, *, as_quantity: bool = False) -> Array | Quantity:
         """The recorded times [s], as a pint Quantity with ``as_quantity=True``."""
         return Q_(self.times, "s") if as_quantity else self.times
+
+    # -- values at any time: the integrator's own interpolant --------------------------------
+    def at(self, t: Any, label: str | None = None, name: str | None = None,
+           terminal: str | None = None, *, as_quantity: bool = False) -> Any:
+        """Values at any time(s) of the run, from the integrator's own
+        interpolant between its steps.
+
+        Each value comes from the polynomial of the step that covers its time
+        (:mod:`softflow.solve.dense`): the adaptive BDF's interpolating
+        polynomial of that step's order (its difference table), backward
+        Euler's straight line between its steps at fixed steps. Values between
+        the steps are then as accurate as those at the steps, where reading
+        the recorded points linearly (``np.interp``) adds the straight line's
+        error. No polynomial is used across a discontinuity: each covers its
+        own step only, and a time on a step's end is that step's recorded
+        point (at a breakpoint, the inputs' left limit). Discrete states (a
+        valve's mode) hold their value at a step's start inside it.
+
+        Parameters
+        ----------
+        t : float, array_like [s] or Quantity
+            Time(s) within the run, [0, its last time]; any shape and order.
+        label, name, terminal : str, optional
+            The variable, named as in :meth:`get`: ``at(t, 'tank', 'pressure')``,
+            or ``at(t, 'tank.pressure')``. None: every column.
+        as_quantity : bool
+            Values as pint Quantities.
+
+        Returns
+        -------
+        ndarray or float or Quantity, or dict
+            The variable's values shaped like ``t`` (a float for a single time);
+            with no variable named, ``{'time': t, column: values, ...}`` for
+            every column of :meth:`columns`, as :meth:`to_dict` names them.
+
+        Examples
+        --------
+        >>> res = sf.Simulation(system, duration=0.05).run()       # doctest: +SKIP
+        >>> res.at(0.0123, "tank", "pressure")                      # doctest: +SKIP
+        >>> res.at(np.linspace(0, 0.05, 501), "tank.pressure")      # doctest: +SKIP
+        >>> res.at(sf.Q_(12.3, "ms"))["tank.pressure"]               # doctest: +SKIP
+        """
+        from ..units import to_si
+        where = "Result.at"
+        if label is None and name is not None:
+            raise ValueError(f"{where}: name the component too, as at(t, 'tank', {name!r})")
+        if name is None and label is not None:
+            label, dot, name = label.rpartition(".")
+            if not dot:
+                raise ValueError(f"{where}: name the variable, as at(t, {name!r}, 'pressure') "
+                                 f"or at(t, '{name}.pressure'); got only {name!r}")
+        values = np.asarray(to_si(t, "s", name="t", owner=where), dtype=float)
+        shape = values.shape
+        flat = values.reshape(-1)
+        dense = self._interpolant(where)
+        bad = np.flatnonzero(~np.isfinite(flat) | (flat < -1e-9 * dense.end)
+                             | (flat > dense.end * (1 + 1e-9)))
+        if bad.size:
+            v = float(flat[bad[0]])
+            raise ValueError(f"{where}: t = {v:.6g} s is outside the run, [0, {dense.end:.6g}] s"
+                             + ("" if self.success or not math.isfinite(v)
+                                or v < 0 else " (the run failed there)"))
+        flat = np.clip(flat, 0.0, dense.end)
+
+        def shaped(v: Any) -> Any:
+            if hasattr(v, "magnitude") and hasattr(v, "units"):      # a Quantity
+                return Q_(shaped(v.magnitude), v.units)
+            v = np.asarray(v).reshape(shape)
+            return v[()] if not shape else v
+        if label is None:
+            inside = self._at_times(flat)
+            return {c: shaped(v) for c, v in inside.to_dict(as_quantity=as_quantity).items()}
+        assert name is not None
+        e = self._entry(label, name, terminal)
+        if e[0] == "output":          # a derived output: from the variables it reads
+            return shaped(self._at_times(flat).get(label, name, terminal,
+                                                   as_quantity=as_quantity))
+        # one recorded column: that column of the interpolant alone
+        none = np.empty(0, dtype=np.int64)
+        one = np.array([e[4]], dtype=np.int64)
+        X, S, _ = dense.values(flat, (one, none, none) if e[3] == "s" else (none, one, none))
+        v = shaped((S if e[3] == "s" else X)[:, 0])
+        return to_quantity(v, e[1]) if as_quantity else v
+
+    def interpolate(self, times: Any) -> Result:
+        """A Result of the same run at ``times``, from the integrator's own
+        interpolant (see :meth:`at`): every variable, derived output and
+        integral (:meth:`integral`) at those times, read with the same
+        methods, exported and plotted the same way; ``status``, ``message``,
+        ``stats`` and the validity findings are the run's (its checks judged
+        every step). Sensitivities are not carried over.
+
+        Parameters
+        ----------
+        times : array_like [s] or Quantity
+            1-D, sorted (non-decreasing), finite, within [0, the run's last
+            time].
+
+        Returns
+        -------
+        Result
+
+        Examples
+        --------
+        >>> fine = res.interpolate(np.linspace(0, 0.05, 1001))     # doctest: +SKIP
+        >>> fine.to_dataframe()                                      # doctest: +SKIP
+        """
+        from .dense import check_times
+        dense = self._interpolant("Result.interpolate")
+        grid = check_times(times, dense.end, owner="Result.interpolate", name="times")
+        return self._at_times(grid)
+
+    def _interpolant(self, where: str) -> Any:
+        dense = getattr(self, "_dense", None)
+        if dense is None:
+            raise ValueError(f"{where}: this Result holds no interpolant between its points "
+                             "(only Simulation.run makes one; a Result rebuilt by hand or "
+                             "pickled by an older softflow has none): read its points with "
+                             "get(), or run the simulation again")
+        return dense
+
+    def _at_times(self, times: Array) -> Result:
+        """This run at ``times`` (1-D, within [0, the interpolant's end]; a failed
+        run keeps those it reached) as a Result of its own."""
+        dense = self._interpolant("Result")
+        if not self.success:
+            times = times[times <= dense.end]
+        X, S, Q = dense.values(times)
+        out = object.__new__(type(self))
+        out.__dict__.update(self.__dict__)
+        out.times, out.X, out.S, out._Q = np.asarray(times, dtype=float), X, S, Q
+        out.stats = dict(self.stats)
+        out.warnings, out.validity = list(self.warnings), list(self.validity)
+        for own in ("_sens", "instance_times"):      # at the steps only
+            out.__dict__.pop(own, None)
+        return out
 
     # -- columns: one name per recorded variable and derived output ----------------------
     def _names(self, label: str) -> list[tuple[str, str]]:
@@ -538,6 +679,73 @@ class Result:
     def __repr__(self) -> str:
         return (f"<Result {self.status}: {len(self.times)} points, "
                 f"t = {self.times[0] if len(self.times) else 0:g}..{self.times[-1] if len(self.times) else 0:g} s>")
+
+    def report(self) -> str:
+        """A readable summary of the run, as text: its status (and, for a failed
+        run, why it stopped), the time it covers, the solver's counters (steps,
+        rejected steps, Newton iterations, factorizations, rtol), and the model
+        validity warnings (``self.warnings``) grouped by component and check,
+        each with its figure against its limit (how far past it) and the
+        finding in words; then the near misses (``self.validity`` records with
+        status 'near', not warned) as one line each.
+
+        >>> print(result.report())      # doctest: +SKIP
+        Run: success, t = 0 .. 1 s (44 points)
+        Solver: 43 steps (0 rejected), 91 Newton iterations, 31 factorizations, rtol 0.001
+        Warnings: none
+        """
+        import re
+        import textwrap
+
+        def wrap(text: str, indent: str) -> list[str]:
+            return textwrap.wrap(text, 88, initial_indent=indent, subsequent_indent=indent)
+
+        def figure(value: float, unit: str) -> str:
+            return f"{value:.3g}{' ' + unit if unit else ''}"
+
+        n = len(self.times)
+        span = f"t = {self.times[0]:g} .. {self.times[-1]:g} s" if n else "no points"
+        lines = [f"Run: {self.status}, {span} ({n} points)"]
+        if self.message:
+            lines += wrap(f"Message: {self.message}", "")
+        st = self.stats
+        counters = [f"{st[k]} {name}" for k, name in (
+            ("steps", "steps"), ("rejected_steps", "rejected"),
+            ("newton_iterations", "Newton iterations"),
+            ("factorizations", "factorizations")) if k in st]
+        if counters:
+            if "rejected_steps" in st and "steps" in st:     # '43 steps (2 rejected)'
+                counters = [c for c in counters if not c.endswith(" rejected")]
+                counters[0] += f" ({st['rejected_steps']} rejected)"
+            rtol = f", rtol {st['rtol']:g}" if "rtol" in st else ""
+            lines.append(f"Solver: {', '.join(counters)}{rtol}")
+        warned = list(self.warnings)
+        if not warned:
+            lines.append("Warnings: none")
+        else:
+            groups: dict[str, dict[str, list[Any]]] = {}
+            for r in warned:
+                groups.setdefault(r.component, {}).setdefault(r.check, []).append(r)
+            lines.append(f"Warnings: {len(warned)} ({len(groups)} component"
+                         f"{'s' if len(groups) != 1 else ''})")
+            for component, checks in groups.items():
+                lines.append(f"  {component}:")
+                for check, records in checks.items():
+                    for r in records:
+                        size = f"{figure(r.measured, r.unit)} against a limit of " \
+                               f"{figure(r.limit, r.unit)}"
+                        if r.fraction == r.fraction:          # not NaN
+                            size += f" (fraction {r.fraction:.3g}; 1 at the limit)"
+                        lines.append(f"    {check}: {size}")
+                        # the finding, less the "Class 'label': " it starts with
+                        text = re.sub(rf"^\w+ '{re.escape(component)}': ", "", r.message)
+                        lines += wrap(text, "      ")
+        near = [r for r in self.validity if getattr(r, "status", "beyond") == "near"]
+        if near:
+            lines.append(f"Near misses (not warned): {len(near)}")
+            for r in near:
+                lines.append(f"  {r.component}: {r.check} at {r.fraction:.0%} of its limit")
+        return "\n".join(lines)
 
 
 def _axes(ax: Any, n: int, where: str, sharex: bool = False) -> list[Axes]:

@@ -23,6 +23,7 @@ from .linalg import make_linear_solver
 from .newton import Newton, Stats
 from .params import rebuild
 from .params import split as split_params
+from .dense import DenseOutput, check_times
 from .result import Result
 from .input_checks import negligible_tubes
 from .validity import (PV_CURVE_SLACK, ComponentError, beyond, can_refuse,
@@ -113,8 +114,10 @@ class Simulation:
         Highest BDF order (1-5) of ``method='bdf'``.
     step_min, step_max : float [s], optional
         Bounds of the adaptive step; defaults duration·1e-9 and duration
-        (the error test alone sets the step; output points are the steps
-        taken, so a smooth scene at loose rtol has few).
+        (the error test alone sets the step, so a smooth scene at loose rtol
+        takes few; the result records the steps and the points ``refine``
+        adds inside them, or the ``times`` asked for; a step_max is not
+        needed for output between the steps).
     rtol : float, default 1e-3
         Relative tolerance of the adaptive error test: the local error of each
         state and node pressure (and temperature) per step, in the weighted
@@ -150,17 +153,48 @@ class Simulation:
         time, one after the end or nan is refused with a ValueError that names
         them. 0 and ``duration`` themselves are accepted and change nothing
         (every run starts and ends there anyway).
-    refine : int, default 1
-        Points recorded per adaptive step: ``refine - 1`` more, evenly inside
-        each step, from the BDF's own interpolating polynomial (its
-        difference table; as MATLAB's ``Refine`` and scipy's dense output).
-        BDF's steps are long where the solution is smooth, and a result read
-        linearly between them carries the linear interpolation's error on top
-        of the method's (the RC circuit at the default rtol: 20 steps, 0.058 %
-        at the points, 0.30 % read linearly; 0.059 % with ``refine=4``).
+    refine : int or 'auto', default 'auto'
+        Points the result records per adaptive step: ``refine - 1`` more,
+        evenly inside each step, from the BDF's own interpolating polynomial
+        (its difference table; as MATLAB's ``Refine`` and scipy's dense
+        output). BDF's steps are long where the solution is smooth, and a
+        result read linearly between them carries the linear interpolation's
+        error on top of the method's (the RC circuit at the default rtol: 20
+        steps, 0.058 % at the points, 0.30 % read linearly; 0.059 % with
+        ``refine=4``). ``'auto'`` chooses per step as many (1 to
+        :data:`softflow.solve.dense.AUTO_REFINE_MAX`) as keep the straight
+        lines between the points within the run's tolerance of the step's
+        polynomial (atol + rtol times each state's, and each unknown's
+        quantity's, largest magnitude in the run;
+        :func:`softflow.solve.dense.refine_counts`): the same RC circuit 30
+        points, 0.11 % read linearly; at rtol 1e-6, 46 steps and 573 points,
+        4.0e-6 read linearly (the steps alone: 1.0e-3). Steps of order 1 get
+        none (their polynomial is a line). 1 records the steps alone.
         Discrete states keep their values at each step's start inside it.
-        Not with fixed steps, nor with sensitivities; a batched sweep with it
-        runs its variants on one shared step sequence.
+        An integer above 1 is refused with fixed steps (backward Euler's own
+        interpolant is the straight line between its steps) and with
+        sensitivities (computed at the steps; 'auto' records the steps alone
+        there); a batched sweep with one runs its variants on one shared step
+        sequence ('auto' keeps their own clocks, which record the steps
+        alone). Values at any time, from the same polynomials: ``times=``,
+        :meth:`Result.at`, :meth:`Result.interpolate`.
+    times : array_like [s] or Quantity, optional
+        Times at which the result is recorded, instead of the steps: 1-D,
+        finite, sorted (non-decreasing), within [0, duration] (errors name the
+        parameter and the offending value). The result holds exactly these
+        times (as ``scipy.integrate.solve_ivp``'s ``t_eval``), each value
+        from the integrator's own interpolant over the step that covers it
+        (:mod:`softflow.solve.dense`: BDF's polynomial of the step's order;
+        backward Euler's straight line between its steps), as accurate as the
+        steps themselves; a time on a step's end is that step's point (at a
+        breakpoint, the inputs' left limit). The steps are unchanged by it,
+        and the model's validity checks still judge every step
+        (``result.warnings`` are the same). A run that fails holds the
+        requested times it reached. Not with sensitivities (computed at the
+        steps); ``refine`` does not apply. :meth:`Result.at` and
+        :meth:`Result.interpolate` read the run at any other time.
+    t_eval : array_like [s] or Quantity, optional
+        Another name for ``times`` (scipy's); give one or the other.
     allow_unconnected : bool, default False
         Treat unconnected terminals as closed ends instead of raising.
     thermal : {'isothermal', 'adiabatic', 'heat_transfer'}, default 'isothermal'
@@ -173,7 +207,9 @@ class Simulation:
     record : sequence of str, optional
         Labels of the components whose variables are kept at every step;
         default all. For networks of 1e5 components, keeping everything costs
-        about as much as solving (memory bandwidth).
+        about as much as solving (memory bandwidth). The interpolant between
+        the steps (:meth:`Result.at`) keeps the same columns: k rows of its
+        difference table a step, at order k.
     beyond_limits : {'error', 'warn'}, default 'error'
         What a run does where a model passes its own maximum (a gas tube
         choking, :mod:`softflow.solve.model_checks`): 'error' stops it there
@@ -215,9 +251,10 @@ class Simulation:
                  record: str | Iterable[str] | None = None, thermal: str = "isothermal",
                  max_steps: int = MAX_STEPS, beyond_limits: str = "error",
                  model: str | None = None, tolerance: float | None = None,
-                 refine: int = 1) -> None:
+                 refine: int | str = "auto", times: Any = None, t_eval: Any = None) -> None:
         if model is not None or tolerance is not None:    # let softflow choose: softflow.assess
-            system, thermal, rtol, model, tolerance, self.assessment = resolve_auto(locals())
+            system, thermal, rtol, model, tolerance, self.assessment = resolve_auto(
+                {k: v for k, v in locals().items() if k not in ("times", "t_eval")})
         # what the Simulation is made of, for pickling: its compiled model holds
         # generated code, which is rebuilt from these on load
         self._definition = {k: v for k, v in locals().items() if k not in ("self", "__class__")}
@@ -291,15 +328,29 @@ class Simulation:
                 raise ValueError(f"Simulation: atol[{q!r}] must be a finite number > 0, "
                                  f"got {self.atol[q]}")
         self.breakpoints = _check_breakpoints(breakpoints, self.duration, owner)
-        if (isinstance(refine, bool) or not isinstance(refine, (int, np.integer))
+        #: refine='auto': the points per step chosen per step (then ``refine`` is 1)
+        self.refine_auto = isinstance(refine, str) and refine == "auto"
+        if self.refine_auto:
+            refine = 1
+        elif (isinstance(refine, bool) or not isinstance(refine, (int, np.integer))
                 or not 1 <= refine <= MAX_REFINE):
             raise ValueError(f"Simulation: refine must be an integer from 1 to {MAX_REFINE} "
-                             f"(points recorded per step), got {refine!r}")
+                             f"(points recorded per step) or 'auto', got {refine!r}")
         if refine > 1 and not self.adaptive:
             raise ValueError(f"Simulation: refine={refine} records points inside the adaptive "
                              "BDF's steps from its interpolating polynomial; fixed steps "
                              "(step=) record every step already: pass a smaller step instead")
+        #: the points per adaptive step that ``refine=`` fixes (1 under 'auto')
         self.refine = int(refine)
+        if times is not None and t_eval is not None:
+            raise TypeError("Simulation: times= and t_eval= name the same thing (the times "
+                            "the result is recorded at); give one of them, not both")
+        name = "t_eval" if t_eval is not None else "times"
+        given = t_eval if t_eval is not None else times
+        #: the times the result is recorded at (``times=`` / ``t_eval=``), or None
+        self.times_requested = (None if given is None else check_times(
+            given, self.duration, owner=owner, name=name, round_off=ROUND_OFF))
+        self._times_name = name
         # a pure compile: the System is only read. A thermal scene adds variables
         # and per-scene data to its components, so it is compiled from a copy
         # (fluids and curves are shared, being values); an isothermal one
@@ -515,7 +566,7 @@ class Simulation:
                         atol_unknowns=self._atol_vector(asm.x_quantity), step_min=self.step_min,
                         step_max=self.step_max, max_order=self.max_order,
                         first_step=self.step, breakpoints=breaks, record=self.record,
-                        refine=self.refine)
+                        refine=None if self.refine_auto and not sensitivities else self.refine)
         else:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
@@ -523,6 +574,11 @@ class Simulation:
         integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
         sens: Sensitivities | None = None
         if sensitivities:
+            if self.times_requested is not None:
+                raise ValueError(f"Simulation.run: sensitivities are computed at the steps; "
+                                 f"this Simulation records its result at {self._times_name}="
+                                 "...: build it without them for sensitivities (and read "
+                                 "other times with result.at)")
             if self.refine > 1:
                 raise ValueError(f"Simulation.run: sensitivities are computed at the steps; "
                                  f"this Simulation records refine={self.refine} points a "
@@ -566,11 +622,17 @@ class Simulation:
         self._start = None if integ.consistent is None else (start_key, integ.consistent)
         t, X, S = integ.rec.arrays()
         integrals = integ.rec.integrals()
+        dense = None
         if not len(t):     # failed at t = 0: the initial values as a 1-point result
             xs, ss = ((slice(None), slice(None)) if self.record is None
                       else self.record[:2])
             t, X, S = np.zeros(1), asm.x0[xs][None, :], asm.S0[ss][None, :]
             integrals = None if integrals is None else np.zeros_like(X)
+            dense = DenseOutput.linear_between(t, X, S, None)
+        else:
+            # the points inside the steps (refine) and the interpolant between
+            # them (softflow.solve.dense)
+            t, X, S, integrals, dense = integ.finish(t, X, S, integrals)
         info = stats.as_dict()
         info["forced_steps"] = integ.forced_steps
         info["linear_solver"] = lin.kind
@@ -582,7 +644,7 @@ class Simulation:
         info["unknowns"] = asm.n
         result = Result(asm, t, X, S, status="success" if error is None else "failed",
                         message="" if error is None else str(error), stats=info,
-                        recorded=self.record, integrals=integrals)
+                        recorded=self.record, integrals=integrals, dense=dense)
         if sens is not None:
             xs, ss = ((slice(None), slice(None)) if self.record is None else self.record[:2])
             result._set_sensitivities(sens, xs, ss, len(t))
@@ -598,10 +660,16 @@ class Simulation:
                                     component=first.component)
             result = Result(asm, t[:cut], X[:cut], S[:cut], status="failed",
                             message=str(error), stats=info, recorded=self.record,
-                            integrals=None if integrals is None else integrals[:cut])
+                            integrals=None if integrals is None else integrals[:cut],
+                            dense=None if dense is None else dense.until(t[cut - 1]))
             result.validity, result.warnings = records, beyond(records)
             if sens is not None:
                 result._set_sensitivities(sens, xs, ss, cut)
+        if self.times_requested is not None:
+            # the result at the times asked for, from the interpolant; the
+            # checks above judged every step
+            result = result._at_times(self.times_requested)
+            result._dense = result._dense.compact()     # the steps' own points alone
         warned = {id(r) for r in found}          # at the start
         issue([w for w in result.warnings if id(w) not in warned])
         self.result = result
