@@ -85,7 +85,9 @@ def bench_paper(repeat, fonsim):
     water_f = sf.ConstantLiquid("water (fonsim constants)", density=999.0, viscosity=9.77e-4)
 
     def run_sf(step=1e-3):
-        system = paper_system(fluid=water_f, p0=101300.0, pvcurve=sf.PVCurve(CSV))
+        # the listing's model (no tube inertance), as fonsim runs it
+        system = paper_system(fluid=water_f, p0=101300.0, pvcurve=sf.PVCurve(CSV),
+                              inertance=False)
         sim = sf.Simulation(system, duration=1.0, step=step)
         sim.run()
         return sim

@@ -8,4 +8,4 @@ Saves fig3_C.png (volumes against time) and fig3_D.png (the V1-V2 path).
 """
 from softflow import paper_scenes
 
-paper_scenes.run_figure(3)
+paper_scenes.run_figure(3, physics="full")

@@ -9,4 +9,4 @@ Saves fig4_C.png and fig4_D.png.
 """
 from softflow import paper_scenes
 
-paper_scenes.run_figure(4)
+paper_scenes.run_figure(4, physics="full")

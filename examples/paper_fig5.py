@@ -8,4 +8,4 @@ Saves fig5_C.png and fig5_D.png.
 """
 from softflow import paper_scenes
 
-paper_scenes.run_figure(5)
+paper_scenes.run_figure(5, physics="full")

@@ -66,3 +66,21 @@ def test_as_a_process_the_error_is_one_line(tmp_path):
                           str(tmp_path / "missing" / "x.png")], capture_output=True, text=True)
     assert out.returncode == 1
     assert out.stderr.count("\n") == 1 and "does not exist" in out.stderr, out.stderr
+
+
+@pytest.mark.parametrize("physics, warns", [(None, False), ("paper", True)])
+def test_figures_run_the_examples_scenes_unless_asked_for_the_papers(tmp_path, physics, warns):
+    """`softflow figures` draws the scenes of examples/paper_fig*.py (the
+    tube's inertia modelled: no ModelWarning); --physics paper, the paper's
+    own model, which softflow warns of (Fig. 4's tube: its water column's
+    inertia)."""
+    import warnings
+    argv = ["figures", "--fig", "4", "--output-dir", str(tmp_path)]
+    if physics:
+        argv += ["--physics", physics]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(argv) == 0
+    model = [w for w in caught if issubclass(w.category, sf.ModelWarning)]
+    assert bool(model) == warns, [str(w.message)[:120] for w in model]
+    assert (tmp_path / "fig4_C.png").is_file() and (tmp_path / "fig4_D.png").is_file()

@@ -64,7 +64,7 @@ def _figures(args: argparse.Namespace) -> int:
         raise CLIError(f"--output-dir {str(out)!r} is a file, not a folder")
     out.mkdir(parents=True, exist_ok=True)
     for fig in args.fig:
-        paper_scenes.run_figure(fig, prefix=str(out / f"fig{fig}"))
+        paper_scenes.run_figure(fig, prefix=str(out / f"fig{fig}"), physics=args.physics)
     return 0
 
 
@@ -161,6 +161,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     figs.add_argument("--fig", type=int, nargs="+", choices=(3, 4, 5), default=[3, 4, 5],
                       help="which figures (default: all three)")
     figs.add_argument("--output-dir", default=".", help="folder for fig<N>_C.png, fig<N>_D.png")
+    figs.add_argument("--physics", choices=("full", "paper"), default="full",
+                      help="'full' (default): the scenes of examples/paper_fig*.py, which model "
+                           "what the paper leaves out (the tube's inertia, the air's heat "
+                           "exchange) and run without a model warning; 'paper': as the paper "
+                           "models them (softflow then warns of what that leaves out)")
     run = sub.add_parser("run", help="run a scene file (softflow.scene; TOML)")
     run.add_argument("scene", help="scene file (.toml), e.g. written by softflow.scene.save")
     run.add_argument("--duration", help="simulated time, e.g. '2 s' or '500 ms' (default: "

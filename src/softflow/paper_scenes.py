@@ -24,6 +24,31 @@ synthetic ones of those shapes, sized for the 1.8 mL/s pump:
 ``figure(fig)`` builds the three scenes of a figure and ``run_figure(fig)`` runs
 them and saves the paper's panels C and D (``plot_panels``);
 ``enclosed_area`` measures the asymmetry of the (V_act1, V_act2) path.
+
+``physics='paper'`` (the default) builds the scenes as the paper models them;
+softflow's model checks then warn (ModelWarning) of what that leaves out, each
+measured here against a run that models it (pressures relative to the run's
+largest gauge pressure, volumes to their swing, at rtol 1e-7 both):
+
+* the water column's inertia in R2 (check ``'tube_inertia'``): Fig. 3
+  monotonic 0.5 % of the pressures (0.8 % of the volumes; the flows just
+  after the pump stops by half), peak-valley 41 % (71 %), hysteretic 34 %
+  (34 %), Fig. 4 tube 4.7 % (1.2 %), Fig. 5 water 7.7 % (8.8 %), glycol 1.1 %
+  (0.6 %): the snaps ring through the short wide tube;
+* the air's heat exchange with its walls in Fig. 5 (``'thermal_time_scale'``:
+  the snaps fill and empty the actuators in ms, against wall time constants
+  of 0.4-1.7 s): 57 % of the pressures, 73 % of the volumes, against walls by
+  free convection (``thermal='heat_transfer'``);
+* Fig. 5's liquids fill the actuators to 19.5 and 27.6 mL, past the 12 mL
+  their synthetic curves are drawn to (``'pv_curve_range'``).
+
+``physics='full'`` models them: R2 with ``inertance=True`` (a liquid's),
+Fig. 5's curves drawn to 30 mL (the same rise per mL after the valley), and
+its gas volumes given walls that exchange heat by free convection
+(``sf.FreeConvection('sphere')``), run with ``thermal='heat_transfer'``
+(:func:`simulation_options`). The figures keep the paper's behaviour (Fig. 3's
+enclosed areas -0.28 and -0.21 against -0.26 and -0.22, Fig. 4's tube 0.049
+against 0.048) and run without a ModelWarning; ``examples/paper_fig*.py`` use it.
 """
 from __future__ import annotations
 
@@ -35,6 +60,7 @@ import numpy as np
 from .components import (Actuator, CircularTube, Container, HystereticActuator,
                          SnappingValve, TeslaValve, VolumeFlowSource)
 from .constants import pressure_atmospheric
+from .correlations.heat_transfer import FreeConvection
 from .curves import HysteresisLoop, PVCurve
 from .curves.waveforms import PiecewiseConstant
 from .fluids import water
@@ -74,12 +100,14 @@ def curve_monotonic(knee_kpa=20.0):
     return PVCurve.monotonic(start, knee, end, gauge=True)
 
 
-def curve_peak_valley(peak_kpa=28.0, valley_kpa=16.0, volumes=(1.0, 3.5, 7.0, 14.0)):
+def curve_peak_valley(peak_kpa=28.0, valley_kpa=16.0, volumes=(1.0, 3.5, 7.0, 14.0),
+                      end_kpa=None):
     """A balloon-like actuator: rise to a peak, fall to a valley, rise again
-    (``volumes``: start, peak, valley and end volumes in mL)."""
+    (``volumes``: start, peak, valley and end volumes in mL; ``end_kpa``: the
+    end's pressure, default 12 kPa above the peak)."""
     vs, vp, vv, ve = volumes
     start, peak, valley, end = _pv([(vs, 0.0), (vp, peak_kpa), (vv, valley_kpa),
-                                    (ve, peak_kpa + 12.0)])
+                                    (ve, peak_kpa + 12.0 if end_kpa is None else end_kpa)])
     return PVCurve.peak_valley(start, peak, valley, end, gauge=True)
 
 
@@ -97,13 +125,27 @@ def curve_plateau(level_kpa):
 
 
 # -- restrictors -------------------------------------------------------------------------
-def negligible_tube(label, fluid):
-    return CircularTube(label, fluid, length=0.05, diameter=4e-3)
+#: the two ways to build the scenes (module docstring)
+PHYSICS = ("paper", "full")
 
 
-def tight_tube(label, fluid, length=1.0):
-    """The paper's tight tube: 2.5 mm inner diameter."""
-    return CircularTube(label, fluid, length=length, diameter=2.5e-3)
+def _full(physics):
+    if physics not in PHYSICS:
+        raise ValueError(f"physics must be one of {PHYSICS}, got {physics!r}")
+    return physics == "full"
+
+
+def negligible_tube(label, fluid, inertance=False):
+    """A short wide tube (5 cm x 4 mm); ``inertance``: with its liquid column's
+    inertia (a gas's tube has none to add)."""
+    return CircularTube(label, fluid, length=0.05, diameter=4e-3,
+                        inertance=inertance and not fluid.compressible)
+
+
+def tight_tube(label, fluid, length=1.0, inertance=False):
+    """The paper's tight tube: 2.5 mm inner diameter (``inertance`` as above)."""
+    return CircularTube(label, fluid, length=length, diameter=2.5e-3,
+                        inertance=inertance and not fluid.compressible)
 
 
 def laminar_conductance(fluid, length, diameter):
@@ -113,6 +155,8 @@ def laminar_conductance(fluid, length, diameter):
 
 # -- scenes ------------------------------------------------------------------------------
 def _chain(fig, fluid, act1, act2, r1, r2, accumulator=False):
+    """pump --r1--> act1 --r2--> act2; ``accumulator``: True (a rigid 100 mL
+    Container) or a volume of one's own, on act1's node."""
     s = System()
     s += VolumeFlowSource("pump", volumeflow=pump_waveform(T_IN[fig]), fluid=fluid)
     s += r1
@@ -127,7 +171,8 @@ def _chain(fig, fluid, act1, act2, r1, r2, accumulator=False):
         # on actuator 1's node, through a short wide connector (two volumes on one
         # node would leave the split of the flow between them undetermined at t = 0)
         s += negligible_tube("R_acc", fluid)
-        s += Container("accumulator", fluid, volume=100 * ML)
+        s += (accumulator if accumulator is not True
+              else Container("accumulator", fluid, volume=100 * ML))
         s.connect(("R_acc", "a"), (act1.label, "a"))
         s.connect(("R_acc", "b"), ("accumulator", "a"))
     return s
@@ -138,8 +183,10 @@ FIG4_CASES = ("tube", "tesla", "snapping")
 FIG5_FLUIDS = ("air", "water", "ethylene glycol")
 
 
-def fig3(case, fluid=water):
-    """Fig. 3: actuator 1 'monotonic', 'peak-valley' or 'hysteretic'; negligible restrictors."""
+def fig3(case, fluid=water, physics="paper"):
+    """Fig. 3: actuator 1 'monotonic', 'peak-valley' or 'hysteretic'; negligible
+    restrictors (``physics='full'``: R2 with its liquid's inertia)."""
+    full = _full(physics)
     if case == "monotonic":
         act1 = Actuator("act1", fluid, curve_monotonic(knee_kpa=16.0))
     elif case == "peak-valley":
@@ -151,15 +198,17 @@ def fig3(case, fluid=water):
         raise ValueError(f"fig3: case must be one of {FIG3_CASES}, got {case!r}")
     act2 = Actuator("act2", fluid, curve_monotonic(knee_kpa=20.0))
     return _chain(3, fluid, act1, act2, negligible_tube("R1", fluid),
-                  negligible_tube("R2", fluid))
+                  negligible_tube("R2", fluid, inertance=full))
 
 
-def fig4(case, fluid=water):
+def fig4(case, fluid=water, physics="paper"):
     """Fig. 4: plateau actuators (1 lower than 2) joined by a tight tube, a Tesla
-    valve or a snapping valve."""
+    valve or a snapping valve (``physics='full'``: the tube with its liquid's
+    inertia)."""
+    full = _full(physics)
     length, diameter = 1.0, 2.5e-3
     if case == "tube":
-        r2 = tight_tube("R2", fluid, length)
+        r2 = tight_tube("R2", fluid, length, inertance=full)
     elif case == "tesla":
         r2 = TeslaValve("R2", fluid, length=length, diameter=diameter, diodicity=4.0)
     elif case == "snapping":
@@ -174,15 +223,48 @@ def fig4(case, fluid=water):
     return _chain(4, fluid, act1, act2, negligible_tube("R1", fluid), r2)
 
 
-def fig5(fluid):
+def fig5(fluid, physics="paper"):
     """Fig. 5: peak-valley actuators (1's peak slightly higher, its valley much
     lower), tight tubes and a 100 mL accumulator; ``fluid`` is the one line that
-    differs between the three simulations."""
+    differs between the three simulations. ``physics='full'``: R2 with a
+    liquid's inertia, the curves drawn to 30 mL (the same rise per mL after
+    the valley as to 12 mL) and a gas's volumes with walls that exchange heat
+    by free convection (run it with :func:`simulation_options`)."""
+    full = _full(physics)
     vols = (1.0, 2.5, 5.0, 12.0)
-    act1 = Actuator("act1", fluid, curve_peak_valley(21.0, 5.0, vols))
-    act2 = Actuator("act2", fluid, curve_peak_valley(19.0, 14.0, vols))
-    return _chain(5, fluid, act1, act2, tight_tube("R1", fluid), tight_tube("R2", fluid),
-                  accumulator=True)
+
+    def curve(peak, valley):
+        if not full:
+            return curve_peak_valley(peak, valley, vols)
+        end = 30.0
+        rise = (peak + 12.0 - valley) / (vols[3] - vols[2])       # kPa per mL after the valley
+        return curve_peak_valley(peak, valley, vols[:3] + (end,),
+                                 end_kpa=valley + rise * (end - vols[2]))
+
+    walls = {}
+    if full and fluid.compressible:
+        walls = dict(heat_transfer_coefficient=FreeConvection("sphere"),
+                     area=_sphere_area(vols[2] * ML))
+    act1 = Actuator("act1", fluid, curve(21.0, 5.0), **walls)
+    act2 = Actuator("act2", fluid, curve(19.0, 14.0), **walls)
+    if walls:
+        walls["area"] = _sphere_area(100 * ML)
+    return _chain(5, fluid, act1, act2, tight_tube("R1", fluid),
+                  tight_tube("R2", fluid, inertance=full),
+                  accumulator=Container("accumulator", fluid, volume=100 * ML, **walls))
+
+
+def _sphere_area(volume):
+    """Surface [m^2] of a sphere of ``volume`` [m^3]: a volume's wall, for its heat transfer."""
+    return math.pi ** (1 / 3) * (6 * volume) ** (2 / 3)
+
+
+def simulation_options(system):
+    """Simulation options a scene needs: ``thermal='heat_transfer'`` where a
+    volume has a wall that exchanges heat (Fig. 5's gas with ``physics='full'``)."""
+    walls = any(getattr(c, "h_correlation", None) is not None or getattr(c, "hA", None)
+                for c in system)
+    return {"thermal": "heat_transfer"} if walls else {}
 
 
 # -- running and measuring ---------------------------------------------------------------
@@ -200,25 +282,28 @@ def run(system, fig, **options):
     return res, time.perf_counter() - t0
 
 
-def figure(fig):
-    """[(case label, System)] of the three simulations of Fig. ``fig`` (3, 4 or 5)."""
+def figure(fig, physics="paper"):
+    """[(case label, System)] of the three simulations of Fig. ``fig`` (3, 4 or 5),
+    built with ``physics`` ('paper' or 'full', module docstring)."""
     from .fluids import air, ethylene_glycol
     if fig == 3:
-        return [(c, fig3(c)) for c in FIG3_CASES]
+        return [(c, fig3(c, physics=physics)) for c in FIG3_CASES]
     if fig == 4:
-        return [(c, fig4(c)) for c in FIG4_CASES]
+        return [(c, fig4(c, physics=physics)) for c in FIG4_CASES]
     if fig == 5:
-        return [(name, fig5(f)) for name, f in zip(FIG5_FLUIDS, (air, water, ethylene_glycol))]
+        return [(name, fig5(f, physics=physics))
+                for name, f in zip(FIG5_FLUIDS, (air, water, ethylene_glycol))]
     raise ValueError(f"figure: the paper's scenes are Figs. 3, 4 and 5, got {fig!r}")
 
 
-def run_figure(fig, prefix=None):
+def run_figure(fig, prefix=None, physics="paper"):
     """Run the three simulations of Fig. ``fig``, print their wall times, steps and
     enclosed areas, and save panels C and D as ``<prefix>_C.png`` and
-    ``<prefix>_D.png`` (default prefix ``fig<N>``). Returns the Results."""
+    ``<prefix>_D.png`` (default prefix ``fig<N>``). Returns the Results.
+    ``physics``: 'paper' or 'full' (module docstring)."""
     results, labels = [], []
-    for label, system in figure(fig):
-        res, wall = run(system, fig)
+    for label, system in figure(fig, physics):
+        res, wall = run(system, fig, **simulation_options(system))
         v1, v2 = volumes(res)
         print(f"Fig. {fig} {label:16s}: {wall * 1e3:6.1f} ms, {res.stats['steps']:4d} steps, "
               f"enclosed area {enclosed_area(v1, v2) / ML ** 2:+8.2f} mL^2")

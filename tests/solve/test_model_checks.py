@@ -271,3 +271,40 @@ def test_a_short_choked_tube_of_an_isothermal_scene_is_warned_of_its_adiabatic_f
     G = long.get("tube", "massflow_a")[-1] / (np.pi * 2e-3 ** 2 / 4)
     assert 0.5e5 < G * np.sqrt(R * T)                                     # it choked
     assert "tube_isothermal_flow" not in {r.check for r in long.validity}
+
+
+def test_isothermal_tank_warning_says_by_how_much_against_a_measured_run():
+    """thermal_time_scale gives the isothermal model's error as isothermal_error
+    estimates it, (gamma - 1) t_thermal / t_fill at most gamma - 1; a 1 L tank
+    blown down from 10 bar in ~1 s: the estimate (0.4, the cap) and the measured
+    difference against free-convection walls (thermal='heat_transfer': 23 % of
+    the pressure during the choked phase) are of one order."""
+    import math
+
+    def blowdown(walls):
+        s = sf.System()
+        kw = dict(heat_transfer_coefficient=sf.FreeConvection("sphere"),
+                  area=math.pi ** (1 / 3) * (6e-3) ** (2 / 3)) if walls else {}
+        s += sf.Container("tank", sf.air, volume=1e-3, initial_pressure=10e5, **kw)
+        s += sf.Orifice("valve", sf.air, C=1e-8, b=0.3)
+        s += sf.PressureSource("atm", pressure=P0)
+        s.connect("tank", "valve")
+        s.connect("valve", "atm")
+        return s
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        iso = sf.Simulation(blowdown(False), duration=3.0).run()
+        real = sf.Simulation(blowdown(True), duration=3.0, thermal="heat_transfer").run()
+    w = next(w for w in iso.warnings if w.check == "thermal_time_scale")
+    gamma1 = sf.air.gamma0 - 1
+    t_fill, t_thermal = w.measured, w.details["thermal_time_constant"]
+    assert w.details["estimated_error"] == pytest.approx(min(gamma1 * t_thermal / t_fill,
+                                                             gamma1))
+    assert f"by up to ~{w.details['estimated_error']:.0%}" in w.message
+    t = np.linspace(0.0, 1.0, 101)             # the choked phase
+    measured = np.max(np.abs(np.interp(t, real.times, real.get("tank", "pressure"))
+                             / np.interp(t, iso.times, iso.get("tank", "pressure")) - 1))
+    assert 0.1 < measured < 0.35
+    assert measured <= w.details["estimated_error"] < 10 * measured
+    assert "thermal_time_scale" not in _checks(real)

@@ -18,6 +18,14 @@
 #    the peak pressure (stated tolerance 0.5 % of the peak gauge pressure), and
 #    it settles on the far branch at the volume where the curve returns to the
 #    held pressure (0.5 %).
+#
+# The tube carries its water column's inertia (`inertance=True`): the snap
+# drives the water through it within a fraction of a second, and without the
+# inertia the pressures during the snap would differ by 30 % of their range
+# and the volumes by 62 % (measured with and without it at rtol 1e-7), which
+# softflow's inertia check warns of. The two figures checked here are
+# equilibria and barely move (the balloon passes its peak 0.1 % of the peak
+# pressure later, the water keeping on a little behind the source).
 
 # %%
 from importlib import resources
@@ -67,7 +75,7 @@ p_hold = p0 + 1.05 * (p_peak - p0)  # ramp up to 5 % above the peak, then hold
 t_end = (p_hold - p0) / ramp + 10.0
 s = sf.System()
 s += sf.PressureSource("src", pressure=sf.waveforms.Ramp(0.0, (p_hold - p0) / ramp, p0, p_hold))
-s += sf.CircularTube("tube", sf.water, length=0.1, diameter=5e-3)
+s += sf.CircularTube("tube", sf.water, length=0.1, diameter=5e-3, inertance=True)
 s += sf.Actuator("balloon", sf.water, curve, initial_volume=V0)
 s.connect("src", "tube")
 s.connect("tube", "balloon")
