@@ -134,12 +134,18 @@ def _run(args: argparse.Namespace) -> int:
     print(f"softflow run {args.scene}: {len(scene.system)} components, t = 0 to "
           f"{sim.duration:g} s: {result.status} after {st['steps']} steps "
           f"({st['rejected_steps']} rejected) in {elapsed:.2f} s")
-    for name in args.output:
-        _write_run_output(result, name)
-        print(f"  wrote {name}")
+    # a run that stopped at its start has nothing to plot or tabulate but its
+    # initial state: no file then (an empty plot or a one-row table would pass
+    # for a result)
+    started = len(result.times) > 1                           # type: ignore[attr-defined]
+    if result.success or started:
+        for name in args.output:
+            _write_run_output(result, name)
+            print(f"  wrote {name}")
     if not result.success:
-        raise CLIError(f"the run failed: {result.message} (outputs hold the steps computed "
-                       "so far)" if args.output else f"the run failed: {result.message}")
+        where = ("" if not args.output else " (outputs hold the steps computed so far)"
+                 if started else " (no output written: it stopped at its start)")
+        raise CLIError(f"the run failed: {result.message}{where}")
     return 0
 
 

@@ -775,8 +775,29 @@ class Assembly:
             names = "; ".join(", ".join(c) for c in culprits)
             raise NetworkError(
                 f"the network equations are singular in the sub-network(s) of: {names}. "
-                "Something there is undetermined: typically a closed loop of incompressible "
-                "fluid with no pressure reference, or a floating sub-network")
+                "Something there is undetermined: "
+                + (self._rigid_liquid_hint([c for comps in culprits for c in comps]) or
+                   "typically a closed loop of incompressible fluid with no pressure "
+                   "reference, or a floating sub-network"))
+
+    def _rigid_liquid_hint(self, labels):
+        """Where rigid containers of a liquid are among ``labels``, a sentence
+        naming them as the likely cause (they admit no flow, so nothing but the
+        laws at their node sets their pressure), else None."""
+        rigid = []
+        for label in labels:
+            g, i = self.where[label]
+            comp = g.comps[i]
+            fluid = getattr(comp, "fluid", None)
+            if (type(comp).__name__ == "Container" and fluid is not None
+                    and not fluid.compressible):
+                rigid.append(comp.describe())
+        if not rigid:
+            return None
+        return (f"{', '.join(rigid)} hold{'s' if len(rigid) == 1 else ''} a liquid in a rigid "
+                "volume, which admits no flow, so only the laws at its node set its pressure "
+                "(a valve at rest, such as a shut check valve, sets none); give the liquid a "
+                "compliance with a LinearAccumulator or an Actuator (or use a gas)")
 
     def diagnose_scale(self):
         """Which component's scale is extreme relative to the rest, from the Jacobian
