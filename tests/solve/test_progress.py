@@ -127,3 +127,18 @@ def test_nothing_is_logged_below_info_by_default(caplog):
     caplog.set_level(logging.INFO, logger="softflow")
     sf.Simulation(rc_circuit(), duration=0.1).run()
     assert [r.levelno for r in caplog.records if r.name == "softflow"] == [logging.INFO]
+
+
+def test_a_bar_that_opens_late_counts_its_elapsed_time_from_the_runs_start(monkeypatch):
+    """The bar opens after DELAY s of the run; its elapsed field counts from
+    the run's start (it read 00:00 when it appeared). A fake clock: the run
+    starts at 100 s, the bar opens at its first look at 103 s."""
+    clock = iter([100.0, 103.0, 103.0, 103.0, 103.0, 103.0])
+    monkeypatch.setattr(progress_module.time, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(tqdm, "tqdm", RecordingBar)
+    RecordingBar.made = []
+    with Progress(1.0, enabled=True) as p:
+        p._next = 1
+        p.step(0.5)
+        bar = RecordingBar.made[0]
+        assert bar._time() - bar.start_t >= 3.0       # the 3 s before the bar

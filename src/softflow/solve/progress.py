@@ -123,6 +123,9 @@ class Progress:
                         bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g}/{total:.4g} s "
                                    "[{elapsed}<{remaining}]",
                         leave=False, dynamic_ncols=True)
+        # the bar opens after DELAY s of the run: its elapsed field counts from
+        # the run's start, not from the bar's (it read 00:00 at its first show)
+        self.bar.start_t -= time.perf_counter() - self._t0
 
     # -- events (rare: formatted only when logged) ---------------------------------------
     def rejected(self, t: float, h: float, why: str, detail: Any = None) -> None:
