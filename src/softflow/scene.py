@@ -522,6 +522,8 @@ def _write_curve(curve: Any, owner: str, name: str) -> dict:
                            "pressure_unit": "Pa", "gauge": False}     # absolute
     if curve.extrapolate != "linear":
         out["extrapolate"] = curve.extrapolate
+    if getattr(curve, "interpolation", "pchip") != "pchip":
+        out["interpolation"] = curve.interpolation
     return out
 
 

@@ -587,3 +587,119 @@ def test_a_callable_curve_integrates_by_gauss_legendre():
     v = np.array([0.5e-6, 2e-6, 4e-6])
     exact = 1e5 * (v - 1e-6) + 0.5e10 * (v**2 - 1e-12) + 1e14 * (v**3 - 1e-18)
     np.testing.assert_allclose(fn.work(v), exact, rtol=1e-13)
+
+
+# ---------------------------------------------------------------------------------------
+# interpolation='linear': straight lines between the samples (fonsim's curves)
+# ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def balloon_linear():
+    return sf.PVCurve(EXAMPLE_CSV, interpolation="linear")
+
+
+def test_linear_interpolation_is_numpy_interp_with_chord_slopes(balloon_linear):
+    c = balloon_linear
+    assert c.interpolation == "linear" and sf.PVCurve(EXAMPLE_CSV).interpolation == "pchip"
+    x = interior_points(c)
+    p, dp = c.fdf_volume(x)
+    np.testing.assert_allclose(p, np.interp(x, c.volume, c.pressure), rtol=1e-14)
+    chords = np.diff(c.pressure) / np.diff(c.volume)
+    k = np.searchsorted(c.volume, x) - 1
+    np.testing.assert_allclose(dp, chords[k], rtol=1e-12)
+    # the scalar path (the compiled lookup on a float) gives the same
+    for v in x[::7]:
+        assert c.fdf_volume(float(v)) == pytest.approx(tuple(a[0] for a in
+                                                             c.fdf_volume(np.array([v]))),
+                                                       rel=1e-14)
+    # the samples themselves; a sample takes the slope of the chord that starts there
+    np.testing.assert_allclose(c(c.volume), c.pressure, rtol=1e-14)
+    np.testing.assert_allclose(c.slope, np.append(chords, chords[-1]), rtol=1e-14)
+    np.testing.assert_allclose(c.fdf_volume(c.volume[1:-1])[1], chords[1:], rtol=1e-12)
+    assert "interpolation='linear'" in repr(c)
+
+
+@pytest.mark.parametrize("extrapolate", ["linear", "clamp"])
+def test_linear_interpolation_beyond_the_data(extrapolate):
+    c = sf.PVCurve(EXAMPLE_CSV, interpolation="linear", extrapolate=extrapolate)
+    v, p = c.volume, c.pressure
+    first, last = (p[1] - p[0]) / (v[1] - v[0]), (p[-1] - p[-2]) / (v[-1] - v[-2])
+    below, above = v[0] - 0.5e-6, v[-1] + 2e-6
+    if extrapolate == "linear":    # the end chords continued
+        assert c.fdf_volume(below) == (pytest.approx(p[0] - 0.5e-6 * first), pytest.approx(first))
+        assert c.fdf_volume(above) == (pytest.approx(p[-1] + 2e-6 * last), pytest.approx(last))
+    else:
+        assert c.fdf_volume(below) == (pytest.approx(p[0]), 0.0)
+        assert c.fdf_volume(above) == (pytest.approx(p[-1]), 0.0)
+
+
+def test_linear_interpolation_work_is_the_trapezoid_rule(balloon_linear):
+    c = balloon_linear
+    v = c.volume
+    w = c.work(v)
+    np.testing.assert_allclose(w[1:], np.cumsum(np.diff(v) * 0.5 * (c.pressure[1:]
+                                                                    + c.pressure[:-1])),
+                               rtol=1e-12)
+    x = np.linspace(v[0], v[-1], 1001)
+    dw = np.gradient(c.work(x), x)
+    np.testing.assert_allclose(dw[1:-1], c(x)[1:-1], rtol=2e-3)
+
+
+def test_linear_interpolation_with_a_filter_and_the_synthetic_shape():
+    v = np.linspace(1e-6, 10e-6, 21)
+    p = P0 + 1e4 * (v / 1e-6) ** 2 / 100
+    c = sf.PVCurve(volume=v, pressure=p, interpolation="linear", filter_window=5)
+    np.testing.assert_allclose(c(v), c.pressure, rtol=1e-14)   # through the filtered ones
+    two = sf.PVCurve(volume=[1e-6, 2e-6], pressure=[1.1e5, 1.3e5], interpolation="linear")
+    assert two(1.5e-6) == pytest.approx(1.2e5) and two.fdf_volume(1.2e-6)[1] == \
+        pytest.approx(2e10)
+
+
+@pytest.mark.parametrize("kwargs, text", [
+    (dict(interpolation="cubic"), "PVCurve: interpolation must be one of 'pchip', 'linear' "
+                                  "(monotone cubics or straight lines between the samples), "
+                                  "got 'cubic'"),
+    (dict(interpolation=None), "interpolation must be one of 'pchip', 'linear'"),
+    (dict(interpolation="linear", smoothing=1e-6),
+     "interpolation='linear' and smoothing=1e-06 exclude each other"),
+])
+def test_interpolation_bad_input(kwargs, text):
+    with pytest.raises(ValueError, match=text.replace("(", r"\(").replace(")", r"\)")):
+        sf.PVCurve(EXAMPLE_CSV, **kwargs)
+
+
+def test_linear_curve_actuator_runs_through_its_kinks():
+    # the balloon inflated past its peak and back by air: the straight pieces'
+    # slopes jump at every sample (the solver is not told of these kinks: its
+    # error test finds them); the run agrees with itself at a tight tolerance
+    def run(rtol):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=lambda t: P0 + 1e5 * min(t / 2.0, 1.0)
+                               * (1.0 if t < 3.0 else 0.0))
+        s += sf.CircularTube("tube", sf.air, length=0.5, diameter=1e-3)
+        s += sf.Actuator("act", sf.air, sf.PVCurve(EXAMPLE_CSV, interpolation="linear"))
+        s.connect("src", "tube")
+        s.connect("tube", "act")
+        return sf.Simulation(s, duration=5.0, rtol=rtol, breakpoints=[3.0]).run()
+    loose, tight = run(1e-3), run(1e-6)
+    v_loose, v_tight = loose.get("act", "volume"), tight.get("act", "volume")
+    assert v_tight.max() > 40e-6            # through the peak (6 mL) to 41 mL
+    assert v_loose.max() == pytest.approx(v_tight.max(), rel=2e-3)
+    assert v_loose[-1] == pytest.approx(v_tight[-1], rel=5e-3)
+    # on the curve (the points inside steps are the BDF's interpolant: within 3e-6)
+    p = tight.get("act", "pressure")
+    np.testing.assert_allclose(p, sf.PVCurve(EXAMPLE_CSV, interpolation="linear")(v_tight),
+                               rtol=1e-5)
+
+
+def test_linear_curve_in_a_scene_file_stays_linear(tmp_path):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=1.3e5)
+    s += sf.CircularTube("tube", sf.water, length=0.5, diameter=1e-3)
+    s += sf.Actuator("act", sf.water, sf.PVCurve(EXAMPLE_CSV, interpolation="linear"))
+    s.connect("src", "tube")
+    s.connect("tube", "act")
+    path = sf.scene.save(s, tmp_path / "scene.toml")
+    back = sf.scene.load(path).get("act").curve
+    assert back.interpolation == "linear"
+    x = interior_points(back)
+    np.testing.assert_allclose(back(x), s.get("act").curve(x), rtol=1e-12)

@@ -483,3 +483,48 @@ def gas_accumulator_off_atmosphere(fons, step=(None, None), **options):
         "acc mass [kg]": acc.get_state("mass"),
         "tube massflow [kg/s]": system.get("tube").get("massflow", "a"),
     })
+
+
+def restrictor_mean_density(fons, step=(None, None), **options):
+    """FlowRestrictor with air across a large pressure ratio: a 2.5 bar source
+    fills a 20 mL tank through a 0.4 mm restrictor, which a second one (1 mm)
+    vents to a Sink; fonsim takes the density at the mean pressure."""
+    system = fons.System()
+    system += fons.PressureSource("supply", pressure=2.5e5)
+    system += fons.FlowRestrictor("inlet", fluid=fons.air, diameter=0.4e-3, k=0.6)
+    system += fons.Container("tank", fluid=fons.air, volume=20e-6)
+    system += fons.FlowRestrictor("outlet", fluid=fons.air, diameter=0.3e-3, k=0.8)
+    vent = fons.Sink("vent")
+    system += vent
+    system.connect("supply", "inlet", "tank")
+    system.connect(("tank", "a"), ("outlet", "a"))
+    system.connect(("outlet", "b"), vent)
+    sim = fons.Simulation(system, duration=0.5, step=step, **options)
+    _run(sim)
+    tank = system.get("tank")
+    return _samples(sim, 0.5, {
+        "tank pressure [Pa]": tank.get("pressure"),
+        "tank mass [kg]": tank.get_state("mass"),
+        "inlet massflow [kg/s]": system.get("inlet").get("massflow", "a"),
+        "outlet massflow [kg/s]": system.get("outlet").get("massflow", "a"),
+    })
+
+
+def check_valve_charging(fons, step=(None, None), **options):
+    """An ideal CheckValve (no threshold) between a tube and a 20 mL tank,
+    charging from 1.25 bar: fonsim's valve adds no resistance once open, so
+    the tank fills as through the tube alone. (Only while the source
+    pushes: once it drops, fonsim 0.6's valve lets air back.)"""
+    system = fons.System()
+    system += fons.PressureSource("source", pressure=1.25e5)
+    system += fons.CircularTube("tube", fluid=fons.air, length=1.0, diameter=0.8e-3)
+    system += fons.CheckValve("valve")
+    system += fons.Container("tank", fluid=fons.air, volume=20e-6)
+    system.connect("source", "tube", "valve", "tank")
+    sim = fons.Simulation(system, duration=0.4, step=step, **options)
+    _run(sim)
+    return _samples(sim, 0.4, {
+        "tank pressure [Pa]": system.get("tank").get("pressure"),
+        "valve inlet pressure [Pa]": system.get("valve").get("pressure", "a"),
+        "tube massflow [kg/s]": system.get("tube").get("massflow", "a"),
+    })

@@ -178,19 +178,58 @@ def test_wave_custom_not_time_ordered_names_the_row():
         fons.wave.Custom([(0, 1.0), (0.5, 2.0), (0.25, 3.0)])
     with pytest.raises(ValueError, match="relative time of row 1"):
         fons.wave.Custom([(0, 1.0), (0.0, 2.0)], time_notation="relative")
-    with pytest.raises(ValueError, match="kind 'cubic' is not supported"):
-        fons.wave.Custom([(0, 1.0), (1.0, 2.0)], kind="cubic")
+    with pytest.raises(ValueError, match="kind 'spline' is not supported; kind must be one of "
+                                         "'previous', 'zero', 'next', 'nearest'"):
+        fons.wave.Custom([(0, 1.0), (1.0, 2.0)], kind="spline")
+    with pytest.raises(ValueError, match="kind='cubic' needs at least 4 points, got 3"):
+        fons.wave.Custom([(0, 1.0), (1.0, 2.0), (2.0, 0.0)], kind="cubic")
 
 
-def test_wave_custom_values_and_arithmetic():
+def test_wave_custom_values_and_arithmetic_in_place():
     w = fons.wave.Custom([(0, 1.0), (0.5, 2.0), (0.25, 3.0)], time_notation="relative")
     assert [w(x) for x in (0.0, 0.49, 0.5, 0.74, 0.75, 9.0)] == [1, 1, 2, 2, 3, 3]
     assert w.breakpoints == (0.5, 0.75)
     lin = fons.wave.Custom([[0, 0.5, 1.0], [1, 3, 2]], kind="linear")   # 2 x N
     scaled = lin * 1e5 + fons.pressure_atmospheric
-    assert scaled(0.25) == pytest.approx(2e5 + fons.pressure_atmospheric)
-    assert lin(0.25) == 2.0   # a new wave; the original is unchanged
-    assert (2 * lin - 1)(0.75) == pytest.approx(4.0)
+    # as fonsim's: * and + change the wave itself and return it
+    assert scaled is lin
+    assert lin(0.25) == pytest.approx(2e5 + fons.pressure_atmospheric)
+    bare = fons.wave.Custom([(0, 1.0), (1.0, 2.0)])
+    bare * 3          # a statement alone scales it, as in fonsim
+    assert bare(0.5) == 3.0
+    copy = bare.copy()
+    assert (2 * copy - 1)(0.5) == pytest.approx(5.0) and bare(0.5) == 3.0
+    per_point = fons.wave.Custom([(0, 1.0), (1.0, 2.0)]) + [10.0, 20.0]
+    assert per_point(1.0) == 22.0
+    with pytest.raises(ValueError, match="one value per point"):
+        bare + [1.0, 2.0, 3.0]
+    with pytest.raises(TypeError):
+        bare + fons.wave.Custom([(0, 1.0), (1.0, 2.0)])
+
+
+@pytest.mark.parametrize("kind, expected, breaks", [
+    ("previous", [1, 1, 3, 3, 3, 2, 2], (0.5, 1.0)),
+    ("next", [1, 3, 3, 2, 2, 2, 2], (0.0, 0.5)),
+    ("nearest", [1, 1, 3, 3, 2, 2, 2], (0.25, 0.75)),
+])
+def test_wave_custom_held_kinds(kind, expected, breaks):
+    w = fons.wave.Custom([(0, 1.0), (0.5, 3.0), (1.0, 2.0)], kind=kind)
+    t = [0.0, 0.25, 0.5, 0.75, 0.76, 1.0, 2.0]
+    assert [w(x) for x in t] == expected
+    np.testing.assert_array_equal(w(np.array(t)), expected)
+    assert w.breakpoints == breaks
+
+
+@pytest.mark.parametrize("kind, k", [("quadratic", 2), ("cubic", 3)])
+def test_wave_custom_spline_kinds_are_scipys_interpolating_splines(kind, k):
+    from scipy.interpolate import make_interp_spline
+    pts = np.array([(0, 1.0), (0.5, 3.0), (1.0, 2.0), (1.5, 5.0), (2.0, 4.0)])
+    w = fons.wave.Custom(pts, kind=kind)
+    t = np.linspace(0, 2, 41)
+    np.testing.assert_allclose(w(t), make_interp_spline(pts[:, 0], pts[:, 1], k=k)(t),
+                               rtol=1e-14, atol=1e-14)
+    assert w(-1.0) == 1.0 and w(3.0) == 4.0 and w(0.3) == pytest.approx(w(np.array([0.3]))[0])
+    assert w.breakpoints == (0.0, 2.0)
 
 
 def _csv(tmp_path, rows):
@@ -255,23 +294,41 @@ def test_pv_curve_autocorrect_as_fonsim():
     assert fons.data.PVCurve(str(S.DATA), autocorrect=0).p[0] == raw.p[0]   # 0: none
 
 
-def test_writeout_simulation_json(tmp_path):
+def test_writeout_simulation_json_is_fonsim_s_layout_and_reads_back(tmp_path):
     s = fons.System()
     s += fons.PressureSource("src", pressure=2e5)
     s += fons.CircularTube("tube", fluid=fons.air)
+    s += fons.FreeActuator("act", fluid=fons.air)
+    s += fons.CircularTube("tube2", fluid=fons.air)
     s += fons.Container("tank", fluid=fons.air, volume=20e-6)
-    s.connect("src", "tube", "tank")
-    sim = fons.Simulation(s, duration=0.1)
-    sim.run()
+    s.connect("src", "tube", "act")
+    s.connect(("act", "b"), "tube2", "tank")
+    sim = fons.Simulation(s, duration=0.05)
+    assert sim.run() is None
     path = tmp_path / "run.json"
     fons.data.writeout_simulation(str(path), sim)
+    # a script reading its own export, as it would read fonsim's
     doc = json.loads(path.read_text())
+    assert doc["scheme"] == "0.1-alpha"
+    assert doc["simulation"]["system"] == {"label": "system", "nb_components": 5,
+                                           "nb_nodes": 4}   # act.b is a node of its own
+    assert doc["simulation"]["time"] == 0
+    data = doc["data"]
+    np.testing.assert_array_equal(data[str(doc["simulation"]["time"])], sim.times)
     tank = doc["components"]["tank"]
-    key = tank["terminals"]["a"]["over"]["p"]
-    np.testing.assert_array_equal(doc["data"][key], s.get("tank").get("pressure"))
-    np.testing.assert_array_equal(doc["data"][tank["states"]["mass"]],
+    assert set(tank) == {"terminals", "states"}
+    assert set(tank["terminals"]["a"]) == {"over", "through"}
+    np.testing.assert_array_equal(data[str(tank["terminals"]["a"]["over"]["pressure"])],
+                                  s.get("tank").get("pressure"))
+    np.testing.assert_array_equal(data[str(tank["states"]["mass"])],
                                   s.get("tank").get_state("mass"))
-    np.testing.assert_array_equal(doc["data"][doc["simulation"]["time"]], sim.times)
+    # FreeActuator: fonsim's two terminals; the flow through b is the tube's
+    act = doc["components"]["act"]["terminals"]
+    assert set(act) == {"a", "b"}
+    np.testing.assert_allclose(data[str(act["b"]["through"]["massflow"])],
+                               -s.get("tube2").get("massflow", "a"))
+    np.testing.assert_allclose(data[str(act["a"]["through"]["massflow"])],
+                               -s.get("tube").get("massflow", "b"))
     with pytest.raises(ValueError, match="only JSON"):
         fons.data.writeout_simulation(str(tmp_path / "run.csv"), sim)
 
@@ -298,19 +355,18 @@ def test_variable_range_is_checked_on_the_results():
         fons.Simulation(s, duration=0.2).run()
 
 
-def test_array_form_component_and_other_discretizations_are_refused():
-    class Raw(fons.Component):
-        def evaluate(self, values, jacobian_state, jacobian_arguments, state, arguments,
-                     elapsed_time):
-            pass
-    with pytest.raises(TypeError, match="Raw: defines evaluate.*self.evaluate = self.auto"):
-        Raw("raw")
+@pytest.mark.parametrize("discretization, says", [("tustin", "Tustin"),
+                                                    ("forward", "forward Euler"),
+                                                    ("central", "not one of fonsim's")])
+def test_other_discretizations_are_refused_naming_them(discretization, says):
     s = fons.System()
     s += fons.PressureSource("src", pressure=2e5)
+    s += fons.CircularTube("tube", fluid=fons.air)
     s += fons.Container("tank", fluid=fons.air, volume=1e-5)
-    s.connect("src", "tank")
-    with pytest.raises(ValueError, match="discretization 'tustin' is not supported"):
-        fons.Simulation(s, discretization="tustin")
+    s.connect("src", "tube", "tank")
+    with pytest.raises(ValueError, match=f"discretization={discretization!r} .*{says}.* "
+                                         f"give discretization='backward'"):
+        fons.Simulation(s, discretization=discretization)
 
 
 def test_check_valve_without_a_fluid_nearby_is_named():
@@ -363,3 +419,33 @@ def test_fonsim_module_paths_import():
     assert fons.pvcurve.PVCurve is fons.data.PVCurve
     with pytest.raises(fons.FonsimNameError, match="'data.interpolate'"):
         fons.data.interpolate
+
+
+@pytest.mark.parametrize("pa, pb", [(1.5e5, 1.013e5), (1.0e5, 1.9e5), (101300.5, 101300.0),
+                                    (3e5, 0.5e5)])
+def test_flow_restrictor_mean_density_law_and_its_jacobian(pa, pb):
+    r = fons.FlowRestrictor("r", fluid=fons.air, diameter=1e-3, k=0.6)
+    P = r.make_params([r])
+    V = np.array([[pa, 1e-4, pb, -1e-4]])
+    F, J = r.residual(P, V, None, 0.0, True)
+    # mdot = A sqrt(2 rho(p_mean) |dp| / k), signed (above the laminar band)
+    rho_m = fons.air.density(0.5 * (pa + pb))
+    area = np.pi * 1e-3 ** 2 / 4
+    if abs(pa - pb) > 100:
+        q = np.sign(pa - pb) * area * np.sqrt(2 * rho_m * abs(pa - pb) / 0.6)
+        assert 1e-4 - F[0, 1] == pytest.approx(q, rel=1e-12)
+    for j, col in ((0, 2), (2, 4)):            # d/dp_a, d/dp_b
+        h = 1e-3
+        up, down = V.copy(), V.copy()
+        up[0, j] += h
+        down[0, j] -= h
+        fd = (r.residual(P, up, None, 0.0, False)[0][0, 1]
+              - r.residual(P, down, None, 0.0, False)[0][0, 1]) / (2 * h)
+        assert J[0, col] == pytest.approx(fd, rel=1e-5, abs=1e-14)
+    # a liquid: the same density everywhere, softflow's Orifice unchanged
+    w = fons.FlowRestrictor("w", fluid=fons.water, diameter=1e-3, k=0.6)
+    o = sf.Orifice("o", fons.water, 1e-3, K=0.6)
+    Fw, Jw = w.residual(w.make_params([w]), V, None, 0.0, True)
+    Fo, Jo = o.residual(o.make_params([o]), V, None, 0.0, True)
+    np.testing.assert_array_equal(Fw, Fo)
+    np.testing.assert_array_equal(Jw, Jo)

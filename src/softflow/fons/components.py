@@ -13,6 +13,9 @@ from scipy.optimize import brentq
 
 from .. import components as _sf
 from ..components.base import LibraryComponent
+from ..network import Component as _Component
+from ..components.valves import (_NO_JACOBIAN, ISO_6358_RHO0, ISO_6358_T0,
+                                 _given_density, _valve_laws)
 from ..units import to_si
 from .constants.norm import pressure_atmospheric
 from .core import ResultsMixin
@@ -58,6 +61,8 @@ class PressureSource(ResultsMixin, _sf.PressureSource):
     pressure [Pa], a number or a function of time (e.g. a ``fons.wave.Custom``);
     the fluid is not needed."""
 
+    fonsim_arguments = (("a", "pressure", "None"), ("a", "massflow", "None"))
+
     def __init__(self, label=None, fluid=None, pressure=None):
         label = _label(label, "PressureSource")
         if pressure is None:
@@ -79,6 +84,8 @@ class MassflowSource(ResultsMixin, _sf.MassFlowSource):
     """fonsim's ``MassflowSource(label, fluid=None, massflow)`` [kg/s],
     positive when fluid leaves the source; the fluid is not needed."""
 
+    fonsim_arguments = (("a", "massflow", "None"), ("a", "pressure", "None"))
+
     def __init__(self, label=None, fluid=None, massflow=None):
         label = _label(label, "MassflowSource")
         if massflow is None:
@@ -89,6 +96,8 @@ class MassflowSource(ResultsMixin, _sf.MassFlowSource):
 class VolumeflowSource(ResultsMixin, _sf.VolumeFlowSource):
     """fonsim's ``VolumeflowSource(label, fluid, volumeflow)`` [m^3/s],
     positive when fluid leaves the source, at the terminal's density."""
+
+    fonsim_arguments = (("a", "pressure", "None"), ("a", "massflow", "None"))
 
     def __init__(self, label=None, fluid=None, volumeflow=None):
         label = _label(label, "VolumeflowSource")
@@ -105,6 +114,9 @@ class CircularTube(ResultsMixin, _sf.CircularTube):
     warns, past the choke it refuses the run, naming the default
     ``sf.CircularTube`` law that models it)."""
 
+    fonsim_arguments = (("a", "massflow", "mf0"), ("a", "pressure", "p0"),
+                        ("b", "massflow", "mf1"), ("b", "pressure", "p1"))
+
     def __init__(self, label=None, fluid=None, length=0.6, diameter=0.002, roughness=1.5e-6):
         label = _label(label, "CircularTube")
         super().__init__(label, _fluid(fluid, "CircularTube", label), length, diameter,
@@ -114,6 +126,9 @@ class CircularTube(ResultsMixin, _sf.CircularTube):
 class Container(ResultsMixin, _sf.Container):
     """fonsim's ``Container(label, fluid, volume)`` [m^3], starting at fonsim's
     1 atm (101 300 Pa)."""
+
+    fonsim_arguments = (("a", "massflow", "mf"), ("a", "pressure", "p"))
+    fonsim_states = {"m": "mass"}
 
     def __init__(self, label=None, fluid=None, volume=None):
         label = _label(label, "Container")
@@ -125,14 +140,53 @@ class Container(ResultsMixin, _sf.Container):
 
 class FlowRestrictor(ResultsMixin, _sf.Orifice):
     """fonsim's ``FlowRestrictor(label, fluid, diameter=0.002, k=0.6)``:
-    softflow's Orifice with loss coefficient K = k, dp = k rho v^2 / 2.
-    softflow takes rho at the upstream pressure, fonsim at the mean pressure:
-    for a gas across a large pressure ratio the flows differ (by sqrt of the
-    density ratio)."""
+    softflow's Orifice with loss coefficient K = k, dp = k rho v^2 / 2, with
+    fonsim's density: at the mean pressure (p_a + p_b)/2, where softflow's
+    Orifice takes the upstream one (for a gas across a large pressure ratio
+    the flows differ by the square root of their ratio: 9 % from 1.5 bar
+    into the atmosphere).
+
+    The same compiled orifice law (:func:`softflow.laws.valves.orifice_residual`)
+    is given the density at the mean pressure instead of making the upstream
+    one (``DENSITY_POINT``); its Jacobian takes the density's slope in both
+    pressures. A liquid's density is the same at every pressure: there it is
+    softflow's Orifice unchanged."""
+
+    fonsim_arguments = (("a", "pressure", "None"), ("a", "massflow", "None"),
+                        ("b", "pressure", "None"), ("b", "massflow", "None"))
+
+    #: where the loss law takes its density (softflow's Orifice: 'upstream')
+    DENSITY_POINT = "mean"
 
     def __init__(self, label=None, fluid=None, diameter=0.002, k=0.6):
         label = _label(label, "FlowRestrictor")
         super().__init__(label, _fluid(fluid, "FlowRestrictor", label), diameter, K=k)
+
+    @classmethod
+    def residual(cls, P, V, S, t, jac):
+        if not P.fluid.compressible:
+            return _sf.Orifice.residual.__func__(cls, P, V, S, t, jac)
+        pa, pb = V[:, 0], V[:, 2]
+        # rho at (p_a + p_b)/2 and its slope per p_a (= per p_b): half of d rho/dp
+        rho_m, drho_m = _given_density(P, (pa, pb), mean=True)
+        F = np.empty((P.n, 2))
+        J = np.empty((P.n, 5)) if jac else _NO_JACOBIAN
+        # the law's given density is read as an upstream one: its slope enters
+        # the upstream pressure's column only ...
+        _valve_laws().orifice_residual(
+            P.law, V, P.law_RT, P.law_rho, P.K, P.area, P.dp_small, P.gamma, P.Cd, P.T, P.C,
+            P.b, P.subsonic_index, P.pr_laminar, ISO_6358_RHO0, ISO_6358_T0, True, rho_m,
+            drho_m, F, J, jac)
+        if not jac:
+            return F, None
+        # ... and the mean density moves with the downstream pressure as much:
+        # d mdot/d p_down += (d mdot/d rho) drho_m, with d mdot/d rho = mdot/(2 rho)
+        # for the loss law (regularized or not); row 1 is mf_a - mdot
+        q = V[:, 1] - F[:, 1]
+        extra = q / (2.0 * rho_m) * drho_m
+        down = np.where(pa >= pb, 4, 2)      # J's (1, p_b) or (1, p_a) entry
+        J[np.arange(P.n), down] -= extra
+        return F, J
 
 
 class CheckValve(ResultsMixin, _sf.CheckValve):
@@ -144,6 +198,9 @@ class CheckValve(ResultsMixin, _sf.CheckValve):
     fonsim's valve takes no fluid: the valve takes that of the components it is
     connected to when the Simulation is built (or ``fluid=`` if given).
     """
+
+    fonsim_arguments = (("a", "massflow", "mf0"), ("a", "pressure", "p0"),
+                        ("b", "massflow", "mf1"), ("b", "pressure", "p1"))
 
     def __init__(self, label=None, pressure_threshold=0, *, fluid=None):
         label = _label(label, "CheckValve")
@@ -177,6 +234,9 @@ class LinearAccumulator(ResultsMixin, _sf.LinearAccumulator):
     softflow needs some fluid in it: an empty one starts
     ``EMPTY_ACCUMULATOR_OFFSET`` (1 mPa) above p0 with the volume that gives.
     """
+
+    fonsim_arguments = (("a", "massflow", "mf"), ("a", "pressure", "p"))
+    fonsim_states = {"m": "mass"}
 
     def __init__(self, label=None, fluid=None, k=None, p0=pressure_atmospheric, v0=0.0):
         label = _label(label, "LinearAccumulator")
@@ -235,9 +295,16 @@ class FreeActuator(ResultsMixin, _sf.Actuator):
     volume range above 0 (softflow needs some fluid).
 
     fonsim's two terminals 'a' and 'b' are one node here ('b' connects to
-    'a'), as they share the volume's pressure. ``get_state('mass')`` is the
-    stored mass, ``get_state('volume')`` the volume.
+    'a'), as they share the volume's pressure; the flow through each is
+    fonsim's all the same: ``get('massflow', 'b')`` (``'mf1'``) is minus the
+    flows of the other terminals of fonsim's node of 'b', ``get('massflow',
+    'a')`` the rest. ``get_state('mass')`` is the stored mass,
+    ``get_state('volume')`` the volume.
     """
+
+    fonsim_arguments = (("a", "massflow", "mf0"), ("a", "pressure", "p0"),
+                        ("b", "massflow", "mf1"), ("b", "pressure", "p1"))
+    fonsim_states = {"mass": "mass"}
 
     _terminal_aliases = {"b": "a"}
 
@@ -267,6 +334,45 @@ class FreeActuator(ResultsMixin, _sf.Actuator):
     def pvcurve(self):
         """The PV curve (fonsim's attribute name)."""
         return self.curve
+
+    # fonsim's terminals 'a' and 'b': one pressure; the flow through each
+    def _values(self, key, terminal):
+        if terminal not in ("a", "b"):
+            return super()._values(key, terminal)
+        if key != "massflow":
+            return super()._values(key, "a")
+        through_b = _flow_through_b(self, set())
+        if terminal == "b":
+            return through_b
+        return super()._values("massflow", "a") - through_b
+
+    def _terminal_of(self, label):
+        return self.get_terminal("a" if label == "b" else label)
+
+
+def _flow_through_b(actuator, seen):
+    """The mass flow [kg/s] into a FreeActuator through fonsim's terminal 'b'
+    over the last run: minus the flows into the other terminals of fonsim's
+    node of 'b' (softflow joins 'b' to 'a': the actuator's own flow is the
+    sum of both)."""
+    system = getattr(actuator, "_fons_system", None)
+    times = _Component.get(actuator, "massflow", "a")
+    if system is None or actuator.label in seen:
+        return np.zeros_like(times) if system is None else np.full_like(times, np.nan)
+    seen = seen | {actuator.label}
+    total = np.zeros_like(times)
+    for label, term in system.fonsim_node_of(actuator.label, "b"):
+        if (label, term) == (actuator.label, "b"):
+            continue
+        other = system.get(label)
+        if isinstance(other, FreeActuator):
+            through_b = _flow_through_b(other, seen)
+            flow = through_b if term == "b" else \
+                _Component.get(other, "massflow", "a") - through_b
+        else:
+            flow = _Component.get(other, "massflow", term)
+        total = total + flow
+    return -total
 
 
 def _fonsim_file_curve(path):

@@ -6,7 +6,9 @@ arrays: its knots (the sample volumes, strictly increasing) and its table,
 one row per piece, ``[base, c0, c1, c2, c3]``: piece k = the number of knots
 at or below V (row 0 and row -1 are the extensions before the first and past
 the last sample) holds p = c0 + x (c1 + x (c2 + x c3)) with x = V - base.
-The extension's kind ('linear' or 'clamp') is in the table's coefficients;
+A curve of straight pieces (``interpolation='linear'``) is the same table
+with c2 = c3 = 0 and c1 each chord's slope. The extension's kind ('linear'
+or 'clamp') is in the table's coefficients;
 the extrapolation code (:data:`LINEAR`, :data:`CLAMP`, :data:`ERROR`) says
 whether a volume beyond the knots is refused, which a group pass reports by
 returning the index of the first such volume (the caller raises the curve's

@@ -51,17 +51,18 @@ def extrapolation_mode(extrapolate=False, extrapolate_derivative=False,
     return "clamp"
 
 
-#: Whether softflow's PVCurve interpolates straight lines between samples
-#: (``interpolation='linear'``): then fonsim's default method is followed
-#: exactly; without it, fons interpolates fonsim's 'linear' with softflow's
-#: monotone cubics (up to 1.2 % of the balloon curve's pressure range apart).
+#: fonsim's default ``method='linear'`` is followed exactly: softflow's PVCurve
+#: takes ``interpolation='linear'`` (straight lines between the samples, the
+#: chord's slope on each interval). (Kept for scripts and tests that asked
+#: whether it does; always True now.)
 LINEAR_INTERPOLATION = "interpolation" in inspect.signature(_PVCurve.__init__).parameters
 
 
 def interpolation_method(method, owner="fons.data.PVCurve"):
     """softflow's PVCurve options for fonsim's ``method=``: 'linear' (fonsim's
-    default, straight lines between the samples) and 'pchip' (fonsim's cubic
-    with central-difference slopes, taken as softflow's monotone cubic, PCHIP:
+    default, straight lines between the samples: softflow's
+    ``interpolation='linear'``) and 'pchip' (fonsim's cubic with
+    central-difference slopes, taken as softflow's monotone cubic, PCHIP:
     0.4 % of the balloon curve's pressure range apart). Other names are
     refused (fonsim 0.6 interpolates them linearly without a word)."""
     if not isinstance(method, str):
@@ -101,10 +102,10 @@ class PVCurve(_PVCurve):
         modes ``'clamp'``, ``'linear'``, ``'error'`` may be given as
         ``extrapolate``.
     method : {'linear', 'pchip'}, default 'linear'
-        fonsim's interpolation between the samples: straight lines, or a
-        cubic (softflow's monotone PCHIP). (Until softflow's PVCurve takes
-        ``interpolation='linear'``, 'linear' is interpolated with PCHIP too:
-        see ``LINEAR_INTERPOLATION``.)
+        fonsim's interpolation between the samples: straight lines
+        (softflow's ``interpolation='linear'``: dp/dV is each chord's slope
+        and jumps at the samples, as in fonsim), or a cubic (softflow's
+        monotone PCHIP).
     smoothing, filter_window, filter_order :
         softflow's options for noisy data (see :class:`softflow.PVCurve`).
     """
@@ -124,6 +125,9 @@ class PVCurve(_PVCurve):
         mode = extrapolation_mode(fonsim_opts["extrapolate"],
                                   fonsim_opts["extrapolate_derivative"], owner)
         curve_opts = interpolation_method(fonsim_opts["method"], owner)
+        if noise_opts.get("smoothing") not in (None, False) and "method" not in \
+                interpolation_opts:
+            curve_opts = {}     # softflow's smoothing spline replaces the interpolation
         if pressure_reference not in ("relative", "absolute"):
             raise ValueError(f"{owner}: pressure_reference must be 'relative' or 'absolute', "
                              f"got {pressure_reference!r}")

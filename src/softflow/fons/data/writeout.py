@@ -1,4 +1,5 @@
-"""fonsim's ``fons.data.writeout``: a run's results as a JSON file."""
+"""fonsim's ``fons.data.writeout``: a run's results as a JSON file, laid out
+as fonsim 0.6 lays it out."""
 from __future__ import annotations
 
 import datetime
@@ -6,12 +7,22 @@ import json
 import socket
 from pathlib import Path
 
+#: fonsim 0.6's name of its JSON layout, which this file follows
+SCHEME = "0.1-alpha"
+
 
 def writeout_simulation(filename, simulation):
     """Write a run's results to a JSON file (the format follows the extension;
-    JSON only), laid out as fonsim's: ``components`` map each component's
-    terminal variables ('over' for across, 'through') and states to keys of
-    ``data``, which holds the time series (SI: Pa, kg/s, kg, s).
+    JSON only), laid out as fonsim's: ``data`` holds the time series (SI: s,
+    Pa, kg/s, kg) under the keys '0', '1', ... ('0' is the time);
+    ``components[label]['terminals'][terminal]['over' | 'through'][key]``
+    and ``components[label]['states'][key]`` give each variable's index in
+    ``data``, by variable key ('pressure', 'massflow', 'mass');
+    ``simulation`` holds the system's ``label``, ``nb_components`` and
+    ``nb_nodes`` (fonsim's nodes: a FreeActuator's terminal 'b' counts apart)
+    and the index of the time. (fonsim 0.6 writes, under each terminal
+    variable's index, a row of the component's arguments at one step instead
+    of the variable's time series: here each index holds its series.)
 
     Parameters
     ----------
@@ -30,36 +41,68 @@ def writeout_simulation(filename, simulation):
         raise RuntimeError("fons.data.writeout_simulation: the simulation has not run; call "
                            "simulation.run() first")
     from ... import __version__
-    data = {"time": result.times.tolist()}
+    data = [result.times.tolist()]
+
+    def keep(values):
+        data.append([float(x) for x in values])
+        return len(data) - 1
+
+    system = simulation.system
     components = {}
-    for comp in simulation.system.components:
+    for comp in system.components:
         terms = {}
-        for t in comp.terminals:
-            entry = {"over": {}, "through": {}}
-            for var in t.variables:
-                key = f"{comp.label}/{t.label}/{var.label}"
-                data[key] = result.get(comp.label, var.quantity, terminal=t.label).tolist()
-                entry["over" if var.role == "across" else "through"][var.label] = key
-            terms[t.label] = entry
-        states = {}
-        for s in comp.states:
-            key = f"{comp.label}/{s.label}"
-            data[key] = result.get(comp.label, s.label).tolist()
-            states[s.label] = key
-        components[comp.label] = {"terminals": terms, "states": states, "time": "time"}
+        for term, key, _ in _arguments(comp):
+            entry = terms.setdefault(term, {"over": {}, "through": {}})
+            role = "over" if _is_across(comp, term, key) else "through"
+            entry[role][key] = keep(_values(comp, key, term))
+        states = {s.quantity: keep(result.get(comp.label, s.label)) for s in comp.states}
+        components[comp.label] = {"terminals": terms, "states": states}
+    now = datetime.datetime.now(datetime.timezone.utc).astimezone()
     doc = {
-        "scheme": "softflow.fons simulation writeout 1",
-        "general": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "scheme": SCHEME,
+        "general": {"date": now.strftime("%Y/%m/%d %H:%M:%S %z"),
                     "hostname": socket.gethostname(), "version": f"softflow {__version__}"},
-        "simulation": {"system": {"label": simulation.system.label,
-                                  "nb components": len(simulation.system.components)},
-                       "solver": {"name": f"softflow {result.stats.get('method', '')}"},
-                       "time": "time"},
+        "simulation": {"system": {"label": system.label,
+                                  "nb_components": len(system.components),
+                                  "nb_nodes": _nb_nodes(system)},
+                       "solver": {},
+                       "time": 0},
         "components": components,
-        "data": data,
+        "data": {str(i): series for i, series in enumerate(data)},
     }
     with open(path, "w", encoding="utf-8") as fh:
         json.dump(doc, fh)
+
+
+def _arguments(comp):
+    """(terminal, key, label) of the component's terminal variables, in fonsim's
+    order (a softflow component: each terminal's through, then across ones)."""
+    if hasattr(comp, "_fonsim_arguments"):
+        return comp._fonsim_arguments()
+    return [(t.label, v.quantity, v.label) for t in comp.terminals
+            for role in ("through", "across") for v in t.variables if v.role == role]
+
+
+def _is_across(comp, term, key):
+    for t in comp.terminals:
+        if t.label == term:
+            for v in t.variables:
+                if v.quantity == key:
+                    return v.role == "across"
+    return key == "pressure"
+
+
+def _values(comp, key, term):
+    if hasattr(comp, "_values"):
+        return comp._values(key, term)
+    return comp.get(key, term)
+
+
+def _nb_nodes(system):
+    """fonsim's count of nodes: softflow's, a FreeActuator's terminal 'b' apart
+    (its own node where it is not connected)."""
+    count = getattr(system, "fonsim_node_count", None)
+    return count() if count is not None else len(system.nodes())
 
 
 def __getattr__(name):

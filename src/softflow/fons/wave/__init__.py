@@ -1,12 +1,12 @@
 """fonsim's wave generators (``fons.wave``) over softflow's waveforms.
 
-``Custom(wave_array, time_notation='absolute', kind='previous')`` is a
-:class:`softflow.curves.waveforms.PiecewiseConstant` (kind 'previous' or
-'zero') or :class:`~softflow.curves.waveforms.PiecewiseLinear` (kind
-'linear' or 'slinear'), so a source driven by it declares its jumps to the
-adaptive integrator. ``Custom(...) * 1e5 + fons.pressure_atmospheric`` scales
-and offsets the values and returns a new wave (fonsim changes the wave in place
-and returns it).
+``Custom(wave_array, time_notation='absolute', kind='previous')`` is a wave
+through given points with fonsim's kinds ('previous', 'zero', 'next',
+'nearest', 'linear', 'slinear', 'quadratic', 'cubic': scipy's ``interp1d``
+names, the same values), and it declares the times at which it or its slope
+jumps, so the adaptive integrator lands on them. As in fonsim,
+``Custom(...) * 1e5 + fons.pressure_atmospheric`` changes the wave in place
+and returns it (``copy()`` makes a separate one).
 
 The periodic shapes ``sine``, ``square``, ``sawtooth``, ``triangle`` and
 ``unity`` take an angle [rad]; ``time_to_angle(time, frequency, phase)`` gives
