@@ -237,14 +237,16 @@ def test_initial_volume_interpolates_and_fixes_fonsim_s_last_sample():
     assert rel_s.get_initial_volume(5e5) == pytest.approx(rel_s.v[-1])
 
 
-def test_tube_laminar_turbulent_band_is_a_known_difference():
-    # not a convention softflow.fons follows yet: in Re 2300..4000 fonsim weighs the
-    # laminar and turbulent laws linearly in Re, softflow with a smoothstep
+def test_tube_laminar_turbulent_band_follows_fonsim():
+    """In Re 2300..4000 fonsim weighs the laminar and turbulent laws linearly in
+    Re; softflow.fons's tubes do too (transition='linear'; softflow's default
+    smoothstep differed by up to 2.6 % of the flow in the band): steady flows
+    from laminar across the band, within 1e-6, in the band as outside it."""
     for kind in ("air", "water"):
         ref = S.tube_transition(fonsim, kind)["massflow [kg/s]"]
         got = S.tube_transition(sfons, kind)["massflow [kg/s]"]
         rel = np.abs(got / ref - 1)
         Re = 4 * ref / (np.pi * 0.8e-3 * getattr(fonsim, kind).mu)
         band = (Re > 2300) & (Re < 4000)
-        assert np.all(rel[~band] < 1e-9), (kind, rel, Re)
-        assert np.all(rel[band] < 0.03), (kind, rel, Re)
+        assert band.sum() >= 2, (kind, Re)           # the band is crossed
+        assert np.all(rel < 1e-6), (kind, rel, Re)

@@ -65,6 +65,15 @@ def _cases():
         ("InertialCircularTube-water", [sf.CircularTube(f"t{i}", water, 0.5, 2e-3,
                                                         inertance=True) for i in range(4)],
          tube_params, lambda r: _two_port(r, np.array([1e-4, -3e-3, 2e-2, 5e-3])), None),
+        # fonsim's straight laminar-turbulent transition: the blend bounds' derivatives
+        ("CircularTube-linear-transition", [sf.CircularTube(f"t{i}", air, 0.5, 1e-3,
+                                                            transition="linear")
+                                            for i in range(4)],
+         tube_params, lambda r: _two_port(r, AIR_FLOWS), None),
+        ("CircularTube-linear-transition-water",
+         [sf.CircularTube(f"t{i}", water, 0.5, 1e-3 * (i + 1), transition="linear")
+          for i in range(4)],
+         tube_params, lambda r: _two_port(r, np.array([2.5e-3, -5.5e-3, 2e-2, 1.2e-2])), None),
         # minor losses K (added to f L/D): the Darcy, isothermal, mean-density and
         # inertial paths, each instance with its own K
         ("CircularTube-K-air", [sf.CircularTube(f"t{i}", air, 0.5, 1e-3, K=0.25 + 0.5 * i)

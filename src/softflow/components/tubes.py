@@ -11,9 +11,9 @@ import numpy as np
 
 from .._laws import law_module
 from ..constants import pressure_atmospheric
-from ..correlations.friction import (ANALYTIC_FRICTION, FrictionTable, compiled_kind,
-                                     fRe_blended, friction_Haaland, resolve_friction,
-                                     roughness_terms, smoothstep)
+from ..correlations.friction import (ANALYTIC_FRICTION, TRANSITIONS, FrictionTable,
+                                     compiled_kind, fRe_blended, friction_Haaland,
+                                     resolve_friction, roughness_terms, transition_step)
 from ..correlations.fanno import adiabatic_pipe
 from ..correlations.gas_pipe import isothermal_pipe
 from ..fluids.ideal import IdealGas
@@ -105,7 +105,7 @@ def friction_roughness_derivative(P, Re):
     turbulent = P.turbulent if hasattr(P, "turbulent") else friction_Haaland
     if turbulent is None or Re.max(initial=0.0) <= P.Re_lo:
         return np.zeros_like(Re)
-    w, _ = smoothstep(Re, P.Re_lo, P.Re_hi)
+    w, _ = transition_step(Re, P.Re_lo, P.Re_hi, _transition(P))
     Ret = np.maximum(Re, P.Re_lo)
     h = 1e-4 * np.maximum(P.eD, 1e-6)
     lo = np.maximum(P.eD - h, 0.0)
@@ -132,7 +132,7 @@ def friction_bound_derivative(P, Re, name):
         return np.zeros_like(Re)
     lo, hi = P.Re_lo, P.Re_hi
     s = np.minimum(np.maximum((Re - lo) / (hi - lo), 0.0), 1.0)
-    dw = 6.0 * s * (1.0 - s) / (hi - lo)
+    dw = transition_step(Re, lo, hi, _transition(P))[1]
     Ret = np.maximum(Re, lo)
     phit = turbulent(Ret, P.eD, derivative=False)[0] * Ret
     dw_dbound = -dw * ((1.0 - s) if name == "Re_laminar" else s)
@@ -149,6 +149,12 @@ def tube_law_derivative(P, name, dp, mf_d_mf, d_eD):
     if name == "diameter":
         return -(3.0 * dp + mf_d_mf + P.eD * d_eD) / P.diameter
     return d_eD / P.diameter
+
+
+def _transition(P):
+    """The group's laminar-turbulent transition ('smooth' for the tube-like
+    valves, which have no option)."""
+    return getattr(P, "transition", "smooth")
 
 
 def viscosity_log_slope(P, pm, mu):
@@ -177,7 +183,7 @@ def _friction_term(P, pa, mf, pb, jac):
         phi, dphi = 64.0, 0.0         # all laminar: f Re = 64 exactly
     else:
         phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent, derivative=jac,
-                                terms=P.friction_terms)
+                                terms=P.friction_terms, transition=_transition(P))
     if P.minor:
         phi, dphi = phi + P.kre * Re, (None if dphi is None else dphi + P.kre)
     return c_mu * phi * mf, pm, c_mu, mu_ratio, Re, phi, dphi
@@ -323,7 +329,7 @@ def set_compiled_law(P, own_law=True):
         P.kind_c, P.kind_c2 = P.c_per_rho, 0.0
     else:
         return
-    P.kind = compiled_kind(P.turbulent)
+    P.kind = compiled_kind(P.turbulent, _transition(P))
     P.kind_terms = P.eD if P.friction_terms is None else P.friction_terms
 
 
@@ -420,6 +426,11 @@ class CircularTube(LibraryComponent):
     inertance : bool, default False
         Add the fluid inertance L/A · d(mdot)/dt (rho L / A per volume flow)
         to the pressure drop, with the mass flow as a state.
+    transition : {'smooth', 'linear'}, default 'smooth'
+        How the laminar and turbulent laws are weighed between Re_laminar and
+        Re_turbulent: a C1 smoothstep in Re (the default), or linearly in Re,
+        with kinks at both bounds ('linear': fonsim 0.6's transition, which
+        ``softflow.fons`` selects; up to 2.6 % of the flow apart in the band).
     K : float [-], default 0
         Minor losses: the sum of the loss coefficients of the tube's entrance,
         bends and fittings, each referred to the velocity in the bore (a
@@ -448,10 +459,14 @@ class CircularTube(LibraryComponent):
                  roughness: Scalar = 1.5e-6, Re_laminar: float = 2300.0,
                  Re_turbulent: float = 4000.0, *, friction: str = "Haaland",
                  compressible: str = "pipe_flow", inertance: bool = False,
-                 K: float = 0.0) -> None:
+                 K: float = 0.0, transition: str = "smooth") -> None:
         super().__init__(label, fluid=None)
         set_tube_geometry(self, fluid, length, diameter, roughness, Re_laminar, Re_turbulent)
         self.K = self._si(K, "", "K", nonnegative=True)
+        if transition not in TRANSITIONS:
+            raise ValueError(f"{self.describe()}: transition must be one of {TRANSITIONS}, "
+                             f"got {transition!r}")
+        self.transition = transition
         try:
             self.friction = resolve_friction(friction)
         except KeyError as err:
@@ -471,12 +486,13 @@ class CircularTube(LibraryComponent):
         # one blend range, correlation and gas model per group: the kernel makes one call each
         mode = self.compressible if self.fluid.compressible else "mean_density"
         return (type(self), id(self.fluid), self.Re_laminar, self.Re_turbulent, self.friction,
-                mode)
+                mode, self.transition)
 
     @classmethod
     def make_params(cls, components):
         P = super().make_params(components)
         first = P.components[0]
+        P.transition = first.transition
         set_tube_coefficients(P)
         P.compressible = P.fluid.compressible
         # real-fluid levels: viscosity at the tube's mean pressure (air at 15 MPa
@@ -578,7 +594,7 @@ class CircularTube(LibraryComponent):
         else:
             # without jac, the value alone (the same arithmetic)
             phi, dphi = fRe_blended(Re, P.eD, P.Re_lo, P.Re_hi, P.turbulent, derivative=jac,
-                                    terms=P.friction_terms)
+                                    terms=P.friction_terms, transition=P.transition)
             if P.minor:
                 phi, dphi = phi + P.kre * Re, (0.0 if dphi is None else dphi) + P.kre
         # a liquid at constant viscosity: c_mu / rho is a constant of the group,

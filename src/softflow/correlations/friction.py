@@ -100,11 +100,13 @@ def smoothstep(x, lo, hi, derivative=True):
 
 
 def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivative=True,
-                terms=None):
+                terms=None, transition="smooth"):
     """The product f·Re of the Darcy friction factor and the Reynolds number,
     laminar (64) below Re_lo, the turbulent correlation above Re_hi, and a C1
-    smoothstep blend between them; returns (f·Re, d(f·Re)/dRe), the derivative
-    None without ``derivative`` (the value is the same either way).
+    smoothstep blend between them (``transition='linear'``: weighed linearly
+    in Re, fonsim 0.6's transition, with kinks at Re_lo and Re_hi); returns
+    (f·Re, d(f·Re)/dRe), the derivative None without ``derivative`` (the
+    value is the same either way).
 
     ``turbulent(Re, eD, derivative=...) -> (f, df/dRe)`` defaults to
     :func:`friction_Haaland`; ``terms``, what :func:`roughness_terms` made for it
@@ -117,6 +119,7 @@ def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivativ
     a derivative that never vanishes at zero flow.
     """
     law = compiled()
+    linear = _linear_transition(transition)
     kind = compiled_kind(turbulent or friction_Haaland)
     shape, (Re, eD) = prepared(Re, eD)
     phi, dphi = np.empty(Re.size), np.empty(Re.size)
@@ -125,24 +128,50 @@ def fRe_blended(Re, eD, Re_lo=2300.0, Re_hi=4000.0, turbulent=None, *, derivativ
             a = prepared(_haaland_terms(eD) if terms is None else terms, Re)[1][0]
         else:
             a = eD
-        law.fRe_blended_array(kind, Re, eD, a, float(Re_lo), float(Re_hi), phi, dphi)
+        law.fRe_blended_array(kind + (law.LINEAR_BLEND if linear else 0), Re, eD, a,
+                              float(Re_lo), float(Re_hi), phi, dphi)
     else:
         ft, dft = turbulent(np.maximum(Re, Re_lo), eD, derivative=True)
         ft, dft = prepared(ft, Re)[1][0], prepared(dft, Re)[1][0]
-        law.blend_array(Re, ft, dft, float(Re_lo), float(Re_hi), phi, dphi)
+        law.blend_array(Re, ft, dft, float(Re_lo), float(Re_hi), linear, phi, dphi)
     phi, dphi = shaped(shape, phi, dphi)
     return phi, (dphi if derivative else None)
 
 
-def compiled_kind(turbulent):
+#: the laminar-turbulent transitions of the blended law
+TRANSITIONS = ("smooth", "linear")
+
+
+def _linear_transition(transition):
+    if transition not in TRANSITIONS:
+        raise ValueError(f"transition must be one of {TRANSITIONS}, got {transition!r}")
+    return transition == "linear"
+
+
+def transition_step(Re, lo, hi, transition="smooth"):
+    """The blend's weight of the turbulent law at Re and its derivative in Re,
+    (w, dw/dRe): the smoothstep or, for ``transition='linear'``, the straight
+    step from lo to hi (arrays; lo and hi scalars)."""
+    if not _linear_transition(transition):
+        return smoothstep(Re, lo, hi)
+    Re = np.asarray(Re, dtype=float)
+    s = (Re - lo) / (hi - lo)
+    inside = (s > 0.0) & (s < 1.0)
+    return np.clip(s, 0.0, 1.0), np.where(inside, 1.0 / (hi - lo), 0.0)
+
+
+def compiled_kind(turbulent, transition="smooth"):
     """The id of the correlation ``turbulent`` (one of :data:`ANALYTIC_FRICTION`'s
     functions, or None for 'laminar') in the compiled laws
-    (:mod:`softflow.laws.friction`); None for another law (a table)."""
+    (:mod:`softflow.laws.friction`), with the ``transition='linear'`` flag
+    added where asked for; None for another law (a table)."""
     law = compiled()
     if turbulent is None:
         return law.LAMINAR
     name = _KIND.get(turbulent)
-    return None if name is None else getattr(law, name)
+    if name is None:
+        return None
+    return getattr(law, name) + (law.LINEAR_BLEND if _linear_transition(transition) else 0)
 
 
 def roughness_terms(turbulent, eD):

@@ -112,7 +112,9 @@ class CircularTube(ResultsMixin, _sf.CircularTube):
     fonsim's gas law, the density at the mean pressure and no acceleration
     (``compressible='mean_density'``: it does not choke; past Mach 0.3 softflow
     warns, past the choke it refuses the run, naming the default
-    ``sf.CircularTube`` law that models it)."""
+    ``sf.CircularTube`` law that models it) and fonsim's laminar-turbulent
+    transition, the two laws weighed linearly in Re between 2 300 and 4 000
+    (``transition='linear'``)."""
 
     fonsim_arguments = (("a", "massflow", "mf0"), ("a", "pressure", "p0"),
                         ("b", "massflow", "mf1"), ("b", "pressure", "p1"))
@@ -120,7 +122,7 @@ class CircularTube(ResultsMixin, _sf.CircularTube):
     def __init__(self, label=None, fluid=None, length=0.6, diameter=0.002, roughness=1.5e-6):
         label = _label(label, "CircularTube")
         super().__init__(label, _fluid(fluid, "CircularTube", label), length, diameter,
-                         roughness, compressible="mean_density")
+                         roughness, compressible="mean_density", transition="linear")
 
 
 class Container(ResultsMixin, _sf.Container):

@@ -15,6 +15,10 @@ _LN10 = math.log(10.0)
 
 #: the turbulent correlations by id (the ``kind`` of :func:`turbulent`)
 LAMINAR, HAALAND, COLEBROOK, CHURCHILL, SWAMEE_JAIN = 0, 1, 2, 3, 4
+#: added to a correlation's id in :func:`fRe_blended`'s ``kind``: the
+#: laminar-turbulent blend weighs the two laws linearly in Re (fonsim's
+#: transition) instead of by the C1 smoothstep
+LINEAR_BLEND = 8
 
 
 @jit
@@ -108,11 +112,27 @@ def smoothstep(x, lo, hi):
 
 
 @jit
-def blend(Re, ft, dft, lo, hi):
+def linear_step(x, lo, hi):
+    """Step s = (x - lo)/(hi - lo) clipped to [0, 1], continuous but with kinks
+    at lo and hi; returns (w, dw/dx) (dw/dx zero outside (lo, hi))."""
+    s = (x - lo) / (hi - lo)
+    if s <= 0.0:
+        return 0.0, 0.0
+    if s >= 1.0:
+        return 1.0, 0.0
+    return s, 1.0 / (hi - lo)
+
+
+@jit
+def blend(Re, ft, dft, lo, hi, linear=False):
     """f·Re of the laminar–turbulent blend, 64 + w (ft Ret - 64), and its
     derivative in Re, from the turbulent law's (f, df/dRe) = (ft, dft) at
-    Ret = max(Re, lo); w the smoothstep from lo to hi."""
-    w, dw = smoothstep(Re, lo, hi)
+    Ret = max(Re, lo); w the smoothstep from lo to hi (C1), or with
+    ``linear`` the straight step (fonsim 0.6's weighing of the two laws)."""
+    if linear:
+        w, dw = linear_step(Re, lo, hi)
+    else:
+        w, dw = smoothstep(Re, lo, hi)
     Ret = max(Re, lo)
     phit = ft * Ret
     dphit = ft + Ret * dft if Re > lo else 0.0
@@ -123,14 +143,18 @@ def blend(Re, ft, dft, lo, hi):
 def fRe_blended(kind, Re, eD, a, lo, hi):
     """(f·Re, d(f·Re)/dRe) of the blended friction law: 64 below ``lo``, the
     turbulent correlation ``kind`` above ``hi`` (its f·Re itself there), the
-    C1 :func:`blend` between; 64 at every Re for ``kind`` = LAMINAR."""
+    C1 :func:`blend` between (straight, where ``kind`` has
+    :data:`LINEAR_BLEND` added); 64 at every Re for ``kind`` = LAMINAR."""
+    linear = kind >= LINEAR_BLEND
+    if linear:
+        kind = kind - LINEAR_BLEND
     if kind == LAMINAR:
         return 64.0, 0.0
     if lo <= hi and Re >= hi:
         f, df = turbulent(kind, Re, eD, a)
         return f * Re, f + Re * df
     ft, dft = turbulent(kind, max(Re, lo), eD, a)
-    return blend(Re, ft, dft, lo, hi)
+    return blend(Re, ft, dft, lo, hi, linear)
 
 
 # -- array loops (the arrays' shapes are made equal by the caller) ----------------------
@@ -147,9 +171,9 @@ def fRe_blended_array(kind, Re, eD, a, lo, hi, phi, dphi):
 
 
 @jit
-def blend_array(Re, ft, dft, lo, hi, phi, dphi):
+def blend_array(Re, ft, dft, lo, hi, linear, phi, dphi):
     for i in range(Re.size):
-        phi[i], dphi[i] = blend(Re[i], ft[i], dft[i], lo, hi)
+        phi[i], dphi[i] = blend(Re[i], ft[i], dft[i], lo, hi, linear)
 
 
 @jit
@@ -158,6 +182,6 @@ def smoothstep_array(x, lo, hi, w, dw):
         w[i], dw[i] = smoothstep(x[i], lo[i], hi[i])
 
 
-__all__ = ["LAMINAR", "HAALAND", "COLEBROOK", "CHURCHILL", "SWAMEE_JAIN", "haaland",
+__all__ = ["LAMINAR", "HAALAND", "COLEBROOK", "CHURCHILL", "SWAMEE_JAIN", "LINEAR_BLEND", "haaland",
            "haaland_terms", "swamee_jain", "churchill", "colebrook", "turbulent",
            "smoothstep", "blend", "fRe_blended"]
