@@ -77,6 +77,7 @@ def main():
             modes.append("adiabatic")
         except subprocess.CalledProcessError:
             pass
+        medians = {}
         for mode in modes:
             # interleave baseline and current runs to share the machine's state
             base, cur = [], []
@@ -89,7 +90,15 @@ def main():
             for name in SCENES:
                 tb = statistics.median(b[name][0] for b in base)
                 tc = statistics.median(c[name][0] for c in cur)
+                medians[mode, name] = (tb, tc)
                 print(f"  {name:<22} {tb * 1e3:>7.1f}ms {tc * 1e3:>7.1f}ms {tc / tb:>6.3f}")
+        if "adiabatic" in modes:
+            # the target (issue 38): thermal runs <= 2x isothermal, before and after
+            print("\nadiabatic / isothermal, same sitting:")
+            print(f"  {'scene':<22} {'before':>7} {'after':>7}")
+            for name in SCENES:
+                (ib, ic), (ab, ac) = medians[None, name], medians["adiabatic", name]
+                print(f"  {name:<22} {ab / ib:>7.2f} {ac / ic:>7.2f}")
 
 if __name__ == "__main__":
     t0 = time.perf_counter()

@@ -16,6 +16,8 @@ import softflow as sf
 from softflow.curves.waveforms import Ramp, Sine
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "thermal"))
+from network_scenes import SCENES as THERMAL_SCENES  # noqa: E402
 from scenes import chain  # noqa: E402
 
 P0 = sf.pressure_atmospheric
@@ -120,11 +122,16 @@ SCENES = {
 def _sim(name, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
+        if name in THERMAL_SCENES:      # tests/thermal/network_scenes.py
+            build, options, duration = THERMAL_SCENES[name]
+            return sf.Simulation(build(), duration=duration, **options, **kw)
         return sf.Simulation(SCENES[name](), duration=0.05, **kw)
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", list(SCENES) + list(THERMAL_SCENES))
 def test_the_compiled_residual_is_the_per_group_one(name):
+    """Thermal scenes too: every thermal class of an ideal gas, h·A of the
+    heat-transfer correlations set at each state as a step's start sets it."""
     sim = _sim(name)
     asm = sim.asm
     assert asm.residual is not asm.python_residual
@@ -134,6 +141,8 @@ def test_the_compiled_residual_is_the_per_group_one(name):
         x = x0 * (1.0 + 0.05 * rng.standard_normal(asm.n)) + 1e-6 * rng.standard_normal(asm.n)
         S = S0 * (1.0 + 0.05 * rng.standard_normal(S0.size))
         t, dt = float(rng.uniform(0, 0.05)), float(10.0 ** rng.uniform(-6, -2))
+        if asm.has_begin_step:
+            asm.begin_step(x, S)
         for jac in (False, True):
             asm.raw[:] = np.nan
             F1 = asm.residual(x, S, t, dt, jac)
@@ -148,10 +157,15 @@ def test_the_compiled_residual_is_the_per_group_one(name):
                 np.testing.assert_allclose(raw1, raw2, rtol=1e-13, atol=0.0)
 
 
-@pytest.mark.parametrize("name", list(SCENES))
+@pytest.mark.parametrize("name", list(SCENES) + list(THERMAL_SCENES))
 @pytest.mark.parametrize("step", [None, 1e-3])
 def test_whole_runs_agree_with_the_per_group_path(name, step):
-    """Fixed steps to 1e-10 relative, adaptive within the run's tolerance."""
+    """Fixed steps to 1e-10 relative, adaptive within the run's tolerance
+    (thermal scenes: pressures and temperatures, a fixed step of 1/50 of the
+    run)."""
+    thermal = name in THERMAL_SCENES
+    if thermal and step is not None:
+        step = THERMAL_SCENES[name][2] / 50
     kw = {} if step is None else {"step": step}
     ours, theirs = _sim(name, **kw), _sim(name, **kw)
     theirs.asm.residual = theirs.asm.python_residual
@@ -159,15 +173,22 @@ def test_whole_runs_agree_with_the_per_group_path(name, step):
         warnings.simplefilter("ignore", sf.ModelWarning)
         a, b = ours.run(), theirs.run()
     assert a.success and b.success
-    for label in ("c", "cont2", "acc", "v1", "v2", "a1", "a2", "h"):
-        try:
-            pa, pb = a.get(label, "pressure"), b.get(label, "pressure")
-        except KeyError:
-            continue
-        if step is not None:
-            np.testing.assert_allclose(pa, pb, rtol=1e-10)
-        else:
-            assert abs(pa[-1] - pb[-1]) <= 1e-3 * abs(pb[-1])
+    compared = 0
+    labels = (("c", "cont2", "cont7", "acc", "v1", "v2", "a1", "a2", "a3", "h", "hh", "held",
+               "act1", "act2", "accumulator") if thermal else
+              ("c", "cont2", "acc", "v1", "v2", "a1", "a2", "h"))
+    for label in labels:
+        for quantity in ("pressure", "temperature") if thermal else ("pressure",):
+            try:
+                pa, pb = a.get(label, quantity), b.get(label, quantity)
+            except KeyError:
+                continue
+            compared += 1
+            if step is not None:
+                np.testing.assert_allclose(pa, pb, rtol=1e-10)
+            else:
+                assert abs(pa[-1] - pb[-1]) <= 1e-3 * abs(pb[-1])
+    assert compared
 
 
 def test_a_parameter_run_reaches_the_compiled_residual():
@@ -210,17 +231,73 @@ def _with(extra, two_port=False):
     (lambda: _with(sf.CheckValve("cv", sf.Fluid("air", level="table"), diameter=1e-3),
                    two_port=True), {}),
     (lambda: chain(2, fluid=sf.Fluid("air", level="table")), {}),
-    (lambda: chain(2), {"thermal": "adiabatic"}),
+    (lambda: chain(2, fluid=sf.Fluid("air", level="table")), {"thermal": "adiabatic"}),
     (lambda: chain(2, compressible="mean_density"), {}),
+    (lambda: chain(2, compressible="mean_density"), {"thermal": "adiabatic"}),
 ])
 def test_a_network_with_an_uncovered_group_keeps_the_per_group_path(make, kw):
-    """A user component (the paper's actuator), a real fluid, a thermal scene,
-    the mean-density law: not (yet) in the compiled loop, so the whole network
-    keeps the per-group path."""
+    """A user component (the paper's actuator), a real fluid (isothermal or
+    thermal), the mean-density law (isothermal or thermal): not (yet) in the
+    compiled loop, so the whole network keeps the per-group path."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(make(), duration=0.01, **kw)
     assert sim.asm.residual is sim.asm.python_residual
+
+
+def test_a_thermal_parameter_run_reaches_the_compiled_residual():
+    """run(params=...) in a thermal scene: the tubes' and the volumes' new
+    numbers (a wider first tube, a container's h·A) reach the compiled loop,
+    as the per-group path has them."""
+    def build():
+        s = chain(4)
+        for c in s.components:
+            if isinstance(c, sf.Container):
+                c.hA = 0.01
+        return s
+
+    params = {"tube0.diameter": 3e-3, "cont1.hA": 0.05}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        ours = sf.Simulation(build(), duration=0.05, step=1e-3, thermal="heat_transfer")
+        theirs = sf.Simulation(build(), duration=0.05, step=1e-3, thermal="heat_transfer")
+        theirs.asm.residual = theirs.asm.python_residual
+        base = ours.run().get("cont3", "temperature")[-1]
+        a = ours.run(params=params)
+        b = theirs.run(params=params)
+    assert ours.asm.residual is not ours.asm.python_residual
+    for q in ("pressure", "temperature"):
+        np.testing.assert_allclose(a.get("cont3", q), b.get("cont3", q), rtol=1e-10)
+    assert a.get("cont3", "temperature")[-1] != base
+
+
+def test_a_thermal_volume_a_curve_refuses_raises_the_curves_error():
+    """An actuator of air in an adiabatic scene on a curve that does not
+    extrapolate, driven past its data: the compiled loop hands that
+    evaluation to the per-group path, which raises the curve's own error."""
+    def build():
+        s = sf.System()
+        s += sf.PressureSource("ps", pressure=P0 + 2e5)
+        s += sf.CircularTube("t", sf.air, 0.3, 1e-3)
+        curve = sf.PVCurve(volume=[1e-6, 2e-6, 3e-6], pressure=[P0, P0 + 2e4, P0 + 3e4],
+                           extrapolate="error")
+        s += sf.Actuator("act", sf.air, curve, initial_volume=1.5e-6)
+        s.connect("t", "ps")
+        s.connect("t", "act")
+        return s
+
+    messages = []
+    for compiled in (True, False):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sim = sf.Simulation(build(), duration=0.5, thermal="adiabatic")
+            assert sim.asm.residual is not sim.asm.python_residual
+            if not compiled:
+                sim.asm.residual = sim.asm.python_residual
+            res = sim.run(raise_on_failure=False)
+        assert not res.success
+        messages.append(res.message)
+    assert "act" in messages[0] and messages[0] == messages[1]
 
 
 def test_a_volume_a_curve_refuses_raises_the_curves_error():

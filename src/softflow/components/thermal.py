@@ -84,12 +84,27 @@ Energy model
 * **Sources** are reservoirs at their ``temperature``: a PressureSource fixes its
   node's temperature; flow sources deliver h(p, T_source) and take in the
   node's enthalpy when the flow reverses.
+
+Compiled laws
+-------------
+For an ideal gas whose properties are :class:`~softflow.IdealGas`'s own
+(:func:`ideal_gas_constants`) the kernels below evaluate each group in one
+compiled pass of :mod:`softflow.laws.thermal` (the upwind energy, the walls
+and the rows of volumes, the flow elements' rows around their laws, the flow
+sources), the same laws the compiled network residual
+(:mod:`softflow.solve.netcore`) calls instance by instance; the NumPy code
+stays for the other fluids (table and eos levels) and for laws the compiled
+passes do not know (a tube's mean-density law, a curve given as a function).
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
+from .._laws import law_module
 from ..constants import pressure_atmospheric
+from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
 from .actuators import Actuator, HystereticActuator
 from .chambers import (MASS_RATE_PATTERN, Container, LinearAccumulator, accumulator_volume,
                        mass_rates)
@@ -104,6 +119,27 @@ ZERO_FLOW_CONDUCTANCE = 1e-6
 
 #: Variables a thermal terminal adds: (quantity, role, label).
 THERMAL_PORT_EXTRA = (("temperature", "across", "T"), ("energyflow", "through", "E"))
+
+#: the compiled laws of thermal scenes of an ideal gas (softflow.laws.thermal)
+_thermal_laws = functools.partial(law_module, "thermal")
+
+#: the methods of an ideal gas that the compiled laws write out (softflow.laws.thermal)
+_IDEAL_METHODS = ("density", "density_dp", "density_dT", "enthalpy", "internal_energy",
+                  "_density_parts", "_internal_energy_parts", "_enthalpy_linear")
+
+
+def ideal_gas_constants(fluid):
+    """(R, cp, cv, c) of an ideal gas whose properties are IdealGas's own
+    (rho = p / (R T), h = cp T + c, u = cv T + c): what the compiled laws of
+    :mod:`softflow.laws.thermal` take; None for any other fluid (table and eos
+    levels, a subclass with a law of its own), which keeps the NumPy kernels."""
+    from ..fluids.ideal import IdealGas
+    kind = type(fluid)
+    if not isinstance(fluid, IdealGas) or any(getattr(kind, name) is not getattr(IdealGas, name)
+                                              for name in _IDEAL_METHODS):
+        return None
+    return (float(fluid.R), float(fluid.cp0), float(fluid.cv0),
+            float(fluid.h_ref - fluid.cp0 * fluid.temperature))
 
 
 def _parts(fl, name, p, T, jac):
@@ -122,35 +158,13 @@ def _parts(fl, name, p, T, jac):
 
 
 def _upwind_weight(mf, jac):
-    """smoothstep(mf, -UPWIND_BAND, UPWIND_BAND) of correlations.friction, written
-    with fewer array operations (their overhead dominates small scenes);
-    returns (w, dw/dmf or None; dw may be the float 0.0)."""
-    s = mf * (0.5 / UPWIND_BAND)
-    small = s.size <= 32
-    if small:
-        v = s.tolist()
-        total = sum(v)    # NaN with any NaN flow, which the builtin min may skip
-    # (the smallest |s| of a few flows on a list: 0.2 us against 1.1 us, measured)
-    if (total == total and min(map(abs, v)) >= 0.5) if small else abs(s).min() >= 0.5:
-        # every flow outside the band (the usual case): plain upwind, half the
-        # array operations of the blend
-        return np.greater(s, 0.0).astype(float), (0.0 if jac else None)
-    if small:
-        # a few flows: the same arithmetic on floats (1 us against 3 us for four)
-        w, dw = [], []
-        for c in v:
-            c += 0.5
-            c = 0.0 if c < 0.0 else (1.0 if c > 1.0 else c)
-            c2 = c * c
-            w.append(c2 * (3.0 - 2.0 * c))
-            dw.append((3.0 / UPWIND_BAND) * (c - c2))
-        return np.array(w), (np.array(dw) if jac else None)
-    s += 0.5
-    np.maximum(s, 0.0, out=s)
-    np.minimum(s, 1.0, out=s)
-    s2 = s * s
-    w = s2 * (3.0 - 2.0 * s)
-    return w, ((3.0 / UPWIND_BAND) * (s - s2) if jac else None)
+    """smoothstep(mf, -UPWIND_BAND, UPWIND_BAND) of correlations.friction, in one
+    compiled pass (:func:`softflow.laws.thermal.upwind_weight`); returns (w,
+    dw/dmf or None)."""
+    mf = np.asarray(mf, dtype=float)
+    w, dw = np.empty(mf.shape), np.empty(mf.shape)
+    _thermal_laws().upwind_weight_array(mf.ravel(), UPWIND_BAND, w.reshape(-1), dw.reshape(-1))
+    return w, (dw if jac else None)
 
 
 def upwind_energy(fl, mf, pa, Ta, pb, Tb, jac, h0=0.0):
@@ -159,22 +173,22 @@ def upwind_energy(fl, mf, pa, Ta, pb, Tb, jac, h0=0.0):
     (E, w, dw, dE, T_up) with dE = (d/dmf, d/dpa, d/dTa, d/dpb, d/dTb) or None
     (entries may be floats where they do not depend on the instance), dw None
     without jac, and T_up = w Ta + (1 - w) Tb the blended upstream temperature."""
-    w, dw = _upwind_weight(mf, jac)
-    dT = Ta - Tb
-    T_up = Tb + w * dT
     linear = getattr(fl, "_enthalpy_linear", None)
     if linear is not None:
         # h = cp T + c (ideal gas): the blended enthalpy is that of the blended
-        # temperature, a handful of array operations instead of two property calls
+        # temperature, in one compiled pass (softflow.laws.thermal.upwind_energy)
         cp, c = linear()
-        h = cp * T_up + (c - h0)
-        E = mf * h + ZERO_FLOW_CONDUCTANCE * dT
+        out = np.empty((7, np.size(mf)))
+        _thermal_laws().upwind_energy_array(*_flat_floats(mf, Ta, Tb), float(cp),
+                                            float(c - h0), UPWIND_BAND, ZERO_FLOW_CONDUCTANCE,
+                                            *out)
+        E, w, dw, T_up, d_mf, d_Ta, d_Tb = out
         if not jac:
-            return E, w, dw, None, T_up
-        mcp = mf * cp
-        mwcp = w * mcp
-        return E, w, dw, (h + (dw * dT) * mcp, 0.0, mwcp + ZERO_FLOW_CONDUCTANCE, 0.0,
-                          (mcp - mwcp) - ZERO_FLOW_CONDUCTANCE), T_up
+            return E, w, None, None, T_up
+        return E, w, dw, (d_mf, 0.0, d_Ta, 0.0, d_Tb), T_up
+    w, dw = _upwind_weight(mf, jac)
+    dT = Ta - Tb
+    T_up = Tb + w * dT
     ha, ha_p, ha_T = _parts(fl, "enthalpy", pa, Ta, jac)
     hb, hb_p, hb_T = _parts(fl, "enthalpy", pb, Tb, jac)
     ha = ha - h0
@@ -192,6 +206,15 @@ def upwind_energy(fl, mf, pa, Ta, pb, Tb, jac, h0=0.0):
     d_pb = mw1 * hb_p
     d_Tb = mw1 * hb_T - ZERO_FLOW_CONDUCTANCE
     return E, w, dw, (d_mf, d_pa, d_Ta, d_pb, d_Tb), T_up
+
+
+def _flat_floats(*arrays):
+    """The arrays as 1-D float64 arrays of one size (broadcast where one is a
+    float or of another shape), for a compiled pass."""
+    out = [np.asarray(a, dtype=float) for a in arrays]
+    shape = np.broadcast_shapes(*(a.shape for a in out))
+    return [a.reshape(-1) if a.shape == shape else np.broadcast_to(a, shape).reshape(-1)
+            for a in out]
 
 
 def wall_hA(fluid, correlations, area, length, p, T, T_wall):
@@ -241,7 +264,32 @@ class ThermalTwoPort:
         P = super().make_params(components)
         P.T_ref = float(P.fluid.temperature)
         P.h0 = components[0]._h0
+        P.ideal = ideal_gas_constants(P.fluid)
+        P.thermal_law = None if P.ideal is None else cls._compiled_law(P)
         return P
+
+    @classmethod
+    def _compiled_law(cls, P):
+        """The group's residual as one compiled pass of :mod:`softflow.laws.thermal`
+        (an ideal gas), its name: 'orifice' and 'check' (an orifice, a check
+        valve: their compiled laws), 'tube' (a CircularTube of an analytic
+        friction correlation on the pipe-flow law: adiabatic pipe flow), 'tesla'
+        (a Tesla valve: the same with its friction term), 'snapping' (a snapping
+        valve: open, its passage's adiabatic pipe flow); None for the others
+        (an inertial tube, a tube's mean-density law), which keep the NumPy code
+        below."""
+        base = cls.isothermal_class
+        if base is Orifice or base is CheckValve:
+            return None if not P.compiled else ("orifice" if base is Orifice else "check")
+        if getattr(P, "R_gas", None) is None:         # not the pipe-flow law of an ideal gas
+            return None
+        if base is CircularTube and P.kind is not None:
+            return "tube"
+        if base is TeslaValve:
+            return "tesla"
+        if base is SnappingValve and P.compiled:
+            return "snapping"
+        return None
 
     @classmethod
     def rates(cls, P, V, S, jac):
@@ -251,6 +299,8 @@ class ThermalTwoPort:
     def residual(cls, P, V, S, t, jac):
         if cls.direct:
             return cls._kernel_pressure_drop(P, V, jac)
+        if P.thermal_law is not None:
+            return cls._compiled_kernel(P, V, jac, S)
         Fi, Ji = super().residual(P, V[:, _ISO_COLS], S, t, jac)
         pa, mf, Ta, Ea, pb, Tb, Eb = V[:, 0], V[:, 1], V[:, 2], V[:, 3], V[:, 4], V[:, 6], V[:, 7]
         E, w, dw, dE, T_up = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
@@ -363,6 +413,8 @@ class ThermalTwoPort:
         (``pressure_drop`` of the isothermal class, scaled by theta = T_up/T_ref),
         without building the isothermal residual and Jacobian first: ~30 %
         fewer array operations, which is what small thermal scenes pay for."""
+        if P.thermal_law is not None:
+            return cls._compiled_kernel(P, V, jac)
         pa, mf, Ta, Ea, pb, Tb, Eb = V[:, 0], V[:, 1], V[:, 2], V[:, 3], V[:, 4], V[:, 6], V[:, 7]
         E, w, dw, dE, T_up = upwind_energy(P.fluid, mf, pa, Ta, pb, Tb, jac, P.h0)
         # a law of the upstream temperature itself (a gas tube's adiabatic pipe
@@ -397,6 +449,50 @@ class ThermalTwoPort:
         np.subtract(coef, cw, out=J[:, 6])
         _energy_columns(J, 7, dE)
         return F, J
+
+    @classmethod
+    def _compiled_kernel(cls, P, V, jac, S=None):
+        """:meth:`residual` of an ideal gas's tube, Tesla valve, orifice or check
+        valve, snapping valve (``P.thermal_law``; S its modes) in one compiled pass
+        (softflow.laws.thermal)."""
+        n, law = P.n, P.thermal_law
+        F = np.empty((n, 4))
+        J = np.empty((n, 13 if law == "check" else 15)) if jac else _NO_ENTRIES
+        V = np.ascontiguousarray(V, dtype=float)
+        ch = P.ideal[3] - P.h0
+        laws = _thermal_laws()
+        if law == "orifice":
+            laws.orifice_residual(V, P.law, P.law_RT, P.law_rho, P.T, ISO_6358_RHO0, ISO_6358_T0,
+                                  P.K, P.area, P.dp_small, P.gamma, P.Cd, P.C, P.b,
+                                  P.subsonic_index, P.pr_laminar, P.T_ref, P.ideal[1], ch,
+                                  UPWIND_BAND, ZERO_FLOW_CONDUCTANCE, F.reshape(-1),
+                                  J.reshape(-1), jac)
+        elif law == "check":
+            laws.check_valve_residual(V, P.nozzle, P.law_RT, P.law_rho, P.K, P.Cd, P.gamma,
+                                      P.area, P.dp_small, P.cracking_pressure, P.opening_band,
+                                      P.leakage, P.ideal[1], ch, UPWIND_BAND,
+                                      ZERO_FLOW_CONDUCTANCE, F.reshape(-1), J.reshape(-1), jac)
+        elif law == "snapping":
+            laws.snapping_residual(V, np.ascontiguousarray(S, dtype=float), P.kind, P.Re_lo,
+                                   P.Re_hi, P.re_per_mf, P.c_mu, P.eD, P.friction_terms,
+                                   P.area, P.kre, P.closed_conductance, P.law_RT, P.law_rho,
+                                   P.R_gas, P.gamma, P.T_ref, P.ideal[1], ch, UPWIND_BAND,
+                                   ZERO_FLOW_CONDUCTANCE, F.reshape(-1), J.reshape(-1), jac)
+        elif law == "tube":
+            laws.tube_residual(V, P.kind, P.Re_lo, P.Re_hi, P.re_per_mf, P.c_mu, P.eD,
+                               P.kind_terms, P.area, P.kre, P.R_gas, P.gamma, P.ideal[1], ch,
+                               UPWIND_BAND, ZERO_FLOW_CONDUCTANCE, F.reshape(-1),
+                               J.reshape(-1), jac)
+        else:
+            laws.tesla_residual(V, P.kind, P.Re_lo, P.Re_hi, P.re_per_mf, P.c_mu, P.eD,
+                                P.friction_terms, P.area, P.mf_blend, P.diodicity, P.R_gas,
+                                P.gamma, P.ideal[1], ch, UPWIND_BAND, ZERO_FLOW_CONDUCTANCE,
+                                F.reshape(-1), J.reshape(-1), jac)
+        return F, (J if jac else None)
+
+
+#: the entries' argument of a compiled pass evaluated without them
+_NO_ENTRIES = np.empty((0, 15))
 
 
 def _energy_columns(J, k, dE):
@@ -502,7 +598,23 @@ class _ThermalSource:
         P.T_source = np.array([c._T_source for c in components], dtype=float)
         P.fluid_thermal = components[0]._thermal_fluid
         P.h0 = components[0]._h0
+        P.ideal = ideal_gas_constants(P.fluid_thermal)
         return P
+
+    @classmethod
+    def _compiled_residual(cls, P, V, q, jac, volume):
+        """A flow source's residual of an ideal gas in one compiled pass
+        (:func:`softflow.laws.thermal.source_residual`)."""
+        n = P.n
+        F = np.empty((n, 2))
+        J = np.empty((n, 7 if volume else 5)) if jac else _NO_ENTRIES
+        R, cp, _, c = P.ideal
+        _thermal_laws().source_residual(volume, np.ascontiguousarray(V, dtype=float),
+                                        np.ascontiguousarray(np.broadcast_to(q, n), dtype=float),
+                                        P.T_source, R, cp, c - P.h0, UPWIND_BAND,
+                                        ZERO_FLOW_CONDUCTANCE, F.reshape(-1), J.reshape(-1),
+                                        jac)
+        return F, (J if jac else None)
 
     @classmethod
     def thermal_initial_states(cls, comp):
@@ -540,6 +652,8 @@ class ThermalMassFlowSource(_ThermalSource, MassFlowSource):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        if P.ideal is not None:
+            return cls._compiled_residual(P, V, P.values(t), jac, False)
         F = np.empty((P.n, 2))
         F[:, 0] = V[:, 1] + P.values(t)
         F[:, 1], dE = _source_energy(P, V, jac)
@@ -566,6 +680,8 @@ class ThermalVolumeFlowSource(_ThermalSource, VolumeFlowSource):
     @classmethod
     def residual(cls, P, V, S, t, jac):
         q = P.values(t)
+        if P.ideal is not None:
+            return cls._compiled_residual(P, V, q, jac, True)
         p, T = V[:, 0], V[:, 2]
         out = q >= 0
         T_q = np.where(out, P.T_source, T)
@@ -607,6 +723,13 @@ _HELD_RESIDUAL_PATTERN = ((0, 0), (0, 2), (1, 2))
 _HELD_PATTERN = _HELD_RESIDUAL_PATTERN + ((0, 1),)
 #: the locals a free volume adds after its terminal variables: (label, quantity)
 FREE_LOCALS = (("wall_heat", "heatflow"),)
+#: wall kinds of softflow.laws.thermal.wall_law, and a hysteresis loop (loop_wall):
+#: written out, so that making the Params does not import numba
+_RIGID, _LINEAR, _CURVE, _LOOP = 0, 1, 2, 3
+#: the arguments of a compiled pass that its wall or its evaluation does not use
+_NO_FLOATS = np.empty(0)
+_NO_TABLE = np.empty((0, 5))
+_NO_VOLUME_ENTRIES = np.empty((0, 9))
 
 
 class _ThermalVolume:
@@ -660,7 +783,50 @@ class _ThermalVolume:
                                       for c in cs])
         P.any_heat = bool(P.hA.any()) or bool(corr)   # adiabatic volumes skip the wall terms
         P.h0 = components[0]._h0
+        # an ideal gas behind a wall the compiled laws know: one compiled pass
+        # (softflow.laws.thermal.volume_residual)
+        P.ideal = ideal_gas_constants(P.fluid)
+        P.wall = None
+        # (each wall's _compiled_wall: (wall kind, its constants per instance, a
+        # list of arrays or floats, its PVCurves, a loop's floats) for
+        # softflow.laws.thermal, or None where it is not one it knows)
+        compiled_wall = getattr(cls, "_compiled_wall", None)
+        if P.ideal is not None and compiled_wall is not None:
+            wall = compiled_wall(P)
+            if wall is not None:
+                kind, per, curves, extra = wall
+                per = (np.ascontiguousarray(np.column_stack(
+                    [np.broadcast_to(np.asarray(a, dtype=float), P.n) for a in per]))
+                    if per else np.zeros((P.n, 0)))
+                tables = tuple((c._knots, c._table, np.ascontiguousarray(c._w0, dtype=float),
+                                int(c._mode)) for c in curves)
+                P.wall = (kind, per.reshape(-1), per.shape[1], tables, tuple(extra),
+                          bool(getattr(P, "scaled", False)))
         return P
+
+    @classmethod
+    def _compiled_residual(cls, P, V, S, jac, free):
+        """The residual of :meth:`_Free.residual` (``free``) or
+        :meth:`_Held.residual` in one compiled pass, or None where a curve
+        refuses a volume (the NumPy code then raises the curve's error)."""
+        wall, fl, k, tables, extra, scaled = P.wall
+        R, _, cv, c = P.ideal
+        F = np.empty((P.n, 3 if free else 2))
+        J = np.empty((P.n, 9 if free else 4)) if jac else _NO_VOLUME_ENTRIES
+        laws = _thermal_laws()
+        if wall == _LOOP:
+            (ku, tu, wu, mu), (kd, td, wd, md) = tables
+            refused = laws.loop_residual(free, V, S, R, cv, c, P.h0, P.hA, P.T_wall, P.any_heat,
+                                         ku, tu, wu, mu, kd, td, wd, md, *extra, F, J, jac)
+        else:
+            knots, table, w0, mode = tables[0] if tables else (_NO_FLOATS, _NO_TABLE,
+                                                               _NO_FLOATS, 0)
+            refused = laws.volume_residual(wall, free, V, S, R, cv, c, P.h0, P.hA, P.T_wall,
+                                           P.any_heat, fl, k, knots, table, w0, mode, scaled,
+                                           pressure_atmospheric, F, J, jac)
+        if refused >= 0:
+            return None
+        return F, (J if jac else None)
 
     @classmethod
     def wants_begin_step(cls, P):
@@ -706,6 +872,10 @@ class _Free(_ThermalVolume):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        if P.wall is not None:
+            out = cls._compiled_residual(P, V, S, jac, True)
+            if out is not None:
+                return out
         p, T = V[:, 0], V[:, 2]
         m = S[:, 0]
         F0, d0, dvol, W, p_wall = cls._wall(P, p, T, S, jac)
@@ -753,6 +923,10 @@ class _Held(_ThermalVolume):
 
     @classmethod
     def residual(cls, P, V, S, t, jac):
+        if P.wall is not None:
+            out = cls._compiled_residual(P, V, S, jac, False)
+            if out is not None:
+                return out
         p, T = V[:, 0], V[:, 2]
         F0, d0, _, _, _ = cls._wall(P, p, T, S, jac, work=False)
         F = np.empty((P.n, 2))
@@ -769,8 +943,13 @@ class _Held(_ThermalVolume):
 # dvol/dT, dvol/dm), W, p_wall): the residual of the wall's law at the stored mass
 # m = S[:, 0], the work W the gas has done on the wall since t = 0 and the wall's
 # pressure p_wall = dW/dvol (derivatives None without jac; W, p_wall 0 for a rigid
-# wall or without work).
+# wall or without work). For an ideal gas, _compiled_wall says how the compiled
+# laws (softflow.laws.thermal) evaluate the same wall, where they know it.
 class _RigidWall:
+    @classmethod
+    def _compiled_wall(cls, P):
+        return _RIGID, [P.volume], (), ()
+
     @classmethod
     def _wall(cls, P, p, T, S, jac, work=True):
         rho, rho_p, rho_T = _parts(P.fluid, "density", p, T, jac)
@@ -789,6 +968,10 @@ class _LinearWall:
         P = super().make_params(components)
         P.p_initial = np.array([c.initial_pressure for c in components], dtype=float)
         return P
+
+    @classmethod
+    def _compiled_wall(cls, P):
+        return _LINEAR, [P.volume, P.compliance, P.reference_pressure, P.p_initial], (), ()
 
     @classmethod
     def _wall(cls, P, p, T, S, jac, work=True):
@@ -830,6 +1013,17 @@ class _PlainCurve(_CurveWall):
         return P
 
     @classmethod
+    def _compiled_wall(cls, P):
+        from ..curves.pvcurve import PVCurve
+        from .actuators import compiled_curve
+        curve = P.components[0].curve
+        if (not compiled_curve(curve) or type(curve).work is not PVCurve.work
+                or cls._curve.__func__ is not _PlainCurve._curve.__func__
+                or cls.curve_pressure is not Actuator.curve_pressure):
+            return None
+        return _CURVE, [P.pressure_scale, P.work0], (curve,), ()
+
+    @classmethod
     def _curve(cls, P, vol, S, jac):
         return Actuator.curve_pressure(P, vol, jac)
 
@@ -850,6 +1044,19 @@ class _PlainCurve(_CurveWall):
 class _LoopCurve(_CurveWall):
     """A hysteresis loop: the branch the step started on (discrete state ``branch``,
     1 = inflation; the loop hands over to the other branch past its end)."""
+
+    @classmethod
+    def _compiled_wall(cls, P):
+        from ..curves.hysteresis import HysteresisLoop
+        from ..curves.pvcurve import PVCurve
+        loop = P.loop
+        if (not P.compiled or type(loop).work is not HysteresisLoop.work
+                or any(type(c).work is not PVCurve.work for c in (loop.inflation, loop.deflation))
+                or cls._curve.__func__ is not _LoopCurve._curve.__func__
+                or cls._work.__func__ is not _LoopCurve._work.__func__):
+            return None
+        return (_LOOP, [], (loop.inflation, loop.deflation),
+                (loop.volume_high, loop.volume_low, *loop._work_shifts))
 
     @classmethod
     def _curve(cls, P, vol, S, jac):

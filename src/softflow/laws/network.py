@@ -4,7 +4,8 @@ The assembly (:mod:`softflow.solve.assembly`) describes each group of
 components by integers and floats; this loop evaluates the node rows (the
 sum of the through variables at each node) and then each group by its class
 id, calling the same compiled laws the groups call one at a time
-(:mod:`.tube`, :mod:`.volumes`), with the step's states X = psi + c·r(V)
+(:mod:`.tube`, :mod:`.volumes`, :mod:`.valves`; in thermal scenes of an
+ideal gas :mod:`.thermal`), with the step's states X = psi + c·r(V)
 formed as :mod:`softflow.solve.discretize` forms them. It replaces a Python
 call and its NumPy glue per group and per evaluation; what it covers is listed
 in :data:`softflow.solve.netcore` (the rest of the library, user components
@@ -25,6 +26,7 @@ globals (numba freezes globals into its cache).
 from __future__ import annotations
 
 from . import jit
+from .fanno import gas_constants
 from .tube import darcy_drop, isothermal_drop
 from .orifice import _maximum
 from .valves import (check_valve_flow, friction_term, mean_density, orifice_flow,
@@ -32,12 +34,20 @@ from .valves import (check_valve_flow, friction_term, mean_density, orifice_flow
 from .valves import density as valve_density
 from .volumes import (compliant_mass, curve_law, curve_point, density, on_inflation, refused,
                       rigid_mass, scaled_curve)
+from .thermal import (adiabatic_tesla_rows, adiabatic_tube_rows, check_valve_rows,
+                      energy_entries, free_rows, held_rows, loop_wall, orifice_rows,
+                      snapping_rows, source_energy, upwind_energy, volume_flow_law, wall_law)
 
 #: class ids
 PRESSURE_SOURCE, MASS_FLOW_SOURCE, VOLUME_FLOW_SOURCE = 1, 2, 3
 TUBE, RIGID_GAS, RIGID_LIQUID, ACCUMULATOR = 4, 5, 6, 7
 ORIFICE, CHECK_VALVE, TESLA_VALVE, SNAPPING_VALVE, INERTIAL_TUBE = 8, 9, 10, 11, 12
 ACTUATOR, HYSTERETIC_ACTUATOR = 13, 14
+#: thermal scenes of an ideal gas (softflow.components.thermal, laws in .thermal)
+THERMAL_PRESSURE_SOURCE, THERMAL_MASS_FLOW_SOURCE, THERMAL_VOLUME_FLOW_SOURCE = 15, 16, 17
+THERMAL_TUBE, THERMAL_TESLA_VALVE, FREE_VOLUME, HELD_VOLUME = 18, 19, 20, 21
+THERMAL_ORIFICE, THERMAL_CHECK_VALVE, THERMAL_SNAPPING_VALVE = 22, 23, 24
+THERMAL_INERTIAL_TUBE = 25
 
 #: the columns of a row of ``groups``
 GROUP_FIELDS = ("cls", "n", "nv", "col", "s0", "r0", "neq", "j0", "nj", "f0", "option", "u0")
@@ -54,6 +64,21 @@ TESLA_FLOATS = 7           # re_per_mf, c_mu, eD, a, area, mf_blend, diodicity
 SNAPPING_FLOATS = 6        # re_per_mf, c_mu, eD, a, area, closed conductance
 VALVE_GROUP_FLOATS = 5     # Re_lo, Re_hi, c2 (p/rho of an ideal gas, else 0), R T, rho
 INERTIAL_FLOATS = 7        # the tube's six, then A/L (1 / (L/A))
+#: thermal flow elements: group floats lo, hi, R, gamma, cp, c - h0, band, G
+THERMAL_FLOW_GROUP_FLOATS = 8
+THERMAL_TUBE_FLOATS = 6    # re_per_mf, c_mu, eD, a, area, kre
+THERMAL_TESLA_FLOATS = 7   # re_per_mf, c_mu, eD, a, area, mf_blend, diodicity
+#: a thermal snapping valve's: group floats those of a flow element, then R T, rho, T_ref
+THERMAL_SNAPPING_GROUP_FLOATS = 11
+THERMAL_SNAPPING_FLOATS = 7  # re_per_mf, c_mu, eD, a, area, kre, closed conductance
+#: thermal volumes: group floats R, cv, c, h0, any heat, curve mode, scaled, p_atm (then a
+#: curve wall's curve and its work at its knots; a loop's V_hi, V_lo, work shifts, the
+#: deflation curve's mode, then both curves so); per instance hA, T_wall, the wall's own
+VOLUME_GROUP_FLOATS = 8
+#: a thermal orifice's group floats: the orifice's five, then T_ref, cp, c - h0, band, G
+THERMAL_ORIFICE_GROUP_FLOATS = 10
+#: a thermal check valve's: R T, rho, then cp, c - h0, band, G
+THERMAL_CHECK_VALVE_GROUP_FLOATS = 6
 
 
 @jit
@@ -94,6 +119,27 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
                 return g
         elif cls == HYSTERETIC_ACTUATOR:
             _hysteretic(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+        elif cls == THERMAL_TUBE:
+            _thermal_tube(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == FREE_VOLUME or cls == HELD_VOLUME:
+            if not _thermal_volume(x, S, dt, F, raw, jac, groups[g], cols, fpar,
+                                   cls == FREE_VOLUME):
+                return g
+        elif cls == THERMAL_PRESSURE_SOURCE:
+            _thermal_pressure_source(x, F, raw, jac, groups[g], cols, fpar, u)
+        elif cls == THERMAL_MASS_FLOW_SOURCE or cls == THERMAL_VOLUME_FLOW_SOURCE:
+            _thermal_flow_source(x, F, raw, jac, groups[g], cols, fpar, u,
+                                 cls == THERMAL_VOLUME_FLOW_SOURCE)
+        elif cls == THERMAL_TESLA_VALVE:
+            _thermal_tesla(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == THERMAL_ORIFICE:
+            _thermal_orifice(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == THERMAL_CHECK_VALVE:
+            _thermal_check_valve(x, F, raw, jac, groups[g], cols, fpar)
+        elif cls == THERMAL_SNAPPING_VALVE:
+            _thermal_snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar)
+        elif cls == THERMAL_INERTIAL_TUBE:
+            _thermal_inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar)
     return -1
 
 
@@ -385,3 +431,255 @@ def _rigid_liquid(x, S, dt, F, raw, jac, gr, cols):
         if jac:
             raw[j0 + 2 * i] = 0.0
             raw[j0 + 2 * i + 1] = 1.0
+
+
+# -- thermal scenes of an ideal gas (softflow.components.thermal; laws: .thermal) --------
+@jit
+def _thermal_tube(x, F, raw, jac, gr, cols, fpar):
+    """A group of gas tubes in a thermal scene, V = [p_a, mf_a, T_a, E_a, p_b,
+    mf_b, T_b, E_b] (:func:`.thermal.adiabatic_tube_rows`)."""
+    n, c0, r0, j0, f0, kind = gr[N], gr[COL], gr[R0], gr[J0], gr[F0], gr[OPTION]
+    lo, hi, R, gamma = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3]
+    cp, ch, band, G = fpar[f0 + 4], fpar[f0 + 5], fpar[f0 + 6], fpar[f0 + 7]
+    gas = gas_constants(gamma)
+    for i in range(n):
+        k = c0 + 8 * i
+        f = f0 + THERMAL_FLOW_GROUP_FLOATS + THERMAL_TUBE_FLOATS * i
+        adiabatic_tube_rows(F, r0 + 4 * i, raw, j0 + 15 * i, jac, x[cols[k]], x[cols[k + 1]],
+                            x[cols[k + 2]], x[cols[k + 3]], x[cols[k + 4]], x[cols[k + 5]],
+                            x[cols[k + 6]], x[cols[k + 7]], kind, lo, hi, fpar[f], fpar[f + 1],
+                            fpar[f + 2], fpar[f + 3], fpar[f + 4], fpar[f + 5], R, gas, cp, ch,
+                            band, G)
+
+
+@jit
+def _thermal_tesla(x, F, raw, jac, gr, cols, fpar):
+    """A group of Tesla valves in a thermal scene
+    (:func:`.thermal.adiabatic_tesla_rows`)."""
+    n, c0, r0, j0, f0, kind = gr[N], gr[COL], gr[R0], gr[J0], gr[F0], gr[OPTION]
+    lo, hi, R, gamma = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3]
+    cp, ch, band, G = fpar[f0 + 4], fpar[f0 + 5], fpar[f0 + 6], fpar[f0 + 7]
+    gas = gas_constants(gamma)
+    for i in range(n):
+        k = c0 + 8 * i
+        f = f0 + THERMAL_FLOW_GROUP_FLOATS + THERMAL_TESLA_FLOATS * i
+        adiabatic_tesla_rows(F, r0 + 4 * i, raw, j0 + 15 * i, jac, x[cols[k]], x[cols[k + 1]],
+                             x[cols[k + 2]], x[cols[k + 3]], x[cols[k + 4]], x[cols[k + 5]],
+                             x[cols[k + 6]], x[cols[k + 7]], kind, lo, hi, fpar[f],
+                             fpar[f + 1], fpar[f + 2], fpar[f + 3], fpar[f + 4], fpar[f + 5],
+                             fpar[f + 6], R, gas, cp, ch, band, G)
+
+
+@jit
+def _thermal_volume(x, S, dt, F, raw, jac, gr, cols, fpar, free):
+    """A group of volumes of an ideal gas in a thermal scene, wall kind
+    ``option`` (:func:`.thermal.wall_law`, or 3: a hysteresis loop,
+    :func:`.thermal.loop_wall`): free (V = [p, mf, T, E, Q], states [m, E_s]
+    at m = psi + c mf, E_s = psi + c (E + Q), a loop's branch and work offset
+    after them; rows wall, energy, wall heat) or held at its wall temperature
+    (V = [p, mf, T, E], state m, a loop's branch after it; rows wall,
+    T - T_wall), the entries in the class's step pattern (the rates' columns
+    times c, as discretize combines them). False where a curve refuses a
+    volume."""
+    n, c0, s0, r0, j0, f0, wall = gr[N], gr[COL], gr[S0], gr[R0], gr[J0], gr[F0], gr[OPTION]
+    R, cv, c, h0 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3]
+    any_heat, mode = fpar[f0 + 4] > 0.5, int(fpar[f0 + 5])
+    scaled, p_atm = fpar[f0 + 6] > 0.5, fpar[f0 + 7]
+    at = f0 + VOLUME_GROUP_FLOATS
+    # the curves: a PV curve wall's, or a loop's two (after V_hi, V_lo, the work's
+    # shifts and the deflation curve's mode), each with its work at its knots
+    v_hi = v_lo = shift_up = shift_down = 0.0
+    mode_down = 0
+    if wall == 3:
+        v_hi, v_lo, shift_up, shift_down = fpar[at], fpar[at + 1], fpar[at + 2], fpar[at + 3]
+        mode_down = int(fpar[at + 4])
+        at += 5
+    if wall >= 2:
+        knots, table, end = _curve(fpar, at)
+        w0 = fpar[end:end + table.shape[0]]
+        at = end + table.shape[0]
+    else:
+        knots, table = fpar[at:at], fpar[at:at].reshape((0, 5))
+        w0 = knots
+    knots_down, table_down, w0_down = knots, table, w0
+    if wall == 3:
+        knots_down, table_down, end = _curve(fpar, at)
+        w0_down = fpar[end:end + table_down.shape[0]]
+        at = end + table_down.shape[0]
+    per = 2 + (1 if wall == 0 else (4 if wall == 1 else (2 if wall == 2 else 0)))
+    nv = 5 if free else 4
+    ns = (4 if free else 2) if wall == 3 else (2 if free else 1)
+    for i in range(n):
+        k = c0 + nv * i
+        p, mf, T = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
+        f = at + per * i
+        hA, T_wall = fpar[f], fpar[f + 1]
+        s = s0 + ns * i
+        m = S[s] + dt * mf
+        if wall == 3:
+            inflating = S[s + (2 if free else 1)] > 0.5
+            offset = S[s + 3] if free else 0.0
+            fw, d_p, d_T, d_m, v_p, v_T, v_m, W, p_wall, ok = loop_wall(
+                p, T, m, R, inflating, offset, knots, table, w0, mode, knots_down, table_down,
+                w0_down, mode_down, v_hi, v_lo, shift_up, shift_down, free)
+        else:
+            fw, d_p, d_T, d_m, v_p, v_T, v_m, W, p_wall, ok = wall_law(
+                wall, p, T, m, R, fpar, f + 2, knots, table, w0, mode, scaled, p_atm, free)
+        if not ok:
+            return False
+        if free:
+            E, Q = x[cols[k + 3]], x[cols[k + 4]]
+            Es = S[s + 1] + dt * (E + Q)
+            r = r0 + 3 * i
+            (F[r], F[r + 1], F[r + 2], d0, d1, d2, d3, d4, d5, d6, d7,
+             d8) = free_rows(fw, d_p, d_T, d_m, v_p, v_T, v_m, W, p_wall, T, Q, m, Es, cv, c,
+                             h0, hA, T_wall, any_heat)
+            if jac:
+                j = j0 + 10 * i
+                raw[j], raw[j + 1], raw[j + 2], raw[j + 3] = d0, d1, d2, d3
+                raw[j + 4], raw[j + 5] = d4, d5
+                step = dt * 1.0
+                raw[j + 6] = step * d6
+                raw[j + 7] = step * d7
+                raw[j + 8] = step * d8
+                raw[j + 9] = step * d8
+        else:
+            r = r0 + 2 * i
+            F[r], F[r + 1], d0, d1, d2, d3 = held_rows(fw, d_p, d_T, d_m, T, T_wall)
+            if jac:
+                j = j0 + 4 * i
+                raw[j], raw[j + 1], raw[j + 2] = d0, d1, d2
+                raw[j + 3] = (dt * 1.0) * d3
+    return True
+
+
+@jit
+def _thermal_pressure_source(x, F, raw, jac, gr, cols, fpar, u):
+    """Rows p - value and T - T_source (per instance at fpar[f0:]); entries 1, 1."""
+    n, c0, r0, j0, f0, u0 = gr[N], gr[COL], gr[R0], gr[J0], gr[F0], gr[U0]
+    for i in range(n):
+        F[r0 + 2 * i] = x[cols[c0 + 4 * i]] - u[u0 + i]
+        F[r0 + 2 * i + 1] = x[cols[c0 + 4 * i + 2]] - fpar[f0 + i]
+        if jac:
+            raw[j0 + 2 * i] = 1.0
+            raw[j0 + 2 * i + 1] = 1.0
+
+
+@jit
+def _thermal_flow_source(x, F, raw, jac, gr, cols, fpar, u, volume):
+    """Mass (mf + value) or volume (mf + rho(p, T_q) value) flow sources of an
+    ideal gas, and their energy rows (:func:`.thermal.source_energy`); group
+    floats R, cp, c - h0, band, G, then each one's temperature."""
+    n, c0, r0, j0, f0, u0 = gr[N], gr[COL], gr[R0], gr[J0], gr[F0], gr[U0]
+    R, cp, ch, band, G = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3], fpar[f0 + 4]
+    nj = 7 if volume else 5
+    for i in range(n):
+        k = c0 + 4 * i
+        p, mf, T, E = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]], x[cols[k + 3]]
+        T_s, q = fpar[f0 + 5 + i], u[u0 + i]
+        fe, e_p, e_mf, e_T, e_E = source_energy(E, mf, T, T_s, cp, ch, band, G)
+        r, j = r0 + 2 * i, j0 + nj * i
+        F[r + 1] = fe
+        if volume:
+            rq, rq_p, rq_T = volume_flow_law(p, T, q, T_s, R)
+            F[r] = mf + rq
+            if jac:
+                raw[j], raw[j + 1], raw[j + 2] = rq_p, 1.0, rq_T
+                j += 3
+        else:
+            F[r] = mf + q
+            if jac:
+                raw[j] = 1.0
+                j += 1
+        if jac:
+            raw[j], raw[j + 1], raw[j + 2], raw[j + 3] = e_p, e_mf, e_T, e_E
+
+
+@jit
+def _thermal_orifice(x, F, raw, jac, gr, cols, fpar):
+    """A group of orifices in a thermal scene (:func:`.thermal.orifice_rows`),
+    law ``option``."""
+    n, c0, r0, j0, f0, model = gr[N], gr[COL], gr[R0], gr[J0], gr[F0], gr[OPTION]
+    RT, rho, T, rho0, T0 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3], fpar[f0 + 4]
+    T_ref, cp, ch, band, G = (fpar[f0 + 5], fpar[f0 + 6], fpar[f0 + 7], fpar[f0 + 8],
+                              fpar[f0 + 9])
+    for i in range(n):
+        k = c0 + 8 * i
+        f = f0 + THERMAL_ORIFICE_GROUP_FLOATS + ORIFICE_FLOATS * i
+        orifice_rows(F, r0 + 4 * i, raw, j0 + 15 * i, jac, x[cols[k]], x[cols[k + 1]],
+                     x[cols[k + 2]], x[cols[k + 3]], x[cols[k + 4]], x[cols[k + 5]],
+                     x[cols[k + 6]], x[cols[k + 7]], model, RT, rho, T, rho0, T0, fpar[f],
+                     fpar[f + 1], fpar[f + 2], fpar[f + 3], fpar[f + 4], fpar[f + 5],
+                     fpar[f + 6], fpar[f + 7], fpar[f + 8], T_ref, cp, ch, band, G)
+
+
+@jit
+def _thermal_check_valve(x, F, raw, jac, gr, cols, fpar):
+    """A group of check valves in a thermal scene
+    (:func:`.thermal.check_valve_rows`), a nozzle where ``option`` is 1."""
+    n, c0, r0, j0, f0 = gr[N], gr[COL], gr[R0], gr[J0], gr[F0]
+    nozzle = gr[OPTION] == 1
+    RT, rho, cp, ch, band, G = (fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3],
+                                fpar[f0 + 4], fpar[f0 + 5])
+    for i in range(n):
+        k = c0 + 8 * i
+        f = f0 + THERMAL_CHECK_VALVE_GROUP_FLOATS + CHECK_VALVE_FLOATS * i
+        check_valve_rows(F, r0 + 4 * i, raw, j0 + 13 * i, jac, x[cols[k]], x[cols[k + 1]],
+                         x[cols[k + 2]], x[cols[k + 3]], x[cols[k + 4]], x[cols[k + 5]],
+                         x[cols[k + 6]], x[cols[k + 7]], nozzle, RT, rho, fpar[f],
+                         fpar[f + 1], fpar[f + 2], fpar[f + 3], fpar[f + 4], fpar[f + 5],
+                         fpar[f + 6], fpar[f + 7], cp, ch, band, G)
+
+
+@jit
+def _thermal_snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
+    """A group of snapping valves in a thermal scene of an ideal gas
+    (:func:`.thermal.snapping_rows`), the mode of each (> 0.5 open) its state
+    at the step's start."""
+    n, c0, s0, r0, j0, f0, kind = gr[N], gr[COL], gr[S0], gr[R0], gr[J0], gr[F0], gr[OPTION]
+    lo, hi, R, gamma = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3]
+    cp, ch, band, G = fpar[f0 + 4], fpar[f0 + 5], fpar[f0 + 6], fpar[f0 + 7]
+    RT, rho, T_ref = fpar[f0 + 8], fpar[f0 + 9], fpar[f0 + 10]
+    gas = gas_constants(gamma)
+    for i in range(n):
+        k = c0 + 8 * i
+        f = f0 + THERMAL_SNAPPING_GROUP_FLOATS + THERMAL_SNAPPING_FLOATS * i
+        snapping_rows(F, r0 + 4 * i, raw, j0 + 15 * i, jac, S[s0 + i] > 0.5, x[cols[k]],
+                      x[cols[k + 1]], x[cols[k + 2]], x[cols[k + 3]], x[cols[k + 4]],
+                      x[cols[k + 5]], x[cols[k + 6]], x[cols[k + 7]], kind, lo, hi, fpar[f],
+                      fpar[f + 1], fpar[f + 2], fpar[f + 3], fpar[f + 4], fpar[f + 5],
+                      fpar[f + 6], RT, rho, R, gas, T_ref, cp, ch, band, G)
+
+
+@jit
+def _thermal_inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar):
+    """A group of gas tubes with inertance in a thermal scene: the flow law
+    of :func:`_inertial_tube` at the nominal temperature, and the upwind
+    energy rows (:func:`.thermal.upwind_energy`); entries (0,mf_a) (0,mf_b)
+    (1,p_a) (1,mf) (1,p_b), the energy rows', as the step combines them.
+    Group floats Re_lo, Re_hi, c2, cp, c - h0, band, G."""
+    n, c0, s0, r0, j0, f0, kind = gr[N], gr[COL], gr[S0], gr[R0], gr[J0], gr[F0], gr[OPTION]
+    lo, hi, c2 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
+    cp, ch, band, G = fpar[f0 + 3], fpar[f0 + 4], fpar[f0 + 5], fpar[f0 + 6]
+    for i in range(n):
+        k = c0 + 8 * i
+        pa, mfa, Ta, Ea = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]], x[cols[k + 3]]
+        pb, mfb, Tb, Eb = x[cols[k + 4]], x[cols[k + 5]], x[cols[k + 6]], x[cols[k + 7]]
+        f = f0 + 7 + INERTIAL_FLOATS * i
+        dp, d_pa, d_mf, d_pb = _tube_drop(kind, lo, hi, c2, pa, mfa, pb, fpar, f)
+        a_l = fpar[f + 6]
+        q = S[s0 + i] + dt * (a_l * ((pa - pb) - dp))
+        E, _, _, _, e_mf, e_Ta, e_Tb = upwind_energy(mfa, Ta, Tb, cp, ch, band, G)
+        r = r0 + 4 * i
+        F[r] = mfa + mfb
+        F[r + 1] = mfa - q
+        F[r + 2] = Ea + Eb
+        F[r + 3] = Ea - E
+        if jac:
+            j = j0 + 13 * i
+            raw[j] = 1.0
+            raw[j + 1] = 1.0
+            raw[j + 2] = (dt * (a_l * (1.0 - d_pa))) * -1.0
+            raw[j + 3] = 1.0 + (dt * (-a_l * d_mf)) * -1.0
+            raw[j + 4] = (dt * (-a_l * (1.0 + d_pb))) * -1.0
+            energy_entries(raw, j + 5, e_mf, e_Ta, e_Tb)

@@ -101,21 +101,25 @@ def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, kre, F, J, jac):
 
 
 @jit
-def adiabatic_drop_array(kind, lo, hi, pa, mf, pb, T_up, re_per_mf, c_mu, eD, a, area, R, gamma,
-                         kre, dp, d_pa, d_mf, d_pb, d_T):
-    """p_a - p_b required by the flow mf through gas tubes in a thermal scene
+def adiabatic_drop(kind, lo, hi, pa, mf, pb, T_up, re_per_mf, c_mu, eD, a, area, R, gas, kre):
+    """p_a - p_b required by the flow mf through a gas tube in a thermal scene
     (adiabatic pipe flow from the upstream stagnation temperature T_up, the
     friction term Phi = c_mu (f Re) mf, minor losses ``kre`` as in
-    :func:`friction_law`), and its partials in p_a, mf, p_b and T_up, into the
-    output arrays."""
+    :func:`friction_law`; ``gas``: :func:`.fanno.gas_constants`), and its
+    partials in p_a, mf, p_b and T_up: (dp, d_pa, d_mf, d_pb, d_T)."""
+    Re = abs(mf) * re_per_mf
+    phi, dphi = friction_law(kind, Re, eD, a, lo, hi, kre)
+    r = adiabatic_pipe_gas(pa, mf, pb, T_up, area, R, gas, c_mu * phi * mf)
+    return ((pa - pb) - r[0], 1.0 - r[1], -(r[2] + r[5] * c_mu * (phi + Re * dphi)),
+            -1.0 - r[3], -r[4])
+
+
+@jit
+def adiabatic_drop_array(kind, lo, hi, pa, mf, pb, T_up, re_per_mf, c_mu, eD, a, area, R, gamma,
+                         kre, dp, d_pa, d_mf, d_pb, d_T):
+    """:func:`adiabatic_drop` of a group of tubes into the output arrays."""
     gas = gas_constants(gamma)
     for i in range(pa.size):
-        m = mf[i]
-        Re = abs(m) * re_per_mf[i]
-        phi, dphi = friction_law(kind, Re, eD[i], a[i], lo, hi, kre[i])
-        r = adiabatic_pipe_gas(pa[i], m, pb[i], T_up[i], area[i], R, gas, c_mu[i] * phi * m)
-        dp[i] = (pa[i] - pb[i]) - r[0]
-        d_pa[i] = 1.0 - r[1]
-        d_mf[i] = -(r[2] + r[5] * c_mu[i] * (phi + Re * dphi))
-        d_pb[i] = -1.0 - r[3]
-        d_T[i] = -r[4]
+        dp[i], d_pa[i], d_mf[i], d_pb[i], d_T[i] = adiabatic_drop(
+            kind, lo, hi, pa[i], mf[i], pb[i], T_up[i], re_per_mf[i], c_mu[i], eD[i], a[i],
+            area[i], R, gas, kre[i])

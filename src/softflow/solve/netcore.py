@@ -4,21 +4,35 @@ second step): where every group of a network is of a class the compiled loop
 is that loop, described once per network by integer and float arrays,
 instead of one Python kernel call (and its NumPy glue) per group.
 
-Covered (isothermal scenes, the classes themselves, not subclasses or
-thermal variants): pressure and mass flow sources; volume flow sources,
-containers and linear accumulators of an ideal gas or a constant-density
-liquid (a rigid container of any liquid); tubes whose law runs as one
-compiled pass (an ideal gas on the pipe-flow law or a liquid of constant
-properties, with an analytic friction correlation: ``P.kind``), with or
-without inertance; orifices (loss coefficient, nozzle, ISO 6358), check,
-Tesla and snapping valves of an ideal gas or a liquid; actuators on a
-compiled PV curve and hysteretic actuators on a loop of them. Any other group
-(user components, callable curves, real fluids, thermal scenes) keeps the
-whole network on the per-group path. A state a law refuses (an actuator's
-volume beyond a curve given ``extrapolate='error'``) is evaluated again on
-the per-group path, which raises the law's own error.
-The values are the per-group path's to round-off (tested); time-dependent
-source values are evaluated by their sources in Python before each call.
+Covered in isothermal scenes (the classes themselves, not subclasses):
+pressure and mass flow sources; volume flow sources, containers and linear
+accumulators of an ideal gas or a constant-density liquid (a rigid container
+of any liquid); tubes whose law runs as one compiled pass (an ideal gas on
+the pipe-flow law or a liquid of constant properties, with an analytic
+friction correlation: ``P.kind``), with or without inertance; orifices (loss
+coefficient, nozzle, ISO 6358), check, Tesla and snapping valves of an ideal
+gas or a liquid; actuators on a compiled PV curve and hysteretic actuators on
+a loop of them.
+
+Covered in thermal scenes (``thermal='adiabatic'`` or ``'heat_transfer'``)
+of an ideal gas whose properties are :class:`~softflow.IdealGas`'s own (the
+thermal variants of :mod:`softflow.components.thermal`, laws in
+:mod:`softflow.laws.thermal`): pressure, mass and volume flow sources; tubes
+on the adiabatic pipe-flow law (an analytic correlation), tubes with
+inertance, orifices, check, Tesla and snapping valves, with upwind energy;
+containers, linear accumulators, actuators on a compiled PV curve and
+hysteretic actuators, free (adiabatic or with wall heat) or held at their
+wall temperature. A constant h·A is a float of the loop; an h·A that a
+heat-transfer correlation sets at the start of each step (``begin_step``)
+is copied into the loop's floats before each call.
+
+Any other group (user components, callable curves, real fluids at the table
+or eos level, the mean-density gas law) keeps the whole network on the
+per-group path. A state a law refuses (an actuator's volume beyond a curve
+given ``extrapolate='error'``) is evaluated again on the per-group path,
+which raises the law's own error. The values are the per-group path's to
+round-off (tested); time-dependent source values are evaluated by their
+sources in Python before each call.
 """
 from __future__ import annotations
 
@@ -107,6 +121,75 @@ def _covered(g):
             return None
         per = np.column_stack([P.volume, P.compliance, P.reference_pressure])
         return net.ACCUMULATOR, P.rho_kind, (P.rho_c,), per, None
+    return _covered_thermal(net, cls, P)
+
+
+def _covered_thermal(net, cls, P):
+    """:func:`_covered` for the thermal variants (softflow.components.thermal)
+    of an ideal gas whose laws :mod:`softflow.laws.thermal` compiles."""
+    from ..components import thermal as th
+    from ..components.tubes import InertialCircularTube
+    from ..constants import pressure_atmospheric
+    from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
+    if cls is th.ThermalPressureSource:
+        return net.THERMAL_PRESSURE_SOURCE, 0, (), P.T_source[:, None], P
+    if cls is th.ThermalMassFlowSource or cls is th.ThermalVolumeFlowSource:
+        gas = th.ideal_gas_constants(P.fluid_thermal)
+        if gas is None:
+            return None
+        kind = (net.THERMAL_MASS_FLOW_SOURCE if cls is th.ThermalMassFlowSource
+                else net.THERMAL_VOLUME_FLOW_SOURCE)
+        floats = (gas[0], gas[1], gas[3] - P.h0, th.UPWIND_BAND, th.ZERO_FLOW_CONDUCTANCE)
+        return kind, 0, floats, P.T_source[:, None], P
+    if (cls is th.THERMAL_CLASSES[InertialCircularTube] and P.ideal is not None
+            and P.kind is not None and P.kind_c2 > 0.0):
+        # its flow law at the nominal temperature, with upwind energy
+        per = [P.re_per_mf, P.kind_c, P.eD, P.kind_terms, P.area, P.kre,
+               1.0 / P.length_per_area]
+        group = (P.Re_lo, P.Re_hi, P.kind_c2, P.ideal[1], P.ideal[3] - P.h0, th.UPWIND_BAND,
+                 th.ZERO_FLOW_CONDUCTANCE)
+        return net.THERMAL_INERTIAL_TUBE, P.kind, group, np.column_stack(per), None
+    law = getattr(P, "thermal_law", None)
+    if law is not None and cls.__dict__.get("isothermal_class") is not None:
+        energy = (P.ideal[1], P.ideal[3] - P.h0, th.UPWIND_BAND, th.ZERO_FLOW_CONDUCTANCE)
+        if law in ("tube", "tesla", "snapping"):
+            group = (P.Re_lo, P.Re_hi, P.R_gas, P.gamma, *energy)
+        if law == "tube":
+            per = [P.re_per_mf, P.c_mu, P.eD, P.kind_terms, P.area, P.kre]
+            return net.THERMAL_TUBE, P.kind, group, np.column_stack(per), None
+        if law == "tesla":
+            per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.mf_blend,
+                   P.diodicity]
+            return net.THERMAL_TESLA_VALVE, P.kind, group, np.column_stack(per), None
+        if law == "snapping":
+            per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.kre,
+                   P.closed_conductance]
+            group = (*group, P.law_RT, P.law_rho, P.T_ref)
+            return net.THERMAL_SNAPPING_VALVE, P.kind, group, np.column_stack(per), None
+        if law == "orifice":
+            per = np.column_stack([P.K, P.area, P.dp_small, P.gamma, P.Cd, P.C, P.b,
+                                   P.subsonic_index, P.pr_laminar])
+            group = (P.law_RT, P.law_rho, P.T, ISO_6358_RHO0, ISO_6358_T0, P.T_ref, *energy)
+            return net.THERMAL_ORIFICE, P.law, group, per, None
+        if law == "check":
+            per = np.column_stack([P.K, P.Cd, P.gamma, P.area, P.dp_small, P.cracking_pressure,
+                                   P.opening_band, P.leakage])
+            return (net.THERMAL_CHECK_VALVE, int(bool(P.nozzle)), (P.law_RT, P.law_rho, *energy),
+                    per, None)
+        return None
+    wall = getattr(P, "wall", None)
+    if wall is not None and issubclass(cls, (th._Free, th._Held)):
+        kind, fl, k, tables, extra, scaled = wall
+        R, _, cv, c = P.ideal
+        floats = [R, cv, c, P.h0, float(P.any_heat), float(tables[0][3] if tables else 0),
+                  float(scaled), pressure_atmospheric]
+        if kind == th._LOOP:         # a loop: V_hi, V_lo, the work's shifts, mode down
+            floats += [*extra, float(tables[1][3])]
+        for knots, table, w0, _ in tables:
+            floats += [float(knots.size), float(table.shape[0]), *knots, *table.ravel(), *w0]
+        per = np.column_stack([P.hA, P.T_wall, fl.reshape(P.n, k)])
+        free = issubclass(cls, th._Free)
+        return net.FREE_VOLUME if free else net.HELD_VOLUME, kind, floats, per, None
     return None
 
 
@@ -126,7 +209,7 @@ def compiled_residual(asm, failures):
     if not asm.groups or any(c is None for c in covered):
         return None
     net = law_module("network")
-    rows, cols, fpar, varying = [], [], [], []
+    rows, cols, fpar, varying, refresh = [], [], [], [], []
     n_u = 0
     u_parts = []
     for g, (cls_id, option, group_floats, per, values) in zip(asm.groups, covered):
@@ -139,7 +222,14 @@ def compiled_residual(asm, failures):
         row[net.F0] = sum(f.size for f in fpar)
         fpar.append(np.asarray(group_floats, dtype=float))
         if per is not None:
-            fpar.append(np.ascontiguousarray(per, dtype=float).ravel())
+            per = np.ascontiguousarray(per, dtype=float)
+            if getattr(g, "begin", None) is not None and cls_id in (net.FREE_VOLUME,
+                                                                    net.HELD_VOLUME):
+                # h·A set at the start of each step (a heat-transfer correlation):
+                # its column of the volumes' floats is refreshed before each call
+                at = sum(f.size for f in fpar)
+                refresh.append((g.params, slice(at, at + per.size, per.shape[1])))
+            fpar.append(per.ravel())
         row[net.OPTION] = option
         row[net.U0] = n_u
         if values is not None:
@@ -157,12 +247,20 @@ def compiled_residual(asm, failures):
     tcols = np.ascontiguousarray(asm.through_cols, dtype=np.int64)
     loop = net.residual
 
+    if refresh:
+        def refreshed(t):
+            for P, at in refresh:
+                fpar[at] = P.hA
+        varying.append((None, refreshed, None, None))
     if varying:
         passed, failure = failures["PASS"], failures["failure"]
         fluid_failure = failures["fluid_failure"]
 
         def residual(x, S, t, dt, jac=False):
             for P, a, b, g in varying:
+                if P is None:           # per-step coefficients: a, the refresh
+                    a(t)
+                    continue
                 try:
                     u[a:b] = P.values(t)
                 except FluidError as err:
