@@ -787,6 +787,10 @@ def test_a_step_forced_at_the_smallest_step_restarts_the_method(monkeypatch):
         np.testing.assert_allclose(m - m[0], -res.integral("pump", "massflow", "a"),
                                    rtol=0, atol=1e-9 * m.max())
     monkeypatch.setattr(bdf, "FORCED_RESTART", False)
+    # (and without the step solved again from the pump's node balanced, which
+    # gets these runs through too: softflow.solve.culprit, issue 41)
+    from softflow.solve import culprit
+    monkeypatch.setattr(culprit.Finder, "retry", lambda self, out, *args: out)
     assert sum(run(seed).success for seed in (4, 7, 11)) <= 1     # (0 measured)
 
 

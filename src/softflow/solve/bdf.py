@@ -570,7 +570,8 @@ class BDF(Integrator):
     def _newton_failed(self, t, t_new, out):
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)
-        if h <= self.step_min * 1.0000001:
+        if h <= self.step_min * 1.0000001 or (self.culprit is not None
+                                              and self.culprit.stalled(t, h, out)):
             x_far = self._fold_jump(t, out)
             if x_far is None:
                 raise StepFailure(t_new, h, out)

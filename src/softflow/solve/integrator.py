@@ -259,6 +259,8 @@ class Integrator:
     #: jump's, continuation's. The batched engine (softflow.solve.clocks)
     #: counts each variant's tries alike
     max_steps = None
+    #: the run's culprit finder (softflow.solve.culprit.Finder), or None
+    culprit = None
     #: None, or a callable that, after the consistent point at t = 0 is recorded,
     #: says whether the run should stop there (a model past its own maximum from
     #: the start: Simulation.run refuses every later point anyway)
@@ -287,9 +289,13 @@ class Integrator:
             if stats.steps + stats.rejected_steps >= max_steps:
                 raise StepLimitError(
                     f"more than max_steps = {self.max_steps} steps (accepted and rejected) "
-                    f"by t = {t:.6g} s; pass a larger Simulation(max_steps=...) to go on")
+                    f"by t = {t:.6g} s; pass a larger Simulation(max_steps=...) to go on"
+                    + ("" if self.culprit is None else self.culprit.step_limit_note(t, x, S)))
             x_pred, psi, t_new, t_eval, c = propose(t, x, S)
             out = solve(x_pred, psi, t_eval, c)
+            if not out.converged and self.culprit is not None:
+                # again from the flow sources' nodes balanced (softflow.solve.culprit)
+                out = self.culprit.retry(out, x_pred, psi, t_eval, c)
             if not out.converged:
                 stats.rejected_steps += 1
                 # a rigid volume of gas emptied: its pressure went through zero
@@ -297,6 +303,11 @@ class Integrator:
                 if (watch is not None and out.reason.startswith("absolute pressure")
                         and self._emptied(t, S, out.x, update(out.x, psi, c), t_new, True)):
                     continue
+                # a flow source that no pressure balances at t_new: no smaller
+                # step gets past it (softflow.solve.culprit)
+                if self.culprit is not None and self.culprit.hopeless(x, S, t_eval, t_new - t,
+                                                                      out):
+                    raise StepFailure(t_new, t_new - t, out)
                 try:
                     # a controller may go on from another point at t (BDF: past
                     # an actuator's fold)
@@ -424,6 +435,8 @@ class Integrator:
         whose residual is not finite); or None. The failed solve stays
         counted as a rejected step."""
         for start in (x_pred, x):
+            if start is x and _same(x_pred, x, self.newton.atol):
+                break         # the same start again (a fixed step's after a failure)
             rescued = self.newton.continued(out, start, psi, t_eval, c)
             if rescued.converged:
                 return rescued
@@ -546,6 +559,12 @@ class Integrator:
         return out
 
 
+def _same(a, b, atol):
+    """Whether two starts of a solve agree within Newton's absolute tolerances
+    and 1e-9 relative (a continuation from the second would repeat the first's)."""
+    return a is b or bool(np.all(np.abs(a - b) <= atol + 1e-9 * np.abs(b)))
+
+
 #: How many times the consistent point at t = 0 is solved again from where the
 #: last solve stopped, where a Jacobian at that point does not confirm it
 #: (Integrator._solve_initial); still unconfirmed after that, it is taken.
@@ -609,6 +628,7 @@ class ImplicitEuler(Integrator):
         self._extrapolate = True
 
     def _propose(self, t, x, S):
+        self._point = (x, S)       # the last point taken (softflow.solve.culprit)
         if self._next <= t * (1 + 1e-14) + 1e-300:
             self._ib, self._next = self._next_break(t, self._ib)
         T, k = self.T, self.k
@@ -635,7 +655,8 @@ class ImplicitEuler(Integrator):
     def _newton_failed(self, t, t_new, out):
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)
-        if h / 4 < self.step_min:
+        if h / 4 < self.step_min or (self.culprit is not None
+                                     and self.culprit.stalled(t, h, out)):
             raise StepFailure(t + h, h, out)
         self._h_cut = h / 4
         self._extrapolate = False

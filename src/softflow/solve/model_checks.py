@@ -84,6 +84,15 @@ Checks
     saturation pressure, water-glycol by Raoult's law), at any fluid level,
     without CoolProp; a liquid without one is not checked. Fraction: the
     vapour pressure / the lowest pressure.
+``fluid_range``
+    A tabulated fluid (the table level, ``out_of_range='raise'``) whose
+    pressure at a node where one of its components meets left the table's
+    range while the run went on: nothing evaluated the fluid there (a tube's
+    law works at its mean pressure; a source sets the node and takes no
+    property), so nothing refused it. One record per fluid, the farthest
+    node. Fraction: the range's end over the pressure (or the reverse above
+    it); recorded past 1 + rtol only (a node held at the table's end by a
+    source sits there to the solve's tolerance).
 ``adiabatic_time_scale``
     The reverse: an adiabatic gas volume of a thermal scene (no wall heat)
     whose temperature stayed away from its wall's, by more than
@@ -524,15 +533,17 @@ def gas_compressibility(g, result):
 
 
 # -- liquids --------------------------------------------------------------------------
-def _liquid_nodes(asm):
+def _liquid_nodes(asm, keep=None):
     """{id(fluid): (fluid, node pressure unknowns, [(group, their positions in its
     members' interface)])} of the network's liquids: the node pressures where a
-    component of each liquid meets (x[:n_across] of quantity 'pressure')."""
+    component of each liquid meets (x[:n_across] of quantity 'pressure').
+    ``keep``: a test of the fluid instead (any fluid it passes, gas or liquid)."""
     n_across = asm.n_across
     found: dict = {}
     for g in asm.groups:
         fluid = getattr(g.comps[0], "fluid", None)
-        if fluid is None or getattr(fluid, "compressible", True):
+        if fluid is None or (not keep(fluid) if keep is not None
+                             else getattr(fluid, "compressible", True)):
             continue
         col = g.col.reshape(len(g.comps), -1)
         first = col[0]
@@ -599,6 +610,74 @@ def cavitation(asm, result):
             "pressure on the suction side (source, tank), a shorter or wider suction "
             "line, or a slower pump",
             message, time=t, node=where, temperature=T, vapour_pressure=p_vap))
+    return out
+
+
+def _raising_table(fluid):
+    """Whether ``fluid`` is tabulated over a pressure range it refuses to
+    leave (a table level at out_of_range='raise')."""
+    rng = getattr(fluid, "p_range", None)
+    return (rng is not None and getattr(fluid, "out_of_range", "raise") == "raise"
+            and getattr(fluid, "level", None) == "table")
+
+
+def fluid_range(asm, result):
+    """(A network check.) A node where a component of a tabulated fluid meets
+    whose pressure left the table's range while the run went on: no component
+    evaluated the fluid at that pressure (a tube's law works at its mean
+    pressure, a source sets the node and takes no property), so nothing
+    refused it, but the state there is outside what the table covers (a
+    pressure source ramped below a glycol table's 0.5 bar; the air table's
+    0.1 bar). One record per fluid: the farthest node, its pressure and time.
+    Fraction: how far outside, the range's end over the pressure (below it) or
+    the pressure over the end (above it); only past 1."""
+    out = []
+    X, xcol = result.X, result._xcol
+    for fluid, nodes, owners in _liquid_nodes(asm, keep=_raising_table).values():
+        cols = xcol[nodes]
+        recorded = cols >= 0
+        if not recorded.any():
+            continue
+        nodes, cols = nodes[recorded], cols[recorded]
+        P = X[:, cols]
+        lo, hi = (float(v) for v in fluid.p_range)
+        with np.errstate(all="ignore"):
+            low = np.fmin.reduce(P, axis=0)
+            high = np.fmax.reduce(P, axis=0)
+            far = np.fmax(np.where(low > 0.0, lo / low, np.inf), high / hi)
+        far[np.isnan(far)] = 0.0
+        j = int(np.argmax(far))
+        fraction = float(far[j])
+        # a node held at the table's very end (a source at its last pressure)
+        # sits there to the solve's tolerance: no record within the run's rtol
+        if not fraction > 1.0 + _rtol(result):
+            continue
+        below = lo / low[j] >= high[j] / hi if low[j] > 0.0 else True
+        k = int(np.nanargmin(P[:, j]) if below else np.nanargmax(P[:, j]))
+        p = float(P[k, j])
+        node = int(nodes[j])
+        at = [(g, int(i)) for g, pos in owners for i in
+              np.flatnonzero((g.col.reshape(len(g.comps), -1)[:, pos] == node).any(axis=1))]
+        comp_g, i = next(((g, i) for g, i in at if g.comps[i].label in result._where), at[0])
+        comp = comp_g.comps[i]
+        times = group_times(comp_g, result, [i])[:, 0]
+        t = float(times[k])
+        outside = (P[:, j] < lo) if below else (P[:, j] > hi)
+        t_first = float(times[int(np.argmax(outside))])
+        where = str(asm.x_names[node]).removesuffix(" pressure")
+        edge = lo if below else hi
+        out.append(_record(
+            comp, "fluid_range", p, edge, "Pa", fraction,
+            "keep the pressures within the table (the sources that set them), or use a "
+            f"level that covers them: {fluid.name!r} at level='eos', or the table with "
+            "out_of_range='eos'",
+            f"the pressure of its fluid, {fluid.name!r} at the table level, reached "
+            f"{p:.4g} Pa (absolute) at {where} at t = {t:.6g} s, outside the table's range "
+            f"{lo:.6g} ... {hi:.6g} Pa (outside from t = {t_first:.6g} s on): no component "
+            "evaluated the fluid there (a tube's law "
+            "works at its mean pressure, a source takes no property), so the run went on, "
+            "but the state at that node is outside what the table covers.",
+            time=t, first_time=t_first, node=where, p_range=(lo, hi)))
     return out
 
 
@@ -873,3 +952,4 @@ def register_all(register, register_network):
         register(cls, thermal_time_scale)
         register(cls, adiabatic_time_scale)
     register_network(cavitation)
+    register_network(fluid_range)

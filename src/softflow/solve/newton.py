@@ -280,6 +280,12 @@ class Newton:
         """Ask for a fresh Jacobian (after a discontinuity, for instance)."""
         self.stale = True
 
+    #: None, or a callable (out, x0, S, t, dt) -> Outcome or None, asked where a
+    #: continuation would follow the failed solve ``out``: an Outcome to return
+    #: instead (no solution to continue to, or one found from another start),
+    #: or None (softflow.solve.culprit.Finder.before_continuation)
+    before_continuation = None
+
     #: None, or a constant subtracted from every residual this Newton evaluates
     #: (:meth:`continuation`): it solves F(x) = offset, with F's Jacobian
     offset = None
@@ -330,7 +336,15 @@ class Newton:
         where it converges, else ``out``. Where a run would otherwise stop:
         the consistent start, the first probes of a BDF restart, a step that
         fails at the smallest step."""
-        if out.converged or out.reason.startswith("absolute pressure"):
+        if out.converged:
+            return out
+        if self.before_continuation is not None:
+            # no state there to continue to, or one from a better start
+            # (softflow.solve.culprit.Finder.before_continuation)
+            done = self.before_continuation(out, x0, S, t, dt)
+            if done is not None:
+                return done
+        if out.reason.startswith("absolute pressure"):
             return out
         return self.continuation(x0, S, t, dt) or out
 

@@ -17,6 +17,7 @@ from ..network.component import remember_result
 from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .bdf import BDF, MAX_ORDER
+from .culprit import Finder
 from .integrator import ImplicitEuler, StepFailure, StoppedAtStart
 from .progress import Progress
 from .linalg import make_linear_solver
@@ -571,6 +572,9 @@ class Simulation:
             integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
                                   step_min=self.step_min, breakpoints=breaks, record=self.record)
         integ.max_steps = self.max_steps
+        culprit = Finder(asm, newton, integ)
+        integ.culprit = culprit  # type: ignore[assignment]
+        newton.before_continuation = culprit.before_continuation  # type: ignore[assignment]
         integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
         sens: Sensitivities | None = None
         if sensitivities:
@@ -601,7 +605,8 @@ class Simulation:
         except StoppedAtStart:
             pass      # the checks below refuse the run from t = 0, with their message
         except StepFailure as fail:
-            error = self._describe_failure(fail, newton)
+            error = self._describe_failure(fail, newton, culprit.explain(fail),
+                                           integ.rec.t[-1] if integ.rec.t else None)
         except Exception as err:  # user code or inputs failing mid-run: keep what we have
             t = integ.rec.t[-1] if integ.rec.t else 0.0
             if isinstance(err, ComponentError):    # user code: its component, method, time
@@ -716,7 +721,11 @@ class Simulation:
         return any(r.details.get("fatal") and r.status == "beyond"
                    for r in check_result(self.asm, point, fatal_only=True))
 
-    def _describe_failure(self, fail, newton):
+    def _describe_failure(self, fail, newton, found=None, t_last=None):
+        """The SimulationError of a failed step; ``found``: its culprit
+        (:class:`softflow.solve.culprit.Finding`), named first where there is
+        one; ``t_last``: the last point computed, where the result ends (said
+        where it is not the failed step's start: the step ends at fail.t)."""
         out = fail.outcome
         comp = eq = None
         where = ""
@@ -740,8 +749,16 @@ class Simulation:
             if labels:
                 comp = labels[0]
                 where += f"; components at that node: {', '.join(map(repr, labels))}"
-        msg = (f"solver failed at t = {fail.t:.6g} s (step {fail.dt:.3g} s): "
-               f"{out.reason}{where}")
+        step = f"step {fail.dt:.3g} s"
+        if t_last is not None and fail.t > 0.0:
+            # the result ends at the last point computed, the failed step's start
+            step = (f"the step of {fail.dt:.3g} s from t = {t_last:.6g} s, where the result "
+                    "ends")
+        msg = f"solver failed at t = {fail.t:.6g} s ({step}): {out.reason}{where}"
+        if found is not None:
+            msg = (f"solver failed at t = {fail.t:.6g} s ({step}): "
+                   f"{found.message} (the step's solve: {out.reason}{where})")
+            comp, eq = found.component, None
         return SimulationError(msg, time=fail.t, component=comp, equation=eq)
 
 

@@ -40,6 +40,16 @@ a volume sets a node's pressure are read off the Jacobian at the start
   unknowns and the node's other across unknowns: that block of the Jacobian
   is square and regular. A volume or a pressure source at the node makes it
   singular (the pressure is theirs to set, not the balance's).
+
+The same balance later in a run (:mod:`softflow.solve.culprit`, where a
+step's solve fails): :func:`unbalanced` asks each such node at a state and a
+time whether any pressure between the floor and the cap balances it
+(:func:`_reach`: the limit the balance points to first, two trial pressures
+for a diagnosis); :func:`rebalanced` solves each for its balancing pressure,
+a start for the step's solve again. There the nodes take in the nodes without
+volume beyond them (``local_nodes(..., region=True)``): a junction between
+the source's node and a thin tube, whose pressure falls with the node's, is
+solved for with it instead of held.
 """
 from __future__ import annotations
 
@@ -95,6 +105,32 @@ class Local:
     #: at equal pressures; a choked orifice's flow does not depend on its
     #: outlet's pressure, and Newton's step from 1 atm would not find it)
     ends: np.ndarray
+    #: the flow sources at the node, then the components at the edge of its
+    #: region, each with the columns of its flows into it from inside (its
+    #: through unknowns in the region's mass balances)
+    members: list = None
+    #: the nodes whose balances ``rows`` hold (the node, its dead ends, and
+    #: with ``region`` the nodes without volume beyond)
+    inside: list = None
+    #: whether a component inside has a continuous state (an inertial tube's
+    #: flow): fixed at dt = 0, it changes within any step
+    dynamic: bool = False
+
+    @property
+    def rows_set(self):
+        """``rows`` as a set (asked whether a failure's equation is here)."""
+        got = self.__dict__.get("_rows_set")
+        if got is None:
+            got = self.__dict__["_rows_set"] = frozenset(self.rows.tolist())
+        return got
+
+    @property
+    def cols_set(self):
+        """``cols`` as a set."""
+        got = self.__dict__.get("_cols_set")
+        if got is None:
+            got = self.__dict__["_cols_set"] = frozenset(self.cols.tolist())
+        return got
 
 
 def _regular(A):
@@ -106,18 +142,22 @@ def _block(J, rows, cols):
     return J[rows][:, cols].toarray()
 
 
-def local_nodes(asm, x, S):
+def local_nodes(asm, x, S, t=0.0, region=False):
     """The nodes without volume that carry a flow source (module docstring),
-    read off the Jacobian at (x, S) at t = 0 and dt = 0, as :class:`Local`
-    s; [] where the network has no pressures or no mass balances at its
-    nodes, or where the residual cannot be evaluated at x."""
+    read off the Jacobian at (x, S) at time t (0: the start) and dt = 0, as
+    :class:`Local` s; [] where the network has no pressures or no mass
+    balances at its nodes, or where the residual cannot be evaluated at x.
+    With ``region``, each node's balance takes in the nodes without volume
+    beyond it (junctions, up to the volumes and pressure sources that hold
+    their pressures: their flows are what limits the node's), else their
+    pressures are held as the other nodes'."""
     p_of = asm.node_across.get("pressure")
     m_of = asm.node_rows.get("massflow")
     if p_of is None or m_of is None:
         return []
     n, na = asm.n, asm.n_across
     try:
-        F = asm.residual(x, S, 0.0, 0.0, jac=True)
+        F = asm.residual(x, S, t, 0.0, jac=True)
     except (FluidError, ComponentError):
         return []
     if not np.isfinite(F).all():
@@ -186,6 +226,21 @@ def local_nodes(asm, x, S):
         out.discard(-1)
         return out
 
+    def volumeless(j):
+        # node j has neither a volume nor a pressure source: with its pressure
+        # held, its components and its other balances determine their unknowns
+        comps_j = owners_at(j)
+        r = [i for i in node_rows(j) if i != m_of[j]]
+        c = [i for i in node_across(j) if i != p_of[j]]
+        for k in comps_j:
+            r += rows_of(k).tolist()
+            c += own_of(k).tolist()
+        return len(r) == len(c) and _regular(_block(J, r, c))
+
+    # the mass balance row of each own flow unknown (its terminal's node)
+    m_rows = {int(m_of[j]): j for j in range(len(m_of)) if m_of[j] >= 0}
+    node_of_flow = {int(c): m_rows[int(r)] for r, c in zip(t_rows, t_cols) if int(r) in m_rows}
+
     found = []
     for node, srcs in sources.items():
         p, row = int(p_of[node]), int(m_of[node])
@@ -197,23 +252,82 @@ def local_nodes(asm, x, S):
         # dead ends behind the node's components: their balances are these
         # components' alone
         behind = {int(node_of_col[c]) for k in comps for c in across_of(k)} - {node}
-        ends = []
+        ends, inside = [], {node}
         for j in sorted(behind):
             if j >= 0 and owners_at(j) <= comps:
                 rows += node_rows(j)
                 cols += node_across(j)
+                inside.add(j)
                 if p_of[j] >= 0:
                     ends.append(int(p_of[j]))
+        base_rows, base_cols = list(rows), list(cols)
         for k in sorted(comps):
             rows += rows_of(k).tolist()
             cols += own_of(k).tolist()
         rows, cols = np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
         if rows.size != cols.size or not _regular(_block(J, rows, cols)):
             continue          # a volume or a pressure source sets the pressure there
+        if region:
+            # the nodes without volume beyond, up to the volumes and pressure
+            # sources that hold theirs (REGION_NODES at most)
+            grown, g_comps, g_inside = _grow(node, comps, inside, owners_at, across_of,
+                                             node_of_col, volumeless)
+            if g_inside != inside:
+                r2, c2 = list(base_rows), list(base_cols)
+                for j in sorted(g_inside - inside):
+                    r2 += node_rows(j)
+                    c2 += node_across(j)
+                for k in sorted(g_comps):
+                    r2 += rows_of(k).tolist()
+                    c2 += own_of(k).tolist()
+                r2, c2 = np.array(r2, dtype=np.int64), np.array(c2, dtype=np.int64)
+                if grown and r2.size == c2.size and _regular(_block(J, r2, c2)):
+                    rows, cols, comps, inside = r2, c2, g_comps, g_inside
+        # the sources' flows at the node, then the flows into the region's
+        # other components from inside it (those at its edge: each one's
+        # flows at its terminals inside, summed)
+        a, b = np.searchsorted(t_rows, [row, row + 1])
+        members = [(k, [int(c)]) for c in t_cols[a:b] for k in [int(owner[c])] if k in srcs]
+        for k in sorted(comps - set(srcs)):
+            at = {int(node_of_col[c]) for c in across_of(k)}
+            if at <= inside:
+                continue          # wholly inside: passes nothing out of it
+            members.append((k, [int(c) for c in own_of(k)
+                                if node_of_flow.get(int(c), -1) in inside]))
+        dynamic = any(inst[k][0].ns and not asm.s_discrete[
+            inst[k][0].s0 + inst[k][1] * inst[k][0].ns:
+            inst[k][0].s0 + (inst[k][1] + 1) * inst[k][0].ns].all()
+            for k in comps - set(srcs))
         found.append(Local(node, p, row, rows, cols,
                            [inst[k][0].comps[inst[k][1]] for k in srcs],
-                           [int(rows_of(k)[0]) for k in srcs], np.array(ends, dtype=np.int64)))
+                           [int(rows_of(k)[0]) for k in srcs], np.array(ends, dtype=np.int64),
+                           [(inst[k][0].comps[inst[k][1]], c) for k, c in members],
+                           sorted(inside), dynamic))
     return found
+
+
+#: the most nodes a region of nodes without volume grows to
+#: (:func:`local_nodes` with ``region``)
+REGION_NODES = 64
+
+
+def _grow(node, comps, inside, owners_at, across_of, node_of_col, volumeless):
+    """The nodes without volume reachable from ``node`` through components
+    (a breadth-first search that stops at nodes with a volume or a pressure
+    source): (whether any was added, the components at them, the nodes)."""
+    comps, inside = set(comps), set(inside)
+    queue, added = sorted(comps), False
+    while queue and len(inside) < REGION_NODES:
+        k = queue.pop(0)
+        for j in sorted({int(node_of_col[c]) for c in across_of(k)} - inside):
+            if j < 0 or not volumeless(j):
+                continue
+            inside.add(j)
+            added = True
+            new = owners_at(j) - comps
+            comps |= new
+            queue.extend(sorted(new))
+    return added, comps, inside
 
 
 class _Balance:
@@ -222,8 +336,8 @@ class _Balance:
     conservation row's residual), the other unknowns of ``local.cols``
     solved for at each p, the rest of x held."""
 
-    def __init__(self, asm, local, x, S, atol, stats):
-        self.asm, self.local, self.S, self.stats = asm, local, S, stats
+    def __init__(self, asm, local, x, S, atol, stats, t=0.0):
+        self.asm, self.local, self.S, self.stats, self.t = asm, local, S, stats, t
         self.x = x.copy()
         self.atol = np.broadcast_to(np.asarray(atol, dtype=float), (asm.n,))[local.cols]
         # absolute pressures and temperatures among the unknowns: each update
@@ -239,7 +353,7 @@ class _Balance:
         self.stats.residual_evaluations += 1
         self.stats.jacobian_evaluations += 1
         try:
-            F = self.asm.residual(x, self.S, 0.0, 0.0, jac=True)
+            F = self.asm.residual(x, self.S, self.t, 0.0, jac=True)
         except FluidError as err:
             self.range_error = err
             return None, None
@@ -411,3 +525,97 @@ def above_cap(asm, x):
         cols = asm._node_pressures = (np.zeros(0, dtype=np.int64) if p_of is None
                                       else p_of[p_of >= 0])
     return bool(cols.size) and float(x[cols].max()) > PRESSURE_CAP
+
+
+# -- the same balance at a step that cannot be taken ------------------------------------
+@dataclass
+class Unbalanced:
+    """A node without volume whose flow source no pressure balances at a
+    state (:func:`unbalanced`): ``kind`` 'above' (the source pushes more than
+    the node's components pass at any pressure up to ``p``) or 'below' (it
+    draws more than they supply at any pressure down to ``p``); ``flows``: the
+    flow of each of :attr:`Local.members` into the node [kg/s] at ``p`` (where
+    solved there, else at the state's pressure); ``edge``: the FluidError past
+    p where a fluid's range ends there, else None."""
+
+    local: Local
+    kind: str
+    p: float
+    flows: list
+    edge: object = None
+
+
+def _reach(bal, p0):
+    """:func:`_search`'s answer without the root where there is one: ('root',
+    None) where a pressure between p0 and the limit the balance points to
+    (PRESSURE_CAP or PRESSURE_FLOOR) balances; ('above' | 'below', p) where
+    none does; None where p0 cannot be solved for. Tries the limit first (a
+    diagnosis needs only the sign there: two trial pressures where the march
+    takes ~17), and marches (:func:`_search`) only where the limit lies past
+    a fluid's range; None where the limit cannot be solved for otherwise
+    (the marching would cost ~100 residual evaluations for a diagnosis that,
+    in successful runs, finds nothing)."""
+    at = bal(p0)
+    if at is None:
+        return None
+    g0 = at[0]
+    if g0 == 0.0:
+        return "root", None
+    up = g0 < 0.0
+    at = bal(PRESSURE_CAP if up else PRESSURE_FLOOR)
+    if at is not None:
+        g = at[0]
+        if (g >= 0.0) if up else (g <= 0.0):
+            return "root", None
+        return ("above" if up else "below"), (PRESSURE_CAP if up else PRESSURE_FLOOR)
+    if bal.range_error is None:
+        return None       # not solved there: no answer (a diagnosis only)
+    # past a fluid's range: marching to its edge, each trial from the last
+    found = _search(bal, p0)
+    return None if found is None else (("root", None) if found[0] == "root" else found)
+
+
+def unbalanced(asm, x, S, t, atol, stats, locals_=None):
+    """The nodes without volume that carry a flow source and that no pressure
+    between PRESSURE_FLOOR and PRESSURE_CAP balances at the state (x, S) at
+    time t, as :class:`Unbalanced` s (the other nodes' pressures held, as a
+    step short enough holds a volume's; the node's components' flows and
+    discrete modes as the state has them: a valve closed stays closed). For a
+    step that cannot be taken (:mod:`softflow.solve.culprit`): what the
+    consistent start refuses at t = 0 (:func:`balanced_start`), met later,
+    when a valve closes or a source's signal changes. ``atol``, ``stats``: as
+    :func:`balanced_start`'s."""
+    if locals_ is None:
+        locals_ = local_nodes(asm, x, S, t, region=True)
+    found = []
+    for loc in locals_:
+        bal = _Balance(asm, loc, x, S, atol, stats, t)
+        reached = _reach(bal, float(x[loc.p]))
+        if reached is None or reached[0] == "root":
+            continue
+        kind, p = reached
+        flows = [float(bal.x[c].sum()) for _, c in loc.members]
+        found.append(Unbalanced(loc, kind, p, flows, bal.range_error))
+    return found
+
+
+def rebalanced(asm, x, S, t, atol, stats, locals_):
+    """A start for a step's solve that failed: x with each node in
+    ``locals_`` (and the unknowns of its region) at the pressure that
+    balances it at time t (:func:`_search` from its pressure in x, the other
+    nodes' held, its components' unknowns solved there); None where none
+    balances. What :func:`balanced_start` does for the consistent start, for
+    a step: a pump whose draw steps up behind a check valve at rest, whose
+    node's pressure Newton takes along the valve's closed slope (its
+    leakage) to a root far below vacuum, where the valve opens 200 Pa below
+    the point's pressure."""
+    x = x.copy()
+    moved = False
+    for loc in locals_:
+        bal = _Balance(asm, loc, x, S, atol, stats, t)
+        p0 = float(x[loc.p])
+        found = _search(bal, p0)
+        if found is None or found[0] != "root":
+            continue
+        x, moved = bal.x, True
+    return x if moved else None

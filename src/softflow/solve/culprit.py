@@ -1,0 +1,686 @@
+"""The culprit of a step that cannot be taken, named as soon as it shows.
+
+Newton's failure names the equation it left worst (``line search failed ...;
+worst equation: equation 1 of CheckValve 'e2'``): the first law that
+complained, often not the cause; and before it does, the stepper cuts the
+step down to its smallest and tries a continuation (thousands of residual
+evaluations). Where a step's solve fails, this module asks the state the run
+stands at (the last accepted point) what no step could get past:
+
+* **An input that sets a pressure outside its fluid's range**
+  (:meth:`Finder._inputs_out_of_range`): a pressure source whose value at
+  the step's end lies at or below vacuum, or outside a table's range at its
+  node (asked after a solve that met a non-finite residual or a pressure
+  <= 0).
+* **A flow source that no pressure balances**
+  (:func:`softflow.solve.sourcenodes.unbalanced`): a MassFlowSource or
+  VolumeFlowSource at a node without volume fixes the flow the node's other
+  components must pass; where they cannot pass it at any pressure between 1
+  Pa and 1 GPa (a valve that closed, a check valve that shuts that way, a
+  tube past its choked capacity, a dead end), the node has no state at all:
+  the consistent start refuses such a node at t = 0, and a later step meets
+  it when a valve closes or the source's signal grows. The node's balance
+  takes in the nodes without volume behind it (junctions), up to the volumes
+  and pressure sources that hold theirs; it is asked at the time the failed
+  step ends, with those held pressures the last accepted point's and, where
+  the node still fails, that point's moved on by its rates to the step's end
+  (a volume that fills within the step): both must fail, so that a neighbour
+  that would supply the flow by the step's end does not stop a run that can
+  go on. A region with an inertial tube inside (its flow held at dt = 0,
+  free within a step) is not asked.
+
+Either found at a step's first failed solve (:meth:`Finder.hopeless`), the
+run stops there: the shorter steps and the continuation that would follow
+can only end the same way (a fixed-step run crawled towards the time the
+demand exceeded the supply in ever shorter steps: 6 587 residual
+evaluations against 77). The message names the source, the node, the
+components that limit the flow and what closed (a discrete state's last
+change), and the time the result ends.
+
+Besides:
+
+* **A root the run refuses, found again on every shorter step**
+  (:meth:`Finder.stalled`): a step's solve that converges on an absolute
+  pressure <= 0 at the same unknowns, to the digit, on steps 4, 16 and 64
+  times shorter, is the point's failure, not the step's: the stepper stops
+  cutting.
+* **A step solved again from the node's balance** (:meth:`Finder.retry`):
+  after a solve that ended on a pressure <= 0 at a node without volume that
+  carries a flow source, the step's solve from the last point with the node
+  at the pressure that balances it (:func:`sourcenodes.rebalanced`, what the
+  consistent start does at t = 0): a pump whose draw steps up behind a check
+  valve at rest, whose closed slope (its leakage) took Newton far below
+  vacuum, where the valve opens 200 Pa below the tank's pressure.
+* **A time constant far below the step** (:func:`fastest_mode`): where
+  nothing else is found, the network's fastest mode at the last accepted
+  point, from the Jacobians of the step equations at dt = 0 and dt = 1 s
+  (their difference is the states' coupling, ``F_S r_x``; the generalized
+  eigenvalues of the pair are the modes' rates), and the components whose
+  states move most in it (relative to their values). Named beside the
+  failure where its time constant lies below :data:`FAR_BELOW` times the
+  smallest step tried (a volume that fills or empties within a small
+  fraction of the step: its pressure jumps to its neighbour's within each
+  step), and where a run stops at max_steps because its steps follow it (a
+  1e-15 m^3 chamber ringing behind an inertial tube at ~4e-9 s).
+
+Only the failure path calls in here (:class:`Finder`, kept by the
+integrator: ``Integrator.culprit``, and by Newton before a continuation:
+``Newton.before_continuation``): a run whose solves all converge pays
+nothing, one with failed solves an analysis of the concerned nodes per
+failure (~30 residual evaluations where a node has a flow source: +0.1 to
++2 % of the residual evaluations of the randomized networks that succeed).
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import numpy as np
+
+from ..fluids.base import FluidError
+from . import sourcenodes
+from .validity import ComponentError
+
+#: a mode whose time constant lies below this fraction of the smallest step
+#: tried is named beside a failure (:func:`fastest_mode`)
+FAR_BELOW = 1e-3
+#: the failed solves after which the inputs are asked for a pressure outside
+#: the fluid's range (:meth:`Finder._inputs_out_of_range`)
+RANGE_REASONS = ("residual not finite", "absolute pressure")
+#: a step's failed solve that repeats STALL_REPEATS times on ever shorter
+#: steps, its refused unknowns within STALL_RTOL (plus Newton's atol), stops
+#: the run (:meth:`Finder.stalled`)
+STALL_REPEATS, STALL_RTOL = 4, 1e-3
+STALL_REASONS = ("absolute pressure",)
+#: the failed solves after which a step is solved again from its nodes'
+#: balancing pressures (:meth:`Finder.retry`): a root below vacuum, where
+#: Newton followed a closed valve's slope past the one the node has
+RETRY_REASONS = ("absolute pressure",)
+#: a run stopped at max_steps names its fastest mode where that mode's time
+#: constant lies below this many times the last step (the steps follow it)
+STEP_FOLLOWS = 100.0
+#: a mode names the components whose states move in it by at least this
+#: share of the most moved (relative to their values), MODE_NAMES at most
+MODE_SHARE, MODE_NAMES = 1e-3, 3
+#: the largest network (unknowns) whose modes are computed densely on a
+#: failure (an eigenvalue problem of n x n: ~0.1 s at 600)
+MODES_MAX_UNKNOWNS = 600
+
+
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+@dataclasses.dataclass
+class Finding:
+    """A culprit: the message that names it (the failure's cause), the
+    component, and ``kind``: 'unbalanced' (a flow source that no pressure
+    balances) or 'fast' (a time constant far below the step)."""
+
+    message: str
+    component: str
+    kind: str
+
+
+class Finder:
+    """The culprit finder of one run (module docstring), kept by its
+    integrator (``integ.culprit``) and asked by Newton before a
+    continuation (``newton.hopeless``) and by the run's failure message.
+
+    ``integ``: the integrator, whose last accepted point is
+    ``integ._point`` (x, S) at ``integ.rec.t[-1]``; ``newton``: its
+    tolerances (``atol``) and counters (``stats``: the analyses' residual
+    evaluations are counted with the run's)."""
+
+    def __init__(self, asm, newton, integ):
+        self.asm, self.newton, self.integ = asm, newton, integ
+        self._cache = None        # (x of the point, t, found, inputs asked)
+        self._local_nodes = None  # found once (_locals)
+        self._start_nodes = None  # the consistent start's (_locals)
+        self._fixed_rows = None   # found once (_fixed)
+        self._hit = None          # (x of the point, Finding) hopeless found
+        self._stall = None        # (t, reason, refused x, h, repeats) (stalled)
+        self._retried = None      # the x of the point retry last tried from
+        self._fails = (None, 0)   # (x of the point, failed solves from it) (hopeless)
+
+    # -- the last accepted point ----------------------------------------------------
+    def point(self):
+        """(t, x, S) of the last accepted point, or None before the first."""
+        integ = self.integ
+        p = getattr(integ, "_point", None)
+        if p is None or not integ.rec.t:
+            return None
+        return integ.rec.t[-1], p[0], p[1]
+
+    # -- failures that no shorter step changes -----------------------------------------
+    def stalled(self, t, h, out):
+        """Whether the failed solves of the steps tried from t have failed
+        alike STALL_REPEATS times in a row, each on a shorter step: a solution
+        refused for an absolute pressure <= 0 (:data:`STALL_REASONS`: Newton
+        converged, on a root the run refuses), the same reason (its numbers
+        aside) at the same unknown, and within STALL_RTOL the same refused
+        unknowns (``out.x``). A root that a step 4^k times shorter lands on to
+        the digit is the point's, not the step's: the steppers stop there
+        instead of cutting on to their smallest step (13 more failed solves,
+        from a fixed step of 2.5 ms to the default smallest of duration x
+        1e-9), and the run's failure (after the continuation the smallest
+        step gets) comes after a few failed solves. (Other failures, Newton
+        diverging from a predictor, leave the refused unknowns near the point
+        as the step shrinks, alike for any step: not asked.)"""
+        if not out.reason.startswith(STALL_REASONS):
+            self._stall = None
+            return False
+        key = (_NUMBER.sub("#", out.reason), out.row, getattr(out, "unknown", None))
+        x = np.asarray(out.x, dtype=float)
+        last = self._stall
+        if (last is not None and last[0] == t and last[1] == key and h < last[3]
+                and x.shape == last[2].shape):
+            atol = np.broadcast_to(np.asarray(self.newton.atol, dtype=float), x.shape)
+            gap = np.abs(x - last[2]) - STALL_RTOL * (np.abs(x) + np.abs(last[2])) - atol
+            if np.isfinite(gap).all() and float(gap.max(initial=-1.0)) <= 0.0:
+                self._stall = (t, key, x.copy(), h, last[4] + 1)
+                return last[4] + 1 >= STALL_REPEATS
+        self._stall = (t, key, x.copy(), h, 1)
+        return False
+
+    # -- what no step gets past -------------------------------------------------------
+    def find(self, t_new, x=None, S=None, out=None):
+        """The :class:`Finding` that no step from the last accepted point (or
+        from the point (x, S) given: the consistent start's) gets past at time
+        t_new, or None: a pressure an input sets outside its fluid's range
+        (:meth:`_inputs_out_of_range`; asked where the failed solve ``out``
+        says a pressure went <= 0 or a residual was not finite, or where no
+        solve is given), else a flow source that no pressure balances
+        (:meth:`unbalanced`; the nodes whose region holds the failed solve's
+        worst equation or unknown, all of them where it names neither or
+        where no solve is given). Cached for one (point, t_new)."""
+        if x is None:
+            at = self.point()
+            if at is None:
+                return None
+            t, x, S = at
+        else:
+            t = t_new
+        reason = None if out is None else out.reason
+        ranged = reason is None or reason.startswith(RANGE_REASONS)
+        # inputs held outside a fluid's range since before the point: asked
+        # where no solve is given, or where a fluid's range failed a shorter
+        # step from the point too (a first failure may be the step's: a square
+        # wave below a table, whose tube works at its mean pressure, went on
+        # at a quarter of the step)
+        held = reason is None or ("range" in reason and self._fails[1] >= 2
+                                  and self._fails[0] is x)
+        asked = self._concerned(x, S, t, t_new, out)
+        c = self._cache
+        if c is not None and c[0] is x and (c[3] or not ranged) and asked <= c[4] and (
+                c[5] or not held) and (
+                c[1] == t_new or (c[2] is None and t < t_new <= c[1])):
+            # the same question, or a shorter step from the same point where
+            # the longer one found nothing (inputs and demands are asked at
+            # the step's end: a shorter step's are nearer the point's)
+            return c[2]
+        found = None
+        try:
+            if t_new > t and ranged:
+                found = self._inputs_out_of_range(x, S, t_new, held)
+            if found is None and (asked or t_new == t):
+                nodes = self.unbalanced(t, t_new, x, S, asked)
+                if nodes:
+                    found = self._unbalanced_finding(nodes[0], t_new)
+        except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
+            found = None
+        self._cache = (x, t_new, found, ranged, asked, held)
+        return found
+
+    def _concerned(self, x, S, t, t_new, out):
+        """The indices (into :meth:`_locals`) of the nodes whose regions a
+        failed solve ``out`` concerns: its worst equation among their rows, or
+        its unknown among their unknowns; all where it names neither, or
+        where ``out`` is None."""
+        try:
+            locals_ = self._locals(x, S, t, start=t_new == t)
+        except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
+            return frozenset()
+        every = frozenset(range(len(locals_)))
+        if out is None or t_new == t:
+            return every          # (the consistent start: balanced_start asks all)
+        row, unknown = out.row, getattr(out, "unknown", None)
+        if row is None and unknown is None:
+            return every
+        return frozenset(k for k, loc in enumerate(locals_)
+                         if (row is not None and (row == loc.row or row in loc.rows_set))
+                         or (unknown is not None and (unknown == loc.p
+                                                      or unknown in loc.cols_set)))
+
+    def retry(self, out, x_start, psi, t, c):
+        """After a step's failed solve (``out``, from ``x_start``; the step's
+        equations at time t with psi and c): the converged Outcome of the
+        same equations solved again from the last accepted point with each
+        node without volume that carries a flow source at the pressure that
+        balances it (:func:`sourcenodes.rebalanced`), else ``out``. Tried
+        once per point, after a solve that ended on a root the run refuses
+        (:data:`RETRY_REASONS`: an absolute pressure <= 0), and not where
+        nothing gets there (:meth:`find`). Newton's solve from the step's
+        predictor follows the slopes there (a check valve at rest: its
+        leakage) to a root below vacuum, where the valve opens 200 Pa below
+        the point's pressure."""
+        at = self.point()
+        if (at is None or c == 0.0 or self._retried is at[1]
+                or not out.reason.startswith(RETRY_REASONS)):
+            return out
+        t0, x, S = at
+        self._retried = x
+        try:
+            locals_ = self._locals(x, S, t0)
+            if not locals_ or self.find(t, out=out) is not None:
+                return out
+            newton = self.newton
+            start = sourcenodes.rebalanced(self.asm, x, S, t, newton.atol, newton.stats,
+                                           locals_)
+        except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
+            return out
+        if start is None:
+            return out
+        again = self.newton.solve(start, psi, t, c)
+        return again if again.converged else out
+
+    def before_continuation(self, out, x0, S, t, dt):
+        """Newton's hook (``Newton.before_continuation``) where a solve failed
+        and a continuation would follow: ``out`` where nothing gets to time t
+        (:meth:`hopeless`: the continuation is skipped), a converged Outcome
+        from the nodes' balancing pressures (:meth:`retry`, after the start),
+        or None (on to the continuation)."""
+        if self.hopeless(x0, S, t, dt, out):
+            return out
+        if dt > 0.0:
+            again = self.retry(out, x0, S, t, dt)
+            if again.converged:
+                return again
+        return None
+
+    def hopeless(self, x0, S, t, dt, out=None):
+        """Newton's hook (via :meth:`before_continuation`) and the integration
+        loop's after a step's failed solve ``out``: whether no step gets to
+        time t (the step's end: :meth:`find`), from the last accepted point
+        (dt > 0) or from (x0, S) (dt = 0: the consistent start, where
+        :func:`sourcenodes.balanced_start` then says why)."""
+        if dt > 0.0:
+            at = self.point()
+            point = None if at is None else at[1]
+            self._fails = (point, self._fails[1] + 1 if self._fails[0] is point else 1)
+        found = self.find(t, x0, S, out) if dt == 0.0 else self.find(t, out=out)
+        if found is not None:
+            self._hit = (self._cache[0], found)
+        return found is not None
+
+    def unbalanced(self, t, t_new, x, S, asked=None):
+        """The :class:`~softflow.solve.sourcenodes.Unbalanced` nodes at time
+        t_new from the point (x, S) at t (of :meth:`_locals`, those whose
+        indices ``asked`` holds, or all), where both that point and that
+        point moved on by its rates to t_new fail to balance them (module
+        docstring); [] where none."""
+        asm, newton = self.asm, self.newton
+        if t_new == t:
+            # the consistent start: its own nodes (each alone), then their
+            # regions (two sources drawing from nodes joined by tubes that
+            # only the other supplies: each alone balances, together not)
+            found = sourcenodes.unbalanced(asm, x, S, t, newton.atol, newton.stats,
+                                           self._locals(x, S, t, start=True))
+            if not found:
+                self._locals(x, S, t)
+                regions = [loc for loc in self._local_nodes if len(loc.inside) > 1]
+                if regions:
+                    found = sourcenodes.unbalanced(asm, x, S, t, newton.atol, newton.stats,
+                                                   regions)
+            return found
+        locals_ = self._locals(x, S, t)
+        if asked is not None:
+            locals_ = [loc for k, loc in enumerate(locals_) if k in asked]
+        if not locals_:
+            return []
+        found = sourcenodes.unbalanced(asm, x, S, t_new, newton.atol, newton.stats, locals_)
+        if found and t_new > t:
+            # the neighbours as the step would move them: the states at t_new
+            # by the rates at the point (forward Euler)
+            S_on = np.asarray(asm.update_states(x, S, t_new - t), dtype=float)
+            again = {u.local.node for u in sourcenodes.unbalanced(
+                asm, x, S_on, t_new, newton.atol, newton.stats, [u.local for u in found])}
+            found = [u for u in found if u.local.node in again]
+        return found
+
+    def _locals(self, x, S, t, start=False):
+        """The network's nodes without volume that carry a flow source
+        (:func:`sourcenodes.local_nodes`, each with the nodes without volume
+        beyond it), found once, at the first failure, from the last accepted
+        point (a network without any costs one residual evaluation). After
+        the start (t > 0), a region with an inertial tube inside, whose flow
+        is held at dt = 0 but changes within any step, is no bound on a step:
+        left out. At the ``start`` (the consistent start's solve from the
+        initial values), the nodes of :func:`sourcenodes.balanced_start`,
+        each alone (its flows through inertial tubes the initial ones), which
+        it refuses once Newton has failed."""
+        if start:
+            # the consistent start's own nodes (balanced_start's: each node
+            # alone, its neighbours held), which it refuses after the hook
+            if self._start_nodes is None:
+                self._start_nodes = sourcenodes.local_nodes(self.asm, x, S, t)
+                self.newton.stats.residual_evaluations += 1
+            return self._start_nodes
+        if self._local_nodes is None:
+            self._local_nodes = sourcenodes.local_nodes(self.asm, x, S, t, region=True)
+            self.newton.stats.residual_evaluations += 1
+        return [loc for loc in self._local_nodes if not loc.dynamic]
+
+    # -- inputs that set a pressure outside the fluid's range ---------------------------
+    def _fixed(self, x, S, t):
+        """[(row, column)]: the equations that set one across unknown alone (a
+        pressure source's: their only nonzero slope is that unknown's), read
+        off the Jacobian at (x, S) once (at the consistent start where the
+        point is at a fluid's edge)."""
+        if self._fixed_rows is None:
+            asm = self.asm
+            self.newton.stats.residual_evaluations += 1
+            try:
+                F = asm.residual(x, S, t, 0.0, jac=True)
+            except FluidError:
+                start = getattr(self.integ, "consistent", None)
+                if start is None:
+                    return []
+                F = asm.residual(start[0], asm.S0, 0.0, 0.0, jac=True)
+            if not np.isfinite(F).all():
+                return []
+            J = asm.jacobian_csc().tocsr()
+            J.eliminate_zeros()
+            na, nr = asm.n_across, asm.n_node_rows
+            counts = np.diff(J.indptr)
+            rows = np.flatnonzero(counts == 1)
+            rows = rows[rows >= nr]
+            cols = J.indices[J.indptr[rows]]
+            keep = cols < na
+            self._fixed_rows = list(zip(rows[keep].tolist(), cols[keep].tolist()))
+        return self._fixed_rows
+
+    def _inputs_out_of_range(self, x, S, t_new, held=False):
+        """A :class:`Finding` where an equation that sets an across unknown
+        alone (:meth:`_fixed`: a pressure source) sets it at t_new to an
+        absolute pressure <= 0 or where a component's fluid cannot be
+        evaluated (a table's range), the other unknowns as at the point:
+        no state there. Else None. The inputs whose values changed since the
+        point, and with ``held`` (a failure on a fluid's range) those that
+        did not too: a source held below a table's range since t = 0, which
+        ran while the tube it feeds worked at a mean pressure inside it, until
+        the tube's other end fell."""
+        fixed = self._fixed(x, S, t_new)
+        if not fixed:
+            return None
+        asm = self.asm
+        rows = np.array([r for r, _ in fixed])
+        cols = np.array([c for _, c in fixed])
+        self.newton.stats.residual_evaluations += 1
+        try:
+            F = asm.residual(x, S, t_new, 0.0, jac=True)
+        except FluidError:
+            # the point itself at a fluid's edge (a tube's mean pressure): the
+            # inputs' values as the point has them, asked where held
+            value = x[cols].astype(float)
+        else:
+            J = asm.jacobian_csc().tocsr()
+            slope = np.asarray(J[rows, cols]).ravel()
+            with np.errstate(all="ignore"):
+                value = x[cols] - F[rows] / slope
+        moved = np.isfinite(value) & ((value != x[cols]) | held)
+        if not moved.any():
+            return None
+        names = asm.x_names
+        q = np.asarray(asm.x_quantity, dtype=object)[cols]
+        for i in np.flatnonzero(moved & (q == "pressure") & (value <= 0.0)):
+            comp, _ = asm.component_of_row(int(rows[i]))
+            g, k = asm.group_of_row(int(rows[i]))
+            return Finding(
+                f"{g.comps[k].describe()} sets {names[int(cols[i])]} to {value[i]:.4g} Pa "
+                f"absolute at t = {t_new:.6g} s: no fluid state there (vacuum is an absolute "
+                "pressure of 0; a gauge source's value is added to 1 atm); keep its "
+                "signal above vacuum", comp, "input")
+        def refused(i, err, where=""):
+            g, k = asm.group_of_row(int(rows[i]))
+            src = g.comps[k]
+            unit = " Pa" if q[i] == "pressure" else " K" if q[i] == "temperature" else ""
+            return Finding(
+                f"{src.describe()} sets {names[int(cols[i])]} to {value[i]:.6g}{unit} at t = "
+                f"{t_new:.6g} s{where}, where a fluid cannot be evaluated: {err}; no state "
+                "there: keep the input within the fluid's range, or use a level that covers "
+                "it (Fluid(..., level='eos'), or a table's out_of_range='eos')",
+                src.label, "input")
+
+        # the fluids of the components at each node an input sets a pressure of
+        p_of = asm.node_across.get("pressure")
+        node_of = {} if p_of is None else {int(c): j for j, c in enumerate(p_of) if c >= 0}
+        for i in np.flatnonzero(moved & (q == "pressure")):
+            j = node_of.get(int(cols[i]))
+            if j is None:
+                continue
+            fluids = {id(f): f for f in (getattr(term.component, "fluid", None)
+                                         for term in asm.nodes[j].terminals)
+                      if f is not None}
+            for fluid in fluids.values():
+                try:
+                    fluid.density(float(value[i]))
+                except FluidError as err:
+                    return refused(int(i), err)
+        # the components there at those pressures, the others as at the point
+        x2 = x.copy()
+        x2[cols[moved]] = value[moved]
+        self.newton.stats.residual_evaluations += 1
+        try:
+            asm.residual(x2, S, t_new, 0.0)
+        except FluidError as err:
+            # the input whose value changed at the node the fluid refused
+            i = int(np.flatnonzero(moved)[0])
+            return refused(i, err, "" if len(np.flatnonzero(moved)) == 1
+                           else " (with the other sources set)")
+        return None
+
+    # -- the message ---------------------------------------------------------------------
+    def explain(self, fail):
+        """The :class:`Finding` of a failed step (``fail``: the
+        :class:`~softflow.solve.integrator.StepFailure`), or None: what no
+        step gets past at the failed step's end (:meth:`find`), else a time
+        constant far below the smallest step tried."""
+        if fail.t == 0.0:
+            # the consistent start says its own where its nodes alone are
+            # refused; a region found at the start (hopeless) is said here
+            hit = self._hit
+            if hit is None or fail.outcome.reason.startswith("no consistent start"):
+                return None
+            return hit[1]
+        at = self.point()
+        if self._hit is not None and at is not None and self._hit[0] is at[1]:
+            return self._hit[1]   # what stopped the step (hopeless)
+        found = self.find(fail.t)
+        if found is not None:
+            return found
+        if at is None or fail.dt <= 0.0:
+            return None
+        t, x, S = at
+        try:
+            mode = fastest_mode(self.asm, x, S, t)
+        except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError,
+                ValueError):
+            return None
+        if mode is None or not mode[0] < FAR_BELOW * fail.dt:
+            return None
+        tau, named = mode
+        return Finding(
+            f"the network's fastest mode at t = {t:.6g} s has a time constant of {tau:.3g} "
+            f"s, far below the smallest step tried ({fail.dt:.3g} s); it moves "
+            f"{_listed(named)}: within each step they jump to where their neighbours hold "
+            "them, and the step's solve does not get there (a volume that small or a "
+            "coupling that fast: make it larger, or leave it out)",
+            named[0][0].label, "fast")
+
+    def step_limit_note(self, t, x, S):
+        """'; ...' naming the component whose time constant the steps follow
+        where a run stops at max_steps (its fastest mode at the point (x, S)
+        at t, where that lies within STEP_FOLLOWS times the last step: the
+        mode the error test resolves), or ''."""
+        h = float(getattr(self.integ, "_h", 0.0) or 0.0)
+        try:
+            mode = fastest_mode(self.asm, x, S, t)
+        except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError,
+                ValueError):
+            return ""
+        if mode is None or h <= 0.0 or not mode[0] < STEP_FOLLOWS * h:
+            return ""
+        tau, named = mode
+        return (f"; the steps (the last {h:.3g} s) follow the network's fastest mode, a time "
+                f"constant of {tau:.3g} s at t = {t:.6g} s, which moves {_listed(named)}: a "
+                "volume that small or a coupling that fast makes every step that short "
+                "(make it larger, or leave it out)")
+
+    def _unbalanced_finding(self, u, t):
+        asm, loc = self.asm, u.local
+        node = asm.nodes[loc.node].name
+        behind = [asm.nodes[j].name for j in (loc.inside or ()) if j != loc.node]
+        if behind:
+            more = f" and {len(behind) - 3} more" if len(behind) > 3 else ""
+            verb = "is" if len(behind) == 1 else "are"
+            node += (f", a node without volume (as {verb} {', '.join(behind[:3])}{more} "
+                     "behind it)")
+        else:
+            node += ", a node without volume"
+        n_src = len(loc.sources)
+        others = list(zip(loc.members[n_src:], u.flows[n_src:]))
+        draw = u.kind == "below"
+        names = ", ".join(c.describe() for c in loc.sources)
+        rate = sum(u.flows[:n_src])
+        rate_text = f"{abs(rate):.4g} kg/s"
+        at_p = f"{u.p:.4g} Pa"
+        where = "" if u.edge is None else f", where the fluid's range ends ({u.edge})"
+        parts = []
+        for (comp, _), flow in others:
+            passed = -flow if draw else flow     # into the node / out of it
+            parts.append(f"{comp.describe()} {passed:.4g} kg/s{self._switched(comp)}")
+        total = sum((-f if draw else f) for _, f in others)
+        if draw:
+            head = (f"{names} draws {rate_text} from {node}, at t = "
+                    f"{t:.6g} s: more than the components there supply at any pressure down "
+                    f"to {at_p}{where} (they supply {total:.4g} kg/s there")
+            tail = "inlets that supply the flow"
+        else:
+            head = (f"{names} pushes {rate_text} into {node}, at t = "
+                    f"{t:.6g} s: more than the components there pass at any pressure up to "
+                    f"{at_p}{where} (they pass {total:.4g} kg/s there")
+            tail = "outlets that pass the flow"
+        msg = (head + (": " + ", ".join(parts) if parts else "") + "); the node has no "
+               "state from there on (closed, at rest, dead ends, or a gas's flow at its sonic "
+               f"limit): give the node a volume (a Container), or {tail}")
+        return Finding(msg, loc.sources[0].label, "unbalanced")
+
+    def _switched(self, comp):
+        """' (closed: its state 'open' went 1 -> 0 at t = ...)' for a component
+        whose discrete state changed in the recorded points (the last change),
+        or ''."""
+        asm = self.asm
+        if not asm.has_discrete or comp.label not in asm.where:
+            return ""
+        g, k = asm.where[comp.label]
+        if not g.ns:
+            return ""
+        integ = self.integ
+        times, _, S_rec = integ.rec.arrays()
+        s_index = integ.rec.s_index
+        notes = []
+        for j, var in enumerate(g.comps[k].states):
+            i = g.s0 + k * g.ns + j
+            if not asm.s_discrete[i]:
+                continue
+            if isinstance(s_index, (int, np.integer)):
+                col = i
+            else:
+                hit = np.flatnonzero(np.asarray(s_index) == i)
+                if not hit.size:
+                    continue
+                col = int(hit[0])
+            values = S_rec[:, col]
+            changed = np.flatnonzero(values[1:] != values[:-1])
+            if changed.size:
+                m = int(changed[-1])
+                notes.append(f"its state '{var.label}' went {values[m]:g} -> "
+                             f"{values[m + 1]:g} at t = {times[m + 1]:.6g} s")
+            elif values.size:
+                notes.append(f"its state '{var.label}' = {values[-1]:g} throughout")
+        return f" ({'; '.join(notes)})" if notes else ""
+
+
+def _listed(named):
+    return ", ".join(f"{c.describe()} (its {label})" for c, label in named)
+
+
+def fastest_mode(asm, x, S, t):
+    """The fastest mode of the network at the point (x, S) at time t: (its
+    time constant [s], [(component, state label)] of the components whose
+    states move most in it relative to their values, most first), or None (no states, a network over
+    :data:`MODES_MAX_UNKNOWNS` unknowns, a singular Jacobian).
+
+    The step equations F(x; psi, c) evaluate the states at psi + c r(x); with
+    psi = S - c r(x) they hold the states at S, and their Jacobian is
+    J(c) = F_x + c F_S r_x. The modes' rates lam solve
+    (J(1) - J(0)) v = -lam J(0) v (the linearized DAE: F_x dx + F_S dS = 0,
+    dS' = r_x dx); each mode's states move by r_x v."""
+    n = asm.n
+    ns = S.size
+    if not ns or n > MODES_MAX_UNKNOWNS:
+        return None
+    asm.residual(x, S, t, 0.0, jac=True)
+    J0 = asm.jacobian_csc().toarray()
+    r = np.asarray(asm.update_states(x, S, 1.0), dtype=float) - S
+    if asm.has_discrete:
+        r[asm.s_discrete] = 0.0
+    c = 1.0
+    asm.residual(x, S - c * r, t, c, jac=True)
+    D = asm.jacobian_csc().toarray() - J0
+    if not (np.isfinite(J0).all() and np.isfinite(D).all()):
+        return None
+    K = -np.linalg.solve(J0, D) / c
+    lam, V = np.linalg.eig(K)
+    mag = np.abs(lam)
+    if not mag.size or not np.isfinite(mag).all() or mag.max() <= 0.0:
+        return None
+    j = int(np.argmax(mag))
+    v = V[:, j]
+    # the states' motion in the mode: r_x v (r affine in x), real and imaginary parts
+    base = np.asarray(asm.update_states(x, S, 1.0), dtype=float)
+    scale = 1e-6 * max(float(np.max(np.abs(x))), 1e-300) / max(float(np.max(np.abs(v))), 1e-300)
+    w = np.zeros(ns)
+    for part in (v.real, v.imag):
+        if np.any(part):
+            w += np.abs(np.asarray(asm.update_states(x + scale * part, S, 1.0),
+                                   dtype=float) - base)
+    if asm.has_discrete:
+        w[asm.s_discrete] = 0.0
+    # relative to the states' values (a floor of 1e-9 of the largest of the
+    # same quantity, for a state at zero)
+    q = np.asarray(asm.s_quantity, dtype=object)
+    size = np.abs(S)
+    floor = np.zeros(ns)
+    for name in set(q.tolist()):
+        m = q == name
+        floor[m] = 1e-9 * float(size[m].max(initial=0.0))
+    rel = w / (size + floor + 1e-300)
+    if not np.any(rel > 0.0):
+        return None
+    # the components whose states move most, each once, down to MODE_SHARE
+    # of the most (a tube's flow and the volume it fills: both)
+    named = []
+    for i in np.argsort(-rel):
+        if rel[i] < MODE_SHARE * rel.max() or len(named) == MODE_NAMES:
+            break
+        for g in asm.groups:
+            if g.ns and g.s0 <= i < g.s1:
+                k, jj = divmod(int(i) - g.s0, g.ns)
+                comp = g.comps[k]
+                if all(c is not comp for c, _ in named):
+                    named.append((comp, comp.states[jj].label))
+                break
+    if not named:
+        return None
+    return 1.0 / float(mag[j]), named
