@@ -52,6 +52,8 @@ CAUSES = (
     ("chokes", ("chok",)),
     ("no consistent start: a flow source's node balances at no pressure",
      ("no consistent start",)),
+    ("a flow source's node balances at no pressure",
+     ("node without volume", "at any pressure")),
     ("pressure <= 0 at a node", ("absolute pressure", "<= 0")),
     ("non-finite residual: a trial pressure outside the fluid's range",
      ("not finite", "pressure", "range")),
