@@ -30,7 +30,6 @@ Scenes: the nine paper scenes (summed), the fill and the blowdown at rtol
 from __future__ import annotations
 
 import argparse
-import math
 import statistics
 import sys
 import time
@@ -38,7 +37,6 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 import softflow as sf
 from softflow import paper_scenes as ps
@@ -47,50 +45,22 @@ from softflow.solve import dense as dense_mod
 from softflow.solve.integrator import Integrator
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+TESTS = Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(TESTS), str(TESTS / "solve")]
 from scenes import chain  # noqa: E402
-
-P0 = sf.pressure_atmospheric
-AIR = sf.air
-GAMMA, R_AIR, T_AIR = AIR.gamma0, AIR.R, AIR.temperature
+import test_dense_output as dense_tests  # noqa: E402
 
 
-# -- scenes and their references ------------------------------------------------------------
-def fill(p1=P0 + 1e4, tau=0.1, D=0.5e-3, L=1.0):
+
+# -- scenes and their references: the tests' (tests/solve/test_dense_output.py) -------------
+def fill():
     """(system, reference p(t), variable, duration): the exponential fill."""
-    R = 128 * sf.water.mu * L / (math.pi * D ** 4)
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=p1)
-    s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
-    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=tau / R)
-    s.connect("tube", "src")
-    s.connect("tube", "acc")
-    return s, (lambda t: p1 + (P0 - p1) * np.exp(-np.asarray(t) / tau)), ("acc", "pressure"), 0.3
+    return (*dense_tests.fill(), ("acc", "pressure"), 0.3)
 
 
-def nozzle(p_up, p_down, Cd, d, g=GAMMA):
-    """Isentropic convergent nozzle from rest at p_up (Anderson, Modern
-    Compressible Flow, sec. 5.4), with a discharge coefficient [kg/s]."""
-    A = math.pi * d * d / 4
-    pr = p_down / p_up
-    if pr <= (2 / (g + 1)) ** (g / (g - 1)):
-        return Cd * A * p_up * math.sqrt(g / (R_AIR * T_AIR)) * (2 / (g + 1)) ** (
-            (g + 1) / (2 * (g - 1)))
-    return Cd * A * p_up * math.sqrt(2 * g / ((g - 1) * R_AIR * T_AIR)) * math.sqrt(
-        pr ** (2 / g) - pr ** ((g + 1) / g))
-
-
-def blowdown(V=1e-3, p=10e5, d=2e-3, Cd=0.6, duration=6.0):
+def blowdown():
     """(system, reference p(t), variable, duration): the isothermal blowdown."""
-    s = sf.System()
-    s += sf.Container("tank", AIR, volume=V, initial_pressure=p)
-    s += sf.Orifice("o", AIR, diameter=d, Cd=Cd)
-    s += sf.PressureSource("atm", pressure=P0)
-    s.connect("tank", ("o", "a"))
-    s.connect(("o", "b"), "atm")
-    ode = solve_ivp(lambda _, y: [-R_AIR * T_AIR / V * nozzle(y[0], P0, Cd, d)],
-                    (0.0, duration), [p], method="DOP853", rtol=1e-13, atol=1e-8,
-                    dense_output=True)
-    return s, (lambda t: ode.sol(t)[0]), ("tank", "pressure"), duration
+    return (*dense_tests.blowdown(), ("tank", "pressure"), 6.0)
 
 
 # -- (a) accuracy ---------------------------------------------------------------------------

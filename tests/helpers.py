@@ -7,12 +7,13 @@ import numpy as np
 import softflow as sf
 
 
-def rc_circuit(p1=sf.pressure_atmospheric + 1e4, tau=0.1, D=0.5e-3, L=1.0):
+def rc_circuit(p1=sf.pressure_atmospheric + 1e4, tau=0.1, D=0.5e-3, L=1.0, source=None):
     """Laminar water tube charging a linear accumulator (the fluidic RC circuit):
-    p = p1 + (P0 - p1) exp(-t / tau), with R = 128 mu L / (pi D^4), C = tau / R."""
+    p = p1 + (P0 - p1) exp(-t / tau), with R = 128 mu L / (pi D^4), C = tau / R
+    (``source``: another pressure for the source, e.g. a waveform, than p1)."""
     R = 128 * sf.water.mu * L / (math.pi * D ** 4)
     s = sf.System()
-    s += sf.PressureSource("src", pressure=p1)
+    s += sf.PressureSource("src", pressure=p1 if source is None else source)
     s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
     s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=tau / R)
     s.connect("tube", "src")

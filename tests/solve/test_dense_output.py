@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import softflow as sf
-from helpers import snapping_valve_scene
+from helpers import rc_circuit, snapping_valve_scene
 
 P0 = sf.pressure_atmospheric
 AIR = sf.air
@@ -25,16 +25,10 @@ pytestmark = pytest.mark.filterwarnings("ignore::softflow.ModelWarning")
 # -- scenes and their references ------------------------------------------------------------
 def fill(p1=P0 + 1e4, tau=0.1, D=0.5e-3, L=1.0, source=None):
     """Water from a pressure source through a laminar tube into a linear
-    accumulator: p = p1 + (P0 - p1) exp(-t / tau), R = 128 mu L / (pi D^4),
-    C = tau / R. (system, reference)."""
-    R = 128 * sf.water.mu * L / (math.pi * D ** 4)
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=p1 if source is None else source)
-    s += sf.CircularTube("tube", sf.water, length=L, diameter=D)
-    s += sf.LinearAccumulator("acc", sf.water, volume=1e-6, compliance=tau / R)
-    s.connect("tube", "src")
-    s.connect("tube", "acc")
-    return s, (lambda t: p1 + (P0 - p1) * np.exp(-np.asarray(t) / tau))
+    accumulator (helpers.rc_circuit): p = p1 + (P0 - p1) exp(-t / tau).
+    (system, reference)."""
+    return (rc_circuit(p1, tau, D, L, source),
+            lambda t: p1 + (P0 - p1) * np.exp(-np.asarray(t) / tau))
 
 
 def nozzle(p_up, p_down, Cd, d, g=GAMMA):
