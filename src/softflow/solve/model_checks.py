@@ -558,19 +558,34 @@ def _liquid_nodes(asm, keep=None):
             for key, (fluid, cols, owners) in found.items()}
 
 
+def _node_pressures(result, nodes):
+    """(the recorded ones of ``nodes``, their pressures over the run: times x
+    nodes); none recorded: an empty array of nodes."""
+    cols = result._xcol[nodes]
+    recorded = cols >= 0
+    return nodes[recorded], result.X[:, cols[recorded]]
+
+
+def _component_at_node(asm, result, owners, node):
+    """(a component of ``owners`` (a network check's (group, terminal
+    position) pairs) meeting at ``node``, a recorded one where there is one;
+    its recorded times; the node's name)."""
+    at = [(g, int(i)) for g, pos in owners for i in
+          np.flatnonzero((g.col.reshape(len(g.comps), -1)[:, pos] == node).any(axis=1))]
+    comp_g, i = next(((g, i) for g, i in at if g.comps[i].label in result._where), at[0])
+    return (comp_g.comps[i], group_times(comp_g, result, [i])[:, 0],
+            str(asm.x_names[node]).removesuffix(" pressure"))
+
+
 def cavitation(asm, result):
     """(A network check, :func:`softflow.solve.validity.register_network`.) The
     lowest pressure of each liquid against its vapour pressure (module doc)."""
     from ..fluids.vapour import vapour_pressure
     out = []
-    X, xcol = result.X, result._xcol
     for fluid, nodes, owners in _liquid_nodes(asm).values():
-        cols = xcol[nodes]
-        recorded = cols >= 0
-        if not recorded.any():
+        nodes, P = _node_pressures(result, nodes)
+        if not nodes.size:
             continue
-        nodes, cols = nodes[recorded], cols[recorded]
-        P = X[:, cols]
         low = np.fmin.reduce(P, axis=0)        # per node, NaN left out
         low[np.isnan(low)] = np.inf            # (a node without a number at all)
         j = int(np.argmin(low))
@@ -581,15 +596,9 @@ def cavitation(asm, result):
         fraction = p_vap / p_min
         if not grade(fraction):
             continue
-        node = int(nodes[j])
         k = int(np.nanargmin(P[:, j]))
-        # the liquid's component at that node: a recorded one where there is one
-        at = [(g, int(i)) for g, pos in owners for i in
-              np.flatnonzero((g.col.reshape(len(g.comps), -1)[:, pos] == node).any(axis=1))]
-        comp_g, i = next(((g, i) for g, i in at if g.comps[i].label in result._where), at[0])
-        comp = comp_g.comps[i]
-        t = float(group_times(comp_g, result, [i])[k, 0])
-        where = str(asm.x_names[node]).removesuffix(" pressure")
+        comp, times, where = _component_at_node(asm, result, owners, int(nodes[j]))
+        t = float(times[k])
         T = float(fluid.temperature)
         liquid = f"{fluid.name} at {T:.5g} K ({T - 273.15:.4g} degC)"
         if fraction > 1:
@@ -632,14 +641,10 @@ def fluid_range(asm, result):
     Fraction: how far outside, the range's end over the pressure (below it) or
     the pressure over the end (above it); only past 1."""
     out = []
-    X, xcol = result.X, result._xcol
     for fluid, nodes, owners in _liquid_nodes(asm, keep=_raising_table).values():
-        cols = xcol[nodes]
-        recorded = cols >= 0
-        if not recorded.any():
+        nodes, P = _node_pressures(result, nodes)
+        if not nodes.size:
             continue
-        nodes, cols = nodes[recorded], cols[recorded]
-        P = X[:, cols]
         lo, hi = (float(v) for v in fluid.p_range)
         with np.errstate(all="ignore"):
             low = np.fmin.reduce(P, axis=0)
@@ -655,16 +660,10 @@ def fluid_range(asm, result):
         below = lo / low[j] >= high[j] / hi if low[j] > 0.0 else True
         k = int(np.nanargmin(P[:, j]) if below else np.nanargmax(P[:, j]))
         p = float(P[k, j])
-        node = int(nodes[j])
-        at = [(g, int(i)) for g, pos in owners for i in
-              np.flatnonzero((g.col.reshape(len(g.comps), -1)[:, pos] == node).any(axis=1))]
-        comp_g, i = next(((g, i) for g, i in at if g.comps[i].label in result._where), at[0])
-        comp = comp_g.comps[i]
-        times = group_times(comp_g, result, [i])[:, 0]
+        comp, times, where = _component_at_node(asm, result, owners, int(nodes[j]))
         t = float(times[k])
         outside = (P[:, j] < lo) if below else (P[:, j] > hi)
         t_first = float(times[int(np.argmax(outside))])
-        where = str(asm.x_names[node]).removesuffix(" pressure")
         edge = lo if below else hi
         out.append(_record(
             comp, "fluid_range", p, edge, "Pa", fraction,
