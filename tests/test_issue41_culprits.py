@@ -29,6 +29,7 @@ import pytest
 import softflow as sf
 from softflow.solve import culprit
 from softflow.solve.newton import Newton, Outcome
+from test_bad_input_catalogue import ringing_scene
 
 W = sf.waveforms
 ATM = sf.pressure_atmospheric
@@ -308,20 +309,10 @@ def test_the_fastest_mode_of_a_tank_behind_a_tube_is_its_rc_time_constant(volume
     assert [(c.label, state) for c, state in named] == [("tank", "mass")]
 
 
-def lc(volume=1e-15):
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=2e5)
-    s += sf.CircularTube("tube", sf.air, length=0.1, diameter=1e-2, inertance=True)
-    s += sf.Container("tank", sf.air, volume=volume)
-    s.connect("tube", "src")
-    s.connect("tube", "tank")
-    return s
-
-
 def test_a_run_stopped_at_max_steps_names_the_mode_its_steps_follow():
     # a 1e-15 m^3 chamber behind an inertial 10 mm tube rings at ~4e-9 s: the
     # adaptive steps follow it (~10 million steps for 10 ms)
-    err = _error(lc(), duration=0.01, max_steps=2000)
+    err = _error(ringing_scene(), duration=0.01, max_steps=2000)
     msg = str(err)
     assert "more than max_steps = 2000" in msg
     assert "follow the network's fastest mode, a time constant of" in msg
