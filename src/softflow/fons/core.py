@@ -21,7 +21,22 @@ from .constants.norm import pressure_atmospheric
 _ROLES = {"across": "across", "through": "through", "local": "local", "free": "local"}
 
 
-class Variable(_Variable):
+class _FonsimNames(_Variable):
+    """A softflow Variable under fonsim's attribute names: ``key`` (its
+    quantity) and ``orientation`` (its role)."""
+
+    __slots__ = ()
+
+    @property
+    def key(self):
+        return self.quantity
+
+    @property
+    def orientation(self):
+        return self.role
+
+
+class Variable(_FonsimNames):
     """fonsim's ``Variable(key, orientation, terminal=None, label=None,
     initial_value=0, range=(-inf, inf))``: a softflow Variable whose quantity is
     ``key`` and whose role is ``orientation`` ('free' is 'local').
@@ -57,14 +72,6 @@ class Variable(_Variable):
         for name in _Variable.__slots__ + Variable.__slots__:
             setattr(new, name, getattr(self, name))
         return new
-
-    @property
-    def key(self):
-        return self.quantity
-
-    @property
-    def orientation(self):
-        return self.role
 
 
 def _ranges_of(variables, where):
@@ -268,19 +275,11 @@ class ResultsMixin:
         return _Component.get(self, label)
 
 
-class _ArgumentView(_Variable):
+class _ArgumentView(_FonsimNames):
     """A Variable as fonsim lists it among a component's ``arguments``: its
     key, orientation and label, and the label of its ``terminal``."""
 
     __slots__ = ("terminal",)
-
-    @property
-    def key(self):
-        return self.quantity
-
-    @property
-    def orientation(self):
-        return self.role
 
 
 def _fonsim_view(v, terminal):
