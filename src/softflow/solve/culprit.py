@@ -79,32 +79,25 @@ import numpy as np
 
 from ..fluids.base import FluidError
 from . import sourcenodes
+from .settings import (
+    FAR_BELOW,
+    MODE_NAMES,
+    MODE_SHARE,
+    MODES_MAX_UNKNOWNS,
+    STALL_REPEATS,
+    STALL_RTOL,
+    STEP_FOLLOWS,
+)
 from .validity import ComponentError
 
-#: a mode whose time constant lies below this fraction of the smallest step
-#: tried is named beside a failure (:func:`fastest_mode`)
-FAR_BELOW = 1e-3
 #: the failed solves after which the inputs are asked for a pressure outside
 #: the fluid's range (:meth:`Finder._inputs_out_of_range`)
 RANGE_REASONS = ("residual not finite", "absolute pressure")
-#: a step's failed solve that repeats STALL_REPEATS times on ever shorter
-#: steps, its refused unknowns within STALL_RTOL (plus Newton's atol), stops
-#: the run (:meth:`Finder.stalled`)
-STALL_REPEATS, STALL_RTOL = 4, 1e-3
 STALL_REASONS = ("absolute pressure",)
 #: the failed solves after which a step is solved again from its nodes'
 #: balancing pressures (:meth:`Finder.retry`): a root below vacuum, where
 #: Newton followed a closed valve's slope past the one the node has
 RETRY_REASONS = ("absolute pressure",)
-#: a run stopped at max_steps names its fastest mode where that mode's time
-#: constant lies below this many times the last step (the steps follow it)
-STEP_FOLLOWS = 100.0
-#: a mode names the components whose states move in it by at least this
-#: share of the most moved (relative to their values), MODE_NAMES at most
-MODE_SHARE, MODE_NAMES = 1e-3, 3
-#: the largest network (unknowns) whose modes are computed densely on a
-#: failure (an eigenvalue problem of n x n: ~0.1 s at 600)
-MODES_MAX_UNKNOWNS = 600
 
 
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")

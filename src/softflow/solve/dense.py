@@ -58,13 +58,8 @@ import math
 
 import numpy as np
 
-#: Points per step ``refine='auto'`` records at most.
-AUTO_REFINE_MAX = 64
-#: ``refine='auto'``: a step gets r points where the straight lines between
-#: them stay within AUTO_REFINE_TARGET of its polynomial, in units of the
-#: run's tolerance (atol + rtol x the run's largest magnitude of each state,
-#: and of each unknown's quantity, as the error test weighs the unknowns).
-AUTO_REFINE_TARGET = 1.0
+from .settings import AUTO_REFINE_MAX, AUTO_REFINE_TARGET
+
 #: where the polynomial's second derivative is sampled for refine='auto' (in
 #: steps from the step's end): its ends and middle (p'' is of degree k - 2)
 _SAMPLES = np.array([0.0, -0.5, -1.0])

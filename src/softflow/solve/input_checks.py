@@ -10,18 +10,8 @@ import numpy as np
 
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
+from .settings import NEGLIGIBLE_TUBE
 from .validity import ValidityRecord
-
-#: A tube's flow is negligible (check ``'tube_negligible_flow'``, a ModelWarning
-#: at the start of the run) where, over the whole run, it could equalize at most
-#: NEGLIGIBLE_TUBE · rtol of the pressure difference across it in the smallest
-#: volume it reaches: its time constant with that volume exceeds the duration
-#: by more than 1 / (NEGLIGIBLE_TUBE · rtol), 1e9 at the default rtol. Six
-#: orders of magnitude below the run's own tolerance: a slow leak that a run
-#: resolves is no finding; a 1 nm x 1 km tube into a 10 mL tank of air (tau =
-#: 7e25 s) or a 0.3 m tube whose diameter was given in m for mm (1 um: 2e10 s)
-#: is, over a 1 s run.
-NEGLIGIBLE_TUBE = 1e-6
 
 
 def negligible_tubes(asm, duration, rtol):

@@ -62,25 +62,19 @@ from .dense import DenseOutput
 from .linalg import make_linear_solver
 from .newton import StepLimitError
 from .progress import SILENT
+from .settings import (
+    EMPTY_ATOL_FIXED,
+    EMPTY_PAST,
+    EMPTY_SLACK_ATOL,
+    EMPTY_SLACK_SHARE,
+    EMPTY_TRIES,
+)
 from .validity import EmptiedError, curve_first_volume
 
 #: steps in a row the loop solves by continuation where Newton failed at the
 #: smallest step (:meth:`Integrator._rescue`); the next such failure stops the
 #: run (each rescue costs up to 2 x CONTINUATION_SOLVES Newton solves)
 RESCUES_IN_A_ROW = 8
-
-#: A watched volume's state (:class:`VolumeWatch`) counts as past its limit
-#: where it ends a step below it by more than this many times its absolute
-#: tolerance (the BDF's atol of the state; 1e-12 kg at fixed steps), or by
-#: more than EMPTY_SLACK_SHARE of its initial distance from the limit where
-#: that is smaller (a 1e-15 m^3 container of gas holds ~1e-15 kg): within that,
-#: the state is at its limit as far as the run resolves it.
-EMPTY_SLACK_ATOL, EMPTY_SLACK_SHARE = 10.0, 1e-3
-#: absolute tolerance of a stored mass at fixed steps (Simulation's default)
-EMPTY_ATOL_FIXED = 1e-12
-#: a step retried to locate where a volume empties ends this fraction of the
-#: located crossing short of it; EMPTY_TRIES such placements, then quarters
-EMPTY_PAST, EMPTY_TRIES = 1e-3, 4
 
 
 class StepFailure(Exception):

@@ -29,6 +29,7 @@ from .result import Result
 from .input_checks import negligible_tubes
 from .validity import (PV_CURVE_SLACK, ComponentError, beyond, can_refuse,
                        check_result, checks_version, issue)
+from .settings import ROUND_OFF, MAX_REFINE
 from .thermal import check_model, configure_like, configure_thermal
 
 if TYPE_CHECKING:
@@ -40,14 +41,6 @@ if TYPE_CHECKING:
 #: that asks for more is refused at construction, and a run stops past it.
 MAX_STEPS = 10_000_000
 
-#: Relative round-off allowed where a time must lie within the run: a fixed step
-#: up to duration·(1 + ROUND_OFF) (duration=0.3 with step=3*0.1, 0.30000000000000004),
-#: breakpoints from -ROUND_OFF·duration to duration·(1 + ROUND_OFF). The fixed-step
-#: grid allows the same (ImplicitEuler: ceil(duration / step - 1e-9) steps).
-ROUND_OFF = 1e-9
-
-#: Largest ``refine=`` (points recorded per adaptive step).
-MAX_REFINE = 64
 
 #: Newton's relative tolerance at fixed steps (``newton_rtol=`` not given).
 NEWTON_RTOL = 1e-6

@@ -61,29 +61,18 @@ import numpy as np
 from ..fluids.base import FluidError
 from .assembly import _is_regular_dense
 from .newton import Outcome
+from .settings import (
+    INNER_ITERATIONS,
+    INNER_RTOL,
+    MARCH,
+    MARCH_TRIALS,
+    PRESSURE_CAP,
+    PRESSURE_FLOOR,
+    REGION_NODES,
+    SEARCH_ITERATIONS,
+    SEARCH_RTOL,
+)
 from .validity import ComponentError
-
-#: [Pa] the highest absolute pressure a consistent start may put at a node
-#: without volume that a flow source feeds: a balance that needs more (a
-#: source pushing against a closed valve, an inertial tube at rest, a
-#: choked nozzle) is refused, not reported as a kilobar answer
-PRESSURE_CAP = 1e9
-#: [Pa] the lowest absolute pressure the search goes down to, for a source
-#: that draws from such a node
-PRESSURE_FLOOR = 1.0
-#: the factor between the pressures the bracketing search tries
-MARCH = 2.0
-#: the most pressures the bracketing search tries (from 1 atm to the cap
-#: or the floor: 14 or 17; more near the edge of a fluid's range)
-MARCH_TRIALS = 200
-#: Newton iterations of one trial pressure's solve for the other unknowns,
-#: and the relative update (besides Newton's atol) it stops at
-INNER_ITERATIONS = 30
-INNER_RTOL = 1e-9
-#: iterations of the bracketed search for the balancing pressure, and the
-#: relative width it stops at (a start: the network's Newton finishes it)
-SEARCH_ITERATIONS = 80
-SEARCH_RTOL = 1e-10
 
 
 @dataclass
@@ -304,11 +293,6 @@ def local_nodes(asm, x, S, t=0.0, region=False):
                            [(inst[k][0].comps[inst[k][1]], c) for k, c in members],
                            sorted(inside), dynamic))
     return found
-
-
-#: the most nodes a region of nodes without volume grows to
-#: (:func:`local_nodes` with ``region``)
-REGION_NODES = 64
 
 
 def _grow(node, comps, inside, owners_at, across_of, node_of_col, volumeless):
