@@ -38,8 +38,12 @@ class _Signal:
         self.const = None
         self.func = None
         self.fast = False     # func returns SI floats: no per-call conversion
+        # the waveform and its factor to SI, where the value is one (the
+        # compiled step loop evaluates it: softflow.solve.wavecodes)
+        self.waveform, self.factor = None, None
         if isinstance(value, Waveform):
             factor = value.factor_to(unit, name=name, owner=owner)
+            self.waveform, self.factor = value, factor
             self.func = value if factor == 1.0 else (lambda t: factor * value(t))
             self.fast = True
             self._until = value.breakpoints_until

@@ -350,6 +350,8 @@ class Trapezoid(Waveform):
             return self.low
         if self.period is not None:
             tau -= math.floor(tau / self.period) * self.period
+            if tau < 0.0:       # the remainder rounded below 0: a period's very end
+                return self.low
         if tau < self._t_hold:
             return self.low + (self.high - self.low) * tau / self.rise
         if tau < self._t_fall:

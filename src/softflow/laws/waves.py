@@ -1,0 +1,191 @@
+"""The input waveforms of sources, compiled: the value at a time t [s] of each
+waveform of :mod:`softflow.curves.waveforms`, and a group of sources' values
+(what :meth:`softflow.components.sources._SourceParams.values` gives), so
+that a compiled step loop evaluates its sources without calling Python.
+
+A waveform reaches these functions as a kind code (below) and its floats,
+stored in one float64 array from an offset ``at`` (every time in s, every
+value in SI of the waveform, before a source's unit factor):
+
+=================  ==========================================================
+code               floats[at:]
+=================  ==========================================================
+:data:`CONSTANT`   value
+:data:`STEP`       time, before, after
+:data:`RAMP`       t0, t1, v0, v1, slope (the class's ``_slope``)
+:data:`LINEAR`     n, times[0..n-1], values[0..n-1] (PiecewiseLinear)
+:data:`HELD`       n, times[0..n-1], values[0..n-1] (PiecewiseConstant)
+:data:`TRAPEZOID`  low, high, rise, fall, start, period (0: not periodic),
+                   t_hold, t_fall, t_low (the class's ``_t_hold`` ...)
+:data:`SINE`       offset, amplitude, omega (``_omega`` = 2 pi frequency), phase
+:data:`SQUARE`     low, high, start, period, t_off (``_t_off`` = duty period)
+=================  ==========================================================
+
+:mod:`softflow.solve.wavecodes` writes these arrays from the waveform objects.
+
+The arithmetic is each class's ``_scalar``, operation for operation and in
+the same order (its comparisons included, so that a time exactly at a
+breakpoint takes the same side, and a nan the same branch), so the values are
+the same to the last bit; the one difference in kind is that a period's count
+is kept as a float (``floor`` of a float is an integer-valued float, which
+Python's ``math.floor`` returns as an int and converts back exactly before
+multiplying), so that no time overflows an integer.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import jit
+
+#: kind codes of the waveforms (one per class of softflow.curves.waveforms)
+CONSTANT, STEP, RAMP, LINEAR, HELD, TRAPEZOID, SINE, SQUARE = 0, 1, 2, 3, 4, 5, 6, 7
+#: how many floats each kind stores (tables: 1 + 2 n, see :func:`size`)
+SIZES = {CONSTANT: 1, STEP: 3, RAMP: 5, TRAPEZOID: 9, SINE: 4, SQUARE: 5}
+
+
+def size(code: int, n: int = 0) -> int:
+    """The number of floats a waveform of kind ``code`` stores (``n`` the
+    number of rows of a table: :data:`LINEAR`, :data:`HELD`)."""
+    return 1 + 2 * n if code in (LINEAR, HELD) else SIZES[code]
+
+
+@jit
+def _bisect_right(floats, lo, hi, t):
+    """The first index in [lo, hi) whose float is above t, or hi (Python's
+    ``bisect.bisect_right`` on floats[lo:hi], offset by lo: a nan is past every
+    float)."""
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if t < floats[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    return lo
+
+
+@jit
+def _linear(floats, at, t):
+    # PiecewiseLinear._scalar: held before the first and after the last time
+    n = int(floats[at])
+    ts = at + 1
+    vs = ts + n
+    i = _bisect_right(floats, ts, ts + n, t) - ts
+    if i == 0:
+        return floats[vs]
+    if i == n:
+        return floats[vs + n - 1]
+    t0, t1 = floats[ts + i - 1], floats[ts + i]
+    v0, v1 = floats[vs + i - 1], floats[vs + i]
+    return v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+
+
+@jit
+def _held(floats, at, t):
+    # PiecewiseConstant._scalar: right-continuous, values[0] before times[0]
+    n = int(floats[at])
+    ts = at + 1
+    i = _bisect_right(floats, ts, ts + n, t) - ts
+    return floats[ts + n + max(i - 1, 0)]
+
+
+@jit
+def _trapezoid(floats, at, t):
+    low, high, rise, fall = floats[at], floats[at + 1], floats[at + 2], floats[at + 3]
+    start, period = floats[at + 4], floats[at + 5]
+    t_hold, t_fall, t_low = floats[at + 6], floats[at + 7], floats[at + 8]
+    tau = t - start
+    if tau < 0.0:
+        return low
+    if period > 0.0:
+        tau -= np.floor(tau / period) * period
+        if tau < 0.0:       # the remainder rounded below 0: a period's very end
+            return low
+    if tau < t_hold:
+        return low + (high - low) * tau / rise
+    if tau < t_fall:
+        return high
+    if tau < t_low:
+        return high - (high - low) * (tau - t_fall) / fall
+    return low
+
+
+@jit
+def _square(floats, at, t):
+    low, high, start, period, t_off = (floats[at], floats[at + 1], floats[at + 2],
+                                       floats[at + 3], floats[at + 4])
+    tau = t - start
+    if tau < 0.0:
+        return low
+    tau -= np.floor(tau / period) * period
+    return high if tau < t_off else low
+
+
+@jit
+def wave_value(code, floats, at, t):
+    """The value (SI of the waveform) at the time t [s] of the waveform of kind
+    ``code`` whose floats start at ``floats[at]`` (the module's table): the
+    ``_scalar(t)`` of Constant, Step, Ramp, PiecewiseLinear, PiecewiseConstant,
+    Trapezoid, Sine or Square (:mod:`softflow.curves.waveforms`). An unknown
+    code gives nan."""
+    if code == CONSTANT:
+        return floats[at]
+    if code == STEP:
+        return floats[at + 2] if t >= floats[at] else floats[at + 1]
+    if code == RAMP:
+        t0, t1, v0, v1, slope = (floats[at], floats[at + 1], floats[at + 2],
+                                 floats[at + 3], floats[at + 4])
+        if t <= t0:
+            return v0
+        if t >= t1:
+            return v1
+        return v0 + slope * (t - t0)
+    if code == LINEAR:
+        return _linear(floats, at, t)
+    if code == HELD:
+        return _held(floats, at, t)
+    if code == TRAPEZOID:
+        return _trapezoid(floats, at, t)
+    if code == SINE:
+        offset, amplitude, omega, phase = (floats[at], floats[at + 1], floats[at + 2],
+                                           floats[at + 3])
+        return offset + amplitude * math.sin(omega * t + phase)
+    if code == SQUARE:
+        return _square(floats, at, t)
+    return math.nan
+
+
+@jit
+def _signal(k, codes, factors, starts, floats, t):
+    # _Signal of a waveform: factor * value(t), or value(t) itself for factor 1
+    v = wave_value(codes[k], floats, starts[k], t)
+    f = factors[k]
+    return v if f == 1.0 else f * v
+
+
+@jit
+def source_values(t, base, slot, codes, factors, starts, floats, out):
+    """A group of sources' values at the time t [s] into out (n,): source i's
+    is base[i] (its constant and offset, SI) plus, where slot[i] > 0, the
+    signal k = slot[i] - 1, ``factors[k] * wave_value(codes[k], floats,
+    starts[k], t)`` (the factor turns the waveform's unit into the source's;
+    1.0 means none is applied). Each signal is evaluated once. The same floats
+    as ``_SourceParams.values(t)``: base alone without signals, base + value
+    with one signal for all, base + [0, values...][slot] otherwise."""
+    m = codes.size
+    n = base.size
+    if m == 0:
+        for i in range(n):
+            out[i] = base[i]
+        return
+    if m == 1:
+        v = _signal(0, codes, factors, starts, floats, t)
+        for i in range(n):
+            out[i] = base[i] + (v if slot[i] > 0 else 0.0)
+        return
+    vals = np.empty(m)
+    for k in range(m):
+        vals[k] = _signal(k, codes, factors, starts, floats, t)
+    for i in range(n):
+        out[i] = base[i] + (vals[slot[i] - 1] if slot[i] > 0 else 0.0)

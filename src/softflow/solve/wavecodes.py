@@ -1,0 +1,168 @@
+"""A group of sources' signals as the arrays of the compiled
+:func:`softflow.laws.waves.source_values`, so that a compiled step loop
+evaluates sources without calling Python.
+
+:func:`describe` reads a group's parameters
+(:class:`softflow.components.sources._SourceParams`): its constants and
+offsets (``_base``), which signal each source follows (``_slot``) and the
+signals themselves (``_varying``). A signal is compiled when it is a waveform
+of exactly one of the classes of :mod:`softflow.curves.waveforms` that
+:mod:`softflow.laws.waves` covers (Constant, Step, Ramp, PiecewiseLinear,
+PiecewiseConstant, Trapezoid, Sine, Square; not a subclass, which may
+override ``_scalar``), scaled to the source's unit; anything else (a Python
+function, a fons wave, a user's Waveform) leaves the group to Python:
+:func:`describe` then returns None.
+
+The waveform's attributes are read when :func:`describe` is called: a
+waveform edited afterwards needs describing again.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .._laws import law_module
+from ..curves import waveforms as wf
+
+if TYPE_CHECKING:
+    from .._typing import Array
+
+#: the arrays of source_values: (base, slot, codes, factors, starts, floats)
+Described = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _floats(w: Any) -> tuple[int, list[float]] | None:
+    """(kind code, floats) of the waveform w in the layout of
+    :mod:`softflow.laws.waves`, or None when its class is not covered
+    (exactly one of the classes: a subclass may compute otherwise)."""
+    waves = law_module("waves")
+    kind = type(w)
+    if kind is wf.Constant:
+        return waves.CONSTANT, [w.value]
+    if kind is wf.Step:
+        return waves.STEP, [w.time, w.before, w.after]
+    if kind is wf.Ramp:
+        return waves.RAMP, [w.t0, w.t1, w.v0, w.v1, w._slope]
+    if kind is wf.PiecewiseLinear or kind is wf.PiecewiseConstant:
+        code = waves.LINEAR if kind is wf.PiecewiseLinear else waves.HELD
+        return code, [float(len(w._t)), *w._t, *w._v]
+    if kind is wf.Trapezoid:
+        period = 0.0 if w.period is None else w.period
+        return waves.TRAPEZOID, [w.low, w.high, w.rise, w.fall, w.start, period,
+                                 w._t_hold, w._t_fall, w._t_low]
+    if kind is wf.Sine:
+        return waves.SINE, [w.offset, w.amplitude, w._omega, w.phase]
+    if kind is wf.Square:
+        return waves.SQUARE, [w.low, w.high, w.start, w.period, w._t_off]
+    return None
+
+
+def _closure(func: Any) -> dict[str, Any]:
+    """The variables a function closes over, by name ({} for none)."""
+    code, cells = getattr(func, "__code__", None), getattr(func, "__closure__", None)
+    if code is None or not cells:
+        return {}
+    try:
+        return {name: cell.cell_contents for name, cell in zip(code.co_freevars, cells)}
+    except ValueError:                  # an empty cell
+        return {}
+
+
+def waveform_of(signal: Any) -> tuple[wf.Waveform, float] | None:
+    """(waveform, factor) of a source's signal (``_Signal``): the waveform it
+    follows and the factor [source unit / waveform unit] it multiplies it by
+    (1.0: none), or None for a signal that follows no waveform (a constant, a
+    Python function).
+
+    A ``_Signal`` that keeps ``waveform`` and ``factor`` attributes is read
+    from them; one that does not holds the waveform itself as ``func``
+    (factor 1) or a function ``lambda t: factor * value(t)`` over it, read
+    from its closure and checked against the waveform's own factor."""
+    func = getattr(signal, "func", None)
+    if func is None or not getattr(signal, "fast", False):
+        return None
+    w, factor = getattr(signal, "waveform", None), getattr(signal, "factor", None)
+    if isinstance(w, wf.Waveform) and isinstance(factor, float):
+        return w, factor
+    if isinstance(func, wf.Waveform):
+        return func, 1.0
+    cells = _closure(func)
+    w, factor = cells.get("value"), cells.get("factor")
+    if not (isinstance(w, wf.Waveform) and isinstance(factor, float)):
+        return None
+    try:
+        own = w.factor_to(signal.unit, name=signal.name, owner=signal.owner)
+    except Exception:                   # noqa: BLE001 - not the _Signal we know: leave it
+        return None
+    return (w, factor) if own == factor else None
+
+
+def describe(params: Any) -> Described | None:
+    """The arrays (base, slot, codes, factors, starts, floats) of
+    :func:`softflow.laws.waves.source_values` for a group of sources
+    (``params``, a ``_SourceParams``): base (n,) float64 [SI], slot (n,) int64
+    (0: constant, k > 0: signal k - 1), and per signal its kind code (int64),
+    unit factor (float64), offset into floats (int64), and floats (float64).
+    None when a signal is not a covered waveform (see the module) or the
+    parameters' class computes its values otherwise."""
+    from ..components.sources import _SourceParams
+
+    if type(params).values is not _SourceParams.values:
+        return None
+    base = np.array(params._base, dtype=np.float64)
+    slot = np.array(params._slot, dtype=np.int64)
+    codes: list[int] = []
+    factors: list[float] = []
+    starts: list[int] = []
+    floats: list[float] = []
+    for signal in params._varying:
+        found = waveform_of(signal)
+        if found is None:
+            return None
+        w, factor = found
+        described = _floats(w)
+        if described is None:
+            return None
+        code, values = described
+        codes.append(code)
+        factors.append(factor)
+        starts.append(len(floats))
+        floats.extend(float(v) for v in values)
+    if base.shape != slot.shape or (slot.size and not 0 <= slot.min() <= slot.max()
+                                    <= len(codes)):
+        return None
+    return (base, slot, np.array(codes, dtype=np.int64), np.array(factors, dtype=np.float64),
+            np.array(starts, dtype=np.int64), np.array(floats, dtype=np.float64))
+
+
+def join(parts: Sequence[Described]) -> Described:
+    """Several groups' arrays (each from :func:`describe`) as one set, for one
+    :func:`softflow.laws.waves.source_values` call over all their sources in
+    order: the bases and slots end to end, each group's slots shifted past the
+    signals of the groups before it (0 stays 0: a constant) and its signals'
+    offsets past their floats."""
+    shifted = []
+    n_codes = n_floats = 0
+    for base, slot, codes, factors, starts, floats in parts:
+        shifted.append((base, np.where(slot > 0, slot + n_codes, 0), codes, factors,
+                        starts + n_floats, floats))
+        n_codes += codes.size
+        n_floats += floats.size
+    kinds = (np.float64, np.int64, np.int64, np.float64, np.int64, np.float64)
+    joined = [np.concatenate([np.asarray(p[i], dtype=kind) for p in shifted] or
+                             [np.empty(0, dtype=kind)]).astype(kind, copy=False)
+              for i, kind in enumerate(kinds)]
+    return (joined[0], joined[1], joined[2], joined[3], joined[4], joined[5])
+
+
+def values(described: Described, t: float) -> Array:
+    """The sources' values at the time t [s] from :func:`describe`'s arrays,
+    through the compiled :func:`softflow.laws.waves.source_values` (for
+    Python callers and tests; a compiled loop calls that function itself)."""
+    base, slot, codes, factors, starts, floats = described
+    out = np.empty(base.size)
+    law_module("waves").source_values(float(t), base, slot, codes, factors, starts, floats,
+                                      out)
+    return out
