@@ -22,6 +22,16 @@ instance), an integer option (a friction correlation's id, a fluid's kind)
 and the offset of its time-dependent values in ``u`` (source values, set
 before each call by the caller). Settings come in as arguments, never as
 globals (numba freezes globals into its cache).
+
+End-of-step states. Given a non-empty ``Sout`` (S's size and layout), every
+class with states also writes its states at the end of the step there, as
+:func:`softflow.solve.discretize.step_functions`' ``update`` (the assembly's
+``update_states``) makes them: the continuous ones X = psi + c·r(V), the
+very values its rows are evaluated at, the discrete ones as the class's
+``switch`` sets them from X (a snapping valve's mode from p_a - p_b
+(:func:`snapping_switch`), a hysteretic actuator's branch from its volume
+(:func:`.volumes.on_inflation`) and, in a thermal scene of a free gas, its
+work offset (:func:`loop_offset`)). Classes without states write nothing.
 """
 from __future__ import annotations
 
@@ -35,8 +45,9 @@ from .valves import density as valve_density
 from .volumes import (compliant_mass, curve_law, curve_point, density, on_inflation, refused,
                       rigid_mass, scaled_curve)
 from .thermal import (adiabatic_tesla_rows, adiabatic_tube_rows, check_valve_rows,
-                      energy_entries, free_rows, held_rows, loop_wall, orifice_rows,
-                      snapping_rows, source_energy, upwind_energy, volume_flow_law, wall_law)
+                      energy_entries, free_rows, held_rows, ideal_density, loop_offset,
+                      loop_wall, orifice_rows, snapping_rows, source_energy, upwind_energy,
+                      volume_flow_law, wall_law)
 
 #: class ids
 PRESSURE_SOURCE, MASS_FLOW_SOURCE, VOLUME_FLOW_SOURCE = 1, 2, 3
@@ -61,7 +72,9 @@ ORIFICE_GROUP_FLOATS = 5   # R T (0: a liquid), rho (a liquid's), T, ISO 6358's 
 CHECK_VALVE_FLOATS = 8     # K, Cd, gamma, area, dp_small, cracking, band, leakage
 CHECK_VALVE_GROUP_FLOATS = 2   # R T, rho
 TESLA_FLOATS = 7           # re_per_mf, c_mu, eD, a, area, mf_blend, diodicity
-SNAPPING_FLOATS = 6        # re_per_mf, c_mu, eD, a, area, closed conductance
+#: a snapping valve's: re_per_mf, c_mu, eD, a, area, closed conductance, opening and
+#: closing pressures (its switch's)
+SNAPPING_FLOATS = 8
 VALVE_GROUP_FLOATS = 5     # Re_lo, Re_hi, c2 (p/rho of an ideal gas, else 0), R T, rho
 INERTIAL_FLOATS = 7        # the tube's six, then A/L (1 / (L/A))
 #: thermal flow elements: group floats lo, hi, R, gamma, cp, c - h0, band, G
@@ -70,7 +83,8 @@ THERMAL_TUBE_FLOATS = 6    # re_per_mf, c_mu, eD, a, area, kre
 THERMAL_TESLA_FLOATS = 7   # re_per_mf, c_mu, eD, a, area, mf_blend, diodicity
 #: a thermal snapping valve's: group floats those of a flow element, then R T, rho, T_ref
 THERMAL_SNAPPING_GROUP_FLOATS = 11
-THERMAL_SNAPPING_FLOATS = 7  # re_per_mf, c_mu, eD, a, area, kre, closed conductance
+#: re_per_mf, c_mu, eD, a, area, kre, closed conductance, opening and closing pressures
+THERMAL_SNAPPING_FLOATS = 9
 #: thermal volumes: group floats R, cv, c, h0, any heat, curve mode, scaled, p_atm (then a
 #: curve wall's curve and its work at its knots; a loop's V_hi, V_lo, work shifts, the
 #: deflation curve's mode, then both curves so); per instance hA, T_wall, the wall's own
@@ -82,12 +96,15 @@ THERMAL_CHECK_VALVE_GROUP_FLOATS = 6
 
 
 @jit
-def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, fpar, u):
+def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, fpar, u,
+             Sout):
     """F(x) of the network's step equations (states S = psi, step coefficient
-    dt = c) into F, and with ``jac`` the Jacobian's entries into ``raw``.
-    Returns -1, or the index of a group that met a state its law refuses (an
-    actuator's volume beyond a curve that does not extrapolate): the caller
-    evaluates that network on the per-group path, which raises the error."""
+    dt = c) into F, and with ``jac`` the Jacobian's entries into ``raw``;
+    where ``Sout`` is not empty (S's size), the states at the end of the step
+    into it (see the module). Returns -1, or the index of a group that met a
+    state its law refuses (an actuator's volume beyond a curve that does not
+    extrapolate): the caller evaluates that network on the per-group path,
+    which raises the error (F, raw and Sout are then incomplete)."""
     for k in range(n_node_rows):
         F[k] = 0.0
     for k in range(trows.size):
@@ -101,9 +118,9 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
         elif cls == VOLUME_FLOW_SOURCE:
             _volume_flow_source(x, F, raw, jac, groups[g], cols, fpar, u)
         elif cls == RIGID_GAS or cls == ACCUMULATOR:
-            _volume(x, S, dt, F, raw, jac, groups[g], cols, fpar, cls == ACCUMULATOR)
+            _volume(x, S, dt, F, raw, jac, groups[g], cols, fpar, cls == ACCUMULATOR, Sout)
         elif cls == RIGID_LIQUID:
-            _rigid_liquid(x, S, dt, F, raw, jac, groups[g], cols)
+            _rigid_liquid(x, S, dt, F, raw, jac, groups[g], cols, Sout)
         elif cls == ORIFICE:
             _orifice(x, F, raw, jac, groups[g], cols, fpar)
         elif cls == CHECK_VALVE:
@@ -111,19 +128,19 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
         elif cls == TESLA_VALVE:
             _tesla_valve(x, F, raw, jac, groups[g], cols, fpar)
         elif cls == SNAPPING_VALVE:
-            _snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar)
+            _snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar, Sout)
         elif cls == INERTIAL_TUBE:
-            _inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+            _inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar, Sout)
         elif cls == ACTUATOR:
-            if not _actuator(x, S, dt, F, raw, jac, groups[g], cols, fpar):
+            if not _actuator(x, S, dt, F, raw, jac, groups[g], cols, fpar, Sout):
                 return g
         elif cls == HYSTERETIC_ACTUATOR:
-            _hysteretic(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+            _hysteretic(x, S, dt, F, raw, jac, groups[g], cols, fpar, Sout)
         elif cls == THERMAL_TUBE:
             _thermal_tube(x, F, raw, jac, groups[g], cols, fpar)
         elif cls == FREE_VOLUME or cls == HELD_VOLUME:
             if not _thermal_volume(x, S, dt, F, raw, jac, groups[g], cols, fpar,
-                                   cls == FREE_VOLUME):
+                                   cls == FREE_VOLUME, Sout):
                 return g
         elif cls == THERMAL_PRESSURE_SOURCE:
             _thermal_pressure_source(x, F, raw, jac, groups[g], cols, fpar, u)
@@ -137,9 +154,9 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
         elif cls == THERMAL_CHECK_VALVE:
             _thermal_check_valve(x, F, raw, jac, groups[g], cols, fpar)
         elif cls == THERMAL_SNAPPING_VALVE:
-            _thermal_snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar)
+            _thermal_snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar, Sout)
         elif cls == THERMAL_INERTIAL_TUBE:
-            _thermal_inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar)
+            _thermal_inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar, Sout)
     return -1
 
 
@@ -165,18 +182,22 @@ def _curve(fpar, at):
 
 
 @jit
-def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar):
+def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     """A group of actuators on one compiled PV curve
-    (:func:`.volumes.actuator_residual`); floats: the fluid's constant, p_atm,
-    whether scaled, the curve's extrapolation code, the curve, then each one's
-    pressure scale. False where a volume is beyond a curve that refuses it."""
+    (:func:`.volumes.actuator_residual`), state: the mass; floats: the fluid's
+    constant, p_atm, whether scaled, the curve's extrapolation code, the
+    curve, then each one's pressure scale. False where a volume is beyond a
+    curve that refuses it."""
     n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
     c, p_atm, scaled, mode = fpar[f0], fpar[f0 + 1], fpar[f0 + 2] > 0.5, int(fpar[f0 + 3])
     knots, table, end = _curve(fpar, f0 + 4)
     for i in range(n):
         p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
         rho, rho_p = density(kind, c, p)
-        vol = (S[s0 + i] + dt * mf) / rho
+        m = S[s0 + i] + dt * mf
+        if Sout.size > 0:
+            Sout[s0 + i] = m
+        vol = m / rho
         if refused(mode, knots, vol):
             return False
         pc, dpc = curve_point(knots, table, vol)
@@ -187,11 +208,12 @@ def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar):
 
 
 @jit
-def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar):
+def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     """A group of hysteretic actuators on one loop
     (:func:`.volumes.hysteretic_residual`), states (mass, branch) per
     instance; floats: the fluid's constant, V_hi, V_lo, then the inflation
-    and deflation curves."""
+    and deflation curves. The branch after the step is the curve the step
+    read (:meth:`softflow.curves.HysteresisLoop.next_inflating`)."""
     n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
     c, v_hi, v_lo = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
     knots_up, table_up, end = _curve(fpar, f0 + 3)
@@ -199,8 +221,13 @@ def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar):
     for i in range(n):
         p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
         rho, rho_p = density(kind, c, p)
-        vol = (S[s0 + 2 * i] + dt * mf) / rho
-        if on_inflation(vol, S[s0 + 2 * i + 1] > 0.5, v_hi, v_lo):
+        m = S[s0 + 2 * i] + dt * mf
+        vol = m / rho
+        up = on_inflation(vol, S[s0 + 2 * i + 1] > 0.5, v_hi, v_lo)
+        if Sout.size > 0:
+            Sout[s0 + 2 * i] = m
+            Sout[s0 + 2 * i + 1] = 1.0 if up else 0.0
+        if up:
             pc, dpc = curve_point(knots_up, table_up, vol)
         else:
             pc, dpc = curve_point(knots_down, table_down, vol)
@@ -221,7 +248,7 @@ def _tube_drop(kind, lo, hi, c2, pa, mf, pb, fpar, f):
 
 
 @jit
-def _inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar):
+def _inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     """A group of tubes with inertance: the flow a state q with rate
     dq/dt = A/L ((p_a - p_b) - dp(mf)) (dp the tube's law), the rows
     (mf_a + mf_b, mf_a - q) at q = psi + c·rate, entries in the tube's pattern
@@ -235,6 +262,8 @@ def _inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar):
         dp, d_pa, d_mf, d_pb = _tube_drop(kind, lo, hi, c2, pa, mfa, pb, fpar, f)
         a_l = fpar[f + 6]
         q = S[s0 + i] + dt * (a_l * ((pa - pb) - dp))
+        if Sout.size > 0:
+            Sout[s0 + i] = q
         # rows (mass balance, mf_a - q); entries (1, 1, dq/dp_a, 1 - dq/dmf, dq/dp_b)·
         _two_port(x, F, raw, jac, gr, cols, i, mfa - q, (dt * (a_l * (1.0 - d_pa))) * -1.0,
                   1.0 + (dt * (-a_l * d_mf)) * -1.0, (dt * (-a_l * (1.0 + d_pb))) * -1.0)
@@ -256,9 +285,10 @@ def _tesla_valve(x, F, raw, jac, gr, cols, fpar):
 
 
 @jit
-def _snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
+def _snapping_valve(x, S, F, raw, jac, gr, cols, fpar, Sout):
     """A group of snapping valves (:func:`.valves.snapping_residual`), the
-    mode of each (> 0.5 open) its state at the step's start."""
+    mode of each (> 0.5 open) its state at the step's start, the mode after
+    the step :func:`snapping_switch`'s."""
     n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
     lo, hi, c2, RT, rho = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3], fpar[f0 + 4]
     for i in range(n):
@@ -266,6 +296,8 @@ def _snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
         pa, mf, pb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]]
         f = f0 + VALVE_GROUP_FLOATS + SNAPPING_FLOATS * i
         re_per_mf, c_mu, eD, a = fpar[f], fpar[f + 1], fpar[f + 2], fpar[f + 3]
+        if Sout.size > 0:
+            Sout[s0 + i] = snapping_switch(pa - pb, fpar[f + 6], fpar[f + 7], S[s0 + i])
         is_open = S[s0 + i] > 0.5
         if is_open and c2 > 0.0:
             dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu,
@@ -280,6 +312,15 @@ def _snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
                 X = dX * mf
             f1, j_pa, j_mf, j_pb = restrictor_row(pa, pb, X, dX, r, dr)
         _two_port(x, F, raw, jac, gr, cols, i, f1, j_pa, j_mf, j_pb)
+
+
+@jit
+def snapping_switch(dp, opening, closing, mode):
+    """A snapping valve's mode after a step that ended at p_a - p_b = dp,
+    having started it in ``mode`` (1 open, 0 shut): open above the opening
+    pressure, shut below the closing one, else as it was
+    (:meth:`softflow.components.valves.SnappingValve.switch`)."""
+    return 1.0 if dp > opening else (0.0 if dp < closing else mode)
 
 
 @jit
@@ -400,7 +441,7 @@ def _tube(x, F, raw, jac, gr, cols, fpar):
 
 
 @jit
-def _volume(x, S, dt, F, raw, jac, gr, cols, fpar, compliant):
+def _volume(x, S, dt, F, raw, jac, gr, cols, fpar, compliant, Sout):
     """Rigid volumes of a compressible fluid (F = rho(p) volume - m) or linear
     accumulators (F = rho(p)(volume + compliance (p - p_ref)) - m), at the
     step's mass m = psi + c·mdot; entries (dF/dp, dF/dmdot = -c). Floats: the
@@ -416,17 +457,24 @@ def _volume(x, S, dt, F, raw, jac, gr, cols, fpar, compliant):
             m, m_p = compliant_mass(rho, rho_p, p, fpar[f], fpar[f + 1], fpar[f + 2])
         else:
             m, m_p = rigid_mass(rho, rho_p, fpar[f])
-        F[r0 + i] = m - (S[s0 + i] + dt * mf)
+        X = S[s0 + i] + dt * mf
+        if Sout.size > 0:
+            Sout[s0 + i] = X
+        F[r0 + i] = m - X
         if jac:
             raw[j0 + 2 * i] = m_p
             raw[j0 + 2 * i + 1] = -dt
 
 
 @jit
-def _rigid_liquid(x, S, dt, F, raw, jac, gr, cols):
-    """A rigid chamber of liquid admits no flow: F = mdot; entries (0, 1)."""
-    n, c0, r0, j0 = gr[N], gr[COL], gr[R0], gr[J0]
+def _rigid_liquid(x, S, dt, F, raw, jac, gr, cols, Sout):
+    """A rigid chamber of liquid admits no flow: F = mdot; entries (0, 1);
+    its mass at the step's end psi + c·mdot all the same (the rate every
+    volume has)."""
+    n, c0, s0, r0, j0 = gr[N], gr[COL], gr[S0], gr[R0], gr[J0]
     for i in range(n):
+        if Sout.size > 0:
+            Sout[s0 + i] = S[s0 + i] + dt * x[cols[c0 + 2 * i + 1]]
         F[r0 + i] = x[cols[c0 + 2 * i + 1]]
         if jac:
             raw[j0 + 2 * i] = 0.0
@@ -471,7 +519,7 @@ def _thermal_tesla(x, F, raw, jac, gr, cols, fpar):
 
 
 @jit
-def _thermal_volume(x, S, dt, F, raw, jac, gr, cols, fpar, free):
+def _thermal_volume(x, S, dt, F, raw, jac, gr, cols, fpar, free, Sout):
     """A group of volumes of an ideal gas in a thermal scene, wall kind
     ``option`` (:func:`.thermal.wall_law`, or 3: a hysteresis loop,
     :func:`.thermal.loop_wall`): free (V = [p, mf, T, E, Q], states [m, E_s]
@@ -479,8 +527,10 @@ def _thermal_volume(x, S, dt, F, raw, jac, gr, cols, fpar, free):
     after them; rows wall, energy, wall heat) or held at its wall temperature
     (V = [p, mf, T, E], state m, a loop's branch after it; rows wall,
     T - T_wall), the entries in the class's step pattern (the rates' columns
-    times c, as discretize combines them). False where a curve refuses a
-    volume."""
+    times c, as discretize combines them); after the step a loop's branch is
+    the one its volume is on, its work offset :func:`.thermal.loop_offset`'s
+    (:meth:`softflow.components.thermal._LoopCurve.switch`). False where a
+    curve refuses a volume."""
     n, c0, s0, r0, j0, f0, wall = gr[N], gr[COL], gr[S0], gr[R0], gr[J0], gr[F0], gr[OPTION]
     R, cv, c, h0 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3]
     any_heat, mode = fpar[f0 + 4] > 0.5, int(fpar[f0 + 5])
@@ -516,6 +566,7 @@ def _thermal_volume(x, S, dt, F, raw, jac, gr, cols, fpar, free):
         hA, T_wall = fpar[f], fpar[f + 1]
         s = s0 + ns * i
         m = S[s] + dt * mf
+        inflating, offset = False, 0.0
         if wall == 3:
             inflating = S[s + (2 if free else 1)] > 0.5
             offset = S[s + 3] if free else 0.0
@@ -527,9 +578,23 @@ def _thermal_volume(x, S, dt, F, raw, jac, gr, cols, fpar, free):
                 wall, p, T, m, R, fpar, f + 2, knots, table, w0, mode, scaled, p_atm, free)
         if not ok:
             return False
+        out = Sout.size > 0
+        if out:
+            Sout[s] = m
+            if wall == 3:
+                # the switch's volume: the mass over the gas's density (p / (R T))
+                vol = m / ideal_density(p, T, R)[0]
+                up = on_inflation(vol, inflating, v_hi, v_lo)
+                Sout[s + (2 if free else 1)] = 1.0 if up else 0.0
+                if free:
+                    Sout[s + 3] = loop_offset(offset, vol, up, inflating, knots, table, w0,
+                                              knots_down, table_down, w0_down, v_hi, v_lo,
+                                              shift_up, shift_down)
         if free:
             E, Q = x[cols[k + 3]], x[cols[k + 4]]
             Es = S[s + 1] + dt * (E + Q)
+            if out:
+                Sout[s + 1] = Es
             r = r0 + 3 * i
             (F[r], F[r + 1], F[r + 2], d0, d1, d2, d3, d4, d5, d6, d7,
              d8) = free_rows(fw, d_p, d_T, d_m, v_p, v_T, v_m, W, p_wall, T, Q, m, Es, cv, c,
@@ -632,10 +697,10 @@ def _thermal_check_valve(x, F, raw, jac, gr, cols, fpar):
 
 
 @jit
-def _thermal_snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
+def _thermal_snapping_valve(x, S, F, raw, jac, gr, cols, fpar, Sout):
     """A group of snapping valves in a thermal scene of an ideal gas
     (:func:`.thermal.snapping_rows`), the mode of each (> 0.5 open) its state
-    at the step's start."""
+    at the step's start, after it :func:`snapping_switch`'s."""
     n, c0, s0, r0, j0, f0, kind = gr[N], gr[COL], gr[S0], gr[R0], gr[J0], gr[F0], gr[OPTION]
     lo, hi, R, gamma = fpar[f0], fpar[f0 + 1], fpar[f0 + 2], fpar[f0 + 3]
     cp, ch, band, G = fpar[f0 + 4], fpar[f0 + 5], fpar[f0 + 6], fpar[f0 + 7]
@@ -644,6 +709,9 @@ def _thermal_snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
     for i in range(n):
         k = c0 + 8 * i
         f = f0 + THERMAL_SNAPPING_GROUP_FLOATS + THERMAL_SNAPPING_FLOATS * i
+        if Sout.size > 0:
+            Sout[s0 + i] = snapping_switch(x[cols[k]] - x[cols[k + 4]], fpar[f + 7],
+                                           fpar[f + 8], S[s0 + i])
         snapping_rows(F, r0 + 4 * i, raw, j0 + 15 * i, jac, S[s0 + i] > 0.5, x[cols[k]],
                       x[cols[k + 1]], x[cols[k + 2]], x[cols[k + 3]], x[cols[k + 4]],
                       x[cols[k + 5]], x[cols[k + 6]], x[cols[k + 7]], kind, lo, hi, fpar[f],
@@ -652,7 +720,7 @@ def _thermal_snapping_valve(x, S, F, raw, jac, gr, cols, fpar):
 
 
 @jit
-def _thermal_inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar):
+def _thermal_inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     """A group of gas tubes with inertance in a thermal scene: the flow law
     of :func:`_inertial_tube` at the nominal temperature, and the upwind
     energy rows (:func:`.thermal.upwind_energy`); entries (0,mf_a) (0,mf_b)
@@ -669,6 +737,8 @@ def _thermal_inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar):
         dp, d_pa, d_mf, d_pb = _tube_drop(kind, lo, hi, c2, pa, mfa, pb, fpar, f)
         a_l = fpar[f + 6]
         q = S[s0 + i] + dt * (a_l * ((pa - pb) - dp))
+        if Sout.size > 0:
+            Sout[s0 + i] = q
         E, _, _, _, e_mf, e_Ta, e_Tb = upwind_energy(mfa, Ta, Tb, cp, ch, band, G)
         r = r0 + 4 * i
         F[r] = mfa + mfb

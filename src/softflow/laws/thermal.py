@@ -10,7 +10,9 @@ call (one compiled pass per group) and that the network loop
 * the upwind enthalpy flow of a flow element or flow source
   (:func:`upwind_energy`, its smooth blend :func:`upwind_weight`);
 * a volume's walls (:func:`wall_law`: rigid, linear compliance, a PV curve
-  with its work; :func:`loop_wall`: a hysteresis loop's branch) and its rows
+  with its work; :func:`loop_wall`: a hysteresis loop's branch, its work
+  :func:`loop_work` and the work offset a change of branch sets,
+  :func:`loop_offset`) and its rows
   (:func:`free_rows`: mass, stored energy and wall heat Q - hA (T_wall - T)
   at a constant hA per call; :func:`held_rows`: held at its wall
   temperature);
@@ -170,15 +172,39 @@ def loop_wall(p, T, m, R, inflating, offset, knots_up, table_up, w0_up, mode_up,
         pc, dpc = curve_point(knots_down, table_down, vol)
     W = 0.0
     if work:
-        w_up = curve_work(knots_up, table_up, w0_up, vol)
-        w_down = curve_work(knots_down, table_down, w0_down, vol)
-        if inflating:
-            W = w_up if vol < v_hi else w_down + shift_up
-        else:
-            W = w_down if vol > v_lo else w_up + shift_down
-        W = W - offset
+        W = loop_work(vol, inflating, knots_up, table_up, w0_up, knots_down, table_down,
+                      w0_down, v_hi, v_lo, shift_up, shift_down) - offset
     dv_p, dv_T, dv_m = -vol * rho_p / rho, -vol * rho_T / rho, 1.0 / rho
     return (p - pc, 1.0 - dpc * dv_p, -dpc * dv_T, -dpc * dv_m, dv_p, dv_T, dv_m, W, pc, True)
+
+
+@jit
+def loop_work(vol, inflating, knots_up, table_up, w0_up, knots_down, table_down, w0_down,
+              v_hi, v_lo, shift_up, shift_down):
+    """The work along the branch a hysteretic actuator started the step on
+    (``inflating``) up to the volume vol, continued past the branch's end on
+    the other by its shift (:meth:`softflow.curves.HysteresisLoop.work`)."""
+    w_up = curve_work(knots_up, table_up, w0_up, vol)
+    w_down = curve_work(knots_down, table_down, w0_down, vol)
+    if inflating:
+        return w_up if vol < v_hi else w_down + shift_up
+    return w_down if vol > v_lo else w_up + shift_down
+
+
+@jit
+def loop_offset(offset, vol, inflating, was_inflating, knots_up, table_up, w0_up, knots_down,
+                table_down, w0_down, v_hi, v_lo, shift_up, shift_down):
+    """The work offset (a discrete state) after a step that ended at the
+    volume vol on the branch ``inflating``, having started it on
+    ``was_inflating`` with ``offset``: the new branch's work counted from
+    where the old one's ended, so the stored energy stays
+    (:meth:`softflow.components.thermal._LoopCurve.switch`; on the same
+    branch, the offset to round-off, as there)."""
+    w_new = loop_work(vol, inflating, knots_up, table_up, w0_up, knots_down, table_down,
+                      w0_down, v_hi, v_lo, shift_up, shift_down)
+    w_old = loop_work(vol, was_inflating, knots_up, table_up, w0_up, knots_down, table_down,
+                      w0_down, v_hi, v_lo, shift_up, shift_down)
+    return (offset + w_new) - w_old
 
 
 @jit

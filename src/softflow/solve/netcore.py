@@ -33,6 +33,13 @@ given ``extrapolate='error'``) is evaluated again on the per-group path,
 which raises the law's own error. The values are the per-group path's to
 round-off (tested); time-dependent source values are evaluated by their
 sources in Python before each call.
+
+The same call gives the states at the end of a step (the loop's ``Sout``):
+:func:`compiled_update` is the assembly's ``update_states`` that way (the
+same numbers, bitwise: tested), and the :class:`CompiledNetwork` a compiled
+residual carries (``asm.residual.network``) holds the loop's arrays for a
+caller that calls :func:`softflow.laws.network.residual` itself (the
+compiled step loop).
 """
 from __future__ import annotations
 
@@ -81,7 +88,8 @@ def _covered(g):
             per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.mf_blend,
                    P.diodicity]
             return net.TESLA_VALVE, P.kind, valve, np.column_stack(per), None
-        per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.closed_conductance]
+        per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.closed_conductance,
+               P.opening_pressure, P.closing_pressure]
         return net.SNAPPING_VALVE, P.kind, valve, np.column_stack(per), None
     if cls is Container:
         if not P.fluid.compressible:
@@ -163,7 +171,7 @@ def _covered_thermal(net, cls, P):
             return net.THERMAL_TESLA_VALVE, P.kind, group, np.column_stack(per), None
         if law == "snapping":
             per = [P.re_per_mf, P.c_mu, P.eD, P.friction_terms, P.area, P.kre,
-                   P.closed_conductance]
+                   P.closed_conductance, P.opening_pressure, P.closing_pressure]
             group = (*group, P.law_RT, P.law_rho, P.T_ref)
             return net.THERMAL_SNAPPING_VALVE, P.kind, group, np.column_stack(per), None
         if law == "orifice":
@@ -200,16 +208,99 @@ def _curve_floats(curve):
     return (float(knots.size), float(table.shape[0]), *knots, *table.ravel())
 
 
+#: the loop's ``Sout`` where no states are wanted (held once: the residual's calls
+#: allocate nothing for it)
+NO_STATES = np.zeros(0)
+
+
+class CompiledNetwork:
+    """One network described for the compiled loop
+    :func:`softflow.laws.network.residual`, for callers that call it
+    directly (the compiled step loop). Its arguments, in order::
+
+        loop(x, S, t, dt, jac, F, *net.arrays, Sout)
+        # net.arrays = (raw, n_node_rows, trows, tcols, groups, cols, fpar, u)
+
+    with F a float array of ``n`` entries (filled), x the unknowns, S = psi,
+    dt = c, ``jac`` a bool (the Jacobian's entries into ``raw``, the
+    assembly's own array) and ``Sout`` either :data:`NO_STATES` or an array of
+    S's size that receives the states at the end of the step (what
+    ``asm.update_states(x, S, dt)`` returns). The loop returns -1, or the
+    index of a group whose law refused the state (F, raw and Sout are then
+    incomplete; the per-group path raises that law's error).
+
+    Attributes: ``loop`` (the compiled function), ``arrays`` (its arguments
+    between F and Sout, above), each of them by name (``raw``,
+    ``n_node_rows``, ``trows``, ``tcols``, ``groups``, ``cols``, ``fpar``,
+    ``u``), ``n`` (unknowns and rows), ``no_states`` (:data:`NO_STATES`),
+    ``time_dependent`` (whether ``u`` or ``fpar`` change with time or step:
+    then :meth:`set_time` must run, in Python, before the loop at a new time,
+    unless the caller fills ``u`` itself from :meth:`source_arrays`; a scene
+    without it needs no Python call between loop calls). The arrays are the
+    ones the assembly's compiled ``residual`` passes (``raw`` the assembly's
+    own); a new parameter value (``run(params=...)``) builds a new
+    CompiledNetwork (read it again from ``asm.residual.network`` at the
+    start of each run)."""
+
+    def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
+        self.loop = law_module("network").residual
+        self.asm = asm
+        self.n, self.n_node_rows, self.raw = asm.n, asm.n_node_rows, asm.raw
+        self.trows, self.tcols = trows, tcols
+        self.groups, self.cols, self.fpar, self.u = groups, cols, fpar, u
+        self.arrays = (self.raw, self.n_node_rows, trows, tcols, groups, cols, fpar, u)
+        self.no_states = NO_STATES
+        self.time_dependent = bool(varying)
+        self.set_time = _no_time
+        self._sources = sources
+
+    def source_arrays(self):
+        """The sources' values, all of ``u`` in its order, as the arrays
+        (base, slot, codes, factors, starts, floats) of the compiled
+        :func:`softflow.laws.waves.source_values` (``out=u`` fills u at a
+        time t as :meth:`set_time` would; :mod:`softflow.solve.wavecodes`),
+        or None where a source's signal is not a waveform those cover."""
+        from . import wavecodes
+        parts = [wavecodes.describe(P) for P in self._sources]
+        if any(part is None for part in parts):
+            return None
+        return wavecodes.join(parts)
+
+    def update_states(self, x, S, dt):
+        """The states at the end of a step (the assembly's ``update_states(x, S,
+        dt)``: S = psi, dt = c) from one call of the loop: a new array."""
+        Sout = np.empty(S.size)
+        if self.loop(x, S, 0.0, float(dt), False, np.empty(self.n), *self.arrays, Sout) >= 0:
+            return self.asm.update_states(x, S, dt)     # a law refused the state
+        return Sout
+
+
+def _no_time(t):
+    """set_time of a network whose loop reads nothing that changes with time."""
+
+
+def compiled_update(asm):
+    """``update_states(x, S, dt)`` of the assembly ``asm`` as one call of the
+    compiled loop (:meth:`CompiledNetwork.update_states`: the states the
+    per-group ``asm.update_states`` gives), or None where its residual is not
+    the compiled one. Bound to the network as it is now: ask again after a
+    run with new parameters."""
+    network = getattr(asm.residual, "network", None)
+    return None if network is None else network.update_states
+
+
 def compiled_residual(asm, failures):
     """``residual(x, S, t, dt, jac=False)`` of the assembly ``asm`` as one
     compiled call, or None where a group is not covered (see the module).
     ``failures``: the assembly's error wrappers (``PASS``, ``failure``,
-    ``fluid_failure``), which name the source whose signal raised."""
+    ``fluid_failure``), which name the source whose signal raised. The
+    function's attribute ``network`` is the :class:`CompiledNetwork` it
+    calls."""
     covered = [_covered(g) for g in asm.groups]
     if not asm.groups or any(c is None for c in covered):
         return None
     net = law_module("network")
-    rows, cols, fpar, varying, refresh = [], [], [], [], []
+    rows, cols, fpar, varying, refresh, sources = [], [], [], [], [], []
     n_u = 0
     u_parts = []
     for g, (cls_id, option, group_floats, per, values) in zip(asm.groups, covered):
@@ -234,6 +325,7 @@ def compiled_residual(asm, failures):
         row[net.U0] = n_u
         if values is not None:
             u_parts.append(np.asarray(values.values(0.0), dtype=float).copy())
+            sources.append(values)
             if values._varying:
                 varying.append((values, n_u, n_u + g.n, g))
             n_u += g.n
@@ -246,17 +338,19 @@ def compiled_residual(asm, failures):
     trows = np.ascontiguousarray(asm.through_rows, dtype=np.int64)
     tcols = np.ascontiguousarray(asm.through_cols, dtype=np.int64)
     loop = net.residual
+    no_states = NO_STATES
 
     if refresh:
         def refreshed(t):
             for P, at in refresh:
                 fpar[at] = P.hA
         varying.append((None, refreshed, None, None))
+    network = CompiledNetwork(asm, groups, cols, fpar, u, trows, tcols, varying, sources)
     if varying:
         passed, failure = failures["PASS"], failures["failure"]
         fluid_failure = failures["fluid_failure"]
 
-        def residual(x, S, t, dt, jac=False):
+        def set_time(t):
             for P, a, b, g in varying:
                 if P is None:           # per-step coefficients: a, the refresh
                     a(t)
@@ -269,19 +363,24 @@ def compiled_residual(asm, failures):
                     raise
                 except Exception as err:      # a user's signal: name the source
                     raise failure(g, err, t)
+        network.set_time = set_time
+
+        def residual(x, S, t, dt, jac=False):
+            set_time(t)
             F = np.empty(n)
             if loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups,
-                    cols, fpar, u) >= 0:
+                    cols, fpar, u, no_states) >= 0:
                 return asm.python_residual(x, S, t, dt, jac)    # raises the law's error
             return F
     else:
         def residual(x, S, t, dt, jac=False):
             F = np.empty(n)
             if loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups,
-                    cols, fpar, u) >= 0:
+                    cols, fpar, u, no_states) >= 0:
                 return asm.python_residual(x, S, t, dt, jac)    # raises the law's error
             return F
     residual.__doc__ = ("F(x) for states S at the start of the step; with jac, also fills "
                         "the assembly's raw Jacobian entries (one compiled call: "
                         "softflow.solve.netcore).")
+    residual.network = network      # type: ignore[attr-defined]
     return residual
