@@ -610,7 +610,7 @@ def test_sensitivity_tiles_groups_of_one_without_their_scalar_view(monkeypatch):
                 np.testing.assert_array_equal(getattr(Q, name), value)
 
 
-def test_at_most_rescues_in_a_row_then_the_run_stops(monkeypatch):
+def test_at_most_rescues_in_a_row_then_the_run_stops(monkeypatch, python_steps):
     """Where every step fails at the smallest step and continuation solves it,
     the loop rescues RESCUES_IN_A_ROW steps in a row and stops at the next
     (a run that would crawl on at up to 2 x 64 solves a step), reporting the

@@ -25,7 +25,8 @@ def _tried(res):
     return res.stats["steps"] + res.stats["rejected_steps"]
 
 
-def test_a_run_of_many_breakpoints_goes_through_on_its_own_step_count(monkeypatch):
+def test_a_run_of_many_breakpoints_goes_through_on_its_own_step_count(monkeypatch, python_steps):
+    # (every step in Python: the solves counted are Newton.solve's)
     solves = []
     solve = Newton.solve
 
@@ -52,6 +53,33 @@ def test_a_run_of_many_breakpoints_goes_through_on_its_own_step_count(monkeypatc
     assert short.status == "failed"
     assert f"more than max_steps = {n - 1} steps (accepted and rejected)" in short.message
     assert _tried(short) == n - 1 and short.times[-1] < DURATION
+
+
+def test_the_compiled_loops_steps_count_alike(monkeypatch):
+    """The steps the compiled loop takes (softflow.solve.steploop) count as
+    the BDF's own: max_steps = n lets the run through unchanged, n - 1 stops
+    it with the same message, after n - 1 tries."""
+    from softflow.solve import steploop
+    calls = []
+    run = steploop.CompiledSteps.run
+
+    def spy(self, *args):
+        out = run(self, *args)
+        calls.append(out[4])
+        return out
+    monkeypatch.setattr(steploop.CompiledSteps, "run", spy)
+    free = sf.Simulation(_scene(), duration=DURATION).run()
+    n = _tried(free)
+    assert sum(calls) > n // 2          # most steps were the compiled loop's
+    exact = sf.Simulation(_scene(), duration=DURATION, max_steps=n).run()
+    assert exact.success and _tried(exact) == n
+    np.testing.assert_array_equal(exact.times, free.times)
+    for m in (n - 1, n // 2):
+        short = sf.Simulation(_scene(), duration=DURATION, max_steps=m).run(
+            raise_on_failure=False)
+        assert short.status == "failed"
+        assert f"more than max_steps = {m} steps (accepted and rejected)" in short.message
+        assert _tried(short) == m and short.times[-1] < DURATION
 
 
 def test_fixed_steps_count_the_grid_steps_only():

@@ -354,9 +354,10 @@ def test_deferred_sensitivities_equal_the_step_by_step_ones(monkeypatch, case, s
 
 
 @pytest.mark.parametrize("stepping", [{"step": 1e-3}, {"rtol": 1e-6}], ids=["fixed", "bdf"])
-def test_a_run_with_sensitivities_is_the_plain_run(stepping):
+def test_a_run_with_sensitivities_is_the_plain_run(stepping, python_steps):
     """Deferred sensitivities leave Newton's factors alone: the run takes the
-    plain run's steps and values exactly."""
+    plain run's steps and values exactly (both in Python: a run with
+    sensitivities takes no step in the compiled loop, softflow.solve.steploop)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         # refine=1: the plain run records its steps alone, as one with

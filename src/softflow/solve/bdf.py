@@ -567,6 +567,27 @@ class BDF(Integrator):
         self.newton.full_stage = h <= FULL_STAGE_STEPS * self.step_min
         return pred[iX], psi_all[iS], t_new, t_eval, c
 
+    def _stretch_for(self):
+        """The compiled loop's entry (:mod:`softflow.solve.steploop`), where it
+        serves this run: it takes the usual steps while no restart is due, no
+        mode switch is being located and no emptying volume (module
+        docstring of softflow.solve.steploop)."""
+        from .steploop import compiled_steps
+        steps = compiled_steps(self)
+        if steps is None:
+            return None
+
+        def stretch(t, x, S):
+            if (self._restart_due or self._h_cap != math.inf or self._empty_tries
+                    or self._k < 1):
+                return None
+            if self._next <= t * (1 + 1e-14) + 1e-300:
+                self._ib, self._next = self._next_break(t, self._ib)
+            limit = self._next if self._next < self.T else self.T
+            _, t, x, S, _ = steps.run(t, x, S, limit)
+            return t, x, S
+        return stretch
+
     def _newton_failed(self, t, t_new, out):
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)

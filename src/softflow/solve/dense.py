@@ -122,6 +122,22 @@ class DenseRecorder:
         self.k.append(k)
         self.row.append(row)
 
+    def extend(self, t, h, k, row, diffs):
+        """Steps at once (the compiled loop's): their end times, steps,
+        orders, rows, and their differences one after the other."""
+        n = self._n
+        end = n + len(diffs)
+        if end > len(self._D):
+            grown = np.empty((max(end, 2 * len(self._D)), self.width))
+            grown[:n] = self._D[:n]
+            self._D = grown
+        self._D[n:end] = diffs
+        self._n = end
+        self.t.extend(t.tolist())
+        self.h.extend(h.tolist())
+        self.k.extend(k.tolist())
+        self.row.extend(row.tolist())
+
     @property
     def nbytes(self):
         """Memory the differences take [bytes] (allocated)."""
@@ -190,6 +206,22 @@ class DenseOutput:
     def end(self):
         """The last time the interpolant covers [s]."""
         return float(self.t_end[-1])
+
+    def extend(self, t, h, k, row, diffs):
+        """Steps at once (the compiled loop's): their end times, steps,
+        orders, rows, and their differences one after the other."""
+        n = self._n
+        end = n + len(diffs)
+        if end > len(self._D):
+            grown = np.empty((max(end, 2 * len(self._D)), self.width))
+            grown[:n] = self._D[:n]
+            self._D = grown
+        self._D[n:end] = diffs
+        self._n = end
+        self.t.extend(t.tolist())
+        self.h.extend(h.tolist())
+        self.k.extend(k.tolist())
+        self.row.extend(row.tolist())
 
     @property
     def nbytes(self):

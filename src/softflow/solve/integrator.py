@@ -190,6 +190,21 @@ class Recorder:
             self._Q[k] = 0.0 if q is None else q
         self.t.append(t)
 
+    def extend(self, t, X, S, Q=None):
+        """Rows of points at once (the compiled loop's steps): X and S already
+        restricted to the recorded columns, Q to the recorded unknowns'."""
+        k, m = len(self.t), len(t)
+        while k + m > len(self._X):
+            self._X = np.concatenate([self._X, np.empty_like(self._X)])
+            self._S = np.concatenate([self._S, np.empty_like(self._S)])
+            if self._Q is not None:
+                self._Q = np.concatenate([self._Q, np.empty_like(self._Q)])
+        self._X[k:k + m] = X
+        self._S[k:k + m] = S
+        if self._Q is not None:
+            self._Q[k:k + m] = 0.0 if Q is None else Q
+        self.t.extend(t.tolist())
+
     def arrays(self):
         k = len(self.t)
         return np.array(self.t, dtype=float), self._X[:k], self._S[:k]
@@ -279,12 +294,25 @@ class Integrator:
         # tries in a row at locating where a volume empties; whether the last
         # step taken was one (it ended just short of the crossing)
         self._empty_tries, self._approached = 0, False
+        # the usual steps in the compiled loop, where the stepper has one
+        # (BDF: softflow.solve.steploop); each pass it hands back is the
+        # stepper's own in Python
+        stretch, handed_back = self._stretch_for(), False
         while t < t_stop:
             if stats.steps + stats.rejected_steps >= max_steps:
                 raise StepLimitError(
                     f"more than max_steps = {self.max_steps} steps (accepted and rejected) "
                     f"by t = {t:.6g} s; pass a larger Simulation(max_steps=...) to go on"
                     + ("" if self.culprit is None else self.culprit.step_limit_note(t, x, S)))
+            if stretch is not None and not handed_back:
+                moved = stretch(t, x, S)
+                if moved is not None:
+                    handed_back = True
+                    if moved[0] > t:
+                        t, x, S = moved
+                        rescues = 0
+                    continue
+            handed_back = False
             x_pred, psi, t_new, t_eval, c = propose(t, x, S)
             out = solve(x_pred, psi, t_eval, c)
             if not out.converged and self.culprit is not None:
@@ -339,6 +367,12 @@ class Integrator:
             tick(t)
             if begin is not None:
                 begin(x, S)
+
+    def _stretch_for(self):
+        """The compiled loop's entry for this run, ``stretch(t, x, S)`` ->
+        (t, x, S) after the steps it took, or None where it did not run
+        (the stepper's own conditions); or None where the stepper has none."""
+        return None
 
     def finish(self, t, X, S, Q):
         """The recorded points (t, X, S and Q, the integrals or None) as the

@@ -69,12 +69,17 @@ class DenseLU:
     scale_note: str | None = None
     note_scale = False
 
+    #: (1 / row scales, 1 / column scales) of factors of the equilibrated
+    #: R J C (:meth:`_factor_equilibrated`), or None: J's own
+    scales = None
+
     def __init__(self, asm):
         self.asm = asm
         self.n = asm.n
         self.lu = None
 
     def factor(self):
+        self.scales = None
         n = self.n
         J = self.asm.dense_jacobian()
         if not all_finite(J.ravel()):
@@ -161,8 +166,37 @@ class DenseLU:
                 return ic[:, None] * x if x.ndim > 1 else ic * x
             self.solve = solve
         self.lu = (lu, piv)
+        self.scales = (ir, ic)
         self._J = J
         return True
+
+    def adopt(self, J, lu, piv, ir, ic):
+        """Take factors made elsewhere (the compiled step loop's,
+        :func:`softflow.laws.stepper.factor`) as this solver's own: J, the
+        LU of C (R J C) R as getrf leaves it and its pivots, the scales ir =
+        1/R and ic = 1/C (ones where J was factored as it is)."""
+        lu, piv = np.array(lu, order="F"), np.asarray(piv, dtype=np.int32)
+        self._J = J.copy()
+        self.lu = (lu, piv)
+        plain = bool((ir == 1.0).all() and (ic == 1.0).all())
+        self.scales = None if plain else (ir.copy(), ic.copy())
+        if self.n <= INVERSE_MAX:
+            inv, info = dgetri(lu, piv)
+            if info != 0:
+                raise SingularJacobian("Jacobian is singular", info - 1)
+            if not plain:
+                inv = (ic[:, None] * inv) * ir
+            self._inv = inv
+            self.solve = inv.dot
+        elif plain:
+            self.__dict__.pop("solve", None)
+        else:
+            ir, ic = self.scales
+
+            def solve(b):
+                x, _ = dgetrs(lu, piv, ir[:, None] * b if b.ndim > 1 else ir * b)
+                return ic[:, None] * x if x.ndim > 1 else ic * x
+            self.solve = solve
 
     @property
     def row_scale(self):

@@ -103,6 +103,12 @@ class Progress:
         if self.steps >= self._next:
             self._look(t)
 
+    def advance(self, t: float, count: int) -> None:
+        """``count`` accepted steps (the compiled loop's) reached t [s]."""
+        self.steps += count
+        if self.steps >= self._next:
+            self._look(t)
+
     def _look(self, t: float) -> None:
         now = time.perf_counter()
         spent = now - self._last
@@ -163,6 +169,9 @@ class Progress:
 #: the reporter of integrators run outside a Simulation: no bar, no events
 class _Silent(Progress):
     def step(self, t: float) -> None:
+        pass
+
+    def advance(self, t: float, count: int) -> None:
         pass
 
     def rejected(self, t: float, h: float, why: str, detail: Any = None) -> None:

@@ -97,3 +97,13 @@ AUTO_REFINE_MAX = 64
 #: run's tolerance (atol + rtol x the run's largest magnitude of each state,
 #: and of each unknown's quantity, as the error test weighs the unknowns).
 AUTO_REFINE_TARGET = 1.0
+
+
+# -- The compiled step loop (softflow.solve.steploop) ------------------------------------------
+#: Whether the adaptive BDF takes its usual steps in the compiled loop
+#: (:func:`softflow.laws.stepper.stretch`) where it serves the run; False
+#: takes every step in Python (the benchmarks compare both).
+COMPILED_STEPS = True
+#: Accepted steps the compiled loop records before it hands them to the
+#: run's recorder (and reports progress); each call allocates nothing.
+COMPILED_RECORD_ROWS = 256

@@ -1,0 +1,176 @@
+"""The BDF's usual steps in the compiled loop (softflow.solve.steploop,
+softflow.laws.stepper): the same run as the BDF's steps in Python, to the
+round-off of the linear algebra and within the run's tolerance; its dense
+linear algebra against LAPACK; where it serves and where it does not."""
+import warnings
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow import paper_scenes as ps
+from softflow.laws import stepper
+from softflow.solve import bdf, settings, steploop
+from helpers import filling_tank, rc_circuit
+
+
+def _spied(monkeypatch):
+    """A list that collects the steps each call of the compiled loop took."""
+    taken = []
+    run = steploop.CompiledSteps.run
+
+    def spy(self, *args):
+        out = run(self, *args)
+        taken.append(out[4])
+        return out
+    monkeypatch.setattr(steploop.CompiledSteps, "run", spy)
+    return taken
+
+
+def _both(build, duration, monkeypatch, **options):
+    """(Python's run, the compiled loop's run, the compiled loop's steps)."""
+    taken = _spied(monkeypatch)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        monkeypatch.setattr(settings, "COMPILED_STEPS", False)
+        py = sf.Simulation(build(), duration=duration, refine=1, **options).run()
+        assert not taken
+        monkeypatch.setattr(settings, "COMPILED_STEPS", True)
+        comp = sf.Simulation(build(), duration=duration, refine=1, **options).run()
+    return py, comp, sum(taken)
+
+
+SCENES = {
+    "fig3:peak-valley": (lambda: ps.fig3("peak-valley"), ps.duration(3)),
+    "fig3:hysteretic": (lambda: ps.fig3("hysteretic"), ps.duration(3)),
+    "fig4:snapping": (lambda: ps.fig4("snapping"), ps.duration(4)),
+    "fig5:air": (lambda: ps.fig5(sf.air), ps.duration(5)),
+    "fig5:air adiabatic": (lambda: ps.fig5(sf.air), ps.duration(5)),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_the_compiled_loop_takes_the_bdfs_steps(name, monkeypatch):
+    """Paper scenes (actuators, hysteresis, a snapping valve, air and an
+    accumulator; the full-physics Fig. 5 with air is thermal): the compiled
+    loop takes most steps, the run takes the same steps as in Python (the
+    same count; times that drift apart only by round-off through the step
+    size controller) and its values, read at the Python run's times, agree
+    within a few times the tolerance (rtol 1e-3) of each output's range
+    (flows: of the largest flow): the two runs are two solutions at that
+    tolerance, whose round-off differences the step size control and the
+    actuators' snaps carry on (Fig. 5 with air, adiabatic: 1.1e-3 of the
+    pump's pressure range, inside a snap's 3 kPa in 0.2 ms)."""
+    build, duration = SCENES[name]
+    options = {"thermal": "adiabatic"} if "adiabatic" in name else {}
+    py, comp, taken = _both(build, duration, monkeypatch, **options)
+    assert py.success and comp.success
+    assert taken >= 0.5 * comp.stats["steps"]
+    assert abs(comp.stats["steps"] - py.stats["steps"]) <= 0.02 * py.stats["steps"]
+    a, b = py.to_dict(), comp.to_dict()
+    flows = max(np.max(np.abs(v)) for k, v in a.items() if "massflow" in k)
+    for key, va in a.items():
+        if key == "time" or key.endswith(("branch", "mode", "open")):
+            continue
+        scale = flows if "massflow" in key else max(np.ptp(va), 1e-300)
+        vb = np.interp(a["time"], b["time"], b[key])
+        assert np.max(np.abs(vb - va)) <= 3e-3 * scale, key
+
+
+def test_the_same_steps_as_the_python_loop_on_a_fill(monkeypatch):
+    """A tank filled through a tube from a square wave (a restart at each
+    edge): the same accepted steps, the same values to 1e-9 of their range."""
+    square = sf.waveforms.Square(sf.Q_(0.3, "bar"), sf.Q_(0.0, "bar"), 250.0)
+    py, comp, taken = _both(
+        lambda: filling_tank(sf.PressureSource("src", pressure=square, gauge=True)), 0.02,
+        monkeypatch, rtol=1e-5)
+    assert taken > 0.5 * comp.stats["steps"]
+    assert comp.stats["steps"] == py.stats["steps"]
+    np.testing.assert_allclose(comp.times, py.times, rtol=1e-9, atol=0)
+    p0 = py.get("tank", "pressure")
+    np.testing.assert_allclose(comp.get("tank", "pressure"), p0, rtol=0,
+                               atol=1e-9 * np.ptp(p0))
+
+
+def test_it_does_not_serve_what_it_does_not_cover(monkeypatch):
+    """Check valves (laws whose pieces change inside a solve), sensitivities,
+    fixed steps and a source given as a Python function take every step in
+    Python."""
+    taken = _spied(monkeypatch)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        s = rc_circuit()
+        sf.Simulation(s, duration=0.2).run()
+        assert taken                      # (served: the control case)
+        taken.clear()
+        sf.Simulation(rc_circuit(), duration=0.2).run(sensitivities=["tube.diameter"])
+        sf.Simulation(rc_circuit(), duration=0.2, step=1e-3).run()
+        sf.Simulation(rc_circuit(source=lambda t: 1.1e5 + 1e4 * min(t, 0.01) / 0.01),
+                      duration=0.2).run()
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=1.5e5)
+        s += sf.CheckValve("cv", sf.air, cracking_pressure=1e3, diameter=1e-3)
+        s += sf.Container("tank", sf.air, volume=1e-4)
+        s.connect("src", "cv")
+        s.connect("cv", "tank")
+        sf.Simulation(s, duration=0.2).run()
+    assert not taken
+
+
+def test_switching_it_off_runs_the_bdf_in_python(monkeypatch):
+    taken = _spied(monkeypatch)
+    monkeypatch.setattr(settings, "COMPILED_STEPS", False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        assert sf.Simulation(rc_circuit(), duration=0.2).run().success
+    assert not taken
+
+
+# -- the compiled linear algebra and difference tables ---------------------------------------
+def test_the_lu_solves_as_lapack():
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 14, 40):
+        J = rng.normal(size=(n, n)) * 10.0 ** rng.integers(-6, 6, size=(n, 1))
+        b = rng.normal(size=n)
+        raw = J.ravel().copy()
+        flat = np.arange(n * n, dtype=np.int64)
+        Jd, LU = np.zeros((n, n)), np.zeros((n, n))
+        piv, ir, ic = np.zeros(n, dtype=np.int64), np.ones(n), np.ones(n)
+        assert stepper.factor(raw, flat, Jd, LU, piv, ir, ic, 1e-14) == 0
+        out = np.empty(n)
+        stepper.lu_solve(LU, piv, ir, ic, b, out)
+        np.testing.assert_allclose(out, np.linalg.solve(J, b), rtol=1e-8)
+        np.testing.assert_array_equal(Jd, J)
+
+
+def test_the_lu_equilibrates_where_units_make_pivots_small_and_refuses_the_singular():
+    # a row 1e-11 against 1: singular by its pivots, not after scaling
+    J = np.array([[2e-11, 1e-11], [1.0, -1.0]])
+    raw, flat = J.ravel().copy(), np.arange(4, dtype=np.int64)
+    Jd, LU = np.zeros((2, 2)), np.zeros((2, 2))
+    piv, ir, ic = np.zeros(2, dtype=np.int64), np.ones(2), np.ones(2)
+    assert stepper.factor(raw, flat, Jd, LU, piv, ir, ic, 1e-10) == 0
+    assert not (ir == 1.0).all()
+    out = np.empty(2)
+    stepper.lu_solve(LU, piv, ir, ic, np.array([1e-11, 3.0]), out)
+    np.testing.assert_allclose(J @ out, [1e-11, 3.0], rtol=1e-12)
+    singular = np.array([1.0, 2.0, 2.0, 4.0])
+    assert stepper.factor(singular, flat, Jd, LU, piv, ir, ic, 1e-14) == 2
+    assert stepper.factor(np.array([1.0, np.nan, 0.0, 1.0]), flat, Jd, LU, piv, ir, ic,
+                          1e-14) == 1
+    # entries of one place are summed
+    assert stepper.factor(np.array([1.0, 2.0, 3.0]), np.array([0, 0, 3], dtype=np.int64),
+                          Jd, LU, piv, ir, ic, 1e-14) == 0
+    np.testing.assert_array_equal(Jd, [[3.0, 0.0], [0.0, 3.0]])
+
+
+@pytest.mark.parametrize("k", range(1, bdf.MAX_ORDER + 1))
+def test_the_rescaled_table_is_the_bdfs(k):
+    rng = np.random.default_rng(k)
+    for factor in (0.2, 0.9, 1.3, 2.0):
+        D = rng.normal(size=(bdf.MAX_ORDER + 3, 6))
+        ref = D.copy()
+        M = bdf._rescale_matrix(k, factor)[1:, 1:]
+        ref[1:k + 1] = M @ ref[1:k + 1]
+        stepper._rescale(D, k, factor)
+        np.testing.assert_allclose(D, ref, rtol=1e-12, atol=1e-13)
