@@ -333,7 +333,7 @@ def test_max_steps_names_no_mode_where_the_steps_are_not_that_short():
     assert "fastest mode" not in str(err)
 
 
-def test_a_failure_with_a_component_far_faster_than_the_step_names_it(monkeypatch):
+def test_a_failure_with_a_component_far_faster_than_the_step_names_it(monkeypatch, python_steps):
     # a solve that fails from t = 4 ms on, whatever the step (a stand-in for a
     # failure nothing else explains), in a scene with a 1e-18 m^3 chamber
     # behind a 1 mm tube: time constant ~7e-16 s, far below the smallest step

@@ -17,13 +17,12 @@ from helpers import filling_tank, rc_circuit
 def _spied(monkeypatch):
     """A list that collects the steps each call of the compiled loop took."""
     taken = []
-    run = steploop.CompiledSteps.run
-
-    def spy(self, *args):
-        out = run(self, *args)
-        taken.append(out[4])
-        return out
-    monkeypatch.setattr(steploop.CompiledSteps, "run", spy)
+    for cls in (steploop.CompiledSteps, steploop.FixedSteps):
+        def spy(self, *args, run=cls.run):
+            out = run(self, *args)
+            taken.append(out[4])
+            return out
+        monkeypatch.setattr(cls, "run", spy)
     return taken
 
 
@@ -46,6 +45,7 @@ SCENES = {
     "fig4:snapping": (lambda: ps.fig4("snapping"), ps.duration(4)),
     "fig5:air": (lambda: ps.fig5(sf.air), ps.duration(5)),
     "fig5:air adiabatic": (lambda: ps.fig5(sf.air), ps.duration(5)),
+    "fig5:water": (lambda: ps.fig5(sf.water), ps.duration(5)),
 }
 
 
@@ -93,9 +93,9 @@ def test_the_same_steps_as_the_python_loop_on_a_fill(monkeypatch):
 
 
 def test_it_does_not_serve_what_it_does_not_cover(monkeypatch):
-    """Check valves (laws whose pieces change inside a solve), sensitivities,
-    fixed steps and a source given as a Python function take every step in
-    Python."""
+    """Check valves (laws whose pieces change inside a solve), sensitivities
+    and a source given as a Python function take every step in
+    Python (fixed steps are served: the test below)."""
     taken = _spied(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
@@ -104,7 +104,6 @@ def test_it_does_not_serve_what_it_does_not_cover(monkeypatch):
         assert taken                      # (served: the control case)
         taken.clear()
         sf.Simulation(rc_circuit(), duration=0.2).run(sensitivities=["tube.diameter"])
-        sf.Simulation(rc_circuit(), duration=0.2, step=1e-3).run()
         sf.Simulation(rc_circuit(source=lambda t: 1.1e5 + 1e4 * min(t, 0.01) / 0.01),
                       duration=0.2).run()
         s = sf.System()
@@ -174,3 +173,47 @@ def test_the_rescaled_table_is_the_bdfs(k):
         ref[1:k + 1] = M @ ref[1:k + 1]
         stepper._rescale(D, k, factor)
         np.testing.assert_allclose(D, ref, rtol=1e-12, atol=1e-13)
+
+
+@pytest.mark.parametrize("name", ["fig3:hysteretic", "fig5:air", "fig5:water"])
+def test_fixed_steps_in_the_compiled_loop_are_backward_eulers(name, monkeypatch):
+    """Backward Euler at a fixed 1 ms (the FONS paper's scheme): the compiled
+    loop takes the grid's steps, the same steps as the Python loop, values
+    within 1e-10 of each output's scale (pressures: their magnitude; flows:
+    the largest flow)."""
+    build, duration = SCENES[name]
+    py, comp, taken = _both(build, duration, monkeypatch, step=1e-3)
+    assert py.success and comp.success and taken >= 0.9 * comp.stats["steps"]
+    np.testing.assert_array_equal(comp.times, py.times)
+    a, b = py.to_dict(), comp.to_dict()
+    flows = max(np.max(np.abs(v)) for k, v in a.items() if "massflow" in k)
+    for key, va in a.items():
+        scale = flows if "massflow" in key else max(np.max(np.abs(va)), 1e-300)
+        assert np.max(np.abs(b[key] - va)) <= 1e-10 * scale, key
+
+
+def test_a_progress_bar_moves_while_the_compiled_loop_runs(monkeypatch):
+    """The loop hands back at each look of the bar at the clock
+    (Progress.steps_to_look): the bar looks after the same steps as where
+    every step is the Python loop's (here at every step: no wall time
+    between looks)."""
+    from softflow.solve import progress
+    from softflow.solve.progress import Progress
+    monkeypatch.setattr(progress, "DELAY", 1e9)       # (the bar itself never opens)
+    monkeypatch.setattr(progress, "CHECK_INTERVAL", 0.0)
+    seen = []
+    look = Progress._look
+
+    def spy(self, t):
+        seen.append(self.steps)
+        return look(self, t)
+    monkeypatch.setattr(Progress, "_look", spy)
+    looks = {}
+    for compiled in (False, True):
+        monkeypatch.setattr(settings, "COMPILED_STEPS", compiled)
+        seen.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sf.Simulation(rc_circuit(), duration=0.3).run(progress=True)
+        looks[compiled] = list(seen)
+    assert len(looks[True]) >= 3 and looks[True] == looks[False]

@@ -32,19 +32,22 @@ from .network import residual
 from .waves import source_values
 
 #: why the loop returned
-LIMIT, NEWTON, FORCED, SWITCH, EMPTIED, FULL, BUDGET = range(7)
-EXITS = ("limit", "newton", "forced", "switch", "emptied", "full", "budget")
+DONE, NEWTON, FORCED, SWITCH, EMPTIED, FULL, BUDGET, RESTART = range(8)
+EXITS = ("done", "newton", "forced", "switch", "emptied", "full", "budget", "restart")
+#: the causes of the events it records (rejections, restarts)
+ERROR_EVENT, RESTART_EVENT = 0.0, 1.0
 
 #: slots of the integer state ``ist``
 (K, N_EQUAL, FAILS, FAIL_HOLD, PASSED, AGE, STALE, ONE_ITER, FACTORED, BUDGET_LEFT,
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
- N_DISC, M_ERR, HAS_FLOOR, CLIP) = range(22)
-IST_SIZE = 22
+ N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB) = range(24)
+IST_SIZE = 24
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
- FIRST_MAX, STEP_MIN, STEP_MAX, LIMIT_T, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
- MIN_FACTOR, MAX_FACTOR, GROW_MIN, PEAK_FACTOR, PIVOT_RTOL, CRDOWN) = range(26)
-FST_SIZE = 26
+ FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
+ MIN_FACTOR, MAX_FACTOR, GROW_MIN, PEAK_FACTOR, PIVOT_RTOL, CRDOWN, NEXT_BREAK,
+ FIRST_STEP, FIRST_ESTIMATE) = range(29)
+FST_SIZE = 29
 #: slots of ``stats``
 (STEPS, REJECTED, ERROR_FAILS, ITERATIONS, RESIDUALS, JACOBIANS, FACTORIZATIONS) = range(7)
 STATS_SIZE = 7 + 6      # then the accepted steps per order 0..5
@@ -360,13 +363,12 @@ def _positive(x, p_idx):
 
 @jit
 def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, q_id,
-           p_idx, T_idx, work, none, stats):
+           p_idx, T_idx, work, none, stats, nrtol):
     """Newton's solve of one step (:meth:`Newton.solve`'s chord stages): True
     with the solution in work[0], or False where the BDF's own Newton must
     take the step (its damped stages, the culprit finder)."""
     x, F, step, xn, Fn = work[0], work[1], work[2], work[3], work[4]
-    _newton_scale(x0, natol, fst[NEWTON_RTOL], x_off, q_id, floor, ist[HAS_FLOOR] > 0,
-                  links, itol)
+    _newton_scale(x0, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, itol)
     reusable = (ist[STALE] == 0 and ist[AGE] < ist[MAX_AGE]
                 and fst[DT_LO] <= c <= fst[DT_HI])
     if reusable:
@@ -386,8 +388,96 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
 
 
 @jit
+def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_id, p_idx,
+           T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
+    """Backward Euler from (x0, S) at t over h, Newton held to 1e-12 (or the
+    run's own tolerance where that fails): True with the unknowns in work[0]
+    and the states' rate in ``rate`` (discrete states: 0), or False, where
+    the BDF's own probe (with continuation) must take over (:meth:`BDF._probe`)."""
+    base, slot, codes, factors, starts, floats = sources
+    source_values(t + h, base, slot, codes, factors, starts, floats, net[7])
+    nrtol = fst[NEWTON_RTOL]
+    if not _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off, q_id,
+                  p_idx, T_idx, work, none, stats, min(nrtol, 1e-12)):
+        if not (nrtol > 1e-12 and _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor,
+                                         links, natol, x_off, q_id, p_idx, T_idx, work, none,
+                                         stats, nrtol)):
+            return False
+    if _evaluate(net, work[0], S, t + h, h, False, Fe, rate, stats) >= 0:
+        return False
+    stats[RESIDUALS] -= 1
+    for i in range(S.size):
+        rate[i] = (rate[i] - S[i]) / h
+        if n_disc and not math.isfinite(atol_s[i]):
+            rate[i] = 0.0
+    return True
+
+
+@jit
+def _restart_norm(v, vx, w, m, n_disc, peak_factor, buf):
+    """:meth:`BDF._norm`: the error norm of the states' v and the first
+    unknowns' vx together."""
+    ns = v.size
+    buf[:ns] = v
+    buf[ns:m] = vx[:m - ns]
+    return _enorm(buf, w, m, n_disc, peak_factor)
+
+
+@jit
+def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_off, q_id,
+             p_idx, T_idx, work, none, stats, sources, atol_s, atol_x, qmax_run, w, Fe,
+             x_right, r0, xdot, buf):
+    """The rates just after t and the first step (:meth:`BDF._restart`): two
+    backward Euler probes of tiny steps, a third over the step the first
+    derivatives suggest; the first step aims at an order-1 error estimate
+    of FIRST_ESTIMATE. Returns the step, or -1 where a probe needs the
+    BDF's own (continuation)."""
+    ns, n = S.size, x.size
+    n_disc, m = ist[N_DISC], ist[M_ERR]
+    span = limit - t
+    h_p = min(max(fst[STEP_MIN], 1e-7 * fst[DURATION]), 0.25 * span)
+    rate = np.empty(ns)
+    if not _probe(net, lin, x, S, t, h_p, ist, fst, itol, floor, links, natol, x_off, q_id,
+                  p_idx, T_idx, work, none, stats, sources, Fe, r0, n_disc, atol_s):
+        return -1.0
+    x1 = work[0].copy()
+    if not _probe(net, lin, x1, S, t, 2 * h_p, ist, fst, itol, floor, links, natol, x_off,
+                  q_id, p_idx, T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
+        return -1.0
+    for i in range(n):
+        xdot[i] = (work[0][i] - x1[i]) / h_p
+        x_right[i] = x1[i] - h_p * xdot[i]
+    if math.isfinite(fst[FIRST_STEP]):
+        return max(min(fst[FIRST_STEP], span), fst[STEP_MIN])
+    _weights(S, S, x_right, atol_s, atol_x, x_off, q_id, qmax_run, fst[RTOL], w)
+    for q in range(floor.size):
+        floor[q] = qmax_run[q] * fst[FLOOR_FACTOR]
+    ist[HAS_FLOOR] = 1
+    pf = fst[PEAK_FACTOR]
+    d0 = _restart_norm(S, x_right, w, m, n_disc, pf, buf)
+    d1 = _restart_norm(r0, xdot, w, m, n_disc, pf, buf)
+    h0 = 1e-6 * span if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(max(h0, 4 * h_p), span, fst[STEP_MAX])
+    if not _probe(net, lin, x_right, S, t, h0, ist, fst, itol, floor, links, natol, x_off,
+                  q_id, p_idx, T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
+        h = 0.1 * h0
+    else:
+        x3 = work[0]
+        ddx = np.empty(n)
+        for i in range(n):
+            ddx[i] = 2 * (x3[i] - x_right[i] - h0 * xdot[i]) / h0 ** 2
+        for i in range(ns):
+            rate[i] = (rate[i] - r0[i]) / h0
+        d2 = _restart_norm(rate, ddx, w, m, n_disc, pf, buf)
+        h1 = (math.sqrt(2 * fst[FIRST_ESTIMATE] / d2) if d2 > 1e-15
+              else max(1e-6 * span, 1e3 * h0))
+        h = min(100 * h0, h1)
+    return max(min(h, span, fst[STEP_MAX]), fst[STEP_MIN])
+
+
+@jit
 def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
-            net, lin, sources, tol, rec, dense, events, watch, G, ERRC):
+            net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC):
     """Steps of the BDF from (t, x, S) until an event (module docstring).
 
     Arguments: the point and the difference table D (states, unknowns,
@@ -399,9 +489,10 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     (atol of the states, atol and offsets of the unknowns, their quantity
     ids, Newton's atol, the links between quantities' scales, the pressures'
     and temperatures' indices, the quadratures' unknowns), ``rec`` and
-    ``dense`` (the record buffers), ``events`` (rejections: t, h, cause,
-    error), ``watch`` (the watched states and their floors), the BDF's g_j
-    and error constants. Returns (exit, t); x, S, Q and the state arrays
+    ``dense`` (the record buffers), ``events`` (rejections and restarts: t,
+    h, cause, error), ``watch`` (the watched states and their floors), the
+    run's breakpoints (sorted, inside the run), the BDF's g_j and error
+    constants. Returns (exit, t); x, S, Q and the state arrays
     are updated in place to the last step taken."""
     atol_s, atol_x, x_off, q_id, natol, links, p_idx, T_idx, q_sel = tol
     rec_t, rec_x, rec_s, rec_q, x_index, s_index = rec
@@ -415,7 +506,8 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     n_disc = ist[N_DISC]
     rtol = fst[RTOL]
     smin = fst[STEP_MIN] * 1.0000001
-    limit_t = fst[LIMIT_T]
+    T = fst[DURATION]
+    t_stop = T * (1 - 1e-14)
     n_rec_cap, n_dense_cap, n_ev_cap = rec_t.size, d_D.shape[0], events.shape[0]
     kmax = ist[MAX_ORDER]
     pred = np.empty(width)
@@ -428,23 +520,56 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     Fe = np.empty(n)
     none = np.empty(0)
     Q_new = np.empty(nQ)
+    x_right, r0, xdot, buf = np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n)
     used = 0           # steps tried, accepted and rejected (Simulation(max_steps=))
-    while True:
+    while t < t_stop:
         if ist[N_REC] >= n_rec_cap or ist[N_DENSE] + kmax > n_dense_cap \
-                or ist[N_EVENTS] >= n_ev_cap:
+                or ist[N_EVENTS] + 1 >= n_ev_cap:
             return FULL, t
         if used >= ist[BUDGET_LEFT]:
             return BUDGET, t
+        # the next breakpoint (BDF._propose)
+        nxt = fst[NEXT_BREAK]
+        if nxt <= t * (1 + 1e-14) + 1e-300:
+            ib = ist[IB]
+            while ib < breaks.size and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
+                ib += 1
+            ist[IB] = ib
+            nxt = fst[NEXT_BREAK] = breaks[ib] if ib < breaks.size else math.inf
+        limit = nxt if nxt < T else T
+        if ist[RESTART_DUE]:
+            h = _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_off,
+                         q_id, p_idx, T_idx, work, none, stats, sources, atol_s, atol_x,
+                         qmax_run, w, Fe, x_right, r0, xdot, buf)
+            if h < 0.0:
+                ist[STALE] = 1
+                return RESTART, t
+            e = ist[N_EVENTS]
+            events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t, h, RESTART_EVENT, 0.0
+            ist[N_EVENTS] = e + 1
+            D[:, :] = 0.0
+            for i in range(ns):
+                D[0, i], D[1, i] = S[i], h * r0[i]
+            for i in range(n):
+                D[0, ns + i], D[1, ns + i] = x_right[i], h * xdot[i]
+            for i in range(nQ):
+                D[0, ns + n + i], D[1, ns + n + i] = Q[i], h * x_right[q_sel[i]]
+            ist[K], ist[N_EQUAL], ist[FAILS] = 1, 0, 0
+            ist[RESTART_DUE] = 0
+            ist[PASSED] = 0
+            fst[H] = h
         k, h = ist[K], fst[H]
         # the step: no overshoot of the limit, no sliver left before it
         h_try = min(h, fst[STEP_MAX], fst[FAIL_CAP])
-        if t + h_try >= limit_t or limit_t - (t + h_try) < 0.2 * h_try:
-            return LIMIT, t
+        if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
+            h_try = limit - t
         if h_try != h:
             _rescale(D, k, h_try / h)
             fst[H] = h = h_try
             ist[N_EQUAL] = 0
         t_new = t + h
+        at_break = t_new == nxt
+        t_eval = np.nextafter(t_new, -math.inf) if at_break else t_new
         gk = G[k]
         for c_ in range(width):
             s = D[0, c_]
@@ -456,14 +581,14 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             psi_all[c_] = p
         c = h / gk
         psi = psi_all[:ns]
-        source_values(t_new, base, slot, codes, factors, starts, floats, u)
-        if not _solve(net, lin, pred[ns:ns + n], psi, t_new, c, ist, fst, itol, floor, links,
-                      natol, x_off, q_id, p_idx, T_idx, work, none, stats):
+        source_values(t_eval, base, slot, codes, factors, starts, floats, u)
+        if not _solve(net, lin, pred[ns:ns + n], psi, t_eval, c, ist, fst, itol, floor, links,
+                      natol, x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL]):
             ist[STALE] = 1
             return NEWTON, t
         x_new = work[0]
         # the end-of-step states, from the network's own laws
-        if _evaluate(net, x_new, psi, t_new, c, False, Fe, S_new, stats) >= 0:
+        if _evaluate(net, x_new, psi, t_eval, c, False, Fe, S_new, stats) >= 0:
             return NEWTON, t
         stats[RESIDUALS] -= 1         # (no equation solved: the states' update)
         if n_disc:
@@ -488,7 +613,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             stats[ERROR_FAILS] += 1
             used += 1
             e = ist[N_EVENTS]
-            events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t_new, h, 0.0, err
+            events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t_new, h, ERROR_EVENT, err
             ist[N_EVENTS] = e + 1
             fails = ist[FAILS] + 1
             ist[FAILS] = fails
@@ -551,6 +676,13 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         S[:] = S_new
         Q[:] = Q_new
         used += 1
+        if at_break:
+            # a declared jump: the method restarts from its far side
+            ist[RESTART_DUE] = 1
+            fst[FAIL_CAP] = math.inf
+            ist[FAIL_HOLD] = 0
+            ist[STALE] = 1
+            continue
         ist[N_EQUAL] += 1
         if ist[N_EQUAL] < k + 1:
             continue
@@ -582,3 +714,105 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         _rescale(D, k_new, factor_)
         fst[H] = h * factor_
         ist[N_EQUAL] = 0
+    return DONE, t
+
+
+@jit
+def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, tol, rec,
+                  watch, breaks, grid):
+    """Steps of backward Euler on its fixed grid from (t, x, S)
+    (:class:`softflow.solve.integrator.ImplicitEuler`: psi = S, c = h, Newton
+    from the linear extrapolation of the last two points, from the last
+    point after a breakpoint), until an event: a failed solve (the stepper
+    cuts the step), a mode switch, a volume past its limit, a full record
+    buffer, the step budget, the end. ``x_prev``: the point before (its
+    step in fst[H]; fst[ERR] < 0 where there is none to extrapolate from);
+    ``grid``: (step, number of grid steps); ist[FAILS] holds the index of
+    the last grid point reached. Returns (exit, t)."""
+    atol_s, atol_x, x_off, q_id, natol, links, p_idx, T_idx, q_sel = tol
+    rec_t, rec_x, rec_s, rec_q, x_index, s_index = rec
+    w_index, w_floor = watch
+    base, slot, codes, factors, starts, floats = sources
+    u = net[7]
+    ns, n = S.size, x.size
+    n_disc = ist[N_DISC]
+    T = fst[DURATION]
+    t_stop = T * (1 - 1e-14)
+    h0, n_grid = grid[0], int(grid[1])
+    itol = np.empty(n)
+    work = np.empty((5, n))
+    S_new = np.empty(ns)
+    Fe = np.empty(n)
+    none = np.empty(0)
+    x_pred = np.empty(n)
+    used = 0
+    while t < t_stop:
+        if ist[N_REC] >= rec_t.size:
+            return FULL, t
+        if used >= ist[BUDGET_LEFT]:
+            return BUDGET, t
+        nxt = fst[NEXT_BREAK]
+        if nxt <= t * (1 + 1e-14) + 1e-300:
+            ib = ist[IB]
+            while ib < breaks.size and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
+                ib += 1
+            ist[IB] = ib
+            nxt = fst[NEXT_BREAK] = breaks[ib] if ib < breaks.size else math.inf
+        kg = ist[FAILS]
+        grid_next = T if kg + 1 >= n_grid else min((kg + 1) * h0, T)
+        end = nxt if nxt < grid_next else grid_next
+        h = end - t
+        if fst[ERR] < 0.0:
+            x_pred[:] = x
+        else:
+            r = h / fst[H]
+            if r == 1.0:
+                for i in range(n):
+                    x_pred[i] = x[i] + (x[i] - x_prev[i])
+            else:
+                for i in range(n):
+                    x_pred[i] = x[i] + (x[i] - x_prev[i]) * r
+        t_new = t + h
+        at_break = t_new == nxt
+        t_eval = np.nextafter(t_new, -math.inf) if at_break else t_new
+        source_values(t_eval, base, slot, codes, factors, starts, floats, u)
+        if not _solve(net, lin, x_pred, S, t_eval, h, ist, fst, itol, floor, links, natol,
+                      x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL]):
+            ist[STALE] = 1
+            return NEWTON, t
+        x_new = work[0]
+        if _evaluate(net, x_new, S, t_eval, h, False, Fe, S_new, stats) >= 0:
+            return NEWTON, t
+        stats[RESIDUALS] -= 1
+        if t_new != end and abs(t_new - end) <= 1e-12 * max(1.0, end):
+            t_new = end
+            at_break = t_new == nxt
+        for j in range(w_index.size):
+            if S_new[w_index[j]] < w_floor[j]:
+                return EMPTIED, t
+        if n_disc and not at_break:
+            for i in range(ns):
+                if S_new[i] != S[i] and not math.isfinite(atol_s[i]):
+                    return SWITCH, t
+        used += 1
+        stats[STEPS] += 1
+        r_ = ist[N_REC]
+        rec_t[r_] = t_new
+        for i in range(x_index.size):
+            rec_x[r_, i] = x_new[x_index[i]]
+        for i in range(s_index.size):
+            rec_s[r_, i] = S_new[s_index[i]]
+        ist[N_REC] = r_ + 1
+        if t_new == grid_next:
+            ist[FAILS] = kg + 1
+        if at_break:
+            fst[ERR] = -1.0
+            ist[STALE] = 1
+        else:
+            x_prev[:] = x
+            fst[H] = h
+            fst[ERR] = 0.0
+        t = t_new
+        x[:] = x_new
+        S[:] = S_new
+    return DONE, t

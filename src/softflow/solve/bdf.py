@@ -578,13 +578,10 @@ class BDF(Integrator):
             return None
 
         def stretch(t, x, S):
-            if (self._restart_due or self._h_cap != math.inf or self._empty_tries
-                    or self._k < 1):
+            if ((self._restart_due and self._forced_restart) or self._h_cap != math.inf
+                    or self._empty_tries or (self._k < 1 and not self._restart_due)):
                 return None
-            if self._next <= t * (1 + 1e-14) + 1e-300:
-                self._ib, self._next = self._next_break(t, self._ib)
-            limit = self._next if self._next < self.T else self.T
-            _, t, x, S, _ = steps.run(t, x, S, limit)
+            _, t, x, S, _ = steps.run(t, x, S)
             return t, x, S
         return stretch
 

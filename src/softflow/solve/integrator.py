@@ -680,6 +680,22 @@ class ImplicitEuler(Integrator):
         self._h, self._end, self._grid_next, self._at_break = h, end, grid_next, at_break
         return x_pred, S, t_new, math.nextafter(t_new, -math.inf) if at_break else t_new, h
 
+    def _stretch_for(self):
+        """The compiled loop's entry (:mod:`softflow.solve.steploop`), where it
+        serves this run: it takes the grid's steps while no cut step is due
+        and no emptying volume is being located."""
+        from .steploop import fixed_steps
+        steps = fixed_steps(self)
+        if steps is None:
+            return None
+
+        def stretch(t, x, S):
+            if self._h_cut is not None or self._empty_tries:
+                return None
+            _, t, x, S, _ = steps.run(t, x, S)
+            return t, x, S
+        return stretch
+
     def _newton_failed(self, t, t_new, out):
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)

@@ -109,6 +109,11 @@ class Progress:
         if self.steps >= self._next:
             self._look(t)
 
+    def steps_to_look(self) -> int:
+        """Accepted steps before the next look at the clock (the compiled
+        loop hands back then, so that the bar moves as it would)."""
+        return max(1, self._next - self.steps)
+
     def _look(self, t: float) -> None:
         now = time.perf_counter()
         spent = now - self._last
@@ -173,6 +178,9 @@ class _Silent(Progress):
 
     def advance(self, t: float, count: int) -> None:
         pass
+
+    def steps_to_look(self) -> int:
+        return 1 << 62
 
     def rejected(self, t: float, h: float, why: str, detail: Any = None) -> None:
         pass
