@@ -32,8 +32,23 @@ very values its rows are evaluated at, the discrete ones as the class's
 (:func:`snapping_switch`), a hysteretic actuator's branch from its volume
 (:func:`.volumes.on_inflation`) and, in a thermal scene of a free gas, its
 work offset (:func:`loop_offset`)). Classes without states write nothing.
+
+Switching functions, kinks and pieces. :func:`switching`, :func:`kinks` and
+:func:`regimes` are the assembly's ``switching(x, S)``, ``kinks(x)`` and
+``regimes(x)`` (:mod:`softflow.solve.assembly`) on the same arrays: the
+values of every group whose class states them, in group order, instance by
+instance, with the classes' own arithmetic (a snapping valve's
+``switching``, isothermal and thermal; a hysteretic actuator's loop's,
+isothermal and thermal, free (one value per discrete state: two) or held;
+a check valve's ``kinks`` and ``regime``, isothermal and thermal). Each
+writes into the array it is given and returns how many it wrote
+(:func:`sizes`: how many each writes for a network).
 """
 from __future__ import annotations
+
+import math
+
+import numpy as np
 
 from . import jit
 from .fanno import gas_constants
@@ -70,7 +85,9 @@ TUBE_GROUP_FLOATS = 3
 ORIFICE_FLOATS = 9         # K, area, dp_small, gamma, Cd, C, b, m, pr_laminar
 ORIFICE_GROUP_FLOATS = 5   # R T (0: a liquid), rho (a liquid's), T, ISO 6358's rho0, T0
 CHECK_VALVE_FLOATS = 8     # K, Cd, gamma, area, dp_small, cracking, band, leakage
-CHECK_VALVE_GROUP_FLOATS = 2   # R T, rho
+#: R T, rho, then the cut of its regimes (:func:`regimes`): the band's top and bottom edge
+#: REGIME_EDGE and the bottom's number of pieces LOW_PIECES (softflow.components.valves)
+CHECK_VALVE_GROUP_FLOATS = 4
 TESLA_FLOATS = 7           # re_per_mf, c_mu, eD, a, area, mf_blend, diodicity
 #: a snapping valve's: re_per_mf, c_mu, eD, a, area, closed conductance, opening and
 #: closing pressures (its switch's)
@@ -91,8 +108,8 @@ THERMAL_SNAPPING_FLOATS = 9
 VOLUME_GROUP_FLOATS = 8
 #: a thermal orifice's group floats: the orifice's five, then T_ref, cp, c - h0, band, G
 THERMAL_ORIFICE_GROUP_FLOATS = 10
-#: a thermal check valve's: R T, rho, then cp, c - h0, band, G
-THERMAL_CHECK_VALVE_GROUP_FLOATS = 6
+#: a thermal check valve's: R T, rho, then cp, c - h0, band, G, then REGIME_EDGE, LOW_PIECES
+THERMAL_CHECK_VALVE_GROUP_FLOATS = 8
 
 
 @jit
@@ -753,3 +770,172 @@ def _thermal_inertial_tube(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
             raw[j + 3] = 1.0 + (dt * (-a_l * d_mf)) * -1.0
             raw[j + 4] = (dt * (-a_l * (1.0 + d_pb))) * -1.0
             energy_entries(raw, j + 5, e_mf, e_Ta, e_Tb)
+
+
+# -- switching functions, kinks and pieces (the assembly's switching, kinks, regimes) ----
+@jit
+def _loop_switching(vol, inflating, v_hi, v_lo):
+    """A hysteresis loop's switching function at the volume vol: vol - V_hi
+    while inflating, V_lo - vol while deflating
+    (:meth:`softflow.curves.HysteresisLoop.switching`)."""
+    return vol - v_hi if inflating else v_lo - vol
+
+
+@jit
+def _snapping_floats(gr):
+    """(columns per instance, p_b's column, the first instance's floats,
+    floats per instance, the opening pressure's place among them) of a
+    snapping valve's group, isothermal or thermal (the closing pressure's
+    place is the next)."""
+    if gr[CLS] == THERMAL_SNAPPING_VALVE:
+        return 8, 4, gr[F0] + THERMAL_SNAPPING_GROUP_FLOATS, THERMAL_SNAPPING_FLOATS, 7
+    return 4, 2, gr[F0] + VALVE_GROUP_FLOATS, SNAPPING_FLOATS, 6
+
+
+@jit
+def _check_floats(gr):
+    """(columns per instance, p_b's column, the first instance's floats, the
+    group's REGIME_EDGE's place) of a check valve's group, isothermal or
+    thermal (LOW_PIECES's place is the next)."""
+    if gr[CLS] == THERMAL_CHECK_VALVE:
+        return (8, 4, gr[F0] + THERMAL_CHECK_VALVE_GROUP_FLOATS,
+                gr[F0] + THERMAL_CHECK_VALVE_GROUP_FLOATS - 2)
+    return 4, 2, gr[F0] + CHECK_VALVE_GROUP_FLOATS, gr[F0] + CHECK_VALVE_GROUP_FLOATS - 2
+
+
+@jit
+def _switching_per_instance(gr):
+    """How many switching functions each instance of the group ``gr`` has (its
+    discrete states): 1 for a snapping valve, a hysteretic actuator and a
+    thermal one held at its wall temperature, 2 for a free one (its branch
+    and work offset), else 0."""
+    cls = gr[CLS]
+    if cls == SNAPPING_VALVE or cls == THERMAL_SNAPPING_VALVE or cls == HYSTERETIC_ACTUATOR:
+        return 1
+    if (cls == FREE_VOLUME or cls == HELD_VOLUME) and gr[OPTION] == 3:
+        return 2 if cls == FREE_VOLUME else 1
+    return 0
+
+
+@jit
+def sizes(groups):
+    """(switching functions, kinks, pieces): how many values
+    :func:`switching`, :func:`kinks` and :func:`regimes` write for the
+    network ``groups`` (0 where none states them)."""
+    n_sw = n_kinks = 0
+    for g in range(groups.shape[0]):
+        gr = groups[g]
+        n_sw += gr[N] * _switching_per_instance(gr)
+        if gr[CLS] == CHECK_VALVE or gr[CLS] == THERMAL_CHECK_VALVE:
+            n_kinks += gr[N]
+    return n_sw, n_kinks, n_kinks
+
+
+@jit
+def switching(x, S, groups, cols, fpar, g_out):
+    """The switching functions of every group that states them, in group
+    order, instance by instance, into g_out (float): the assembly's
+    ``switching(x, S)`` (S: the states, their modes as they were), each
+    negative while its mode holds. A snapping valve (isothermal or thermal):
+    closing pressure - dp while open, dp - opening pressure while shut
+    (:meth:`softflow.components.valves.SnappingValve.switching`); a
+    hysteretic actuator: its loop's at the volume m / rho of the mass S
+    holds (rho at the pressure, and in a thermal scene the temperature, of
+    x), once per discrete state (a free gas's branch and work offset: twice).
+    Returns how many it wrote (:func:`sizes`)."""
+    k = 0
+    for g in range(groups.shape[0]):
+        gr = groups[g]
+        cls, n, c0, s0, f0 = gr[CLS], gr[N], gr[COL], gr[S0], gr[F0]
+        if cls == SNAPPING_VALVE or cls == THERMAL_SNAPPING_VALVE:
+            nv, b, f, per, at = _snapping_floats(gr)
+            for i in range(n):
+                dp = x[cols[c0 + nv * i]] - x[cols[c0 + nv * i + b]]
+                fi = f + per * i + at
+                g_out[k] = fpar[fi + 1] - dp if S[s0 + i] > 0.5 else dp - fpar[fi]
+                k += 1
+        elif cls == HYSTERETIC_ACTUATOR:
+            kind, c, v_hi, v_lo = gr[OPTION], fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
+            for i in range(n):
+                rho = density(kind, c, x[cols[c0 + 2 * i]])[0]
+                g_out[k] = _loop_switching(S[s0 + 2 * i] / rho, S[s0 + 2 * i + 1] > 0.5,
+                                           v_hi, v_lo)
+                k += 1
+        elif (cls == FREE_VOLUME or cls == HELD_VOLUME) and gr[OPTION] == 3:
+            free = cls == FREE_VOLUME
+            R = fpar[f0]
+            at = f0 + VOLUME_GROUP_FLOATS
+            v_hi, v_lo = fpar[at], fpar[at + 1]
+            nv, ns, branch = (5, 4, 2) if free else (4, 2, 1)
+            for i in range(n):
+                p, T = x[cols[c0 + nv * i]], x[cols[c0 + nv * i + 2]]
+                s = s0 + ns * i
+                value = _loop_switching(S[s] / ideal_density(p, T, R)[0], S[s + branch] > 0.5,
+                                        v_hi, v_lo)
+                g_out[k] = value
+                k += 1
+                if free:
+                    g_out[k] = value
+                    k += 1
+    return k
+
+
+@jit
+def kinks(x, groups, cols, fpar, out):
+    """The side of its law's kinks each check valve (isothermal or thermal)
+    is on at x, in group order, into out (any numeric dtype: the integers
+    0, 1, 2): the assembly's ``kinks(x)``, 0 shut (dp at or below the
+    cracking pressure), 1 inside the opening band, 2 open
+    (:meth:`softflow.components.valves.CheckValve.kinks`). Returns how many
+    it wrote."""
+    k = 0
+    for g in range(groups.shape[0]):
+        gr = groups[g]
+        if gr[CLS] != CHECK_VALVE and gr[CLS] != THERMAL_CHECK_VALVE:
+            continue
+        nv, b, f, _ = _check_floats(gr)
+        c0 = gr[COL]
+        for i in range(gr[N]):
+            dp = x[cols[c0 + nv * i]] - x[cols[c0 + nv * i + b]]
+            fi = f + CHECK_VALVE_FLOATS * i
+            cracking = fpar[fi + 5]
+            out[k] = (1 if dp > cracking else 0) + (1 if dp >= cracking + fpar[fi + 6] else 0)
+            k += 1
+    return k
+
+
+@jit
+def check_piece(s, edge, low):
+    """The piece of a check valve's law at its band position s
+    (:func:`softflow.components.valves._piece`, ``CheckValve.regime``):
+    -low - 1 shut (s <= 0), -low ... -1 the band's bottom ``edge`` cut into
+    pieces a factor 4 apart in s, 0 the middle, 1 its top ``edge`` and past
+    it (nan: 0)."""
+    if s <= 0.0:
+        return -low - 1.0
+    if s < edge:
+        return max(np.floor(math.log2(s / edge) * 0.5), -low)
+    return 1.0 if s > 1.0 - edge else 0.0
+
+
+@jit
+def regimes(x, groups, cols, fpar, out):
+    """The piece of its law each check valve (isothermal or thermal) is on
+    at x, in group order, into out (any numeric dtype: the integers -LOW_PIECES
+    - 1 ... 1 of :func:`check_piece`): the assembly's ``regimes(x)``
+    (:meth:`softflow.components.valves.CheckValve.regime`, s = (dp -
+    cracking pressure) / opening band). Returns how many it wrote."""
+    k = 0
+    for g in range(groups.shape[0]):
+        gr = groups[g]
+        if gr[CLS] != CHECK_VALVE and gr[CLS] != THERMAL_CHECK_VALVE:
+            continue
+        nv, b, f, e = _check_floats(gr)
+        edge, low = fpar[e], fpar[e + 1]
+        c0 = gr[COL]
+        for i in range(gr[N]):
+            fi = f + CHECK_VALVE_FLOATS * i
+            s = (x[cols[c0 + nv * i]] - x[cols[c0 + nv * i + b]] - fpar[fi + 5]) / fpar[fi + 6]
+            out[k] = check_piece(s, edge, low)
+            k += 1
+    return k

@@ -39,7 +39,11 @@ The same call gives the states at the end of a step (the loop's ``Sout``):
 same numbers, bitwise: tested), and the :class:`CompiledNetwork` a compiled
 residual carries (``asm.residual.network``) holds the loop's arrays for a
 caller that calls :func:`softflow.laws.network.residual` itself (the
-compiled step loop).
+compiled step loop). Those arrays also give the assembly's ``switching``,
+``kinks`` and ``regimes`` in compiled code (:class:`CompiledNetwork`'s
+``switching_loop``, ``kinks_loop``, ``regimes_loop``, and the counts
+``n_switching``, ``n_kinks``, ``n_regimes``: the same numbers, bitwise:
+tested).
 """
 from __future__ import annotations
 
@@ -109,7 +113,8 @@ def _covered(g):
             return None
         per = np.column_stack([P.K, P.Cd, P.gamma, P.area, P.dp_small, P.cracking_pressure,
                                P.opening_band, P.leakage])
-        return net.CHECK_VALVE, int(bool(P.nozzle)), (P.law_RT, P.law_rho), per, None
+        return (net.CHECK_VALVE, int(bool(P.nozzle)), (P.law_RT, P.law_rho, *_regime_cut()),
+                per, None)
     if cls is Actuator:
         if P.pv is None or P.rho_kind == 2:
             return None
@@ -182,8 +187,8 @@ def _covered_thermal(net, cls, P):
         if law == "check":
             per = np.column_stack([P.K, P.Cd, P.gamma, P.area, P.dp_small, P.cracking_pressure,
                                    P.opening_band, P.leakage])
-            return (net.THERMAL_CHECK_VALVE, int(bool(P.nozzle)), (P.law_RT, P.law_rho, *energy),
-                    per, None)
+            return (net.THERMAL_CHECK_VALVE, int(bool(P.nozzle)),
+                    (P.law_RT, P.law_rho, *energy, *_regime_cut()), per, None)
         return None
     wall = getattr(P, "wall", None)
     if wall is not None and issubclass(cls, (th._Free, th._Held)):
@@ -199,6 +204,15 @@ def _covered_thermal(net, cls, P):
         free = issubclass(cls, th._Free)
         return net.FREE_VOLUME if free else net.HELD_VOLUME, kind, floats, per, None
     return None
+
+
+def _regime_cut():
+    """A check valve's regimes' cut as the loop reads it (the last of its
+    group floats): REGIME_EDGE and LOW_PIECES of
+    :meth:`softflow.components.valves.CheckValve.regime`, read when the
+    network is described (the compiled code holds no copy)."""
+    from ..components import valves
+    return float(valves.REGIME_EDGE), float(valves.LOW_PIECES)
 
 
 def _curve_floats(curve):
@@ -240,10 +254,25 @@ class CompiledNetwork:
     ones the assembly's compiled ``residual`` passes (``raw`` the assembly's
     own); a new parameter value (``run(params=...)``) builds a new
     CompiledNetwork (read it again from ``asm.residual.network`` at the
-    start of each run)."""
+    start of each run).
+
+    The same arrays give the assembly's switching functions, kinks and
+    pieces in compiled code (:mod:`softflow.laws.network`)::
+
+        net.switching_loop(x, S, net.groups, net.cols, net.fpar, g_out)  # asm.switching(x, S)
+        net.kinks_loop(x, net.groups, net.cols, net.fpar, out)         # asm.kinks(x)
+        net.regimes_loop(x, net.groups, net.cols, net.fpar, out)       # asm.regimes(x)
+
+    each writing its values in the assembly's order (g_out float; out of any
+    numeric dtype, int64 say: the classes' integers) and returning how many;
+    ``n_switching``, ``n_kinks`` and ``n_regimes`` are those counts (0 where
+    no group states them: the assembly's answer is then None), for arrays
+    allocated once. :meth:`switching`, :meth:`kinks` and :meth:`regimes` are
+    the assembly's methods that way (new arrays, or None)."""
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
-        self.loop = law_module("network").residual
+        laws = law_module("network")
+        self.loop = laws.residual
         self.asm = asm
         self.n, self.n_node_rows, self.raw = asm.n, asm.n_node_rows, asm.raw
         self.trows, self.tcols = trows, tcols
@@ -253,6 +282,37 @@ class CompiledNetwork:
         self.time_dependent = bool(varying)
         self.set_time = _no_time
         self._sources = sources
+        self.switching_loop, self.kinks_loop, self.regimes_loop = (
+            laws.switching, laws.kinks, laws.regimes)
+        self.n_switching, self.n_kinks, self.n_regimes = (
+            int(k) for k in laws.sizes(groups))
+
+    def switching(self, x, S):
+        """``asm.switching(x, S)`` from the compiled :func:`softflow.laws.network.switching`
+        (a new float array), or None where no group states switching functions."""
+        if not self.n_switching:
+            return None
+        out = np.empty(self.n_switching)
+        self.switching_loop(x, S, self.groups, self.cols, self.fpar, out)
+        return out
+
+    def kinks(self, x):
+        """``asm.kinks(x)`` from the compiled :func:`softflow.laws.network.kinks`
+        (a new int64 array), or None where no group states kinks."""
+        if not self.n_kinks:
+            return None
+        out = np.empty(self.n_kinks, dtype=np.int64)
+        self.kinks_loop(x, self.groups, self.cols, self.fpar, out)
+        return out
+
+    def regimes(self, x):
+        """``asm.regimes(x)`` from the compiled :func:`softflow.laws.network.regimes`
+        (a new int64 array), or None where no group states pieces."""
+        if not self.n_regimes:
+            return None
+        out = np.empty(self.n_regimes, dtype=np.int64)
+        self.regimes_loop(x, self.groups, self.cols, self.fpar, out)
+        return out
 
     def source_arrays(self):
         """The sources' values, all of ``u`` in its order, as the arrays
