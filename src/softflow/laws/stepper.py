@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from . import jit
+from . import inline, jit
 from .network import residual
 from .waves import source_values
 
@@ -281,7 +281,7 @@ def _clip(x, step, T_idx, t_lo, t_hi):
         step[i] = -d
 
 
-@jit
+@inline
 def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
     stats[RESIDUALS] += 1
     if jac:
@@ -290,30 +290,34 @@ def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
     return residual(x, S, t, c, jac, F, raw, nr, trows, tcols, groups, cols, fpar, u, Sout)
 
 
-@jit
-def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, xn,
-           Fn, none, stats):
+@inline
+def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, none, stats):
     """Chord iterations from x0 (:meth:`Newton._chord`): the solution in x and
-    True, or False (diverging, too slow, not finite, refused by a law)."""
+    True, or False (diverging, too slow, not finite, refused by a law). One
+    evaluation of the residual per pass (:func:`softflow.laws.inline`):
+    at x0 first (with the Jacobian on fresh factors), then at each update."""
     raw, flat, J, LU, piv, ir, ic = lin
     x[:] = x0
-    if _evaluate(net, x, psi, t, c, fresh, F, none, stats) >= 0 or not _finite(F):
-        return False
-    if fresh:
-        stats[FACTORIZATIONS] += 1
-        if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
-            ist[STALE] = 1
-            return False
-        ist[FACTORED] = 1
-        ist[AGE] = 0
-        ist[STALE] = 0
-        fst[LU_DT] = c
-        fst[CRATE] = 1.0
-        fst[DT_LO], fst[DT_HI] = fst[RATIO_LO] * c, fst[RATIO_HI] * c
     limit = ist[MAX_ITER] if fresh else ist[MAX_REUSE]
     prev = -1.0
     clip = ist[CLIP] > 0
     for k in range(limit):
+        jac = fresh and k == 0
+        # Newton damps only to keep the residual finite: the compiled loop
+        # leaves that to it
+        if _evaluate(net, x, psi, t, c, jac, F, none, stats) >= 0 or not _finite(F):
+            return False
+        if jac:
+            stats[FACTORIZATIONS] += 1
+            if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
+                ist[STALE] = 1
+                return False
+            ist[FACTORED] = 1
+            ist[AGE] = 0
+            ist[STALE] = 0
+            fst[LU_DT] = c
+            fst[CRATE] = 1.0
+            fst[DT_LO], fst[DT_HI] = fst[RATIO_LO] * c, fst[RATIO_HI] * c
         lu_solve(LU, piv, ir, ic, F, step)
         nrm = _norm(step, itol)
         stats[ITERATIONS] += 1
@@ -334,21 +338,13 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, xn
         else:
             done = nrm <= 1.0 or (nrm <= fst[FIRST_MAX]
                                   and nrm * max(fst[ETA], 1e-3) ** 0.8 <= 1.0)
+        for i in range(x.size):
+            x[i] = x[i] - step[i]
         if done:
-            for i in range(x.size):
-                x[i] = x[i] - step[i]
             ist[ONE_ITER] = 1 if k == 0 else 0
             if k + 1 >= ist[MAX_REUSE] and not fresh:
                 ist[STALE] = 1
             return True
-        for i in range(x.size):
-            xn[i] = x[i] - step[i]
-        # Newton damps only to keep the residual finite: the compiled loop
-        # leaves that to it
-        if _evaluate(net, xn, psi, t, c, False, Fn, none, stats) >= 0 or not _finite(Fn):
-            return False
-        x[:] = xn
-        F[:] = Fn
         prev = nrm
     return False
 
@@ -361,33 +357,30 @@ def _positive(x, p_idx):
     return True
 
 
-@jit
+@inline
 def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, q_id,
            p_idx, T_idx, work, none, stats, nrtol):
-    """Newton's solve of one step (:meth:`Newton.solve`'s chord stages): True
+    """Newton's solve of one step (:meth:`Newton.solve`'s chord stages, on
+    reused factors where they serve the step, then on fresh ones): True
     with the solution in work[0], or False where the BDF's own Newton must
     take the step (its damped stages, the culprit finder)."""
-    x, F, step, xn, Fn = work[0], work[1], work[2], work[3], work[4]
+    x, F, step = work[0], work[1], work[2]
     _newton_scale(x0, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, itol)
     reusable = (ist[STALE] == 0 and ist[AGE] < ist[MAX_AGE]
                 and fst[DT_LO] <= c <= fst[DT_HI])
-    if reusable:
-        if _chord(net, lin, x0, psi, t, c, False, ist, fst, itol, T_idx, x, F, step, xn, Fn,
+    for stage in range(2):
+        if stage == 0 and not reusable:
+            continue
+        if _chord(net, lin, x0, psi, t, c, stage == 1, ist, fst, itol, T_idx, x, F, step,
                   none, stats):
             if not _positive(x, p_idx):
                 return False
             ist[AGE] += 1
             return True
-    if _chord(net, lin, x0, psi, t, c, True, ist, fst, itol, T_idx, x, F, step, xn, Fn,
-              none, stats):
-        if not _positive(x, p_idx):
-            return False
-        ist[AGE] += 1
-        return True
     return False
 
 
-@jit
+@inline
 def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_id, p_idx,
            T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
     """Backward Euler from (x0, S) at t over h, Newton held to 1e-12 (or the
@@ -397,12 +390,17 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
     base, slot, codes, factors, starts, floats = sources
     source_values(t + h, base, slot, codes, factors, starts, floats, net[7])
     nrtol = fst[NEWTON_RTOL]
-    if not _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off, q_id,
-                  p_idx, T_idx, work, none, stats, min(nrtol, 1e-12)):
-        if not (nrtol > 1e-12 and _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor,
-                                         links, natol, x_off, q_id, p_idx, T_idx, work, none,
-                                         stats, nrtol)):
-            return False
+    solved = False
+    for tight in range(2):
+        if tight == 1 and not nrtol > 1e-12:
+            break
+        if _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off,
+                  q_id, p_idx, T_idx, work, none, stats,
+                  min(nrtol, 1e-12) if tight == 0 else nrtol):
+            solved = True
+            break
+    if not solved:
+        return False
     if _evaluate(net, work[0], S, t + h, h, False, Fe, rate, stats) >= 0:
         return False
     stats[RESIDUALS] -= 1
@@ -423,7 +421,7 @@ def _restart_norm(v, vx, w, m, n_disc, peak_factor, buf):
     return _enorm(buf, w, m, n_disc, peak_factor)
 
 
-@jit
+@inline
 def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_off, q_id,
              p_idx, T_idx, work, none, stats, sources, atol_s, atol_x, qmax_run, w, Fe,
              x_right, r0, xdot, buf):
@@ -431,35 +429,46 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
     backward Euler probes of tiny steps, a third over the step the first
     derivatives suggest; the first step aims at an order-1 error estimate
     of FIRST_ESTIMATE. Returns the step, or -1 where a probe needs the
-    BDF's own (continuation)."""
+    BDF's own (continuation). (One probe call in a loop over the three:
+    :func:`softflow.laws.inline`.)"""
     ns, n = S.size, x.size
     n_disc, m = ist[N_DISC], ist[M_ERR]
     span = limit - t
     h_p = min(max(fst[STEP_MIN], 1e-7 * fst[DURATION]), 0.25 * span)
     rate = np.empty(ns)
-    if not _probe(net, lin, x, S, t, h_p, ist, fst, itol, floor, links, natol, x_off, q_id,
-                  p_idx, T_idx, work, none, stats, sources, Fe, r0, n_disc, atol_s):
-        return -1.0
-    x1 = work[0].copy()
-    if not _probe(net, lin, x1, S, t, 2 * h_p, ist, fst, itol, floor, links, natol, x_off,
-                  q_id, p_idx, T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
-        return -1.0
-    for i in range(n):
-        xdot[i] = (work[0][i] - x1[i]) / h_p
-        x_right[i] = x1[i] - h_p * xdot[i]
-    if math.isfinite(fst[FIRST_STEP]):
-        return max(min(fst[FIRST_STEP], span), fst[STEP_MIN])
-    _weights(S, S, x_right, atol_s, atol_x, x_off, q_id, qmax_run, fst[RTOL], w)
-    for q in range(floor.size):
-        floor[q] = qmax_run[q] * fst[FLOOR_FACTOR]
-    ist[HAS_FLOOR] = 1
+    x1 = np.empty(n)
     pf = fst[PEAK_FACTOR]
-    d0 = _restart_norm(S, x_right, w, m, n_disc, pf, buf)
-    d1 = _restart_norm(r0, xdot, w, m, n_disc, pf, buf)
-    h0 = 1e-6 * span if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-    h0 = min(max(h0, 4 * h_p), span, fst[STEP_MAX])
-    if not _probe(net, lin, x_right, S, t, h0, ist, fst, itol, floor, links, natol, x_off,
-                  q_id, p_idx, T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
+    h0 = h_p
+    for probe in range(3):
+        if probe == 0:
+            start, step_, out = x, h_p, r0
+        elif probe == 1:
+            start, step_, out = x1, 2 * h_p, rate
+        else:
+            if math.isfinite(fst[FIRST_STEP]):
+                return max(min(fst[FIRST_STEP], span), fst[STEP_MIN])
+            _weights(S, S, x_right, atol_s, atol_x, x_off, q_id, qmax_run, fst[RTOL], w)
+            for q in range(floor.size):
+                floor[q] = qmax_run[q] * fst[FLOOR_FACTOR]
+            ist[HAS_FLOOR] = 1
+            d0 = _restart_norm(S, x_right, w, m, n_disc, pf, buf)
+            d1 = _restart_norm(r0, xdot, w, m, n_disc, pf, buf)
+            h0 = 1e-6 * span if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+            h0 = min(max(h0, 4 * h_p), span, fst[STEP_MAX])
+            start, step_, out = x_right, h0, rate
+        ok = _probe(net, lin, start, S, t, step_, ist, fst, itol, floor, links, natol, x_off,
+                    q_id, p_idx, T_idx, work, none, stats, sources, Fe, out, n_disc, atol_s)
+        if probe == 0:
+            if not ok:
+                return -1.0
+            x1[:] = work[0]
+        elif probe == 1:
+            if not ok:
+                return -1.0
+            for i in range(n):
+                xdot[i] = (work[0][i] - x1[i]) / h_p
+                x_right[i] = x1[i] - h_p * xdot[i]
+    if not ok:
         h = 0.1 * h0
     else:
         x3 = work[0]
@@ -515,7 +524,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     delta = np.empty(width)
     w = np.empty(ns + n)
     itol = np.empty(n)
-    work = np.empty((5, n))
+    work = np.empty((3, n))
     S_new = np.empty(ns)
     Fe = np.empty(n)
     none = np.empty(0)
@@ -740,7 +749,7 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
     t_stop = T * (1 - 1e-14)
     h0, n_grid = grid[0], int(grid[1])
     itol = np.empty(n)
-    work = np.empty((5, n))
+    work = np.empty((3, n))
     S_new = np.empty(ns)
     Fe = np.empty(n)
     none = np.empty(0)
