@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from . import inline, jit
-from .network import residual
+from .network import kinks, regimes, residual
 from .waves import source_values
 
 #: why the loop returned
@@ -296,7 +296,7 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, no
     True, or False (diverging, too slow, not finite, refused by a law). One
     evaluation of the residual per pass (:func:`softflow.laws.inline`):
     at x0 first (with the Jacobian on fresh factors), then at each update."""
-    raw, flat, J, LU, piv, ir, ic = lin
+    raw, flat, J, LU, piv, ir, ic = lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6]
     x[:] = x0
     limit = ist[MAX_ITER] if fresh else ist[MAX_REUSE]
     prev = -1.0
@@ -312,6 +312,8 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, no
             if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
                 ist[STALE] = 1
                 return False
+            if lin[7].size:        # the pieces of the laws this Jacobian is of
+                regimes(x, net[4], net[5], net[6], lin[7])
             ist[FACTORED] = 1
             ist[AGE] = 0
             ist[STALE] = 0
@@ -375,6 +377,15 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
                   none, stats):
             if not _positive(x, p_idx):
                 return False
+            # a piecewise law (a check valve) on another piece than the
+            # Jacobian's: the BDF's Newton solves again on its own piece
+            r_fact, r_now = lin[7], lin[8]
+            if r_fact.size:
+                regimes(x, net[4], net[5], net[6], r_now)
+                for i in range(r_now.size):
+                    if r_now[i] != r_fact[i]:
+                        ist[STALE] = 1
+                        return False
             ist[AGE] += 1
             return True
     return False
@@ -429,7 +440,7 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
     backward Euler probes of tiny steps, a third over the step the first
     derivatives suggest; the first step aims at an order-1 error estimate
     of FIRST_ESTIMATE. Returns the step, or -1 where a probe needs the
-    BDF's own (continuation). (One probe call in a loop over the three:
+    BDF's own (its damped stages, continuation). (One probe call in a loop over the three:
     :func:`softflow.laws.inline`.)"""
     ns, n = S.size, x.size
     n_disc, m = ist[N_DISC], ist[M_ERR]
@@ -458,29 +469,27 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
             start, step_, out = x_right, h0, rate
         ok = _probe(net, lin, start, S, t, step_, ist, fst, itol, floor, links, natol, x_off,
                     q_id, p_idx, T_idx, work, none, stats, sources, Fe, out, n_disc, atol_s)
+        # a probe that Newton's chord stages do not solve: the BDF's own
+        # restart (its damped stages solve the third probe where the chord
+        # fails, and the first step follows from it)
+        if not ok:
+            return -1.0
         if probe == 0:
-            if not ok:
-                return -1.0
             x1[:] = work[0]
         elif probe == 1:
-            if not ok:
-                return -1.0
             for i in range(n):
                 xdot[i] = (work[0][i] - x1[i]) / h_p
                 x_right[i] = x1[i] - h_p * xdot[i]
-    if not ok:
-        h = 0.1 * h0
-    else:
-        x3 = work[0]
-        ddx = np.empty(n)
-        for i in range(n):
-            ddx[i] = 2 * (x3[i] - x_right[i] - h0 * xdot[i]) / h0 ** 2
-        for i in range(ns):
-            rate[i] = (rate[i] - r0[i]) / h0
-        d2 = _restart_norm(rate, ddx, w, m, n_disc, pf, buf)
-        h1 = (math.sqrt(2 * fst[FIRST_ESTIMATE] / d2) if d2 > 1e-15
-              else max(1e-6 * span, 1e3 * h0))
-        h = min(100 * h0, h1)
+    x3 = work[0]
+    ddx = np.empty(n)
+    for i in range(n):
+        ddx[i] = 2 * (x3[i] - x_right[i] - h0 * xdot[i]) / h0 ** 2
+    for i in range(ns):
+        rate[i] = (rate[i] - r0[i]) / h0
+    d2 = _restart_norm(rate, ddx, w, m, n_disc, pf, buf)
+    h1 = (math.sqrt(2 * fst[FIRST_ESTIMATE] / d2) if d2 > 1e-15
+          else max(1e-6 * span, 1e3 * h0))
+    h = min(100 * h0, h1)
     return max(min(h, span, fst[STEP_MAX]), fst[STEP_MIN])
 
 
@@ -530,6 +539,11 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     none = np.empty(0)
     Q_new = np.empty(nQ)
     x_right, r0, xdot, buf = np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n)
+    # the sides of the laws' kinks (a check valve shut, opening, open) at the
+    # point: a step across one is the BDF's (its dense output, its order)
+    kink_at, kink_new = lin[9], lin[10]
+    if kink_at.size:
+        kinks(x, net[4], net[5], net[6], kink_at)
     used = 0           # steps tried, accepted and rejected (Simulation(max_steps=))
     while t < t_stop:
         if ist[N_REC] >= n_rec_cap or ist[N_DENSE] + kmax > n_dense_cap \
@@ -603,6 +617,11 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         if n_disc:
             for i in range(ns):
                 if S_new[i] != S[i] and not math.isfinite(atol_s[i]):
+                    return SWITCH, t
+        if kink_at.size:
+            kinks(x_new, net[4], net[5], net[6], kink_new)
+            for i in range(kink_new.size):
+                if kink_new[i] != kink_at[i]:
                     return SWITCH, t
         # the error test (BDF._judge)
         for i in range(ns):

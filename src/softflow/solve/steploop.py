@@ -9,14 +9,15 @@ Which runs: a network the compiled residual covers
 (:mod:`softflow.solve.netcore`), solved by the dense LU (up to
 :data:`softflow.solve.linalg.DENSE_MAX` unknowns), whose sources are
 constants or waveforms of the kinds :mod:`softflow.solve.wavecodes`
-describes, without laws that change pieces inside Newton's solve (check
-valves: ``regimes``, ``kinks``), per-step coefficients (a heat-transfer
-correlation's ``begin_step``), sensitivities or independent sub-networks
-(batched variants). Every other run, and every step the loop hands back
+describes, without per-step coefficients (a heat-transfer correlation's
+``begin_step``), sensitivities or independent sub-networks (batched
+variants). Every other run, and every step the loop hands back
 (:data:`softflow.laws.stepper.EXITS`: Newton's damped stages, the culprit
 finder and continuation after a failed solve, forced steps, mode switches,
-emptied volumes, restarts whose probes fail), is the stepper's own in
-Python, from the state the loop leaves. The loop takes restarts, steps to
+steps across a law's kink (a check valve that shuts or opens), solutions on
+another piece of a piecewise law than the Jacobian's, emptied volumes,
+restarts whose probes fail), is the stepper's own in Python, from the
+state the loop leaves. The loop takes restarts, steps to
 breakpoints and the end itself.
 
 :data:`softflow.solve.settings.COMPILED_STEPS` turns the loop off (the
@@ -42,9 +43,16 @@ class _Bound:
         asm, newton = integ.asm, integ.newton
         n, ns = asm.n, asm.S0.size
         self.net, self.sources = net, sources
+        network = asm.residual.network
+        nr, nk = network.n_regimes, network.n_kinks
+        # (J, LU, pivots, scales; the pieces of the Jacobian's laws and at a
+        # solution; the kinks' sides at the point and at a step's end)
         self.lin = (net[0], np.ascontiguousarray(asm.dense_index(), dtype=np.int64),
                     np.zeros((n, n)), np.zeros((n, n)), np.zeros(n, dtype=np.int64),
-                    np.ones(n), np.ones(n))
+                    np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
+                    np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0,
+                                                           dtype=np.int64),
+                    np.zeros(nk if asm.has_kinks else 0, dtype=np.int64))
         links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
         self.tol = (np.ascontiguousarray(atol_s, dtype=float),
                     np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
@@ -100,8 +108,13 @@ class _Bound:
         fst[st.ETA], fst[st.CRATE] = newton.eta, newton._crate
         fst[st.FIRST_MAX] = newton.first_max
         lin = newton.lin
-        if not newton.stale and newton.lu_dt is not None and lin.lu is not None:
-            LU, piv, ir, ic = self.lin[3:]
+        r_fact = self.lin[7]
+        pieces = newton._jac_regime
+        if (not newton.stale and newton.lu_dt is not None and lin.lu is not None
+                and (not r_fact.size or pieces is not None)):
+            LU, piv, ir, ic = self.lin[3:7]
+            if r_fact.size:
+                r_fact[:] = np.frombuffer(pieces, dtype=np.int8)
             LU[:] = lin.lu[0]
             piv[:] = lin.lu[1]
             if lin.scales is None:
@@ -144,8 +157,10 @@ class _Bound:
             floor = self.floor.copy()
             newton.scale_floor = floor.tolist() if newton._small else floor
         if ist[st.FACTORED] and not ist[st.STALE]:
-            J, LU, piv, ir, ic = self.lin[2:]
+            J, LU, piv, ir, ic = self.lin[2:7]
             newton.lin.adopt(J, LU, piv, ir, ic)
+            if self.lin[7].size:
+                newton._jac_regime = self.lin[7].astype(np.int8).tobytes()
         if ist[st.STALE]:
             newton.stale = True
         else:
@@ -292,8 +307,8 @@ def _served(integ):
         return None
     asm, newton = integ.asm, integ.newton
     net = getattr(asm.residual, "network", None)
-    if (net is None or newton is None or newton.lin.kind != "dense" or asm.has_regimes
-            or asm.has_kinks or asm.has_begin_step or integ.sens is not None
+    if (net is None or newton is None or newton.lin.kind != "dense"
+            or asm.has_begin_step or integ.sens is not None
             or newton.offset is not None or not asm.n):
         return None
     sources = net.source_arrays()
