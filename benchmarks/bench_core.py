@@ -3,10 +3,22 @@
     python benchmarks/bench_core.py            # all cases, N up to 100 000
     python benchmarks/bench_core.py --max-n 10000 --repeat 3
     python benchmarks/bench_core.py --parts a     # the paper scene only
+    python benchmarks/bench_core.py --parts d --repeat 5   # compiled step loop on / off
 
 (a) the FONS paper example scene; (b) the chain
 PressureSource -> (CircularTube -> Container) x N with air, 1 ms steps, 0.2 s;
-(c) a small scene (~10 components). If fonsim is installed
+(c) a small scene (~10 components), (b) and (c) also with the compiled step loop
+on and off where the installed softflow has the fixed-step loop (FixedSteps);
+(d) the adaptive BDF on air chains with the
+compiled step loop (softflow.solve.steploop, issue 38) on and off
+(settings.COMPILED_STEPS), run by run in turns: CPU of run(), us per accepted
+step, the loop's share of the steps and the CPU inside it, at rtol 1e-3 and
+1e-8, and the marginal cost of a step between them (the difference of the run
+times over the difference of the steps: a run's fixed costs cancel). These
+runs record one point per step (refine=1: the steps' cost, not the dense
+output's); the default refine='auto' is timed beside them (loop on), with the
+points it records. The paper example's adaptive run in (a) is also timed with
+the loop off. If fonsim is installed
 (pip install fonsim==0.6.0) the paper scene and chains with N <= 128 also run
 on it in the same process, and the speed ratio and the largest difference in
 results are printed. Medians over --repeat runs.
@@ -18,6 +30,7 @@ import statistics
 import sys
 import time
 import tracemalloc
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +42,8 @@ sys.path.insert(0, str(HERE))
 import softflow as sf  # noqa: E402
 from softflow.demo import paper_system  # noqa: E402
 from scenes import chain  # noqa: E402
+from accuracy_reference import air_chain  # noqa: E402
+from bench_paper_scenes import LoopSpy, compiled_loop, print_serves  # noqa: E402
 
 CSV = HERE.parent / "examples" / "latex_balloon_60mm_pv.csv"
 
@@ -114,11 +129,25 @@ def bench_paper(repeat, fonsim):
 
     t_sf, t_fo, r_fixed, sim, ref = side_by_side(1e-3)
     t_ad, t_fd, r_ad, sim_ad, ref_ad = side_by_side(None)
+    # the adaptive run with the compiled step loop on and off, in turns (CPU)
+    cpu_on, cpu_off = [], []
+    for i in range(repeat):
+        for on in ((True, False) if i % 2 == 0 else (False, True)):
+            with compiled_loop(on):
+                c0 = time.process_time()
+                run_sf(None)
+                (cpu_on if on else cpu_off).append(time.process_time() - c0)
+    with LoopSpy() as spy:
+        n_ad = run_sf(None).result.stats["steps"]
     st = sim.result.stats
     print(f"  softflow fixed 1 ms : {t_sf * 1e3:8.1f} ms  ({st['steps']} steps, "
           f"{st['steps'] / t_sf:,.0f} steps/s, {st['newton_iterations']} Newton it., "
           f"{st['factorizations']} LU)")
     print(f"  softflow adaptive   : {t_ad * 1e3:8.1f} ms  ({sim_ad.result.stats['steps']} steps)")
+    m_on, m_off = statistics.median(cpu_on), statistics.median(cpu_off)
+    print(f"  softflow adaptive, CPU, compiled step loop on / off (in turns): "
+          f"{m_on * 1e3:.1f} / {m_off * 1e3:.1f} ms ({m_on / m_off:.2f}); the loop took "
+          f"{spy.share(n_ad)} of the steps ({spy.exits_text()})")
     if fonsim:
         p_sf = sim.result.get("actu", "pressure")
         n = min(len(p_sf), len(ref["p_actu"]))
@@ -138,6 +167,25 @@ def bench_paper(repeat, fonsim):
               f"max deviation {dev_ad * 100:.3f} %")
         print(f"  speed-up, both at their adaptive defaults       : {t_fd / t_ad:6.1f} x "
               f"(median of run pairs {r_ad:.1f} x)")
+
+
+def loop_on_off(run, repeat):
+    """'run() CPU with the compiled step loop on / off ...': ``run`` (a
+    Simulation's, run again) timed with settings.COMPILED_STEPS on and off in
+    turns, medians of ``repeat``, and the loop's share of the steps (spied)."""
+    cpu = {True: [], False: []}
+    for i in range(repeat):
+        for on in ((True, False) if i % 2 == 0 else (False, True)):
+            with compiled_loop(on):
+                c0 = time.process_time()
+                run()
+                cpu[on].append(time.process_time() - c0)
+    with LoopSpy() as spy:
+        steps = run().stats["steps"]
+    a, b = statistics.median(cpu[True]), statistics.median(cpu[False])
+    return (f"run() CPU, compiled step loop on / off (in turns): {a * 1e3:.1f} / "
+            f"{b * 1e3:.1f} ms ({a / b:.2f}); the loop took {spy.share(steps)} of the steps "
+            f"({spy.exits_text()})")
 
 
 def bench_chain(Ns, repeat, fonsim, duration=0.2):
@@ -168,6 +216,8 @@ def bench_chain(Ns, repeat, fonsim, duration=0.2):
               f"{st['factorizations']:>4} {t_it * 1e3:>7.3f}ms {floor * 1e3:>7.2f}ms "
               f"{t_it / floor:>6.2f} {mem:>8.1f}")
         rows.append((N, sim, t_run))
+        if N <= 1000:
+            print(f"  {'':>7} {loop_on_off(sim.run, rep)}")
     if fonsim:
         import fonsim_scenes
         print("  side by side with fonsim 0.6 (same scene, fixed 1 ms):")
@@ -194,6 +244,70 @@ def bench_small(repeat):
     print(f"  {t * 1e3:.1f} ms for {st['steps']} steps: {st['steps'] / t:,.0f} steps/s "
           f"({st['newton_iterations']} Newton it., {st['factorizations']} LU, "
           f"{st['linear_solver']} LU)")
+    print(f"  {loop_on_off(sim.run, repeat)}")
+
+
+def bench_adaptive(repeat, rtols=(1e-3, 1e-8), duration=0.2):
+    """(d): the adaptive BDF with the compiled step loop on and off."""
+    print(f"\n(d) adaptive BDF (default method), air chains, {duration} s: compiled step loop on "
+          "/ off (settings.COMPILED_STEPS),\n    run by run in turns; CPU (process_time) of "
+          f"run() alone, medians of {repeat} [min-max], refine=1; us/step = run / accepted "
+          "steps;\n    loop: the compiled loop's share of the steps and its CPU per step taken "
+          "(spy on CompiledSteps.run, one more run);\n    'auto': the same run (loop on) at the "
+          "default refine='auto', CPU ms and the points it records")
+    print_serves("    ")
+    cases = [(f"chain N = {N}, Haaland, pipe-flow", lambda N=N: chain(N)) for N in (8, 31, 200)]
+    cases.append(("air chain N = 8, laminar, mean-density (bench_accuracy's)",
+                  lambda: air_chain(8)))
+    print(f"  {'scene':57s} {'n':>4s} {'rtol':>5s} {'steps':>5s} {'Sim()':>6s} "
+          f"{'run on ms':>17s} {'run off ms':>17s} {'on/off':>6s} {'us/step on':>10s} "
+          f"{'off':>6s} {'loop share':>15s} {'us/loop step':>12s} {'auto ms (points)':>17s}")
+
+    def cpu_run(build, rtol, on, builds=None, refine=1):
+        with compiled_loop(on), warnings.catch_warnings():
+            warnings.simplefilter("ignore")     # the air chain's first tube passes Mach 1
+            c0 = time.process_time()
+            sim = sf.Simulation(build(), duration=duration, rtol=rtol, beyond_limits="warn",
+                                refine=refine)
+            c1 = time.process_time()
+            res = sim.run()
+            c2 = time.process_time()
+        if builds is not None:
+            builds.append(c1 - c0)
+        return c2 - c1, res
+
+    for name, build in cases:
+        cpu_run(build, rtols[-1], True)              # compile caches, CoolProp's import
+        marg = []
+        for rtol in rtols:
+            on, off, builds, auto = [], [], [], []
+            for i in range(repeat):
+                for flag in ((True, False) if i % 2 == 0 else (False, True)):
+                    c, res = cpu_run(build, rtol, flag, builds)
+                    (on if flag else off).append(c)
+                c, res_auto = cpu_run(build, rtol, True, refine="auto")
+                auto.append(c)
+            with LoopSpy() as spy:
+                res = cpu_run(build, rtol, True)[1]
+            n_off = cpu_run(build, rtol, False)[1].stats["steps"]
+            n = res.stats["steps"]
+            m_on, m_off = statistics.median(on), statistics.median(off)
+            marg.append((n, n_off, m_on, m_off))
+            steps = f"{n}" if n == n_off else f"{n}/{n_off}"
+            loop = (f"{spy.cpu / spy.steps * 1e6:12.1f}" if spy.steps
+                    else f"{'-':>12s}")
+            print(f"  {name:57s} {res.stats['unknowns']:4d} {rtol:5.0e} {steps:>5s} "
+                  f"{statistics.median(builds) * 1e3:5.1f}m "
+                  f"{m_on * 1e3:6.1f} [{min(on) * 1e3:.1f}-{max(on) * 1e3:.1f}] "
+                  f"{m_off * 1e3:6.1f} [{min(off) * 1e3:.1f}-{max(off) * 1e3:.1f}] "
+                  f"{m_on / m_off:6.2f} {m_on / n * 1e6:10.1f} {m_off / n_off * 1e6:6.1f} "
+                  f"{spy.share(n):>15s} {loop} {statistics.median(auto) * 1e3:8.1f} "
+                  f"({len(res_auto.times):>6d})", flush=True)
+        (n0, n0_off, a0, b0), (n1, n1_off, a1, b1) = marg[0], marg[-1]
+        print(f"  {'':57s} marginal us/step, rtol {rtols[0]:.0e} -> {rtols[-1]:.0e}: on "
+              f"{(a1 - a0) / max(n1 - n0, 1) * 1e6:.1f}, off "
+              f"{(b1 - b0) / max(n1_off - n0_off, 1) * 1e6:.1f}; loop "
+              f"{spy.exits_text()} (rtol {rtols[-1]:.0e})")
 
 
 def main(argv=None):
@@ -201,11 +315,14 @@ def main(argv=None):
     ap.add_argument("--max-n", type=int, default=100_000)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--no-fonsim", action="store_true")
-    ap.add_argument("--parts", default="abc", help="which cases to run, e.g. 'a' or 'bc'")
+    ap.add_argument("--parts", default="abcd", help="which cases to run, e.g. 'a' or 'bcd'")
     args = ap.parse_args(argv)
     fonsim = have_fonsim() and not args.no_fonsim
+    # the scenes' model checks (the paper tube's left-out inertia, the chains' fast
+    # isothermal fills) warn once per run: the same findings every repeat
+    warnings.simplefilter("ignore", sf.ModelWarning)
     print(f"softflow {sf.__version__}; fonsim {'found' if fonsim else 'not installed'}; "
-          f"medians of {args.repeat} runs (1 run for N > 10 000)")
+          f"medians of {args.repeat} runs (1 run for N > 10 000); ModelWarnings silenced")
     if "a" in args.parts:
         bench_paper(args.repeat, fonsim)
     if "b" in args.parts:
@@ -213,6 +330,8 @@ def main(argv=None):
                     fonsim)
     if "c" in args.parts:
         bench_small(args.repeat)
+    if "d" in args.parts:
+        bench_adaptive(args.repeat)
 
 
 if __name__ == "__main__":

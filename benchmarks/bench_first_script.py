@@ -13,7 +13,12 @@ compile cache exists).
 ``--cold`` also runs softflow once with an empty numba cache directory (the
 first run after installation: the compile) and reports it separately.
 
-Usage: python benchmarks/bench_first_script.py [--repeats 7] [--cold]
+``--python-steps`` also runs the softflow script with
+``softflow.solve.settings.COMPILED_STEPS = False`` (every adaptive step the
+Python BDF's instead of the compiled step loop's, issue 38), in the same
+turns, and prints its CPU and the ratio of the two softflow medians.
+
+Usage: python benchmarks/bench_first_script.py [--repeats 7] [--cold] [--python-steps]
 """
 from __future__ import annotations
 
@@ -37,6 +42,12 @@ SOFTFLOW = textwrap.dedent("""
     r = sf.Simulation(s, duration=sf.Q_(50, "ms")).run()
     print(r.get("tank", "pressure")[-1])
 """)
+
+#: the same script with the compiled step loop off
+SOFTFLOW_PY_STEPS = SOFTFLOW.replace(
+    "import softflow as sf\n",
+    "import softflow as sf\nimport softflow.solve.settings\n"
+    "softflow.solve.settings.COMPILED_STEPS = False\n", 1)
 
 FONSIM = textwrap.dedent("""
     import contextlib, io
@@ -73,6 +84,8 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--cold", action="store_true",
                     help="also time one softflow run with an empty numba cache")
+    ap.add_argument("--python-steps", action="store_true",
+                    help="also time the softflow script with COMPILED_STEPS = False")
     args = ap.parse_args()
     try:
         import fonsim  # noqa: F401
@@ -82,16 +95,25 @@ def main() -> None:
     cpu_of(SOFTFLOW)            # warm the compile cache and the OS file cache
     if have_fonsim:
         cpu_of(FONSIM)
-    ours, theirs = [], []
+    if args.python_steps:
+        cpu_of(SOFTFLOW_PY_STEPS)
+    ours, theirs, py_steps = [], [], []
     for _ in range(args.repeats):
         t, p_ours = cpu_of(SOFTFLOW)
         ours.append(t)
+        if args.python_steps:
+            t, p_py = cpu_of(SOFTFLOW_PY_STEPS)
+            py_steps.append(t)
         if have_fonsim:
             t, p_theirs = cpu_of(FONSIM)
             theirs.append(t)
     print(f"tiny first script, whole process, CPU (user + system), {args.repeats} repeats, "
           f"{os.cpu_count()} cores")
     print(f"  softflow {spread(ours)}   tank ends at {float(p_ours):.6g} Pa")
+    if args.python_steps:
+        print(f"  softflow, COMPILED_STEPS = False {spread(py_steps)}   tank ends at "
+              f"{float(p_py):.6g} Pa; compiled loop / Python steps (medians): "
+              f"{statistics.median(ours) / statistics.median(py_steps):.3f}")
     if have_fonsim:
         print(f"  fonsim   {spread(theirs)}   tank ends at {float(p_theirs):.6g} Pa")
         print(f"  ratio softflow / fonsim (medians): "
