@@ -245,3 +245,30 @@ def test_a_progress_bar_moves_while_the_compiled_loop_runs(monkeypatch):
             sf.Simulation(rc_circuit(), duration=0.3).run(progress=True)
         looks[compiled] = list(seen)
     assert len(looks[True]) >= 3 and looks[True] == looks[False]
+
+
+def test_mode_switches_are_located_in_the_compiled_loop(monkeypatch):
+    """Fig. 4's snapping valve and Fig. 3's hysteretic actuator: the switches
+    are located (the step shortened to end just past each crossing) and the
+    method restarted in the compiled loop, which hands back none of them
+    (only Newton's failures and the run's end); the same steps as the BDF in
+    Python."""
+    exits = []
+    for cls in (steploop.CompiledSteps,):
+        def spy(self, *args, run=cls.run):
+            out = run(self, *args)
+            exits.append(stepper.EXITS[out[0]])
+            return out
+        monkeypatch.setattr(cls, "run", spy)
+    for name in ("fig4:snapping", "fig3:hysteretic"):
+        build, duration = SCENES[name]
+        exits.clear()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            monkeypatch.setattr(settings, "COMPILED_STEPS", False)
+            py = sf.Simulation(build(), duration=duration, refine=1).run()
+            monkeypatch.setattr(settings, "COMPILED_STEPS", True)
+            comp = sf.Simulation(build(), duration=duration, refine=1).run()
+        assert "switch" not in exits and exits[-1] == "done"
+        assert comp.stats["steps"] == py.stats["steps"]
+        assert comp.stats["rejected_steps"] == py.stats["rejected_steps"]

@@ -28,26 +28,27 @@ import math
 import numpy as np
 
 from . import inline, jit
-from .network import kinks, regimes, residual
+from .network import kinks, regimes, residual, switching
 from .waves import source_values
 
 #: why the loop returned
 DONE, NEWTON, FORCED, SWITCH, EMPTIED, FULL, BUDGET, RESTART = range(8)
 EXITS = ("done", "newton", "forced", "switch", "emptied", "full", "budget", "restart")
 #: the causes of the events it records (rejections, restarts)
-ERROR_EVENT, RESTART_EVENT = 0.0, 1.0
+ERROR_EVENT, RESTART_EVENT, SWITCH_EVENT = 0.0, 1.0, 2.0
 
 #: slots of the integer state ``ist``
 (K, N_EQUAL, FAILS, FAIL_HOLD, PASSED, AGE, STALE, ONE_ITER, FACTORED, BUDGET_LEFT,
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
- N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB) = range(24)
-IST_SIZE = 24
+ N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB, CAP_HOLD, SECANT_TRIES,
+ MAX_SECANT, LOG_SWITCHES) = range(28)
+IST_SIZE = 28
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
  MIN_FACTOR, MAX_FACTOR, GROW_MIN, PEAK_FACTOR, PIVOT_RTOL, CRDOWN, NEXT_BREAK,
- FIRST_STEP, FIRST_ESTIMATE) = range(29)
-FST_SIZE = 29
+ FIRST_STEP, FIRST_ESTIMATE, H_CAP, SWITCH_PAST, CHATTER_STEP) = range(32)
+FST_SIZE = 32
 #: slots of ``stats``
 (STEPS, REJECTED, ERROR_FAILS, ITERATIONS, RESIDUALS, JACOBIANS, FACTORIZATIONS) = range(7)
 STATS_SIZE = 7 + 6      # then the accepted steps per order 0..5
@@ -494,6 +495,25 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
 
 
 @jit
+def _crossing(net, x, S, x_new, S_new, atol_s, g0, g1, modes):
+    """The fraction of the step at which the first switching function
+    crosses zero, by a secant between the step's ends (the end evaluated
+    with the old modes), or -1 where none crosses (:meth:`BDF._crossing`)."""
+    groups, cols, fpar = net[4], net[5], net[6]
+    switching(x, S, groups, cols, fpar, g0)
+    for i in range(S.size):
+        modes[i] = S_new[i] if math.isfinite(atol_s[i]) else S[i]
+    switching(x_new, modes, groups, cols, fpar, g1)
+    theta = math.inf
+    for i in range(g0.size):
+        if g0[i] < 0.0 and g1[i] >= 0.0:
+            v = g0[i] / (g0[i] - g1[i])
+            if v < theta:
+                theta = v
+    return theta if 0.0 < theta <= 1.0 else -1.0
+
+
+@jit
 def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC):
     """Steps of the BDF from (t, x, S) until an event (module docstring).
@@ -541,13 +561,14 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     x_right, r0, xdot, buf = np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n)
     # the sides of the laws' kinks (a check valve shut, opening, open) at the
     # point: a step across one is the BDF's (its dense output, its order)
+    g0, g1, modes = np.empty(lin[11].size), np.empty(lin[11].size), np.empty(ns)
     kink_at, kink_new = lin[9], lin[10]
     if kink_at.size:
         kinks(x, net[4], net[5], net[6], kink_at)
     used = 0           # steps tried, accepted and rejected (Simulation(max_steps=))
     while t < t_stop:
         if ist[N_REC] >= n_rec_cap or ist[N_DENSE] + kmax > n_dense_cap \
-                or ist[N_EVENTS] + 1 >= n_ev_cap:
+                or ist[N_EVENTS] + 2 >= n_ev_cap:
             return FULL, t
         if used >= ist[BUDGET_LEFT]:
             return BUDGET, t
@@ -583,7 +604,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             fst[H] = h
         k, h = ist[K], fst[H]
         # the step: no overshoot of the limit, no sliver left before it
-        h_try = min(h, fst[STEP_MAX], fst[FAIL_CAP])
+        h_try = min(h, fst[STEP_MAX], fst[H_CAP], fst[FAIL_CAP])
         if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
             h_try = limit - t
         if h_try != h:
@@ -614,10 +635,15 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         if _evaluate(net, x_new, psi, t_eval, c, False, Fe, S_new, stats) >= 0:
             return NEWTON, t
         stats[RESIDUALS] -= 1         # (no equation solved: the states' update)
+        switched = False
         if n_disc:
             for i in range(ns):
                 if S_new[i] != S[i] and not math.isfinite(atol_s[i]):
-                    return SWITCH, t
+                    switched = True
+            # a switch logged in detail, or one at the smallest steps (a mode
+            # that may chatter): the BDF's
+            if switched and (ist[LOG_SWITCHES] or h <= fst[CHATTER_STEP] * fst[STEP_MIN]):
+                return SWITCH, t
         if kink_at.size:
             kinks(x_new, net[4], net[5], net[6], kink_new)
             for i in range(kink_new.size):
@@ -660,6 +686,38 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             fst[H] = h * factor_
             ist[N_EQUAL] = 0
             continue
+        # a mode switched: the step is shortened to end just past the
+        # crossing where the part past it moves the solution by more than
+        # the tolerance (BDF._switch_rejected)
+        if switched and h > smin:
+            for i in range(ns):
+                buf[i] = S_new[i] - S[i]
+            for i in range(n):
+                buf[ns + i] = x_new[i] - x[i]
+            motion = _enorm(buf, w, ns + n, n_disc, fst[PEAK_FACTOR])
+            theta = -1.0
+            if motion > 1.0 and ist[SECANT_TRIES] < ist[MAX_SECANT]:
+                theta = _crossing(net, x, S, x_new, S_new, atol_s, g0, g1, modes)
+            past = 1.0 if theta < 0.0 else 1.0 - theta
+            if motion * past > 1.0:
+                stats[REJECTED] += 1
+                used += 1
+                e = ist[N_EVENTS]
+                events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t_new, h, SWITCH_EVENT, 0.0
+                ist[N_EVENTS] = e + 1
+                if theta >= 0.0:
+                    ist[SECANT_TRIES] += 1
+                    past = min(fst[SWITCH_PAST], 0.5 / max(motion * theta, 1.0))
+                    factor_ = max(theta * (1.0 + past), fst[STEP_MIN] / h)
+                else:
+                    factor_ = max(0.5, fst[STEP_MIN] / h)
+                    fst[H_CAP] = h * factor_
+                    ist[CAP_HOLD] = ist[HOLD_STEPS]
+                _rescale(D, k, factor_)
+                fst[H] = h * factor_
+                ist[N_EQUAL] = 0
+                continue
+        ist[SECANT_TRIES] = 0
         # a volume past its limit: the BDF locates where it empties
         for j in range(w_index.size):
             if S_new[w_index[j]] < w_floor[j]:
@@ -670,6 +728,10 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             ist[FAIL_HOLD] -= 1
             if not ist[FAIL_HOLD]:
                 fst[FAIL_CAP] = math.inf
+        if ist[CAP_HOLD]:          # the switch did not come back: stop locating it
+            ist[CAP_HOLD] -= 1
+            if not ist[CAP_HOLD]:
+                fst[H_CAP] = math.inf
         stats[STEPS] += 1
         stats[7 + k] += 1
         for i in range(nQ):
@@ -704,11 +766,16 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         S[:] = S_new
         Q[:] = Q_new
         used += 1
-        if at_break:
-            # a declared jump: the method restarts from its far side
+        if at_break or switched:
+            # a declared jump, or a mode switched: the method restarts from
+            # the far side
+            if switched:
+                e = ist[N_EVENTS]
+                events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t, h, SWITCH_EVENT, 1.0
+                ist[N_EVENTS] = e + 1
             ist[RESTART_DUE] = 1
-            fst[FAIL_CAP] = math.inf
-            ist[FAIL_HOLD] = 0
+            fst[FAIL_CAP] = fst[H_CAP] = math.inf
+            ist[FAIL_HOLD] = ist[CAP_HOLD] = 0
             ist[STALE] = 1
             continue
         ist[N_EQUAL] += 1

@@ -578,8 +578,8 @@ class BDF(Integrator):
             return None
 
         def stretch(t, x, S):
-            if ((self._restart_due and self._forced_restart) or self._h_cap != math.inf
-                    or self._empty_tries or (self._k < 1 and not self._restart_due)):
+            if ((self._restart_due and self._forced_restart) or self._empty_tries
+                    or (self._k < 1 and not self._restart_due)):
                 return None
             _, t, x, S, _ = steps.run(t, x, S)
             return t, x, S

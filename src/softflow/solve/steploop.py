@@ -13,8 +13,9 @@ describes, without per-step coefficients (a heat-transfer correlation's
 ``begin_step``), sensitivities or independent sub-networks (batched
 variants). Every other run, and every step the loop hands back
 (:data:`softflow.laws.stepper.EXITS`: Newton's damped stages, the culprit
-finder and continuation after a failed solve, forced steps, mode switches,
-steps across a law's kink (a check valve that shuts or opens), solutions on
+finder and continuation after a failed solve, forced steps, a mode switch
+logged in detail or at the smallest steps (where it may chatter), steps
+across a law's kink (a check valve that shuts or opens), solutions on
 another piece of a piecewise law than the Jacobian's, emptied volumes,
 restarts whose probes fail), is the stepper's own in Python, from the
 state the loop leaves. The loop takes restarts, steps to
@@ -52,7 +53,8 @@ class _Bound:
                     np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
                     np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0,
                                                            dtype=np.int64),
-                    np.zeros(nk if asm.has_kinks else 0, dtype=np.int64))
+                    np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
+                    np.zeros(network.n_switching))
         links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
         self.tol = (np.ascontiguousarray(atol_s, dtype=float),
                     np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
@@ -148,7 +150,6 @@ class _Bound:
         stats.factorizations += int(s[st.FACTORIZATIONS])
         if s[st.STEPS]:
             integ._chatter = 0
-            integ._secant_tries = 0
             integ._approached = False
             integ._empty_tries = 0
         newton.eta, newton._crate = float(fst[st.ETA]), float(fst[st.CRATE])
@@ -210,6 +211,8 @@ class CompiledSteps(_Bound):
         fst[st.PEAK_FACTOR] = bdf_mod.PEAK_FACTOR
         fst[st.FIRST_STEP] = math.nan if bdf.first_step is None else bdf.first_step
         fst[st.FIRST_ESTIMATE] = bdf_mod.FIRST_ESTIMATE
+        fst[st.SWITCH_PAST], fst[st.CHATTER_STEP] = bdf_mod.SWITCH_PAST, bdf_mod.CHATTER_STEP
+        ist[st.MAX_SECANT] = bdf_mod.SECANT_TRIES
 
     def run(self, t, x, S):
         """Steps from (t, x, S) until the loop hands back (or the run's end):
@@ -221,7 +224,9 @@ class CompiledSteps(_Bound):
         ist[st.K], ist[st.N_EQUAL], ist[st.FAILS] = bdf._k, bdf._n_equal, bdf._fails
         ist[st.FAIL_HOLD], ist[st.PASSED] = bdf._fail_hold, int(bdf._passed)
         ist[st.RESTART_DUE] = int(bdf._restart_due)
-        fst[st.H], fst[st.FAIL_CAP] = bdf._h, bdf._fail_cap
+        ist[st.CAP_HOLD], ist[st.SECANT_TRIES] = bdf._cap_hold, bdf._secant_tries
+        ist[st.LOG_SWITCHES] = int(getattr(bdf.progress, "_debug", False))
+        fst[st.H], fst[st.FAIL_CAP], fst[st.H_CAP] = bdf._h, bdf._fail_cap, bdf._h_cap
         fst[st.ERR] = getattr(bdf, "_err", 0.0)
         qmax_run = (np.zeros(self.floor.size) if bdf._qmax_run is None
                     else np.array(bdf._qmax_run, dtype=float))
@@ -238,6 +243,8 @@ class CompiledSteps(_Bound):
         bdf._h, bdf._fail_cap, bdf._err = float(fst[st.H]), float(fst[st.FAIL_CAP]), float(fst[st.ERR])
         bdf._qmax_run = qmax_run
         bdf._restart_due = bool(ist[st.RESTART_DUE])
+        bdf._h_cap, bdf._cap_hold = float(fst[st.H_CAP]), int(ist[st.CAP_HOLD])
+        bdf._secant_tries = int(ist[st.SECANT_TRIES])
         for k in range(1, bdf.max_order + 1):
             bdf.order_counts[k] += int(self.stats[7 + k])
         r0 = len(bdf.rec.t)
@@ -252,6 +259,9 @@ class CompiledSteps(_Bound):
             t_e, h_e, cause, err = self.events[e]
             if cause == st.RESTART_EVENT:
                 progress.restarted(float(t_e), float(h_e))
+            elif cause == st.SWITCH_EVENT:
+                if not err:          # (1: a switch taken, logged only in detail)
+                    progress.rejected(float(t_e), float(h_e), "switch")
             else:
                 progress.rejected(float(t_e), float(h_e), "error", float(err))
         return exit_, t, x, S, taken
