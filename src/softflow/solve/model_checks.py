@@ -134,6 +134,7 @@ transients it over-estimates, the flows still move by more than the tolerance
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 
@@ -210,12 +211,15 @@ def tube_reynolds(g, result):
     fractions = re_all[peak_at, np.arange(len(keep))] / re_lam
     tt = group_times(g, result, keep)
     out = []
-    for j in np.flatnonzero(fractions >= NEAR_FRACTION):
+    listed = np.flatnonzero(fractions >= NEAR_FRACTION)
+    # by how much: the default blend's friction factor there over the laminar
+    # one, every listed tube in one call
+    ratios = _laminar_shortfalls([comps[j] for j in listed],
+                                 [float(re_all[peak_at[j], j]) for j in listed])
+    for j, ratio in zip(listed, ratios):
         c, k = comps[j], int(peak_at[j])
         re = re_all[:, j]
         fraction = float(fractions[j])         # graded 'near' or 'beyond' by the filter
-        # by how much: the default blend's friction factor there over the laminar one
-        ratio = laminar_shortfall(c, float(re[k]))
         out.append(_record(
             c, "tube_reynolds", re[k], c.Re_laminar, "", fraction,
             "use a turbulent correlation (friction='Haaland', the default, blends "
@@ -238,6 +242,18 @@ def laminar_shortfall(tube, re):
     eD = float(tube.roughness) / float(tube.diameter)
     f_re = fRe_blended(np.array([re]), np.array([eD]), 2300.0, 4000.0, derivative=False)[0]
     return float(np.ravel(f_re)[0]) / 64.0
+
+
+def _laminar_shortfalls(tubes, res):
+    """:func:`laminar_shortfall` of each of ``tubes`` at its Reynolds number in
+    ``res``, in one call of the compiled friction law (elementwise: the same
+    numbers as one call each)."""
+    if not tubes:
+        return []
+    from ..correlations.friction import fRe_blended
+    eD = np.array([float(t.roughness) / float(t.diameter) for t in tubes])
+    f_re = fRe_blended(np.array(res, dtype=float), eD, 2300.0, 4000.0, derivative=False)[0]
+    return [float(v) / 64.0 for v in np.ravel(f_re)]
 
 
 def two_port_values(g, result):
@@ -537,7 +553,15 @@ def _liquid_nodes(asm, keep=None):
     """{id(fluid): (fluid, node pressure unknowns, [(group, their positions in its
     members' interface)])} of the network's liquids: the node pressures where a
     component of each liquid meets (x[:n_across] of quantity 'pressure').
-    ``keep``: a test of the fluid instead (any fluid it passes, gas or liquid)."""
+    ``keep``: a test of the fluid instead (any fluid it passes, gas or liquid).
+    Found once per network and test (its structure is fixed; run-time
+    parameters replace members of a group by members with the same fluid:
+    found again where a group's fluid is another object)."""
+    fluids = [getattr(g.comps[0], "fluid", None) for g in asm.groups]
+    known = asm.__dict__.setdefault("_liquid_nodes", {})
+    hit = known.get(keep)
+    if hit is not None and len(hit[0]) == len(fluids) and all(map(operator.is_, hit[0], fluids)):
+        return hit[1]
     n_across = asm.n_across
     found: dict = {}
     for g in asm.groups:
@@ -554,8 +578,10 @@ def _liquid_nodes(asm, keep=None):
         entry = found.setdefault(id(fluid), (fluid, [], []))
         entry[1].append(col[:, pos].ravel())
         entry[2].append((g, pos))
-    return {key: (fluid, np.unique(np.concatenate(cols)), owners)
-            for key, (fluid, cols, owners) in found.items()}
+    out = {key: (fluid, np.unique(np.concatenate(cols)), owners)
+           for key, (fluid, cols, owners) in found.items()}
+    known[keep] = (fluids, out)
+    return out
 
 
 def _node_pressures(result, nodes):

@@ -55,11 +55,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import repeat
 
 import numpy as np
 
 from ..fluids.base import FluidError
-from .assembly import _is_regular_dense
+from .assembly import DENSE_CHECK_MAX, _is_regular_dense
 from .newton import Outcome
 from .settings import (
     INNER_ITERATIONS,
@@ -127,8 +128,165 @@ def _regular(A):
     return A.shape[0] == A.shape[1] and np.isfinite(A).all() and _is_regular_dense(A)
 
 
+class _Jacobian:
+    """The Jacobian of the network's last ``residual(..., jac=True)``, read
+    block by block: a dense copy up to :data:`DENSE_CHECK_MAX` unknowns,
+    else its CSR arrays, gathered row by row (the values of
+    ``jacobian_csc().tocsr()[rows][:, cols].toarray()``, without SciPy's
+    sparse indexing: ~50 us a block, the most of this module's cost on a
+    small network)."""
+
+    def __init__(self, asm):
+        n = self.n = asm.n
+        if n <= DENSE_CHECK_MAX:
+            self.dense = asm.dense_jacobian()
+            return
+        self.dense = None
+        J = self.csr = asm.jacobian_csc().tocsr()
+        self.indptr = J.indptr.astype(np.int64)
+        self.indices, self.data = J.indices, J.data
+        self.pos = np.full(n, -1, dtype=np.int64)
+
+    def block(self, rows, cols):
+        """The dense block J[rows, cols] (rows and columns in the order given)."""
+        rows = np.asarray(rows, dtype=np.int64)
+        cols = np.asarray(cols, dtype=np.int64)
+        if self.dense is not None:
+            return self.dense[np.ix_(rows, cols)]
+        if np.unique(cols).size != cols.size:        # a column asked twice
+            return self.csr[rows][:, cols].toarray()
+        pos = self.pos
+        pos[cols] = np.arange(cols.size)
+        try:
+            start, stop = self.indptr[rows], self.indptr[rows + 1]
+            counts = stop - start
+            total = int(counts.sum())
+            k = (np.repeat(start - (np.cumsum(counts) - counts), counts)
+                 + np.arange(total, dtype=np.int64))
+            at = pos[self.indices[k]]
+            keep = at >= 0
+            out = np.zeros((rows.size, cols.size))
+            out[np.repeat(np.arange(rows.size), counts)[keep], at[keep]] = self.data[k[keep]]
+            return out
+        finally:
+            pos[cols] = -1
+
+
 def _block(J, rows, cols):
-    return J[rows][:, cols].toarray()
+    return J.block(rows, cols)
+
+
+class _Topology:
+    """What :func:`local_nodes` reads of the network's structure, made once
+    per Assembly (its topology is fixed; :meth:`Assembly.replace` changes
+    numbers only) as Python lists and dicts: the node of each across
+    unknown, each component instance's equations, own unknowns (the flows at
+    its terminals, its locals) and across unknowns, the instances whose
+    across unknowns are all one node's, the owner of each own unknown, and
+    per node its rows, across unknowns and components (on first use)."""
+
+    def __init__(self, asm):
+        na = self.na = asm.n_across
+        n = asm.n
+        # the node of each across unknown
+        node_of_col = np.full(na, -1, dtype=np.int64)
+        for arr in asm.node_across.values():
+            have = arr >= 0
+            node_of_col[arr[have]] = np.flatnonzero(have)
+        self.node_of_col = node_of_col.tolist()
+        # each component instance: its group and index there, its columns;
+        # the owner of each own unknown; the instances whose across unknowns
+        # are all one node's (a Python loop: a few entries per instance, made
+        # once, where NumPy's calls per group cost more on small networks)
+        owner = [-1] * n
+        self.inst = inst = []         # (group, index in the group)
+        self.cols = cols = []         # (the group's columns as lists, index)
+        self.single = single = []     # (instance, node): across unknowns all one node's
+        node_of = self.node_of_col
+        for g in asm.groups:
+            listed = np.asarray(g.col, dtype=np.int64).tolist()
+            if not listed or not listed[0]:
+                continue
+            base = len(inst)
+            inst.extend(zip(repeat(g), range(g.n)))
+            cols.extend(zip(repeat(listed), range(g.n)))
+            for k, row in enumerate(listed, base):
+                at, one = None, True
+                for c in row:
+                    if c >= na:
+                        owner[c] = k
+                    elif at is None:
+                        at = node_of[c]
+                    elif node_of[c] != at:
+                        one = False
+                if one and at is not None and at >= 0:
+                    single.append((k, at))
+        self.owner = owner
+        order = np.argsort(asm.through_rows, kind="stable")
+        t_rows, t_cols = asm.through_rows[order], asm.through_cols[order]
+        self.t_rows = t_rows
+        self.t_cols = t_cols.tolist()
+        self.t_owner = [owner[c] for c in self.t_cols]
+        # each node's rows and across unknowns (all quantities), owners: on first use
+        self._across = list(asm.node_across.values())
+        self._rows = list(asm.node_rows.values())
+        self._owners, self._own, self._acr = {}, {}, {}
+        # the mass balance row of each own flow unknown (its terminal's node)
+        m_of = asm.node_rows.get("massflow")
+        m_rows = ({} if m_of is None else
+                  {r: j for j, r in enumerate(m_of.tolist()) if r >= 0})
+        self.node_of_flow = {c: m_rows[r] for r, c in zip(t_rows.tolist(), self.t_cols)
+                             if r in m_rows}
+
+    def rows_of(self, k):
+        """The equations of instance k."""
+        g, i = self.inst[k]
+        return list(range(g.r0 + i * g.neq, g.r0 + (i + 1) * g.neq))
+
+    def own_of(self, k):
+        """The own unknowns of instance k (the flows at its terminals, its locals)."""
+        got = self._own.get(k)
+        if got is None:
+            listed, i = self.cols[k]
+            na = self.na
+            got = self._own[k] = [c for c in listed[i] if c >= na]
+        return got
+
+    def across_of(self, k):
+        """The across unknowns of instance k."""
+        got = self._acr.get(k)
+        if got is None:
+            listed, i = self.cols[k]
+            na = self.na
+            got = self._acr[k] = [c for c in listed[i] if c < na]
+        return got
+
+    def node_rows(self, node):
+        return [int(arr[node]) for arr in self._rows if arr[node] >= 0]
+
+    def node_across(self, node):
+        return [int(arr[node]) for arr in self._across if arr[node] >= 0]
+
+    def owners_at(self, node):
+        """The instances whose flows enter node's balances."""
+        got = self._owners.get(node)
+        if got is None:
+            out = set()
+            t_rows, t_owner = self.t_rows, self.t_owner
+            for r in self.node_rows(node):
+                a, b = np.searchsorted(t_rows, [r, r + 1]).tolist()
+                out.update(t_owner[a:b])
+            out.discard(-1)
+            got = self._owners[node] = frozenset(out)
+        return got
+
+
+def _topology(asm):
+    """The :class:`_Topology` of ``asm``, made on first use."""
+    got = asm.__dict__.get("_source_topology")
+    if got is None:
+        got = asm.__dict__["_source_topology"] = _Topology(asm)
+    return got
 
 
 def local_nodes(asm, x, S, t=0.0, region=False):
@@ -144,76 +302,27 @@ def local_nodes(asm, x, S, t=0.0, region=False):
     m_of = asm.node_rows.get("massflow")
     if p_of is None or m_of is None:
         return []
-    n, na = asm.n, asm.n_across
     try:
         F = asm.residual(x, S, t, 0.0, jac=True)
     except (FluidError, ComponentError):
         return []
     if not np.isfinite(F).all():
         return []
-    J = asm.jacobian_csc().tocsr()
-    # the node of each across unknown
-    node_of_col = np.full(na, -1, dtype=np.int64)
-    for arr in asm.node_across.values():
-        have = arr >= 0
-        node_of_col[arr[have]] = np.flatnonzero(have)
-    # each component instance: its equations and its unknowns; the owner of
-    # each own unknown (the flows at its terminals, its locals)
-    owner = np.full(n, -1, dtype=np.int64)
-    inst = []                 # (group, index in the group)
-    single = []               # instances whose across unknowns are all one node's
-    for g in asm.groups:
-        C = np.asarray(g.col, dtype=np.int64)
-        if C.size == 0:
-            continue
-        base = len(inst)
-        own = C >= na
-        ids = np.broadcast_to(base + np.arange(g.n)[:, None], C.shape)
-        owner[C[own]] = ids[own]
-        at = np.where(own, -1, node_of_col[np.minimum(C, na - 1)])
-        lo = np.where(own, np.iinfo(np.int64).max, at).min(axis=1)
-        hi = at.max(axis=1)
-        inst.extend((g, i) for i in range(g.n))
-        single.extend((base + i, int(hi[i])) for i in np.flatnonzero((lo == hi) & (hi >= 0)))
-
-    def rows_of(k):
-        g, i = inst[k]
-        return np.arange(g.r0 + i * g.neq, g.r0 + (i + 1) * g.neq)
-
-    def own_of(k):
-        g, i = inst[k]
-        c = np.asarray(g.col[i], dtype=np.int64)
-        return c[c >= na]
-
-    def across_of(k):
-        g, i = inst[k]
-        c = np.asarray(g.col[i], dtype=np.int64)
-        return c[c < na]
+    J = _Jacobian(asm)
+    top = _topology(asm)
+    inst, node_of_col = top.inst, top.node_of_col
+    rows_of, own_of, across_of = top.rows_of, top.own_of, top.across_of
+    node_rows, node_across, owners_at = top.node_rows, top.node_across, top.owners_at
 
     # the flow sources, by node
     sources = {}
-    for k, node in single:
+    for k, node in top.single:
         own = own_of(k)
-        if own.size and _regular(_block(J, rows_of(k), own)):
+        if own and _regular(_block(J, rows_of(k), own)):
             sources.setdefault(node, []).append(k)
     if not sources:
         return []
-    order = np.argsort(asm.through_rows, kind="stable")
-    t_rows, t_cols = asm.through_rows[order], asm.through_cols[order]
-
-    def node_rows(node):
-        return [int(arr[node]) for arr in asm.node_rows.values() if arr[node] >= 0]
-
-    def node_across(node):
-        return [int(arr[node]) for arr in asm.node_across.values() if arr[node] >= 0]
-
-    def owners_at(node):
-        out = set()
-        for r in node_rows(node):
-            a, b = np.searchsorted(t_rows, [r, r + 1])
-            out.update(owner[t_cols[a:b]].tolist())
-        out.discard(-1)
-        return out
+    t_rows, t_cols, owner = top.t_rows, top.t_cols, top.owner
 
     def volumeless(j):
         # node j has neither a volume nor a pressure source: with its pressure
@@ -222,14 +331,11 @@ def local_nodes(asm, x, S, t=0.0, region=False):
         r = [i for i in node_rows(j) if i != m_of[j]]
         c = [i for i in node_across(j) if i != p_of[j]]
         for k in comps_j:
-            r += rows_of(k).tolist()
-            c += own_of(k).tolist()
+            r += rows_of(k)
+            c += own_of(k)
         return len(r) == len(c) and _regular(_block(J, r, c))
 
-    # the mass balance row of each own flow unknown (its terminal's node)
-    m_rows = {int(m_of[j]): j for j in range(len(m_of)) if m_of[j] >= 0}
-    node_of_flow = {int(c): m_rows[int(r)] for r, c in zip(t_rows, t_cols) if int(r) in m_rows}
-
+    node_of_flow = top.node_of_flow
     found = []
     for node, srcs in sources.items():
         p, row = int(p_of[node]), int(m_of[node])
@@ -240,7 +346,7 @@ def local_nodes(asm, x, S, t=0.0, region=False):
         cols = [c for c in node_across(node) if c != p]
         # dead ends behind the node's components: their balances are these
         # components' alone
-        behind = {int(node_of_col[c]) for k in comps for c in across_of(k)} - {node}
+        behind = {node_of_col[c] for k in comps for c in across_of(k)} - {node}
         ends, inside = [], {node}
         for j in sorted(behind):
             if j >= 0 and owners_at(j) <= comps:
@@ -251,8 +357,8 @@ def local_nodes(asm, x, S, t=0.0, region=False):
                     ends.append(int(p_of[j]))
         base_rows, base_cols = list(rows), list(cols)
         for k in sorted(comps):
-            rows += rows_of(k).tolist()
-            cols += own_of(k).tolist()
+            rows += rows_of(k)
+            cols += own_of(k)
         rows, cols = np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
         if rows.size != cols.size or not _regular(_block(J, rows, cols)):
             continue          # a volume or a pressure source sets the pressure there
@@ -267,29 +373,28 @@ def local_nodes(asm, x, S, t=0.0, region=False):
                     r2 += node_rows(j)
                     c2 += node_across(j)
                 for k in sorted(g_comps):
-                    r2 += rows_of(k).tolist()
-                    c2 += own_of(k).tolist()
+                    r2 += rows_of(k)
+                    c2 += own_of(k)
                 r2, c2 = np.array(r2, dtype=np.int64), np.array(c2, dtype=np.int64)
                 if grown and r2.size == c2.size and _regular(_block(J, r2, c2)):
                     rows, cols, comps, inside = r2, c2, g_comps, g_inside
         # the sources' flows at the node, then the flows into the region's
         # other components from inside it (those at its edge: each one's
         # flows at its terminals inside, summed)
-        a, b = np.searchsorted(t_rows, [row, row + 1])
-        members = [(k, [int(c)]) for c in t_cols[a:b] for k in [int(owner[c])] if k in srcs]
+        a, b = np.searchsorted(t_rows, [row, row + 1]).tolist()
+        members = [(k, [c]) for c in t_cols[a:b] for k in [owner[c]] if k in srcs]
         for k in sorted(comps - set(srcs)):
-            at = {int(node_of_col[c]) for c in across_of(k)}
+            at = {node_of_col[c] for c in across_of(k)}
             if at <= inside:
                 continue          # wholly inside: passes nothing out of it
-            members.append((k, [int(c) for c in own_of(k)
-                                if node_of_flow.get(int(c), -1) in inside]))
+            members.append((k, [c for c in own_of(k) if node_of_flow.get(c, -1) in inside]))
         dynamic = any(inst[k][0].ns and not asm.s_discrete[
             inst[k][0].s0 + inst[k][1] * inst[k][0].ns:
             inst[k][0].s0 + (inst[k][1] + 1) * inst[k][0].ns].all()
             for k in comps - set(srcs))
         found.append(Local(node, p, row, rows, cols,
                            [inst[k][0].comps[inst[k][1]] for k in srcs],
-                           [int(rows_of(k)[0]) for k in srcs], np.array(ends, dtype=np.int64),
+                           [rows_of(k)[0] for k in srcs], np.array(ends, dtype=np.int64),
                            [(inst[k][0].comps[inst[k][1]], c) for k, c in members],
                            sorted(inside), dynamic))
     return found
@@ -345,7 +450,7 @@ class _Balance:
             return None, None
         if not np.isfinite(F).all():
             return None, None
-        return F, self.asm.jacobian_csc().tocsr()
+        return F, _Jacobian(self.asm)
 
     def __call__(self, p):
         """(g(p), dg/dp), with self.x the point solved for at p; None where
