@@ -207,22 +207,6 @@ class DenseOutput:
         """The last time the interpolant covers [s]."""
         return float(self.t_end[-1])
 
-    def extend(self, t, h, k, row, diffs):
-        """Steps at once (the compiled loop's): their end times, steps,
-        orders, rows, and their differences one after the other."""
-        n = self._n
-        end = n + len(diffs)
-        if end > len(self._D):
-            grown = np.empty((max(end, 2 * len(self._D)), self.width))
-            grown[:n] = self._D[:n]
-            self._D = grown
-        self._D[n:end] = diffs
-        self._n = end
-        self.t.extend(t.tolist())
-        self.h.extend(h.tolist())
-        self.k.extend(k.tolist())
-        self.row.extend(row.tolist())
-
     @property
     def nbytes(self):
         """Memory of its own (the differences and the per-entry arrays) [bytes];
@@ -375,7 +359,7 @@ def refine_counts(dense, weights, most=AUTO_REFINE_MAX, target=AUTO_REFINE_TARGE
         np.abs(d2, out=d2)
         d2 *= inv
         peak = d2.reshape(ids.size, -1).max(axis=1)
-        peak = np.nan_to_num(peak, nan=0.0, posinf=np.inf)
+        peak[np.isnan(peak)] = 0.0      # (>= 0 or NaN: np.nan_to_num's answer, cheaper)
         need = np.ceil(np.sqrt(np.minimum(peak, 8.0 * target * most ** 2) / (8.0 * target)))
         r[ids] = np.clip(need, 1, most).astype(np.int64)
     return r
