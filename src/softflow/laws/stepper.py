@@ -495,6 +495,20 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
 
 
 @jit
+def _next_break(t, breaks, ist, fst):
+    """The first breakpoint after t (the steppers' ``_next_break``), the
+    pointer into the sorted breakpoints moved on past t."""
+    nxt = fst[NEXT_BREAK]
+    if nxt <= t * (1 + 1e-14) + 1e-300:
+        ib = ist[IB]
+        while ib < breaks.size and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
+            ib += 1
+        ist[IB] = ib
+        nxt = fst[NEXT_BREAK] = breaks[ib] if ib < breaks.size else math.inf
+    return nxt
+
+
+@jit
 def _crossing(net, x, S, x_new, S_new, atol_s, g0, g1, modes):
     """The fraction of the step at which the first switching function
     crosses zero, by a secant between the step's ends (the end evaluated
@@ -572,14 +586,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             return FULL, t
         if used >= ist[BUDGET_LEFT]:
             return BUDGET, t
-        # the next breakpoint (BDF._propose)
-        nxt = fst[NEXT_BREAK]
-        if nxt <= t * (1 + 1e-14) + 1e-300:
-            ib = ist[IB]
-            while ib < breaks.size and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
-                ib += 1
-            ist[IB] = ib
-            nxt = fst[NEXT_BREAK] = breaks[ib] if ib < breaks.size else math.inf
+        nxt = _next_break(t, breaks, ist, fst)
         limit = nxt if nxt < T else T
         if ist[RESTART_DUE]:
             h = _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_off,
@@ -846,13 +853,7 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
             return FULL, t
         if used >= ist[BUDGET_LEFT]:
             return BUDGET, t
-        nxt = fst[NEXT_BREAK]
-        if nxt <= t * (1 + 1e-14) + 1e-300:
-            ib = ist[IB]
-            while ib < breaks.size and breaks[ib] <= t * (1 + 1e-14) + 1e-300:
-                ib += 1
-            ist[IB] = ib
-            nxt = fst[NEXT_BREAK] = breaks[ib] if ib < breaks.size else math.inf
+        nxt = _next_break(t, breaks, ist, fst)
         kg = ist[FAILS]
         grid_next = T if kg + 1 >= n_grid else min((kg + 1) * h0, T)
         end = nxt if nxt < grid_next else grid_next

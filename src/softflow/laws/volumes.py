@@ -33,17 +33,24 @@ IDEAL_GAS, CONSTANT_LIQUID, GIVEN = 0, 1, 2
 
 
 @jit
-def piece(knots, x):
-    """The number of knots at or below x (``bisect_right``; a nan is past
-    every knot): the row of the curve's table that holds x."""
-    lo, hi = 0, knots.size
+def bisect_right(a, lo, hi, x):
+    """The first index in [lo, hi) whose entry of the sorted a is above x, or
+    hi (Python's ``bisect.bisect_right`` on a[lo:hi], offset by lo; a nan is
+    past every entry)."""
     while lo < hi:
         mid = (lo + hi) // 2
-        if x < knots[mid]:
+        if x < a[mid]:
             hi = mid
         else:
             lo = mid + 1
     return lo
+
+
+@jit
+def piece(knots, x):
+    """The number of knots at or below x (a nan is past every knot): the row
+    of the curve's table that holds x."""
+    return bisect_right(knots, 0, knots.size, x)
 
 
 @jit

@@ -38,6 +38,7 @@ import math
 import numpy as np
 
 from . import jit
+from .volumes import bisect_right
 
 #: kind codes of the waveforms (one per class of softflow.curves.waveforms)
 CONSTANT, STEP, RAMP, LINEAR, HELD, TRAPEZOID, SINE, SQUARE = 0, 1, 2, 3, 4, 5, 6, 7
@@ -52,26 +53,12 @@ def size(code: int, n: int = 0) -> int:
 
 
 @jit
-def _bisect_right(floats, lo, hi, t):
-    """The first index in [lo, hi) whose float is above t, or hi (Python's
-    ``bisect.bisect_right`` on floats[lo:hi], offset by lo: a nan is past every
-    float)."""
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if t < floats[mid]:
-            hi = mid
-        else:
-            lo = mid + 1
-    return lo
-
-
-@jit
 def _linear(floats, at, t):
     # PiecewiseLinear._scalar: held before the first and after the last time
     n = int(floats[at])
     ts = at + 1
     vs = ts + n
-    i = _bisect_right(floats, ts, ts + n, t) - ts
+    i = bisect_right(floats, ts, ts + n, t) - ts
     if i == 0:
         return floats[vs]
     if i == n:
@@ -86,7 +73,7 @@ def _held(floats, at, t):
     # PiecewiseConstant._scalar: right-continuous, values[0] before times[0]
     n = int(floats[at])
     ts = at + 1
-    i = _bisect_right(floats, ts, ts + n, t) - ts
+    i = bisect_right(floats, ts, ts + n, t) - ts
     return floats[ts + n + max(i - 1, 0)]
 
 
