@@ -107,3 +107,6 @@ COMPILED_STEPS = True
 #: Accepted steps the compiled loop records before it hands them to the
 #: run's recorder (and reports progress); each call allocates nothing.
 COMPILED_RECORD_ROWS = 256
+#: Rejected steps and restarts the compiled loop keeps for the progress
+#: reporter (its log) before it hands back (the loop hands back when full).
+COMPILED_EVENT_ROWS = 64

@@ -197,7 +197,7 @@ class CompiledSteps(_Bound):
         kmax, cap = bdf.max_order, self.cap
         self.dbuf = (np.empty(cap), np.empty(cap), np.empty(cap, dtype=np.int64),
                      np.empty(cap, dtype=np.int64), np.empty((cap * kmax, self.d_cols.size)))
-        self.events = np.empty((64, 4))
+        self.events = np.empty((settings.COMPILED_EVENT_ROWS, 4))
         from . import bdf as bdf_mod
         self.G, self.ERRC = bdf_mod._G, bdf_mod._ERR
         ist[st.MAX_ORDER] = kmax
