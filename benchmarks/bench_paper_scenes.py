@@ -75,8 +75,10 @@ def serves():
         return SERVES.format(
             fixed=" and backward Euler at fixed steps (FixedSteps; adaptive backward "
                   "Euler never)",
-            hands="Newton's damped stages and the culprit finder after a failed solve, "
-                  "forced steps, mode switches, emptied volumes, restarts whose probes fail")
+            hands="a failed solve that Newton reports itself (not finite, a law's refusal, "
+                  "singular, pressure <= 0) or that the culprit finder looks into (a run's "
+                  "first failure; one in a flow source's region), forced steps, mode "
+                  "switches logged or chattering, emptied volumes, restarts whose probes fail")
     return SERVES.format(
         fixed=" only (fixed-step runs never)",
         hands="the step to each breakpoint and to the end, restarts, Newton's damped "

@@ -589,13 +589,15 @@ def test_newton_flows_first_stage_only_on_the_shortest_steps(monkeypatch):
     _same_sequence(cut, always)
 
 
-def test_damped_stage_refactors_where_a_full_step_only_contracts_linearly(monkeypatch):
+def test_damped_stage_refactors_where_a_full_step_only_contracts_linearly(monkeypatch,
+                                                                       python_steps):
     """In a solve held to 1e-12 (the restart probes) the damped stage keeps its
     factors only after a full step that cut the residual by 1/TIGHT_KEEP_CUT
     (100x): Fig. 4's snapping valve opens onto a flow law dp ~ mdot^2, where
     chord steps contract by only ~10x each. Its restart probes then take fewer
     damped iterations than with the factors kept after a 10x cut (the rule at
-    the run's own tolerances), for the same run."""
+    the run's own tolerances), for the same run. (The Python Newton's stage,
+    spied on; the compiled loop's takes the same steps: test_steploop.)"""
     from softflow import paper_scenes as ps
     from softflow.solve import newton
     from softflow.solve.newton import Newton

@@ -251,8 +251,8 @@ def test_mode_switches_are_located_in_the_compiled_loop(monkeypatch):
     """Fig. 4's snapping valve and Fig. 3's hysteretic actuator: the switches
     are located (the step shortened to end just past each crossing) and the
     method restarted in the compiled loop, which hands back none of them
-    (only Newton's failures and the run's end); the same steps as the BDF in
-    Python."""
+    nor their restarts (only a run's first failed solve and its end); the
+    same steps as the BDF in Python."""
     exits = []
     for cls in (steploop.CompiledSteps,):
         def spy(self, *args, run=cls.run):
@@ -270,5 +270,81 @@ def test_mode_switches_are_located_in_the_compiled_loop(monkeypatch):
             monkeypatch.setattr(settings, "COMPILED_STEPS", True)
             comp = sf.Simulation(build(), duration=duration, refine=1).run()
         assert "switch" not in exits and exits[-1] == "done"
+        # the restarts after the switches too (the snapping valve's first
+        # probes need Newton's damped stage, taken in the loop)
+        assert "restart" not in exits
         assert comp.stats["steps"] == py.stats["steps"]
         assert comp.stats["rejected_steps"] == py.stats["rejected_steps"]
+
+
+def _exits(monkeypatch):
+    """A list that collects why each call of the compiled BDF loop handed back."""
+    exits = []
+
+    def spy(self, *args, run=steploop.CompiledSteps.run):
+        out = run(self, *args)
+        exits.append(stepper.EXITS[out[0]])
+        return out
+    monkeypatch.setattr(steploop.CompiledSteps, "run", spy)
+    return exits
+
+
+@pytest.mark.parametrize("name", ["fig5:air", "fig3:peak-valley", "fig3:hysteretic"])
+def test_failed_solves_are_rejected_in_the_compiled_loop(name, monkeypatch):
+    """Newton's failures on the BDF's steps (chord iterations diverging, or
+    contracting too slowly and then an undamped full Newton that would need
+    damping) are rejected in the compiled loop as BDF._newton_failed rejects
+    them (a quarter of the step), and the undamped full stage that follows
+    slow chord iterations is the loop's too: the same steps, the same
+    rejections by cause and the same failed solves as the BDF in Python;
+    the loop hands back at most the first failure of a run (which finds the
+    flow sources' nodes that the culprit finder looks into)."""
+    from softflow.solve import progress as progress_mod
+    causes = []
+
+    def rejected(self, t, h, why, detail=None):
+        causes.append(why)
+    monkeypatch.setattr(progress_mod.Progress, "rejected", rejected)
+    monkeypatch.setattr(progress_mod._Silent, "rejected", rejected)
+    build, duration = SCENES[name]
+    exits = _exits(monkeypatch)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        monkeypatch.setattr(settings, "COMPILED_STEPS", False)
+        py = sf.Simulation(build(), duration=duration, refine=1).run()
+        py_causes = sorted(causes)
+        causes.clear()
+        monkeypatch.setattr(settings, "COMPILED_STEPS", True)
+        comp = sf.Simulation(build(), duration=duration, refine=1).run()
+    assert py.success and comp.success
+    assert py_causes.count("newton") >= 5
+    assert sorted(causes) == py_causes
+    for key in ("steps", "rejected_steps", "newton_failures", "error_test_failures"):
+        assert comp.stats[key] == py.stats[key], key
+    assert exits.count("newton") <= 1
+
+
+def test_a_failure_in_a_flow_sources_region_is_the_culprit_finders(monkeypatch):
+    """The compiled loop rejects a failed solve itself only where the
+    culprit finder would find nothing to name: its worst equation outside
+    every region of a node without volume that carries a flow source (Fig.
+    5's pump). With every equation marked as such a region's, each failure
+    is handed back to the BDF, and the run is the same."""
+    build, duration = SCENES["fig5:air"]
+    exits = _exits(monkeypatch)
+    real = steploop._source_rows
+
+    def everywhere(culprit, rows):
+        known = real(culprit, rows)
+        rows[:] = 1
+        return known
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        base = sf.Simulation(build(), duration=duration, refine=1).run()
+        n_base = exits.count("newton")
+        exits.clear()
+        monkeypatch.setattr(steploop, "_source_rows", everywhere)
+        marked = sf.Simulation(build(), duration=duration, refine=1).run()
+    assert exits.count("newton") == base.stats["newton_failures"] > n_base
+    assert marked.stats["steps"] == base.stats["steps"]
+    assert marked.stats["rejected_steps"] == base.stats["rejected_steps"]

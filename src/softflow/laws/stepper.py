@@ -35,23 +35,35 @@ from .waves import source_values
 DONE, NEWTON, FORCED, SWITCH, EMPTIED, FULL, BUDGET, RESTART = range(8)
 EXITS = ("done", "newton", "forced", "switch", "emptied", "full", "budget", "restart")
 #: the causes of the events it records (rejections, restarts)
-ERROR_EVENT, RESTART_EVENT, SWITCH_EVENT = 0.0, 1.0, 2.0
+ERROR_EVENT, RESTART_EVENT, SWITCH_EVENT, NEWTON_EVENT = 0.0, 1.0, 2.0, 3.0
+#: how a Newton solve ended (:func:`_chord`, :func:`_solve`): solved; failed
+#: as the BDF rejects a step (diverging, too slow, an undamped full step
+#: that would need damping: its reason none of the culprit finder's);
+#: failed while contracting (chord iterations too slow: the undamped full
+#: stage may go on); failed in a way only the BDF's own Newton reports
+#: (a residual not finite, a law's refusal, a singular Jacobian, another
+#: piece of a piecewise law); converged on an absolute pressure <= 0 (the
+#: BDF's too, which a looser tolerance does not change)
+SOLVED, PLAIN, CONTRACTING, HAND, REFUSED = range(5)
 
 #: slots of the integer state ``ist``
 (K, N_EQUAL, FAILS, FAIL_HOLD, PASSED, AGE, STALE, ONE_ITER, FACTORED, BUDGET_LEFT,
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
  N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB, CAP_HOLD, SECANT_TRIES,
- MAX_SECANT, LOG_SWITCHES) = range(28)
-IST_SIZE = 28
+ MAX_SECANT, LOG_SWITCHES, UNDAMPED, REJECT_NEWTON, FAILS_HERE, WATCHDOG) = range(32)
+IST_SIZE = 32
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
  MIN_FACTOR, MAX_FACTOR, GROW_MIN, PEAK_FACTOR, PIVOT_RTOL, CRDOWN, NEXT_BREAK,
- FIRST_STEP, FIRST_ESTIMATE, H_CAP, SWITCH_PAST, CHATTER_STEP) = range(32)
-FST_SIZE = 32
+ FIRST_STEP, FIRST_ESTIMATE, H_CAP, SWITCH_PAST, CHATTER_STEP, FULL_STAGE_STEPS,
+ KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL) = range(36)
+FST_SIZE = 36
 #: slots of ``stats``
 (STEPS, REJECTED, ERROR_FAILS, ITERATIONS, RESIDUALS, JACOBIANS, FACTORIZATIONS) = range(7)
-STATS_SIZE = 7 + 6      # then the accepted steps per order 0..5
+#: then the accepted steps per order 0..5 (7 + k), then the failed solves
+NEWTON_FAILS = 13
+STATS_SIZE = 14
 
 
 # -- dense linear algebra ------------------------------------------------------------
@@ -292,11 +304,15 @@ def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
 
 
 @inline
-def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, none, stats):
-    """Chord iterations from x0 (:meth:`Newton._chord`): the solution in x and
-    True, or False (diverging, too slow, not finite, refused by a law). One
+def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0, none,
+           stats):
+    """Chord iterations from x0 (:meth:`Newton._chord`): SOLVED with the
+    solution in x; PLAIN (diverging, an update not finite, no convergence
+    within the iterations), CONTRACTING (too slow: x the last iterate) or
+    HAND (a residual not finite, a law's refusal, a singular Jacobian). One
     evaluation of the residual per pass (:func:`softflow.laws.inline`):
-    at x0 first (with the Jacobian on fresh factors), then at each update."""
+    at x0 first (with the Jacobian on fresh factors, and a copy of the
+    residual into F0), then at each update."""
     raw, flat, J, LU, piv, ir, ic = lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6]
     x[:] = x0
     limit = ist[MAX_ITER] if fresh else ist[MAX_REUSE]
@@ -307,12 +323,12 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, no
         # Newton damps only to keep the residual finite: the compiled loop
         # leaves that to it
         if _evaluate(net, x, psi, t, c, jac, F, none, stats) >= 0 or not _finite(F):
-            return False
+            return HAND
         if jac:
             stats[FACTORIZATIONS] += 1
             if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
                 ist[STALE] = 1
-                return False
+                return HAND
             if lin[7].size:        # the pieces of the laws this Jacobian is of
                 regimes(x, net[4], net[5], net[6], lin[7])
             ist[FACTORED] = 1
@@ -321,23 +337,24 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, no
             fst[LU_DT] = c
             fst[CRATE] = 1.0
             fst[DT_LO], fst[DT_HI] = fst[RATIO_LO] * c, fst[RATIO_HI] * c
+            F0[:] = F
         lu_solve(LU, piv, ir, ic, F, step)
         nrm = _norm(step, itol)
         stats[ITERATIONS] += 1
         if clip:
             _clip(x, step, T_idx, fst[T_LO], fst[T_HI])
         if not math.isfinite(nrm):
-            return False
+            return PLAIN
         if prev >= 0.0:
             rate = nrm / prev
             if rate >= 0.9:
-                return False
+                return PLAIN
             fst[ETA] = rate / (1.0 - rate)
             crate = max(rate, fst[CRDOWN] * fst[CRATE])
             fst[CRATE] = crate
             done = nrm * crate <= 1.0 - crate
             if not done and nrm * rate ** (limit - 1 - k) / (1.0 - rate) > 1.0:
-                return False
+                return CONTRACTING
         else:
             done = nrm <= 1.0 or (nrm <= fst[FIRST_MAX]
                                   and nrm * max(fst[ETA], 1e-3) ** 0.8 <= 1.0)
@@ -347,9 +364,169 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, no
             ist[ONE_ITER] = 1 if k == 0 else 0
             if k + 1 >= ist[MAX_REUSE] and not fresh:
                 ist[STALE] = 1
-            return True
+            return SOLVED
         prev = nrm
-    return False
+    # (Newton's F here is the last update's residual, not evaluated here:
+    # its worst equation, which the culprit finder reads, is the BDF's)
+    return HAND
+
+
+@inline
+def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, nrtol,
+          x_off, q_id, floor, links, damped, factored):
+    """Full Newton from work[0] (:meth:`Newton._full`: a Jacobian at each
+    iterate, refactored unless the last full step cut the scaled residual
+    by 1/KEEP_CUT or more). ``damped``: Newton's full stage (a line search
+    on the scaled residual, and its watchdog of undamped steps where that
+    finds no decrease; up to twice MAX_ITER iterations), else its undamped
+    variant after chord iterations that contracted too slowly (it fails at
+    the first full step that neither lowers the residual nor contracts).
+    ``factored``: the current factors and work[9] are the Jacobian and the
+    residual at work[0] (the fresh chord's at the predictor). Returns
+    SOLVED with the solution in work[0]; PLAIN where the undamped variant
+    fails as above or runs out of iterations; HAND where a residual is not
+    finite, a law refuses an iterate, the Jacobian is singular, or the
+    damped stage fails (its messages are Newton's)."""
+    raw, flat, J, LU, piv, ir, ic = lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6]
+    x, F, step, xn, Fn, v, rs, jx, it2, F0 = (work[0], work[1], work[2], work[3], work[4],
+                                               work[5], work[6], work[7], work[8], work[9])
+    n = x.size
+    keep_cut = fst[TIGHT_KEEP_CUT] if nrtol <= fst[TIGHT_RTOL] else fst[KEEP_CUT]
+    clip = ist[CLIP] > 0
+    if factored:
+        F[:] = F0
+    else:
+        if _evaluate(net, x, psi, t, c, True, F, none, stats) >= 0 or not _finite(F):
+            return HAND
+        jx[:] = x
+    refactor = True
+    watch, f_ref, used = 0, math.inf, False
+    limit = 2 * ist[MAX_ITER] if damped else ist[MAX_ITER]
+    for k in range(limit):
+        if refactor:
+            if not factored:
+                stats[FACTORIZATIONS] += 1
+                if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
+                    ist[STALE] = 1
+                    return HAND
+                if lin[7].size:
+                    regimes(jx, net[4], net[5], net[6], lin[7])
+                ist[FACTORED] = 1
+                ist[AGE] = 0
+                ist[STALE] = 0
+                fst[LU_DT] = c
+                fst[CRATE] = 1.0
+                fst[DT_LO], fst[DT_HI] = fst[RATIO_LO] * c, fst[RATIO_HI] * c
+            factored = False
+            for i in range(n):       # (DenseLU.row_scale: J's own rows)
+                m = 0.0
+                for j in range(n):
+                    m = max(m, abs(J[i, j]))
+                rs[i] = 1.0 / max(m, 1e-300)
+        f0 = _scaled(F, rs)
+        if watch and f0 < (1 - 1e-4) * f_ref:
+            watch = 0                 # below the starting residual: monotone again
+        lu_solve(LU, piv, ir, ic, F, step)
+        stats[ITERATIONS] += 1
+        nrm = _norm(step, itol)
+        if nrm > 1.0 and k:
+            # the tolerances raised to the iterate's magnitudes (Newton._raise_scale)
+            _newton_scale(x, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, it2)
+            for i in range(n):
+                itol[i] = min(itol[i], it2[i])
+            nrm = _norm(step, itol)
+        if nrm <= 1.0:
+            for i in range(n):
+                x[i] = x[i] - step[i]
+            ist[ONE_ITER] = 1 if k == 0 else 0
+            return SOLVED
+        if clip:
+            _clip(x, step, T_idx, fst[T_LO], fst[T_HI])
+        lam = 1.0
+        f1 = math.inf
+        while not watch:
+            for i in range(n):
+                xn[i] = x[i] - lam * step[i] if lam != 1.0 else x[i] - step[i]
+            # the full step is usually taken: its Jacobian with it
+            if _evaluate(net, xn, psi, t, c, lam == 1.0, Fn, none, stats) >= 0:
+                return HAND
+            if lam == 1.0:
+                jx[:] = xn
+            f1 = _scaled(Fn, rs) if _finite(Fn) else math.inf
+            if f1 <= (1 - 1e-4 * lam) * f0 or not refactor:
+                break        # descent, or stale factors: refactor at x first (below)
+            if lam == 1.0 and f1 < math.inf and _contracts(LU, piv, ir, ic, Fn, v, itol,
+                                                           step):
+                break
+            if not damped:   # the full step neither descends nor contracts
+                return PLAIN
+            lam *= 0.5
+            if lam < 1e-4:
+                break
+        if watch or lam < 1e-4:
+            if watch == 1 or (not watch and used):
+                return HAND          # the line search failed
+            if not watch:
+                # the watchdog: up to WATCHDOG undamped steps, kept if the
+                # residual ends below where it started
+                used = True
+                watch, f_ref = ist[WATCHDOG] + 1, f0
+            watch -= 1
+            for i in range(n):
+                x[i] = x[i] - step[i]
+            if _evaluate(net, x, psi, t, c, True, F, none, stats) >= 0 or not _finite(F):
+                return HAND
+            jx[:] = x
+            refactor = True
+            continue
+        if not refactor and not f1 <= (1 - 1e-4) * f0:
+            # stale factors: this iterate again on a Jacobian evaluated at x
+            refactor = True
+            if _evaluate(net, x, psi, t, c, True, Fn, none, stats) >= 0:
+                return HAND
+            jx[:] = x
+            continue
+        refactor = lam < 1.0 or f1 > keep_cut * f0
+        x[:] = xn
+        F[:] = Fn
+        if refactor and lam < 1.0:        # the Jacobian at the damped iterate
+            if _evaluate(net, x, psi, t, c, True, Fn, none, stats) >= 0:
+                return HAND
+            jx[:] = x
+    return HAND if damped else PLAIN
+
+
+@jit
+def _scaled(F, rs):
+    """The 2-norm of F scaled by rows (the damped stage's residual measure)."""
+    s = 0.0
+    for i in range(F.size):
+        s += (F[i] * rs[i]) ** 2
+    return math.sqrt(s)
+
+
+@jit
+def _worst_row(F, J):
+    """The equation whose residual is largest relative to its row of the
+    Jacobian J (:meth:`Newton._worst_row`)."""
+    n = F.size
+    best, row = -1.0, 0
+    for i in range(n):
+        m = 0.0
+        for j in range(n):
+            m = max(m, abs(J[i, j]))
+        v = abs(F[i]) * (1.0 / max(m, 1e-300))
+        if not math.isfinite(v):
+            v = math.inf
+        if v > best:
+            best, row = v, i
+    return row
+
+
+@jit
+def _contracts(LU, piv, ir, ic, Fn, v, itol, step):
+    lu_solve(LU, piv, ir, ic, Fn, v)
+    return _norm(v, itol) <= 0.75 * _norm(step, itol)
 
 
 @jit
@@ -362,22 +539,34 @@ def _positive(x, p_idx):
 
 @inline
 def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, q_id,
-           p_idx, T_idx, work, none, stats, nrtol):
-    """Newton's solve of one step (:meth:`Newton.solve`'s chord stages, on
-    reused factors where they serve the step, then on fresh ones): True
-    with the solution in work[0], or False where the BDF's own Newton must
-    take the step (its damped stages, the culprit finder)."""
+           p_idx, T_idx, work, none, stats, nrtol, mode):
+    """Newton's solve of one step (:meth:`Newton.solve`): chord iterations
+    on reused factors where they serve the step, then on fresh ones, then,
+    by ``mode``: 0 (Newton's full stage on: BDF's steps within
+    FULL_STAGE_STEPS of the smallest, its restart probes) the damped full
+    stage (:func:`_full`); 1 (BDF's other steps,
+    :data:`softflow.solve.bdf.UNDAMPED_FULL`) chord iterations that
+    contracted too slowly go on as undamped full Newton; 2 no more; 3 no
+    more, and any failure is handed back (backward Euler's steps: its own
+    Newton then takes the step, damped stages and all, whose work a
+    failing damped stage here would only double). Returns SOLVED with the
+    solution in work[0], PLAIN where the solve failed as Newton fails it
+    without its damped stages (the BDF cuts the step), HAND where the BDF's
+    own Newton must take the step (its damped stages, the culprit
+    finder)."""
     x, F, step = work[0], work[1], work[2]
     _newton_scale(x0, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, itol)
     reusable = (ist[STALE] == 0 and ist[AGE] < ist[MAX_AGE]
                 and fst[DT_LO] <= c <= fst[DT_HI])
+    code = HAND
     for stage in range(2):
         if stage == 0 and not reusable:
             continue
-        if _chord(net, lin, x0, psi, t, c, stage == 1, ist, fst, itol, T_idx, x, F, step,
-                  none, stats):
+        code = _chord(net, lin, x0, psi, t, c, stage == 1, ist, fst, itol, T_idx, x, F,
+                      step, work[9], none, stats)
+        if code == SOLVED:
             if not _positive(x, p_idx):
-                return False
+                return REFUSED
             # a piecewise law (a check valve) on another piece than the
             # Jacobian's: the BDF's Newton solves again on its own piece
             r_fact, r_now = lin[7], lin[8]
@@ -386,17 +575,36 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
                 for i in range(r_now.size):
                     if r_now[i] != r_fact[i]:
                         ist[STALE] = 1
-                        return False
+                        return HAND
             ist[AGE] += 1
-            return True
-    return False
+            return SOLVED
+    if code == HAND or mode == 3:
+        return HAND
+    if mode == 0 or (code == CONTRACTING and mode == 1):
+        # Newton's full stage: damped from the predictor (on the fresh
+        # factors made there), or from the chord's last iterate where it
+        # contracted; undamped from there (mode 1)
+        fresh_x0 = mode == 0 and code != CONTRACTING
+        if fresh_x0:
+            x[:] = x0
+        code = _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol,
+                     nrtol, x_off, q_id, floor, links, mode == 0, fresh_x0)
+        if code == SOLVED:
+            if not _positive(x, p_idx):
+                return REFUSED
+            ist[AGE] += 1
+            return SOLVED
+        return code
+    return PLAIN
 
 
 @inline
 def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_id, p_idx,
-           T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s):
+           T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s, mode):
     """Backward Euler from (x0, S) at t over h, Newton held to 1e-12 (or the
-    run's own tolerance where that fails): True with the unknowns in work[0]
+    run's own tolerance where that fails; not where the solve converged on
+    a pressure <= 0), solved by ``mode`` (:func:`_solve`: 0 with Newton's
+    full stage, 3 the chord stages only): True with the unknowns in work[0]
     and the states' rate in ``rate`` (discrete states: 0), or False, where
     the BDF's own probe (with continuation) must take over (:meth:`BDF._probe`)."""
     base, slot, codes, factors, starts, floats = sources
@@ -406,10 +614,14 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
     for tight in range(2):
         if tight == 1 and not nrtol > 1e-12:
             break
-        if _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off,
-                  q_id, p_idx, T_idx, work, none, stats,
-                  min(nrtol, 1e-12) if tight == 0 else nrtol):
+        code = _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off,
+                      q_id, p_idx, T_idx, work, none, stats,
+                      min(nrtol, 1e-12) if tight == 0 else nrtol, mode)
+        if code == SOLVED:
             solved = True
+            break
+        ist[STALE] = 1           # (as Newton after a failed solve)
+        if code == REFUSED:      # (the BDF's probe takes it from here)
             break
     if not solved:
         return False
@@ -469,10 +681,14 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
             h0 = min(max(h0, 4 * h_p), span, fst[STEP_MAX])
             start, step_, out = x_right, h0, rate
         ok = _probe(net, lin, start, S, t, step_, ist, fst, itol, floor, links, natol, x_off,
-                    q_id, p_idx, T_idx, work, none, stats, sources, Fe, out, n_disc, atol_s)
-        # a probe that Newton's chord stages do not solve: the BDF's own
-        # restart (its damped stages solve the third probe where the chord
-        # fails, and the first step follows from it)
+                    q_id, p_idx, T_idx, work, none, stats, sources, Fe, out, n_disc, atol_s,
+                    0 if probe == 2 or ist[RESTART_DUE] == 2 else 3)
+        # a probe not solved here: the BDF's own restart (its continuation).
+        # The first two probes take Newton's damped stage here only after a
+        # mode switch (a snapping valve's: the chord diverges on the new
+        # piece, the damped stage converges); after a breakpoint (a source's
+        # jump, which may ask what no state gives: the culprit finder's
+        # ground) a failing damped stage would only be done twice
         if not ok:
             return -1.0
         if probe == 0:
@@ -567,7 +783,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     delta = np.empty(width)
     w = np.empty(ns + n)
     itol = np.empty(n)
-    work = np.empty((3, n))
+    work = np.empty((10, n))
     S_new = np.empty(ns)
     Fe = np.empty(n)
     none = np.empty(0)
@@ -633,10 +849,34 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         c = h / gk
         psi = psi_all[:ns]
         source_values(t_eval, base, slot, codes, factors, starts, floats, u)
-        if not _solve(net, lin, pred[ns:ns + n], psi, t_eval, c, ist, fst, itol, floor, links,
-                      natol, x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL]):
+        # Newton's full stage only on steps near the smallest (BDF._propose)
+        mode = 0 if h <= fst[FULL_STAGE_STEPS] * fst[STEP_MIN] else ist[UNDAMPED]
+        code = _solve(net, lin, pred[ns:ns + n], psi, t_eval, c, ist, fst, itol, floor, links,
+                      natol, x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL],
+                      mode)
+        if code != SOLVED:
             ist[STALE] = 1
-            return NEWTON, t
+            # a failure the BDF's own Newton reports, or one at the smallest
+            # step (a fold's jump, continuation), or one the culprit finder
+            # would look into (its nodes of flow sources not yet known, or
+            # the worst equation in one's region), or a run logged in
+            # detail: the BDF's
+            if (code != PLAIN or h <= smin or not ist[REJECT_NEWTON]
+                    or ist[LOG_SWITCHES] or lin[12][_worst_row(work[1], lin[2])]):
+                return NEWTON, t
+            # rejected as BDF._newton_failed rejects it: a quarter of the step
+            stats[REJECTED] += 1
+            stats[NEWTON_FAILS] += 1
+            used += 1
+            e = ist[N_EVENTS]
+            events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t_new, h, NEWTON_EVENT, 0.0
+            ist[N_EVENTS] = e + 1
+            ist[FAILS_HERE] += 1
+            factor_ = max(0.25, fst[STEP_MIN] / h)
+            _rescale(D, k, factor_)
+            fst[H] = h * factor_
+            ist[N_EQUAL] = 0
+            continue
         x_new = work[0]
         # the end-of-step states, from the network's own laws
         if _evaluate(net, x_new, psi, t_eval, c, False, Fe, S_new, stats) >= 0:
@@ -741,6 +981,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
                 fst[H_CAP] = math.inf
         stats[STEPS] += 1
         stats[7 + k] += 1
+        ist[FAILS_HERE] = 0
         for i in range(nQ):
             Q_new[i] = psi_all[ns + n + i] + c * x_new[q_sel[i]]
             delta[ns + n + i] = Q_new[i] - pred[ns + n + i]
@@ -780,7 +1021,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
                 e = ist[N_EVENTS]
                 events[e, 0], events[e, 1], events[e, 2], events[e, 3] = t, h, SWITCH_EVENT, 1.0
                 ist[N_EVENTS] = e + 1
-            ist[RESTART_DUE] = 1
+            ist[RESTART_DUE] = 2 if switched else 1
             fst[FAIL_CAP] = fst[H_CAP] = math.inf
             ist[FAIL_HOLD] = ist[CAP_HOLD] = 0
             ist[STALE] = 1
@@ -842,7 +1083,7 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
     t_stop = T * (1 - 1e-14)
     h0, n_grid = grid[0], int(grid[1])
     itol = np.empty(n)
-    work = np.empty((3, n))
+    work = np.empty((10, n))
     S_new = np.empty(ns)
     Fe = np.empty(n)
     none = np.empty(0)
@@ -872,8 +1113,9 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
         at_break = t_new == nxt
         t_eval = np.nextafter(t_new, -math.inf) if at_break else t_new
         source_values(t_eval, base, slot, codes, factors, starts, floats, u)
-        if not _solve(net, lin, x_pred, S, t_eval, h, ist, fst, itol, floor, links, natol,
-                      x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL]):
+        if _solve(net, lin, x_pred, S, t_eval, h, ist, fst, itol, floor, links, natol,
+                  x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL],
+                  3) != SOLVED:
             ist[STALE] = 1
             return NEWTON, t
         x_new = work[0]

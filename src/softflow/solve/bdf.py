@@ -581,8 +581,18 @@ class BDF(Integrator):
             if ((self._restart_due and self._forced_restart) or self._empty_tries
                     or (self._k < 1 and not self._restart_due)):
                 return None
-            _, t, x, S, _ = steps.run(t, x, S)
-            return t, x, S
+            t1, x1, S1 = steps.run(t, x, S)[1:4]
+            failed = steps.failed_here()
+            if failed:
+                # the loop's rejected solves at the point it leaves, as the
+                # culprit finder counts them (hopeless, stalled): its
+                # reasons are none of those the finder acts on
+                at = x1 if t1 > t else x
+                culprit = self.culprit
+                culprit._stall = None
+                n = culprit._fails[1] if culprit._fails[0] is at else 0
+                culprit._fails = (at, n + failed)
+            return t1, x1, S1
         return stretch
 
     def _newton_failed(self, t, t_new, out):

@@ -109,4 +109,4 @@ COMPILED_STEPS = True
 COMPILED_RECORD_ROWS = 256
 #: Rejected steps and restarts the compiled loop keeps for the progress
 #: reporter (its log) before it hands back (the loop hands back when full).
-COMPILED_EVENT_ROWS = 64
+COMPILED_EVENT_ROWS = 256

@@ -12,14 +12,22 @@ constants or waveforms of the kinds :mod:`softflow.solve.wavecodes`
 describes, without per-step coefficients (a heat-transfer correlation's
 ``begin_step``), sensitivities or independent sub-networks (batched
 variants). Every other run, and every step the loop hands back
-(:data:`softflow.laws.stepper.EXITS`: Newton's damped stages, the culprit
-finder and continuation after a failed solve, forced steps, a mode switch
-logged in detail or at the smallest steps (where it may chatter), steps
-across a law's kink (a check valve that shuts or opens), solutions on
-another piece of a piecewise law than the Jacobian's, emptied volumes,
-restarts whose probes fail), is the stepper's own in Python, from the
-state the loop leaves. The loop takes restarts, steps to
-breakpoints and the end itself.
+(:data:`softflow.laws.stepper.EXITS`: a failed solve whose reason the
+BDF's Newton reports itself (a residual not finite, a law's refusal, a
+singular Jacobian, a pressure <= 0) or that the culprit finder would look
+into (its worst equation in the region of a node without volume that
+carries a flow source, or any before the run's first failure has found
+those nodes), a failure at the smallest step (a fold's jump,
+continuation), forced steps, a mode switch logged in detail or at the
+smallest steps (where it may chatter), steps across a law's kink (a check
+valve that shuts or opens), solutions on another piece of a piecewise law
+than the Jacobian's, emptied volumes, restarts whose probes fail), is the
+stepper's own in Python, from the state the loop leaves. The loop takes
+restarts, steps to breakpoints and the end itself, Newton's full stages
+(undamped after slow chord iterations, damped near the smallest step and in
+restart probes) and the rejection of a step whose solve fails otherwise
+(a quarter of the step, as BDF._newton_failed). Backward Euler's steps
+hand back every failed solve (its Newton's damped stages then take it).
 
 :data:`softflow.solve.settings.COMPILED_STEPS` turns the loop off (the
 benchmarks compare both).
@@ -54,7 +62,8 @@ class _Bound:
                     np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0,
                                                            dtype=np.int64),
                     np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
-                    np.zeros(network.n_switching))
+                    np.zeros(network.n_switching),
+                    np.zeros(n, dtype=np.int64))
         links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
         self.tol = (np.ascontiguousarray(atol_s, dtype=float),
                     np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
@@ -93,6 +102,10 @@ class _Bound:
         lo, hi = newton._T_range if newton._T_range is not None else (-math.inf, math.inf)
         fst[st.T_LO], fst[st.T_HI] = lo, hi
         fst[st.PIVOT_RTOL], fst[st.CRDOWN] = linalg.PIVOT_RTOL, newton_mod.CRDOWN
+        fst[st.KEEP_CUT], fst[st.TIGHT_KEEP_CUT] = (newton_mod.FULL_KEEP_CUT,
+                                                    newton_mod.TIGHT_KEEP_CUT)
+        fst[st.TIGHT_RTOL] = newton_mod.TIGHT_RTOL
+        ist[st.WATCHDOG] = newton_mod.WATCHDOG
         fst[st.DURATION] = integ.T
 
     def _newton_in(self):
@@ -148,6 +161,7 @@ class _Bound:
         stats.residual_evaluations += int(s[st.RESIDUALS])
         stats.jacobian_evaluations += int(s[st.JACOBIANS])
         stats.factorizations += int(s[st.FACTORIZATIONS])
+        stats.newton_failures += int(s[st.NEWTON_FAILS])
         if s[st.STEPS]:
             integ._chatter = 0
             integ._approached = False
@@ -213,6 +227,8 @@ class CompiledSteps(_Bound):
         fst[st.FIRST_ESTIMATE] = bdf_mod.FIRST_ESTIMATE
         fst[st.SWITCH_PAST], fst[st.CHATTER_STEP] = bdf_mod.SWITCH_PAST, bdf_mod.CHATTER_STEP
         ist[st.MAX_SECANT] = bdf_mod.SECANT_TRIES
+        fst[st.FULL_STAGE_STEPS] = bdf_mod.FULL_STAGE_STEPS
+        ist[st.UNDAMPED] = 1 if bdf.newton.undamped_full else 2
 
     def run(self, t, x, S):
         """Steps from (t, x, S) until the loop hands back (or the run's end):
@@ -221,11 +237,14 @@ class CompiledSteps(_Bound):
         st, bdf = self.st, self.bdf
         ist, fst = self.ist, self.fst
         self._newton_in()
+        self._used = 0
         ist[st.K], ist[st.N_EQUAL], ist[st.FAILS] = bdf._k, bdf._n_equal, bdf._fails
         ist[st.FAIL_HOLD], ist[st.PASSED] = bdf._fail_hold, int(bdf._passed)
         ist[st.RESTART_DUE] = int(bdf._restart_due)
         ist[st.CAP_HOLD], ist[st.SECANT_TRIES] = bdf._cap_hold, bdf._secant_tries
         ist[st.LOG_SWITCHES] = int(getattr(bdf.progress, "_debug", False))
+        ist[st.REJECT_NEWTON] = int(_source_rows(bdf.culprit, self.lin[12]))
+        ist[st.FAILS_HERE] = 0
         fst[st.H], fst[st.FAIL_CAP], fst[st.H_CAP] = bdf._h, bdf._fail_cap, bdf._h_cap
         fst[st.ERR] = getattr(bdf, "_err", 0.0)
         qmax_run = (np.zeros(self.floor.size) if bdf._qmax_run is None
@@ -233,9 +252,19 @@ class CompiledSteps(_Bound):
         x, S, Q = x.copy(), S.copy(), bdf._Q.copy()
         rec = self.buffers + (self.x_index, self.s_index)
         dense = self.dbuf + (self.d_cols,)
-        exit_, t = st.stretch(float(t), x, S, bdf._D, Q, ist, fst, qmax_run, self.floor,
-                              self.stats, self.net, self.lin, self.sources, self.tol, rec,
-                              dense, self.events, self.watch, self.breaks, self.G, self.ERRC)
+        taken = 0
+        while True:
+            exit_, t = st.stretch(float(t), x, S, bdf._D, Q, ist, fst, qmax_run, self.floor,
+                                  self.stats, self.net, self.lin, self.sources, self.tol, rec,
+                                  dense, self.events, self.watch, self.breaks, self.G,
+                                  self.ERRC)
+            taken += self._flush(t, Q)
+            if exit_ != st.FULL:
+                break
+            # buffers full: emptied into the run's records, and on
+            used = int(self.stats[st.STEPS] + self.stats[st.REJECTED])
+            ist[st.BUDGET_LEFT] -= used - self._used
+            self._used = used
         # the state out
         self._newton_out()
         bdf._k, bdf._n_equal, bdf._fails = int(ist[st.K]), int(ist[st.N_EQUAL]), int(ist[st.FAILS])
@@ -247,13 +276,20 @@ class CompiledSteps(_Bound):
         bdf._secant_tries = int(ist[st.SECANT_TRIES])
         for k in range(1, bdf.max_order + 1):
             bdf.order_counts[k] += int(self.stats[7 + k])
+        return exit_, t, x, S, taken
+
+    def _flush(self, t, Q):
+        """The loop's records, dense-output differences and events since the
+        last flush into the run's recorder, dense output and progress
+        reporter (the buffers emptied): the steps recorded."""
+        st, bdf, ist = self.st, self.bdf, self.ist
         r0 = len(bdf.rec.t)
         taken = self._records_out(t)
         if taken:
             dt_, dh, dk, drow, dD = self.dbuf
             bdf.dense.extend(dt_[:taken], dh[:taken], dk[:taken], drow[:taken] + r0,
                              dD[:ist[st.N_DENSE]])
-            bdf._Q = Q
+            bdf._Q = Q.copy()
         progress = bdf.progress
         for e in range(int(ist[st.N_EVENTS])):
             t_e, h_e, cause, err = self.events[e]
@@ -262,9 +298,18 @@ class CompiledSteps(_Bound):
             elif cause == st.SWITCH_EVENT:
                 if not err:          # (1: a switch taken, logged only in detail)
                     progress.rejected(float(t_e), float(h_e), "switch")
+            elif cause == st.NEWTON_EVENT:
+                progress.rejected(float(t_e), float(h_e), "newton")
             else:
                 progress.rejected(float(t_e), float(h_e), "error", float(err))
-        return exit_, t, x, S, taken
+        ist[st.N_REC] = ist[st.N_DENSE] = ist[st.N_EVENTS] = 0
+        return taken
+
+    def failed_here(self):
+        """The solves the last :meth:`run` rejected (BDF._newton_failed)
+        since its last step taken, or the start (0 without a culprit
+        finder)."""
+        return int(self.ist[self.st.FAILS_HERE]) if self.bdf.culprit is not None else 0
 
 
 class FixedSteps(_Bound):
@@ -295,12 +340,21 @@ class FixedSteps(_Bound):
             self.x_prev[:] = euler._x_prev
         x, S = x.copy(), S.copy()
         rec = self.buffers + (self.x_index, self.s_index)
-        exit_, t = st.fixed_stretch(float(t), x, S, self.x_prev, ist, fst, self.floor,
-                                    self.stats, self.net, self.lin, self.sources, self.tol,
-                                    rec, self.watch, self.breaks, self.grid)
+        taken, used0 = 0, 0
+        while True:
+            exit_, t = st.fixed_stretch(float(t), x, S, self.x_prev, ist, fst, self.floor,
+                                        self.stats, self.net, self.lin, self.sources,
+                                        self.tol, rec, self.watch, self.breaks, self.grid)
+            taken += self._records_out(t, Q=False)
+            ist[st.N_REC] = 0
+            if exit_ != st.FULL:
+                break
+            # the record buffer full: emptied into the run's records, and on
+            used = int(self.stats[st.STEPS])
+            ist[st.BUDGET_LEFT] -= used - used0
+            used0 = used
         self._newton_out()
         euler.k = int(ist[st.FAILS])
-        taken = self._records_out(t, Q=False)
         if taken:
             if fst[st.ERR] < 0.0:
                 euler._x_prev = None
@@ -308,6 +362,27 @@ class FixedSteps(_Bound):
                 euler._x_prev, euler._h_prev = self.x_prev.copy(), float(fst[st.H])
             euler._extrapolate = True
         return exit_, t, x, S, taken
+
+
+def _source_rows(culprit, rows):
+    """Whether the equations the culprit finder (:mod:`softflow.solve.culprit`)
+    looks into after a step's failed solve whose reason is not a range's (a
+    Newton iteration diverging, too slow) are known, and those equations
+    into ``rows`` (1: the rows of a region of a node without volume that
+    carries a flow source, :meth:`Finder._concerned`). Known without a
+    finder, or once its first failure has found the nodes; until then the
+    BDF takes failed solves."""
+    rows[:] = 0
+    if culprit is None:
+        return True
+    nodes = culprit._local_nodes
+    if nodes is None:
+        return False
+    for loc in nodes:
+        if not loc.dynamic:
+            rows[loc.row] = 1
+            rows[loc.rows] = 1
+    return True
 
 
 def _served(integ):
