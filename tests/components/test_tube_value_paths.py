@@ -1,8 +1,8 @@
 """The tube law's cheaper evaluations give the same numbers: its value without
 derivatives (jac=False), the Haaland roughness term made once per group, the
-fully turbulent shortcut past the blend, one tube's law on NumPy scalars
-(P.one); and a run-time change of roughness or diameter remakes what the group
-precomputed."""
+fully turbulent shortcut past the blend, the compiled law against the same law
+through NumPy arrays; and a run-time change of roughness or diameter remakes
+what the group precomputed."""
 import numpy as np
 import pytest
 
@@ -168,63 +168,19 @@ def test_run_params_remake_the_precomputed_roughness_term(change, built):
     np.testing.assert_array_equal(P.friction_terms, (P.eD / 3.7) ** 1.11)
 
 
-class _OwnLaw(CircularTube):
-    @classmethod
-    def pressure_drop(cls, P, pa, mf, pb, jac):
-        dp, d_pa, d_mf, d_pb = super().pressure_drop(P, pa, mf, pb, jac)
-        return 2 * dp, d_pa, (None if d_mf is None else 2 * d_mf), d_pb
-
-
-@pytest.mark.parametrize("tubes, scalar", [
-    ([CircularTube("t", sf.air, 0.1, 1e-3, compressible="mean_density")], True),
-    # a liquid of constant properties and the isothermal pipe-flow law (the gas
-    # default) run the compiled law instead (test_compiled_paths_are_the_array_law)
-    ([CircularTube("t", sf.water, 0.1, 1e-3, friction="laminar")], False),
-    ([CircularTube("t", sf.air, 0.1, 1e-3)], False),
-    ([CircularTube("t", sf.air, 0.1, 1e-3, friction="Colebrook")], False),   # its ** differs
-    ([CircularTube("t", sf.air.with_level("table"), 0.1, 1e-3)], False),      # mu(p)
-    ([CircularTube("t", sf.air, 0.1, 1e-3), CircularTube("u", sf.air, 0.2, 1e-3)], False),
-    ([_OwnLaw("t", sf.air, 0.1, 1e-3)], False),
-], ids=["haaland", "laminar", "isothermal", "colebrook", "table", "two", "own-law"])
-def test_one_tube_scalar_view_is_made_where_it_is_the_same_arithmetic(tubes, scalar):
-    cls = type(tubes[0])
-    P = cls.make_params(tubes)
-    assert (P.one is not None) is scalar
-    if scalar:
-        for key, value in vars(P).items():
-            if type(value) is np.ndarray and value.shape == (1,):
-                got = getattr(P.one, key)
-                assert type(got) is np.float64 and got == value[0], key
-        # its residual and Jacobian are the array law's, bitwise, at any flow
-        for re in (0.0, 1e3, 2300.0, 3e3, 4000.0, 5e3, -2e5):
-            mf = re / P.re_per_mf[0]
-            V = np.array([[2.0e5, mf, 1.9e5, -mf]])
-            F, _ = cls.residual(P, V, np.zeros((1, 0)), 0.0, False)
-            FJ, J = cls.residual(P, V, np.zeros((1, 0)), 0.0, True)
-            P.one, one = None, P.one
-            try:
-                F_arrays, _ = cls.residual(P, V, np.zeros((1, 0)), 0.0, False)
-                FJ_arrays, J_arrays = cls.residual(P, V, np.zeros((1, 0)), 0.0, True)
-            finally:
-                P.one = one
-            if P.lin_map is None:
-                np.testing.assert_array_equal(F, F_arrays)
-            np.testing.assert_array_equal(FJ, FJ_arrays)
-            assert J.shape == J_arrays.shape == (1, 5) and J.dtype == float
-            np.testing.assert_array_equal(J, J_arrays)
-
-
-@pytest.mark.parametrize("fluid", [sf.air, sf.water], ids=["air", "water"])
+@pytest.mark.parametrize("fluid", ["air", "water", "air mean-density"])
 @pytest.mark.parametrize("friction", ["laminar", "Haaland", "Colebrook", "Churchill",
                                       "Swamee-Jain"])
 def test_compiled_paths_are_the_array_law(fluid, friction):
-    """A group of gas tubes (isothermal pipe flow) or of liquid tubes of constant
-    properties (the Darcy law) runs its residual and pressure drop as one
-    compiled pass (P.kind); the same law through NumPy arrays (P.kind = None)
-    gives the same numbers to round-off, laminar, in the blend, turbulent and
-    choked, either direction."""
+    """A group of gas tubes (isothermal pipe flow, or the mean-density law) or
+    of liquid tubes of constant properties (the Darcy law) runs its residual
+    and pressure drop as one compiled pass (P.kind); the same law through
+    NumPy arrays (P.kind = None) gives the same numbers to round-off, laminar,
+    in the blend, turbulent and choked, either direction."""
+    options = {"compressible": "mean_density"} if "mean" in fluid else {}
+    fluid = sf.water if fluid == "water" else sf.air
     tubes = [CircularTube(f"t{k}", fluid, 0.02 * (k + 1), 1e-3 * (1 + 0.3 * k),
-                          friction=friction) for k in range(4)]
+                          friction=friction, **options) for k in range(4)]
     P = CircularTube.make_params(tubes)
     assert P.kind is not None
     S = np.zeros((4, 0))
@@ -254,19 +210,20 @@ def test_compiled_paths_are_the_array_law(fluid, friction):
 @pytest.mark.parametrize("compressible", ["mean_density"])
 def test_one_tube_at_degenerate_points_is_the_array_law(V, compressible):
     """Zero or NaN pressures give the array law's inf/nan, never an exception
-    (a Newton iterate may pass there; the solver rejects non-finite residuals)."""
+    (a Newton iterate may pass there; the solver rejects non-finite
+    residuals): the compiled law as the NumPy one."""
     P = CircularTube.make_params([CircularTube("t", sf.air, 0.1, 1e-3,
                                                compressible=compressible)])
-    assert P.one is not None
+    assert P.kind is not None
     V = np.array([V])
     S = np.zeros((1, 0))
     with np.errstate(all="ignore"):
         got = [CircularTube.residual(P, V, S, 0.0, jac) for jac in (False, True)]
-        P.one, one = None, P.one
+        P.kind, kind = None, P.kind
         try:
             want = [CircularTube.residual(P, V, S, 0.0, jac) for jac in (False, True)]
         finally:
-            P.one = one
+            P.kind = kind
     np.testing.assert_array_equal(got[0][0], want[0][0])
     np.testing.assert_array_equal(got[1][0], want[1][0])
     np.testing.assert_array_equal(got[1][1], want[1][1])

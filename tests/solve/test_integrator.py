@@ -382,7 +382,7 @@ def test_steep_check_valve_start_and_source_drop_are_reached_by_continuation(
 @pytest.mark.parametrize("threshold, ideal, damped_enough",
                          [(35e3, True, True), (5e3, False, True), (40e3, False, False)])
 def test_a_check_valve_closing_within_a_step_is_not_solved_on_its_opening_slope(
-        threshold, ideal, damped_enough, monkeypatch):
+        threshold, ideal, damped_enough, monkeypatch, python_steps):
     """At rtol 1e-2 Newton's chord iterations reused factors whose Jacobian
     was evaluated with the valve inside its opening band after the valve had
     shut: that slope makes the updates small far from the root (the valve's
@@ -398,7 +398,8 @@ def test_a_check_valve_closing_within_a_step_is_not_solved_on_its_opening_slope(
     with status 'success'. The damped contraction rate of the chord
     iterations' test (newton.CRDOWN) keeps the first two on its own (the
     check off: within 50 tolerances), not the 40 kPa CheckValve (2 900
-    tolerances); both off, the old points come back."""
+    tolerances); both off, the old points come back. (The Python Newton's
+    solves, spied on and patched; the compiled loop's run: the test below.)"""
     from softflow.solve import newton
     from softflow.solve.assembly import Assembly
     from softflow.solve.newton import Newton
@@ -434,6 +435,33 @@ def test_a_check_valve_closing_within_a_step_is_not_solved_on_its_opening_slope(
         raise_on_failure=False)
     assert max(far) > 1e3
     assert not old.success or worst(old, ref) > 1e4
+
+
+@pytest.mark.parametrize("threshold, ideal", [(5e3, False), (40e3, False)])
+def test_a_check_valve_closing_within_a_step_in_the_compiled_loop(threshold, ideal):
+    """The CheckValve scenes of the test above (the fons valve is a user
+    component: the Python loop's) run in the compiled step loop (which
+    solves again on the valve's own piece, hands back steps across its
+    kinks and rejects failed solves itself) with the pressures within 4 kPa
+    of the run at rtol 1e-7 up to the source's drop."""
+    from softflow.solve import steploop
+    ref = sf.Simulation(_check_valve_pulse(threshold, ideal), duration=1.0, rtol=1e-7).run()
+    taken, run = [], steploop.CompiledSteps.run
+
+    def spy(self, *args):
+        out = run(self, *args)
+        taken.append(out[4])
+        return out
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(steploop.CompiledSteps, "run", spy)
+        res = sf.Simulation(_check_valve_pulse(threshold, ideal), duration=1.0,
+                            rtol=1e-2).run()
+    assert sum(taken) > 0.3 * res.stats["steps"]
+    keep = (res.times > 1e-3) & (res.times < 0.498)
+    for lab, term in (("tank", ()), ("valve", ("a",))):
+        got = res.get(lab, "pressure", *term)[keep]
+        want = np.interp(res.times[keep], ref.times, ref.get(lab, "pressure", *term))
+        assert np.max(np.abs(got - want)) < 4e3
 
 
 @pytest.mark.parametrize("threshold, ideal", [(35e3, True), (60e3, True), (5e3, False)])
@@ -530,7 +558,8 @@ def test_continuation_solves_the_unmodified_equations_last(monkeypatch):
     assert Newton.offset is None and all(o is None for t, o, _ in seen if t > 0.0)
 
 
-def test_a_step_that_fails_at_the_smallest_step_is_solved_by_continuation(monkeypatch):
+def test_a_step_that_fails_at_the_smallest_step_is_solved_by_continuation(monkeypatch,
+                                                                          python_steps):
     """A step whose Newton solve fails at step_min is solved by continuation
     (Integrator._rescue) and the run goes on to hold the tank at the source
     less the cracking pressure (to rtol-level error); without it the run
@@ -581,33 +610,6 @@ def test_continuation_solves_do_not_count_as_steps():
         raise_on_failure=False)
     assert res.status == "failed" and "max_steps" in res.message
     assert res.times[-1] > 0.0
-
-
-def test_sensitivity_tiles_groups_of_one_without_their_scalar_view(monkeypatch):
-    """Tiling a group of one's Params over several copies (deferred
-    sensitivities) drops its scalar view (P.one) instead of
-    rebuilding the Params for all copies (make_params only for the trial with
-    two), and gives what make_params would."""
-    from softflow.components.tubes import CircularTube
-    from softflow.solve.sensitivity_deferred import _tile_params
-    # (a gas tube on the mean-density law keeps a scalar view; the compiled laws
-    # replaced the others')
-    tube = CircularTube("t", sf.air, 0.1, 1e-3, compressible="mean_density")
-    for comp, cls, key in ((tube, CircularTube, "one"),):
-        P = cls.make_params([comp])
-        assert getattr(P, key) is not None
-        made = []
-        original = cls.make_params.__func__
-        monkeypatch.setattr(cls, "make_params", classmethod(
-            lambda c, comps: made.append(len(comps)) or original(c, comps)))
-        Q = _tile_params(cls, P, [comp], 3)
-        monkeypatch.undo()
-        assert made == [2]
-        assert Q.n == 3 and getattr(Q, key) is None
-        R = cls.make_params([comp] * 3)
-        for name, value in vars(R).items():
-            if isinstance(value, np.ndarray):
-                np.testing.assert_array_equal(getattr(Q, name), value)
 
 
 def test_at_most_rescues_in_a_row_then_the_run_stops(monkeypatch, python_steps):

@@ -3,7 +3,6 @@ any pressure ratio (isothermal pipe flow with choking) and optional fluid
 inertance."""
 from __future__ import annotations
 
-import copy
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
@@ -77,20 +76,6 @@ def set_tube_coefficients(P):
     P.kre = np.zeros(P.n) if K is None else K * P.diameter / P.length
     P.minor = bool(np.any(P.kre > 0.0))
 
-
-
-def one_instance(P):
-    """For a group of one: a copy of its Params with each per-instance value (an
-    array of shape (1,)) as a NumPy scalar, for a residual written on scalars
-    with the array path's arithmetic (``P.one``); None for larger groups."""
-    if P.n != 1:
-        return None
-    one = copy.copy(P)
-    for key, value in vars(P).items():
-        if type(value) is np.ndarray and value.shape == (1,):
-            setattr(one, key, value[0])
-    one.one = None
-    return one
 
 
 #: Parameters of the tube law whose derivatives :func:`tube_law_derivative` states.
@@ -313,13 +298,14 @@ def set_compiled_law(P, own_law=True):
     """Whether the group's law runs as one compiled pass (:func:`gas_pipe_drop`,
     :meth:`CircularTube.pressure_drop`, :meth:`CircularTube.residual`):
     ``P.kind``, the compiled id of its friction correlation, for an ideal gas
-    on the isothermal pipe-flow law or a liquid of constant properties, each
-    with a constant viscosity and an analytic correlation, else None;
-    ``P.kind_terms`` what the correlation takes from the roughness (Haaland's
-    term, or eD); ``P.kind_c`` the law's coefficient (c_mu for the gas,
-    c_mu/rho for the liquid) and ``P.kind_c2`` p/rho of the gas (0 for the
-    liquid). None where the class has a pressure-drop law of its own
-    (``own_law`` False)."""
+    on the isothermal pipe-flow law or the mean-density law, or a liquid of
+    constant properties, each with a constant viscosity and an analytic
+    correlation, else None; ``P.kind_terms`` what the correlation takes from
+    the roughness (Haaland's term, or eD); ``P.kind_c`` the law's coefficient
+    (c_mu for the gas, c_mu/rho for the liquid) and ``P.kind_c2`` the law
+    (:mod:`softflow.laws.tube`): p/rho of the gas on the pipe-flow law, 0 for
+    the liquid, minus R T of the gas on the mean-density law. None where the
+    class has a pressure-drop law of its own (``own_law`` False)."""
     P.kind = None
     if not own_law:
         return
@@ -327,6 +313,9 @@ def set_compiled_law(P, own_law=True):
         P.kind_c, P.kind_c2 = P.c_mu, P.c2
     elif not P.isothermal and getattr(P, "c_per_rho", None) is not None:
         P.kind_c, P.kind_c2 = P.c_per_rho, 0.0
+    elif (not P.isothermal and P.compressible and isinstance(P.fluid, IdealGas)
+          and not P.variable_mu):
+        P.kind_c, P.kind_c2 = P.c_mu, -float(P.fluid.R * P.fluid.temperature)
     else:
         return
     P.kind = compiled_kind(P.turbulent, _transition(P))
@@ -530,16 +519,6 @@ class CircularTube(LibraryComponent):
         # (make_params runs again for a run that changes a roughness or diameter)
         P.friction_terms = roughness_terms(P.turbulent, P.eD)
         set_compiled_law(P, own_law=cls._own_law())
-        # one tube: its residual evaluates the law on NumPy scalars (P.one: this P
-        # with its per-instance values as np.float64), ~31 k instead of ~106 k
-        # instructions a call without Jacobian. The same arithmetic, bitwise: +-*/
-        # are IEEE either way and np.log is NumPy's on a scalar as on an array
-        # (math.log and ** are not, hence Haaland or laminar only, and no
-        # real-fluid mu); np.float64, not float, so that a division by zero gives
-        # inf or nan, as on arrays, instead of raising
-        P.one = (one_instance(P) if P.turbulent in (None, friction_Haaland) and not P.variable_mu
-                 and not P.isothermal and P.kind is None
-                 and cls.pressure_drop.__func__ is CircularTube.pressure_drop.__func__ else None)
         return P
 
     @classmethod
@@ -549,15 +528,23 @@ class CircularTube(LibraryComponent):
         mean density, or for a gas with the pipe-flow law (the default) the
         isothermal pipe flow of :func:`gas_pipe_drop` (entry, acceleration,
         choking), as p_a - p_b minus its residual. A liquid of constant
-        properties with an analytic correlation (``P.kind``) runs as one
-        compiled pass (:func:`softflow.laws.tube.darcy_drop`)."""
+        properties, or an ideal gas on the mean-density law, with an analytic
+        correlation (``P.kind``) runs as one compiled pass
+        (:func:`softflow.laws.tube.tube_drop`)."""
         if P.isothermal:
             return gas_pipe_drop(P, pa, mf, pb, jac)
         if P.kind is not None:
-            dp, d_mf = np.empty(P.n), np.empty(P.n)
-            _tube_laws().darcy_drop_array(P.kind, P.Re_lo, P.Re_hi, mf, P.re_per_mf, P.kind_c,
-                                          P.eD, P.kind_terms, P.kre, dp, d_mf)
-            return (dp, 0.0, d_mf, 0.0) if jac else (dp, None, None, None)
+            if P.kind_c2 == 0.0:
+                dp, d_mf = np.empty(P.n), np.empty(P.n)
+                _tube_laws().darcy_drop_array(P.kind, P.Re_lo, P.Re_hi, mf, P.re_per_mf,
+                                              P.kind_c, P.eD, P.kind_terms, P.kre, dp, d_mf)
+                return (dp, 0.0, d_mf, 0.0) if jac else (dp, None, None, None)
+            out = np.empty((4, P.n))
+            n1 = np.ones(P.n)
+            _tube_laws().tube_drop_array(P.kind, P.Re_lo, P.Re_hi, pa * n1, mf * n1, pb * n1,
+                                         P.re_per_mf, P.kind_c, P.eD, P.kind_terms, P.area,
+                                         P.kind_c2, P.kre, *out)
+            return tuple(out) if jac else (out[0], None, None, None)
         if P.compressible or P.variable_mu:
             pm = 0.5 * (pa + pb)
         if P.compressible:
@@ -684,14 +671,6 @@ class CircularTube(LibraryComponent):
             _tube_laws().residual(P.kind, P.Re_lo, P.Re_hi, V, P.re_per_mf, P.kind_c, P.eD,
                                   P.kind_terms, P.area, P.kind_c2, P.kre, F, J, jac)
             return F, (J if jac else None)
-        if P.one is not None:
-            # one tube: the same law on NumPy scalars (see make_params)
-            pa, mfa, pb, mfb = V[0]
-            dp, d_pa, d_mf, d_pb = cls.pressure_drop(P.one, pa, mfa, pb, jac)
-            F = np.array([[mfa + mfb, (pa - pb) - dp]])
-            if not jac:
-                return F, None
-            return F, np.array([[1.0, 1.0, 1.0 - d_pa, -d_mf, -1.0 - d_pb]])
         pa, mfa, pb, mfb = V[:, 0], V[:, 1], V[:, 2], V[:, 3]
         dp, d_pa, d_mf, d_pb = cls.pressure_drop(P, pa, mfa, pb, jac)
         F = np.empty((P.n, 2))

@@ -52,7 +52,7 @@ import numpy as np
 
 from . import jit
 from .fanno import gas_constants
-from .tube import darcy_drop, isothermal_drop
+from .tube import isothermal_drop, tube_drop
 from .orifice import _maximum
 from .valves import (check_valve_flow, friction_term, mean_density, orifice_flow,
                      orifice_upstream, restrictor_row, tesla_drop)
@@ -254,14 +254,11 @@ def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
 @jit
 def _tube_drop(kind, lo, hi, c2, pa, mf, pb, fpar, f):
     """A tube's required p_a - p_b and its partials (dp, d_pa, d_mf, d_pb) from
-    its six floats at fpar[f:]: isothermal pipe flow of an ideal gas (c2 > 0)
-    or a liquid's Darcy law (:mod:`.tube`)."""
-    re_per_mf, c, eD, a, area, kre = (fpar[f], fpar[f + 1], fpar[f + 2], fpar[f + 3],
-                                      fpar[f + 4], fpar[f + 5])
-    if c2 > 0.0:
-        return isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c, eD, a, area, c2, kre)
-    dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a, kre)
-    return dp, 0.0, d_mf, 0.0
+    its six floats at fpar[f:], by the law ``c2`` names (:mod:`.tube`:
+    isothermal pipe flow or the mean-density law of an ideal gas, a liquid's
+    Darcy law)."""
+    return tube_drop(kind, lo, hi, pa, mf, pb, fpar[f], fpar[f + 1], fpar[f + 2],
+                     fpar[f + 3], fpar[f + 4], c2, fpar[f + 5])
 
 
 @jit
@@ -428,9 +425,8 @@ def _volume_flow_source(x, F, raw, jac, gr, cols, fpar, u):
 
 @jit
 def _tube(x, F, raw, jac, gr, cols, fpar):
-    """A group of tubes (:func:`.tube.residual`: isothermal pipe flow of an
-    ideal gas where c2 > 0, else the Darcy law of a liquid), correlation id
-    ``option``."""
+    """A group of tubes (:func:`.tube.residual`: the law ``c2`` names, of
+    :mod:`.tube`), correlation id ``option``."""
     n, c0, r0, j0, f0 = gr[N], gr[COL], gr[R0], gr[J0], gr[F0]
     kind = gr[OPTION]
     lo, hi, c2 = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
@@ -438,14 +434,7 @@ def _tube(x, F, raw, jac, gr, cols, fpar):
         k = c0 + 4 * i
         pa, mfa, pb, mfb = x[cols[k]], x[cols[k + 1]], x[cols[k + 2]], x[cols[k + 3]]
         f = f0 + TUBE_GROUP_FLOATS + TUBE_FLOATS * i
-        re_per_mf, c, eD, a, area, kre = (fpar[f], fpar[f + 1], fpar[f + 2], fpar[f + 3],
-                                          fpar[f + 4], fpar[f + 5])
-        if c2 > 0.0:
-            dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mfa, pb, re_per_mf, c, eD,
-                                                   a, area, c2, kre)
-        else:
-            dp, d_mf = darcy_drop(kind, lo, hi, mfa, re_per_mf, c, eD, a, kre)
-            d_pa = d_pb = 0.0
+        dp, d_pa, d_mf, d_pb = _tube_drop(kind, lo, hi, c2, pa, mfa, pb, fpar, f)
         F[r0 + 2 * i] = mfa + mfb
         F[r0 + 2 * i + 1] = (pa - pb) - dp
         if jac:

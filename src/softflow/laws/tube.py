@@ -1,6 +1,13 @@
 """A tube's pressure-drop law, compiled: the blended friction law
 (:mod:`.friction`) with the tube's minor losses (:func:`friction_law`) feeding isothermal pipe flow (:mod:`.gas_pipe`), adiabatic
-pipe flow in thermal scenes (:mod:`.fanno`), or a liquid's Darcy law.
+pipe flow in thermal scenes (:mod:`.fanno`), a liquid's Darcy law, or the
+Darcy law at the mean density of an ideal gas (``compressible='mean_density'``,
+fonsim's law).
+
+Which law a group of tubes takes is its ``c2``: p/rho of an ideal gas on
+isothermal pipe flow (c2 > 0; the coefficient c is c_mu), 0 for a liquid
+(c = c_mu/rho), or minus R T of an ideal gas on the mean-density law
+(c2 < 0; c = c_mu).
 
 The one evaluation of a group of gas tubes with constant viscosity and an
 analytic friction correlation (:func:`softflow.components.tubes.gas_pipe_drop`
@@ -60,6 +67,42 @@ def darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a, kre):
 
 
 @jit
+def mean_density_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c_mu, eD, a, RT, kre):
+    """p_a - p_b required by the flow mf through a tube of an ideal gas by the
+    Darcy law at the mean density rho = (p_a + p_b) / (2 R T) (fonsim's tube
+    law, valid at low Mach numbers), and its partials in p_a, mf, p_b: (dp,
+    d_pa, d_mf, d_pb). The arithmetic of the NumPy law it replaces
+    (c_mu / rho, then the Darcy law; d(dp)/d(p_mean) = -dp / rho · (1 / R T))."""
+    pm = 0.5 * (pa + pb)
+    rho = pm / RT
+    dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf, c_mu / rho, eD, a, kre)
+    d_pm = -dp / rho * (1.0 / RT) * 0.5
+    return dp, d_pm, d_mf, d_pm
+
+
+@jit
+def tube_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c, eD, a, area, c2, kre):
+    """A tube's required p_a - p_b and its partials (dp, d_pa, d_mf, d_pb)
+    by the law its ``c2`` names (module docstring)."""
+    if c2 > 0.0:
+        return isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c, eD, a, area, c2, kre)
+    if c2 < 0.0:
+        return mean_density_drop(kind, lo, hi, pa, mf, pb, re_per_mf, c, eD, a, -c2, kre)
+    dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf, c, eD, a, kre)
+    return dp, 0.0, d_mf, 0.0
+
+
+@jit
+def tube_drop_array(kind, lo, hi, pa, mf, pb, re_per_mf, c, eD, a, area, c2, kre,
+                    dp, d_pa, d_mf, d_pb):
+    """:func:`tube_drop` of a group of tubes into the output arrays."""
+    for i in range(mf.size):
+        dp[i], d_pa[i], d_mf[i], d_pb[i] = tube_drop(
+            kind, lo, hi, pa[i], mf[i], pb[i], re_per_mf[i], c[i], eD[i], a[i], area[i], c2,
+            kre[i])
+
+
+@jit
 def darcy_drop_array(kind, lo, hi, mf, re_per_mf, c, eD, a, kre, dp, d_mf):
     for i in range(mf.size):
         dp[i], d_mf[i] = darcy_drop(kind, lo, hi, mf[i], re_per_mf[i], c[i], eD[i], a[i],
@@ -86,17 +129,12 @@ def two_port_row(i, V, f1, j_pa, j_mf, j_pb, F, J, jac):
 def residual(kind, lo, hi, V, re_per_mf, c, eD, a, area, c2, kre, F, J, jac):
     """A group of tubes' residual F (n, 2) (mass balance; p_a - p_b minus the
     required drop) and, with ``jac``, its nonzeros J (n, 5) in the tube's
-    pattern, from V = [p_a, mf_a, p_b, mf_b] (n, 4): isothermal pipe flow of
-    an ideal gas (c2 > 0; c = c_mu) or the Darcy law of a liquid (c2 = 0;
-    c = c_mu/rho), with the minor losses ``kre`` (:func:`friction_law`)."""
+    pattern, from V = [p_a, mf_a, p_b, mf_b] (n, 4), by the law ``c2``
+    names (module docstring), with the minor losses ``kre`` (:func:`friction_law`)."""
     for i in range(V.shape[0]):
         pa, mf, pb = V[i, 0], V[i, 1], V[i, 2]
-        if c2 > 0.0:
-            dp, d_pa, d_mf, d_pb = isothermal_drop(kind, lo, hi, pa, mf, pb, re_per_mf[i],
-                                                   c[i], eD[i], a[i], area[i], c2, kre[i])
-        else:
-            dp, d_mf = darcy_drop(kind, lo, hi, mf, re_per_mf[i], c[i], eD[i], a[i], kre[i])
-            d_pa = d_pb = 0.0
+        dp, d_pa, d_mf, d_pb = tube_drop(kind, lo, hi, pa, mf, pb, re_per_mf[i], c[i], eD[i],
+                                         a[i], area[i], c2, kre[i])
         two_port_row(i, V, (pa - pb) - dp, 1.0 - d_pa, -d_mf, -1.0 - d_pb, F, J, jac)
 
 

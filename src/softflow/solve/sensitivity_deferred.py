@@ -397,13 +397,10 @@ def _tile_params(cls, P, comps, m):
     a, b = vars(P), vars(P2)
     if a.keys() != b.keys():
         return cls.make_params(list(comps) * m)
-    tiled, single = [], []
+    tiled = []
     for key, v in a.items():
         w = b[key]
         if key == "n" or key == "components":
-            continue
-        if key in _SINGLE_ONLY:      # a group of one's scalar view: none for m copies
-            single.append(key)
             continue
         if type(v) is np.ndarray:
             # bitwise (stricter than ==; a mismatch only costs make_params)
@@ -418,8 +415,6 @@ def _tile_params(cls, P, comps, m):
                   or (type(v) in (list, tuple) and not v and w == v)):
             return cls.make_params(list(comps) * m)
     Q = copy.copy(P)
-    for key in single:
-        setattr(Q, key, None)
     for key in tiled:
         v = a[key]
         setattr(Q, key, v.repeat(m, axis=0) if v.shape[0] == 1
@@ -430,9 +425,6 @@ def _tile_params(cls, P, comps, m):
 
 
 _PLAIN = (int, float, bool, str, type(None), np.float64, np.int64, np.bool_)
-#: attributes a group of one has (its law on scalars: CircularTube's P.one on
-#: the mean-density gas law) and larger groups set to None
-_SINGLE_ONLY = frozenset({"one"})
 
 
 def _solve_stacked(J, R):
