@@ -2,7 +2,9 @@
 softflow.laws.stepper): the same run as the BDF's steps in Python, to the
 round-off of the linear algebra and within the run's tolerance; its dense
 linear algebra against LAPACK; where it serves and where it does not."""
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +14,9 @@ from softflow import paper_scenes as ps
 from softflow.laws import stepper
 from softflow.solve import bdf, settings, steploop
 from helpers import filling_tank, rc_circuit
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from scenes import chain  # noqa: E402
 
 
 def _spied(monkeypatch):
@@ -189,6 +194,97 @@ def test_the_lu_equilibrates_where_units_make_pivots_small_and_refuses_the_singu
     assert stepper.factor(np.array([1.0, 2.0, 3.0]), np.array([0, 0, 3], dtype=np.int64),
                           Jd, LU, piv, ir, ic, 1e-14) == 0
     np.testing.assert_array_equal(Jd, [[3.0, 0.0], [0.0, 3.0]])
+
+
+def _band_system(rng, n, kl, ku, scale_rows=False):
+    """A random matrix of band (kl, ku), its raw entries and their places in
+    band storage (stepper.band_factor), and a right-hand side."""
+    A = np.zeros((n, n))
+    for i in range(n):
+        for j in range(max(0, i - kl), min(n, i + ku + 1)):
+            if rng.random() < 0.8 or i == j:
+                A[i, j] = rng.normal()
+    if scale_rows:                # units far apart: pivots small before scaling
+        A *= 10.0 ** rng.integers(-12, 3, size=(n, 1))
+    w = 2 * kl + ku + 1
+    i, j = np.nonzero(A)
+    return A, A[i, j].copy(), (i * w + (j - i + kl)).astype(np.int64), w, rng.normal(size=n)
+
+
+@pytest.mark.parametrize("scale_rows", [False, True], ids=["plain", "equilibrated"])
+def test_the_band_lu_solves_as_lapack(scale_rows):
+    """The banded LU (LAPACK's gbtrf layout: partial pivoting within the
+    band, the fill of its swaps in kl more columns) solves as a dense solve
+    does, with rows scaled 1e-12 .. 1e2 too (equilibrated where its pivots
+    fail the test), and refuses a singular matrix."""
+    rng = np.random.default_rng(5)
+    equilibrated = 0
+    for trial in range(60):
+        n, kl, ku = int(rng.integers(1, 40)), int(rng.integers(0, 5)), int(rng.integers(0, 5))
+        A, raw, flat, w, b = _band_system(rng, n, kl, ku, scale_rows)
+        if np.linalg.cond(A / np.abs(A).max(axis=1, keepdims=True)) > 1e8:
+            continue
+        J, LU = np.zeros((n, w)), np.zeros((n, w))
+        piv, ir, ic = np.zeros(n, dtype=np.int64), np.ones(n), np.ones(n)
+        assert stepper.band_factor(raw, flat, J, LU, piv, ir, ic, kl, 1e-14) == 0
+        equilibrated += not (ir == 1.0).all()
+        out = np.empty(n)
+        stepper.band_solve(LU, piv, ir, ic, kl, b, out)
+        want = np.linalg.solve(A, b)
+        np.testing.assert_allclose(out, want, rtol=0, atol=1e-6 * np.abs(want).max())
+    assert equilibrated > (10 if scale_rows else -1)
+    J, LU = np.zeros((2, 4)), np.zeros((2, 4))
+    piv, ir, ic = np.zeros(2, dtype=np.int64), np.ones(2), np.ones(2)
+    singular = np.array([1.0, 2.0, 2.0, 4.0])       # [[1, 2], [2, 4]], kl = ku = 1
+    flat = np.array([1, 2, 4, 5], dtype=np.int64)
+    assert stepper.band_factor(singular, flat, J, LU, piv, ir, ic, 1, 1e-14) == 2
+
+
+def test_a_chain_is_ordered_as_a_narrow_band():
+    """A chain of tubes and tanks, its unknowns grouped by kind in the
+    assembly (a band as wide as the network), is ordered as a band a few
+    unknowns wide whatever its length; the order pairs each equation with
+    an unknown it has a slope in."""
+    for N in (40, 300):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sim = sf.Simulation(chain(N), duration=0.1)
+        asm = sim.asm
+        assert np.max(np.abs(asm.pattern_rows - asm.pattern_cols)) > N
+        layout = steploop.band_layout(asm)
+        assert layout is not None and max(layout.kl, layout.ku) <= 4
+        rows, unknowns, place = layout.order
+        assert sorted(rows) == list(range(asm.n)) == sorted(unknowns)
+        np.testing.assert_array_equal(place[rows], np.arange(asm.n))
+        J = np.zeros((asm.n, asm.n))
+        J[asm.pattern_rows, asm.pattern_cols] = 1.0
+        assert (J[rows, unknowns] == 1.0).all()
+
+
+def test_a_network_too_large_for_dense_factors_runs_in_the_compiled_loop(monkeypatch):
+    """A chain of 60 tubes and tanks (242 unknowns: the Python Newton's factors
+    are condensed) behind a square wave (a restart at each edge) and a check
+    valve at its end (steps across its kinks handed back, taken by the
+    Python loop on its own factors): the compiled loop takes most steps on
+    its banded LU, the same steps as the Python loop, the same pressures
+    to 1e-6 of their range (round-off: rtol 1e-5)."""
+    def build():
+        s = chain(60, p_source=sf.waveforms.Square(sf.pressure_atmospheric + 3e4,
+                                                   sf.pressure_atmospheric, 20.0))
+        s += sf.CheckValve("cv", sf.air, diameter=1e-3, cracking_pressure=2e3)
+        s += sf.Container("end", sf.air, volume=1e-5)
+        s.connect(("cv", "a"), ("cont59", "a"))
+        s.connect(("cv", "b"), ("end", "a"))
+        return s
+    py, comp, taken = _both(build, 0.1, monkeypatch, rtol=1e-5)
+    assert py.success and comp.success
+    assert py.stats["linear_solver"] != "dense"
+    assert taken >= 0.5 * comp.stats["steps"]
+    assert comp.stats["steps"] == py.stats["steps"]
+    for key, va in py.to_dict().items():
+        if key.endswith("pressure"):
+            vb = np.interp(py.times, comp.times, comp.to_dict()[key])
+            assert np.max(np.abs(vb - va)) <= 1e-6 * max(np.ptp(va), 1.0), key
 
 
 @pytest.mark.parametrize("k", range(1, bdf.MAX_ORDER + 1))

@@ -174,6 +174,168 @@ def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
     return 0
 
 
+@jit
+def band_lu(A, piv, kl):
+    """LU of a band matrix in place with partial pivoting, as LAPACK's gbtrf
+    keeps it: row i of A holds the columns i - kl .. i + ku + kl (A[i, j - i
+    + kl]; the last kl for the fill that row swaps bring), L's multipliers
+    below the diagonal where the matrix's lower band was, not swapped by
+    later pivots (piv[j]: the row swapped with row j at step j). Returns
+    the smallest and largest |U_jj|."""
+    n, w = A.shape
+    d_min, d_max = math.inf, 0.0
+    for j in range(n):
+        i_end = min(n, j + kl + 1)
+        p, amax = j, abs(A[j, kl])
+        for i in range(j + 1, i_end):
+            v = abs(A[i, j - i + kl])
+            if v > amax:
+                p, amax = i, v
+        piv[j] = p
+        k_end = min(n, j + w - kl)          # past the last column row j can hold
+        if p != j:
+            for k in range(j, k_end):
+                A[j, k - j + kl], A[p, k - p + kl] = A[p, k - p + kl], A[j, k - j + kl]
+        d = A[j, kl]
+        ad = abs(d)
+        if ad < d_min:
+            d_min = ad
+        if ad > d_max:
+            d_max = ad
+        if d != 0.0:
+            r = 1.0 / d
+            for i in range(j + 1, i_end):
+                A[i, j - i + kl] *= r
+        for i in range(j + 1, i_end):
+            m = A[i, j - i + kl]
+            if m != 0.0:
+                for k in range(j + 1, k_end):
+                    A[i, k - i + kl] -= m * A[j, k - j + kl]
+    return d_min, d_max
+
+
+@jit
+def band_solve(A, piv, ir, ic, kl, b, out):
+    """out = C (R J C)^-1 R b from the factors of :func:`band_lu` (the row
+    swaps applied as the forward substitution reaches them, as LAPACK's
+    gbtrs)."""
+    n, w = A.shape
+    for i in range(n):
+        out[i] = ir[i] * b[i]
+    for j in range(n):
+        p = piv[j]
+        if p != j:
+            out[j], out[p] = out[p], out[j]
+        y = out[j]
+        if y != 0.0:
+            for i in range(j + 1, min(n, j + kl + 1)):
+                out[i] -= A[i, j - i + kl] * y
+    for i in range(n - 1, -1, -1):
+        s = out[i]
+        for k in range(i + 1, min(n, i + w - kl)):
+            s -= A[i, k - i + kl] * out[k]
+        out[i] = s / A[i, kl]
+    for i in range(n):
+        out[i] *= ic[i]
+
+
+@jit
+def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol):
+    """:func:`factor` for a Jacobian held in band storage (``flat``: each raw
+    entry's place in the flattened band array, rows and columns in the
+    band's order): J from the raw entries, its factors in LU (:func:`band_lu`),
+    equilibrated where its pivots fail the singularity test. Returns 0, 1
+    (not finite) or 2 (singular)."""
+    n, w = J.shape
+    Jf = J.ravel()
+    for i in range(Jf.size):
+        Jf[i] = 0.0
+    for e in range(raw.size):
+        Jf[flat[e]] += raw[e]
+    for i in range(Jf.size):
+        if not math.isfinite(Jf[i]):
+            return 1
+    LU[:, :] = J
+    d_min, d_max = band_lu(LU, piv, kl)
+    if d_min > pivot_rtol * max(d_max, 1e-300):
+        ir[:] = 1.0
+        ic[:] = 1.0
+        return 0
+    for i in range(n):
+        r = 0.0
+        for o in range(w):
+            r = max(r, abs(J[i, o]))
+        if not r > 0.0:
+            return 2
+        ir[i] = r
+    ic[:] = 0.0
+    for i in range(n):
+        for o in range(w):
+            k = i + o - kl
+            if 0 <= k < n:
+                ic[k] = max(ic[k], abs(J[i, o] / ir[i]))
+    for k in range(n):
+        if not ic[k] > 0.0:
+            return 2
+    for i in range(n):
+        for o in range(w):
+            k = i + o - kl
+            LU[i, o] = (J[i, o] / ir[i]) / ic[k] if 0 <= k < n else 0.0
+    d_min, d_max = band_lu(LU, piv, kl)
+    if not d_min > pivot_rtol * max(d_max, 1e-300):
+        return 2
+    for i in range(n):
+        ir[i] = 1.0 / ir[i]
+        ic[i] = 1.0 / ic[i]
+    return 0
+
+
+# -- the network's linear algebra, dense or banded ------------------------------------
+#: ``lin``: (raw entries, their places in J, J, LU, pivots, row and column
+#: scales, the pieces of the Jacobian's laws, the pieces at a solution, the
+#: kinks' sides at the point and at a step's end, switching values, the
+#: rows the culprit finder looks into, the band (1 or 0 for dense, kl),
+#: the band's order (its rows' original rows, its columns' original
+#: unknowns, each original row's band row), two scratch rows)
+@jit
+def lin_factor(lin, pivot_rtol):
+    """The Jacobian from the raw entries, factored (:func:`factor`, or
+    :func:`band_factor` where ``lin`` is banded)."""
+    if lin[13][0]:
+        return band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
+                           lin[13][1], pivot_rtol)
+    return factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6], pivot_rtol)
+
+
+@jit
+def lin_solve(lin, b, out):
+    """out = J^-1 b on the current factors."""
+    if lin[13][0]:
+        order, tmp = lin[14], lin[15]
+        n = b.size
+        for i in range(n):
+            tmp[0, i] = b[order[0, i]]
+        band_solve(lin[3], lin[4], lin[5], lin[6], lin[13][1], tmp[0], tmp[1])
+        for j in range(n):
+            out[order[1, j]] = tmp[1, j]
+    else:
+        lu_solve(lin[3], lin[4], lin[5], lin[6], b, out)
+
+
+@jit
+def lin_row_scale(lin, rs):
+    """rs[i] = 1 / max_j |J_ij| of the current Jacobian's rows
+    (:attr:`DenseLU.row_scale`)."""
+    J = lin[2]
+    band = lin[13][0] > 0
+    for i in range(rs.size):
+        r = lin[14][2, i] if band else i
+        m = 0.0
+        for j in range(J.shape[1]):
+            m = max(m, abs(J[r, j]))
+        rs[i] = 1.0 / max(m, 1e-300)
+
+
 # -- the BDF's arithmetic --------------------------------------------------------------
 @jit
 def _rescale(D, k, factor):
@@ -313,7 +475,6 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0
     evaluation of the residual per pass (:func:`softflow.laws.inline`):
     at x0 first (with the Jacobian on fresh factors, and a copy of the
     residual into F0), then at each update."""
-    raw, flat, J, LU, piv, ir, ic = lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6]
     x[:] = x0
     limit = ist[MAX_ITER] if fresh else ist[MAX_REUSE]
     prev = -1.0
@@ -326,7 +487,7 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0
             return HAND
         if jac:
             stats[FACTORIZATIONS] += 1
-            if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
+            if lin_factor(lin, fst[PIVOT_RTOL]) != 0:
                 ist[STALE] = 1
                 return HAND
             if lin[7].size:        # the pieces of the laws this Jacobian is of
@@ -338,7 +499,7 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0
             fst[CRATE] = 1.0
             fst[DT_LO], fst[DT_HI] = fst[RATIO_LO] * c, fst[RATIO_HI] * c
             F0[:] = F
-        lu_solve(LU, piv, ir, ic, F, step)
+        lin_solve(lin, F, step)
         nrm = _norm(step, itol)
         stats[ITERATIONS] += 1
         if clip:
@@ -387,7 +548,6 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
     fails as above or runs out of iterations; HAND where a residual is not
     finite, a law refuses an iterate, the Jacobian is singular, or the
     damped stage fails (its messages are Newton's)."""
-    raw, flat, J, LU, piv, ir, ic = lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6]
     x, F, step, xn, Fn, v, rs, jx, it2, F0 = (work[0], work[1], work[2], work[3], work[4],
                                                work[5], work[6], work[7], work[8], work[9])
     n = x.size
@@ -406,7 +566,7 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
         if refactor:
             if not factored:
                 stats[FACTORIZATIONS] += 1
-                if factor(raw, flat, J, LU, piv, ir, ic, fst[PIVOT_RTOL]) != 0:
+                if lin_factor(lin, fst[PIVOT_RTOL]) != 0:
                     ist[STALE] = 1
                     return HAND
                 if lin[7].size:
@@ -418,15 +578,11 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
                 fst[CRATE] = 1.0
                 fst[DT_LO], fst[DT_HI] = fst[RATIO_LO] * c, fst[RATIO_HI] * c
             factored = False
-            for i in range(n):       # (DenseLU.row_scale: J's own rows)
-                m = 0.0
-                for j in range(n):
-                    m = max(m, abs(J[i, j]))
-                rs[i] = 1.0 / max(m, 1e-300)
+            lin_row_scale(lin, rs)
         f0 = _scaled(F, rs)
         if watch and f0 < (1 - 1e-4) * f_ref:
             watch = 0                 # below the starting residual: monotone again
-        lu_solve(LU, piv, ir, ic, F, step)
+        lin_solve(lin, F, step)
         stats[ITERATIONS] += 1
         nrm = _norm(step, itol)
         if nrm > 1.0 and k:
@@ -455,8 +611,7 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
             f1 = _scaled(Fn, rs) if _finite(Fn) else math.inf
             if f1 <= (1 - 1e-4 * lam) * f0 or not refactor:
                 break        # descent, or stale factors: refactor at x first (below)
-            if lam == 1.0 and f1 < math.inf and _contracts(LU, piv, ir, ic, Fn, v, itol,
-                                                           step):
+            if lam == 1.0 and f1 < math.inf and _contracts(lin, Fn, v, itol, step):
                 break
             if not damped:   # the full step neither descends nor contracts
                 return PLAIN
@@ -506,16 +661,15 @@ def _scaled(F, rs):
 
 
 @jit
-def _worst_row(F, J):
+def _worst_row(F, lin):
     """The equation whose residual is largest relative to its row of the
-    Jacobian J (:meth:`Newton._worst_row`)."""
+    current Jacobian (:meth:`Newton._worst_row`)."""
     n = F.size
+    rs = np.empty(n)
+    lin_row_scale(lin, rs)
     best, row = -1.0, 0
     for i in range(n):
-        m = 0.0
-        for j in range(n):
-            m = max(m, abs(J[i, j]))
-        v = abs(F[i]) * (1.0 / max(m, 1e-300))
+        v = abs(F[i]) * rs[i]
         if not math.isfinite(v):
             v = math.inf
         if v > best:
@@ -524,8 +678,8 @@ def _worst_row(F, J):
 
 
 @jit
-def _contracts(LU, piv, ir, ic, Fn, v, itol, step):
-    lu_solve(LU, piv, ir, ic, Fn, v)
+def _contracts(lin, Fn, v, itol, step):
+    lin_solve(lin, Fn, v)
     return _norm(v, itol) <= 0.75 * _norm(step, itol)
 
 
@@ -862,7 +1016,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             # the worst equation in one's region), or a run logged in
             # detail: the BDF's
             if (code != PLAIN or h <= smin or not ist[REJECT_NEWTON]
-                    or ist[LOG_SWITCHES] or lin[12][_worst_row(work[1], lin[2])]):
+                    or ist[LOG_SWITCHES] or lin[12][_worst_row(work[1], lin)]):
                 return NEWTON, t
             # rejected as BDF._newton_failed rejects it: a quarter of the step
             stats[REJECTED] += 1

@@ -110,3 +110,8 @@ COMPILED_RECORD_ROWS = 256
 #: Rejected steps and restarts the compiled loop keeps for the progress
 #: reporter (its log) before it hands back (the loop hands back when full).
 COMPILED_EVENT_ROWS = 256
+#: The widest band (below or above the diagonal, in the order of
+#: softflow.solve.steploop.band_layout) of a network too large for dense
+#: factors that the compiled step loop still takes, with its banded LU
+#: (chains and trees of components: a few unknowns).
+COMPILED_BAND_MAX = 32

@@ -7,7 +7,9 @@ steps, called from the integration loop (:meth:`Integrator.run
 
 Which runs: a network the compiled residual covers
 (:mod:`softflow.solve.netcore`), solved by the dense LU (up to
-:data:`softflow.solve.linalg.DENSE_MAX` unknowns), whose sources are
+:data:`softflow.solve.linalg.DENSE_MAX` unknowns; its factors shared with
+the Python Newton's) or, beyond, by the loop's own banded LU where the
+Jacobian orders as a band (:func:`band_layout`), whose sources are
 constants or waveforms of the kinds :mod:`softflow.solve.wavecodes`
 describes, without per-step coefficients (a heat-transfer correlation's
 ``begin_step``), sensitivities or independent sub-networks (batched
@@ -54,16 +56,27 @@ class _Bound:
         self.net, self.sources = net, sources
         network = asm.residual.network
         nr, nk = network.n_regimes, network.n_kinks
+        # the Python Newton's dense factors are shared with the loop's (each
+        # adopts the other's); a banded Jacobian is the loop's own
+        band = self.band = None if newton.lin.kind == "dense" else band_layout(asm)
+        if band is None:
+            flat, shape = asm.dense_index(), (n, n)
+            info, order = np.zeros(2, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
+        else:
+            flat, shape = band.flat, (n, band.width)
+            info, order = np.array([1, band.kl], dtype=np.int64), band.order
         # (J, LU, pivots, scales; the pieces of the Jacobian's laws and at a
-        # solution; the kinks' sides at the point and at a step's end)
-        self.lin = (net[0], np.ascontiguousarray(asm.dense_index(), dtype=np.int64),
-                    np.zeros((n, n)), np.zeros((n, n)), np.zeros(n, dtype=np.int64),
+        # solution; the kinks' sides at the point and at a step's end; the
+        # switching functions; the culprit finder's rows; the band: the
+        # layout of softflow.laws.stepper's lin)
+        self.lin = (net[0], np.ascontiguousarray(flat, dtype=np.int64),
+                    np.zeros(shape), np.zeros(shape), np.zeros(n, dtype=np.int64),
                     np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
                     np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0,
                                                            dtype=np.int64),
                     np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
                     np.zeros(network.n_switching),
-                    np.zeros(n, dtype=np.int64))
+                    np.zeros(n, dtype=np.int64), info, order, np.zeros((2, n)))
         links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
         self.tol = (np.ascontiguousarray(atol_s, dtype=float),
                     np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
@@ -125,8 +138,8 @@ class _Bound:
         lin = newton.lin
         r_fact = self.lin[7]
         pieces = newton._jac_regime
-        if (not newton.stale and newton.lu_dt is not None and lin.lu is not None
-                and (not r_fact.size or pieces is not None)):
+        if (self.band is None and not newton.stale and newton.lu_dt is not None
+                and lin.lu is not None and (not r_fact.size or pieces is not None)):
             LU, piv, ir, ic = self.lin[3:7]
             if r_fact.size:
                 r_fact[:] = np.frombuffer(pieces, dtype=np.int8)
@@ -171,6 +184,10 @@ class _Bound:
         if ist[st.HAS_FLOOR]:
             floor = self.floor.copy()
             newton.scale_floor = floor.tolist() if newton._small else floor
+        if self.band is not None:
+            # (the Python Newton's own factors, older than the loop's steps)
+            newton.stale = True
+            return
         if ist[st.FACTORED] and not ist[st.STALE]:
             J, LU, piv, ir, ic = self.lin[2:7]
             newton.lin.adopt(J, LU, piv, ir, ic)
@@ -364,6 +381,58 @@ class FixedSteps(_Bound):
         return exit_, t, x, S, taken
 
 
+class BandLayout:
+    """A banded order of a network's Jacobian (:func:`band_layout`): ``order``
+    (3, n): the band's rows as the Jacobian's rows, its columns as unknowns,
+    and each Jacobian row's place in the band; ``kl``, ``ku`` the band's
+    widths below and above the diagonal; ``width`` = 2 kl + ku + 1, a band
+    row's storage (LAPACK's gbtrf: kl more for the fill of its row swaps);
+    ``flat`` each raw entry's place in the flattened (n, width) band."""
+
+    def __init__(self, order, kl, ku, flat):
+        self.order, self.kl, self.ku, self.flat = order, kl, ku, flat
+        self.width = 2 * kl + ku + 1
+
+
+def band_layout(asm):
+    """The Jacobian of a network too large for dense factors, ordered as a
+    band (:class:`BandLayout`), or None where its band is wider than
+    :data:`softflow.solve.settings.COMPILED_BAND_MAX` (then the Python
+    loop, with its sparse or condensed factors, takes the run). Each
+    equation is paired with an unknown it has a nonzero slope in (a maximum
+    bipartite matching of the pattern: scipy's), and the pairs are ordered
+    by reverse Cuthill-McKee on the symmetrized pattern (scipy's): chains
+    and trees of components get a band a few unknowns wide. Kept on the
+    Assembly (one per network)."""
+    got = asm.__dict__.get("_band_layout", False)
+    if got is not False:
+        return got
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import maximum_bipartite_matching, reverse_cuthill_mckee
+    n = asm.n
+    rows = np.asarray(asm.pattern_rows, dtype=np.int64)
+    cols = np.asarray(asm.pattern_cols, dtype=np.int64)
+    layout = None
+    pattern = csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    match = maximum_bipartite_matching(pattern, perm_type="column")
+    if (match >= 0).all():
+        pos = np.empty(n, dtype=np.int64)
+        pos[match] = np.arange(n)            # unknown -> the row it is paired with
+        paired = csr_matrix((np.ones(rows.size), (rows, pos[cols])), shape=(n, n))
+        rcm = np.asarray(reverse_cuthill_mckee((paired + paired.T).tocsr(),
+                                               symmetric_mode=True), dtype=np.int64)
+        place = np.empty(n, dtype=np.int64)
+        place[rcm] = np.arange(n)            # row (and its unknown) -> band place
+        i, j = place[rows], place[pos[cols]]
+        kl, ku = int(max(np.max(i - j), 0)), int(max(np.max(j - i), 0))
+        if max(kl, ku) <= settings.COMPILED_BAND_MAX:
+            width = 2 * kl + ku + 1
+            order = np.stack([rcm, match[rcm], place]).astype(np.int64)
+            layout = BandLayout(order, kl, ku, i * width + (j - i + kl))
+    asm.__dict__["_band_layout"] = layout
+    return layout
+
+
 def _source_rows(culprit, rows):
     """Whether the equations the culprit finder (:mod:`softflow.solve.culprit`)
     looks into after a step's failed solve whose reason is not a range's (a
@@ -392,9 +461,10 @@ def _served(integ):
         return None
     asm, newton = integ.asm, integ.newton
     net = getattr(asm.residual, "network", None)
-    if (net is None or newton is None or newton.lin.kind != "dense"
-            or asm.has_begin_step or integ.sens is not None
+    if (net is None or newton is None or asm.has_begin_step or integ.sens is not None
             or newton.offset is not None or not asm.n):
+        return None
+    if newton.lin.kind != "dense" and band_layout(asm) is None:
         return None
     sources = net.source_arrays()
     if sources is None:
