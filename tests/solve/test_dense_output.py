@@ -399,3 +399,27 @@ def test_warnings_are_those_of_the_steps():
         few = sf.Simulation(system, duration=0.3, times=[0.0, 0.3]).run()
     assert [str(w.message) for w in a] == [str(w.message) for w in b]
     assert [r.check for r in few.validity] == [r.check for r in full.validity]
+
+
+def test_the_compiled_terms_are_the_numpy_sum():
+    """softflow.laws.output.dense_terms (DenseOutput.on's sum of the
+    differences weighted by the polynomial's coefficients) is the NumPy
+    sum it replaced, term by term in the same order, bitwise, for every
+    column and for a selection."""
+    from softflow._laws import law_module
+    rng = np.random.default_rng(2)
+    diffs = rng.normal(size=(30, 7)) * 10.0 ** rng.integers(-8, 8, size=(30, 7))
+    C = rng.normal(size=(50, 4))
+    C[rng.random(size=C.shape) < 0.2] = 0.0
+    rows = rng.integers(0, 30, size=(50, 4)).astype(np.int64)
+    for picked in (None, np.array([6, 0, 3], dtype=np.int64)):
+        want = None
+        for j in range(C.shape[1]):
+            D = diffs[rows[:, j]] if picked is None else diffs[rows[:, j][:, None], picked]
+            term = C[:, j, None] * D
+            want = term if want is None else want + term
+        got = np.empty(want.shape)
+        law_module("output").dense_terms(C, rows, diffs,
+                                         np.empty(0, dtype=np.int64) if picked is None
+                                         else picked, got)
+        np.testing.assert_array_equal(got, want)

@@ -58,6 +58,7 @@ import math
 
 import numpy as np
 
+from .._laws import law_module
 from .settings import AUTO_REFINE_MAX, AUTO_REFINE_TARGET
 
 #: where the polynomial's second derivative is sampled for refine='auto' (in
@@ -304,15 +305,17 @@ class DenseOutput:
                 C[j[None, :] > k[:, None]] = 0.0
                 rows = np.minimum(self.off[i][:, None] + (j - 1),
                                   max(len(self.diffs) - 1, 0))
-                # sum_j C_j D_j term by term, elementwise: every column the same
-                # arithmetic whichever columns are asked for (Result.at's one
-                # column equals the same column of Result.interpolate)
-                d = None
-                for jj in range(kmax):
-                    Dj = (self.diffs[rows[:, jj]] if cols is None
-                          else self.diffs[rows[:, jj][:, None], dcols])
-                    term = C[:, jj, None] * Dj
-                    d = term if d is None else d + term
+                # sum_j C_j D_j term by term, elementwise, in one compiled
+                # pass: every column the same arithmetic whichever columns
+                # are asked for (Result.at's one column equals the same
+                # column of Result.interpolate)
+                diffs = self.diffs
+                picked = (np.empty(0, dtype=np.int64) if cols is None
+                          else np.asarray(dcols, dtype=np.int64))
+                d = np.empty((C.shape[0], diffs.shape[1] if cols is None else picked.size))
+                law_module("output").dense_terms(np.ascontiguousarray(C),
+                                                 np.ascontiguousarray(rows, dtype=np.int64),
+                                                 diffs, picked, d)
                 mS, mX = S.shape[1], X.shape[1]
                 S += d[:, :mS]
                 X += d[:, mS:mS + mX]
