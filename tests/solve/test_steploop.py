@@ -240,6 +240,31 @@ def test_the_band_lu_solves_as_lapack(scale_rows):
     assert stepper.band_factor(singular, flat, J, LU, piv, ir, ic, 1, 1e-14) == 2
 
 
+def test_the_solves_store_subnormal_values_as_zero():
+    """Both solves store values below the smallest normal float as 0 (the
+    far tail of a step response down a long chain, whose subnormal
+    arithmetic cost five times the solve's own), and carry a NaN through."""
+    tiny = np.finfo(float).tiny
+    A = np.array([[2.0, 0.0], [1.0, 4.0]])
+    raw, flat = A.ravel().copy(), np.arange(4, dtype=np.int64)
+    J, LU = np.zeros((2, 2)), np.zeros((2, 2))
+    piv, ir, ic = np.zeros(2, dtype=np.int64), np.ones(2), np.ones(2)
+    assert stepper.factor(raw, flat, J, LU, piv, ir, ic, 1e-14) == 0
+    out = np.empty(2)
+    for b, want in (([tiny * 0.25, 1.0], [0.0, 0.25]), ([2.0, tiny], [1.0, -0.25]),
+                    ([np.nan, 1.0], [np.nan, np.nan])):
+        stepper.lu_solve(LU, piv, ir, ic, np.array(b), out)
+        np.testing.assert_array_equal(out, want)
+    # the band layout of the same matrix (kl = 1, ku = 0: width 3)
+    bflat = np.array([1, 3, 4], dtype=np.int64)
+    Jb, LUb = np.zeros((2, 3)), np.zeros((2, 3))
+    assert stepper.band_factor(np.array([2.0, 1.0, 4.0]), bflat, Jb, LUb, piv, ir, ic, 1,
+                               1e-14) == 0
+    for b, want in (([tiny * 0.25, 1.0], [0.0, 0.25]), ([np.nan, 1.0], [np.nan, np.nan])):
+        stepper.band_solve(LUb, piv, ir, ic, 1, np.array(b), out)
+        np.testing.assert_array_equal(out, want)
+
+
 def test_a_chain_is_ordered_as_a_narrow_band():
     """A chain of tubes and tanks, its unknowns grouped by kind in the
     assembly (a band as wide as the network), is ordered as a band a few
