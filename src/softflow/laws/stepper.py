@@ -255,12 +255,13 @@ def band_solve(A, piv, ir, ic, kl, b, out):
 
 
 @jit
-def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol):
+def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
     """:func:`factor` for a Jacobian held in band storage (``flat``: each raw
     entry's place in the flattened band array, rows and columns in the
     band's order): J from the raw entries, its factors in LU (:func:`band_lu`),
-    equilibrated where its pivots fail the singularity test. Returns 0, 1
-    (not finite) or 2 (singular)."""
+    equilibrated where its pivots fail the singularity test, or at once
+    with ``scaled`` (the last factors needed it: a network's units do not
+    change between steps). Returns 0, 1 (not finite) or 2 (singular)."""
     n, w = J.shape
     Jf = J.ravel()
     for i in range(Jf.size):
@@ -270,12 +271,13 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol):
     for i in range(Jf.size):
         if not math.isfinite(Jf[i]):
             return 1
-    LU[:, :] = J
-    d_min, d_max = band_lu(LU, piv, kl)
-    if d_min > pivot_rtol * max(d_max, 1e-300):
-        ir[:] = 1.0
-        ic[:] = 1.0
-        return 0
+    if not scaled:
+        LU[:, :] = J
+        d_min, d_max = band_lu(LU, piv, kl)
+        if d_min > pivot_rtol * max(d_max, 1e-300):
+            ir[:] = 1.0
+            ic[:] = 1.0
+            return 0
     for i in range(n):
         r = 0.0
         for o in range(w):
@@ -309,7 +311,8 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol):
 #: ``lin``: (raw entries, their places in J, J, LU, pivots, row and column
 #: scales, the pieces of the Jacobian's laws, the pieces at a solution, the
 #: kinks' sides at the point and at a step's end, switching values, the
-#: rows the culprit finder looks into, the band (1 or 0 for dense, kl),
+#: rows the culprit finder looks into, the band (1 or 0 for dense, kl,
+#: whether its last factors were equilibrated),
 #: the band's order (its rows' original rows, its columns' original
 #: unknowns, each original row's band row), two scratch rows)
 @jit
@@ -317,8 +320,16 @@ def lin_factor(lin, pivot_rtol):
     """The Jacobian from the raw entries, factored (:func:`factor`, or
     :func:`band_factor` where ``lin`` is banded)."""
     if lin[13][0]:
-        return band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
-                           lin[13][1], pivot_rtol)
+        band = lin[13]
+        code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
+                           band[1], pivot_rtol, band[2] > 0)
+        if code == 0:
+            band[2] = 0 if lin[5][0] == 1.0 and (lin[5] == 1.0).all() else 1
+        elif band[2]:            # (once more from the plain factors)
+            band[2] = 0
+            code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
+                               band[1], pivot_rtol, False)
+        return code
     return factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6], pivot_rtol)
 
 

@@ -61,10 +61,10 @@ class _Bound:
         band = self.band = None if newton.lin.kind == "dense" else band_layout(asm)
         if band is None:
             flat, shape = asm.dense_index(), (n, n)
-            info, order = np.zeros(2, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
+            info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
         else:
             flat, shape = band.flat, (n, band.width)
-            info, order = np.array([1, band.kl], dtype=np.int64), band.order
+            info, order = np.array([1, band.kl, 0], dtype=np.int64), band.order
         # (J, LU, pivots, scales; the pieces of the Jacobian's laws and at a
         # solution; the kinks' sides at the point and at a step's end; the
         # switching functions; the culprit finder's rows; the band: the
