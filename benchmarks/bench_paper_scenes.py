@@ -63,7 +63,8 @@ SERVES = ("The compiled step loop (softflow.solve.steploop, issue 38) serves the
           "adaptive BDF{fixed}, where: every group is in the compiled network residual "
           "(softflow.solve.netcore: not user components, callable curves, table or eos "
           "fluids, the mean-density gas law in thermal scenes); the LU is dense (n <= 128 "
-          "unknowns with linear_solver='auto'); no begin_step "
+          "unknowns with linear_solver='auto') or, beyond, the Jacobian orders as a band "
+          "at most settings.COMPILED_BAND_MAX wide (the loop's banded LU); no begin_step "
           "(heat-transfer correlations); sources constant or waveforms (no Python "
           "callables); no sensitivities or batched sub-networks. Inside a served run it "
           "hands back to Python for {hands}.")
