@@ -77,8 +77,8 @@ def serves():
             fixed=" and backward Euler at fixed steps (FixedSteps; adaptive backward "
                   "Euler never)",
             hands="a failed solve that Newton reports itself (not finite, a law's refusal, "
-                  "singular, pressure <= 0) or that the culprit finder looks into (a run's "
-                  "first failure; one in a flow source's region), forced steps, mode "
+                  "singular, pressure <= 0) or that the culprit finder looks into (one in "
+                  "a flow source's region), forced steps, mode "
                   "switches logged or chattering, emptied volumes, restarts whose probes fail")
     return SERVES.format(
         fixed=" only (fixed-step runs never)",

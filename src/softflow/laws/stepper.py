@@ -50,8 +50,9 @@ SOLVED, PLAIN, CONTRACTING, HAND, REFUSED = range(5)
 (K, N_EQUAL, FAILS, FAIL_HOLD, PASSED, AGE, STALE, ONE_ITER, FACTORED, BUDGET_LEFT,
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
  N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB, CAP_HOLD, SECANT_TRIES,
- MAX_SECANT, LOG_SWITCHES, UNDAMPED, REJECT_NEWTON, FAILS_HERE, WATCHDOG) = range(32)
-IST_SIZE = 32
+ MAX_SECANT, LOG_SWITCHES, UNDAMPED, REJECT_NEWTON, FAILS_HERE, WATCHDOG,
+ WANTS_SOURCES) = range(33)
+IST_SIZE = 33
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
@@ -1041,8 +1042,13 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             # would look into (its nodes of flow sources not yet known, or
             # the worst equation in one's region), or a run logged in
             # detail: the BDF's
-            if (code != PLAIN or h <= smin or not ist[REJECT_NEWTON]
-                    or ist[LOG_SWITCHES] or lin[12][_worst_row(work[1], lin)]):
+            if code != PLAIN or h <= smin or ist[LOG_SWITCHES]:
+                return NEWTON, t
+            if not ist[REJECT_NEWTON]:
+                # (the caller may find those nodes and call again)
+                ist[WANTS_SOURCES] = 1
+                return NEWTON, t
+            if lin[12][_worst_row(work[1], lin)]:
                 return NEWTON, t
             # rejected as BDF._newton_failed rejects it: a quarter of the step
             stats[REJECTED] += 1

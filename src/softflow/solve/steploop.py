@@ -18,8 +18,9 @@ variants). Every other run, and every step the loop hands back
 BDF's Newton reports itself (a residual not finite, a law's refusal, a
 singular Jacobian, a pressure <= 0) or that the culprit finder would look
 into (its worst equation in the region of a node without volume that
-carries a flow source, or any before the run's first failure has found
-those nodes), a failure at the smallest step (a fold's jump,
+carries a flow source: :meth:`CompiledSteps.run` has the finder find those
+nodes at the run's first failure, and the loop try that step again), a
+failure at the smallest step (a fold's jump,
 continuation), forced steps, a mode switch logged in detail or at the
 smallest steps (where it may chatter), steps across a law's kink (a check
 valve that shuts or opens), solutions on another piece of a piecewise law
@@ -271,11 +272,20 @@ class CompiledSteps(_Bound):
         dense = self.dbuf + (self.d_cols,)
         taken = 0
         while True:
+            ist[st.WANTS_SOURCES] = 0
             exit_, t = st.stretch(float(t), x, S, bdf._D, Q, ist, fst, qmax_run, self.floor,
                                   self.stats, self.net, self.lin, self.sources, self.tol, rec,
                                   dense, self.events, self.watch, self.breaks, self.G,
                                   self.ERRC)
             taken += self._flush(t, Q)
+            if exit_ == st.NEWTON and ist[st.WANTS_SOURCES]:
+                # a failed solve that only the culprit finder's nodes, not yet
+                # found, kept from the loop: found here, from the point the
+                # finder would ask (the last taken), and the step tried again
+                bdf.culprit._locals(x, S, t)
+                ist[st.REJECT_NEWTON] = int(_source_rows(bdf.culprit, self.lin[12]))
+                if ist[st.REJECT_NEWTON]:
+                    exit_ = st.FULL
             if exit_ != st.FULL:
                 break
             # buffers full: emptied into the run's records, and on
@@ -439,8 +449,8 @@ def _source_rows(culprit, rows):
     Newton iteration diverging, too slow) are known, and those equations
     into ``rows`` (1: the rows of a region of a node without volume that
     carries a flow source, :meth:`Finder._concerned`). Known without a
-    finder, or once its first failure has found the nodes; until then the
-    BDF takes failed solves."""
+    finder, or once it has found the nodes (:meth:`CompiledSteps.run` asks
+    it at the run's first failed solve)."""
     rows[:] = 0
     if culprit is None:
         return True
