@@ -312,6 +312,31 @@ def test_a_network_too_large_for_dense_factors_runs_in_the_compiled_loop(monkeyp
             assert np.max(np.abs(vb - va)) <= 1e-6 * max(np.ptp(va), 1.0), key
 
 
+def test_a_narrow_band_is_factored_as_a_band_below_the_dense_limit(monkeypatch):
+    """A chain of 31 tubes (126 unknowns: dense factors in the Python Newton)
+    has a band 11 wide, under a quarter of the matrix: the loop factors it
+    as a band of its own (not shared with the Python Newton), a chain of 8
+    (34 unknowns) densely; either run takes the Python loop's steps, the
+    same pressures to 1e-6 of their range."""
+    bound = []
+    init = steploop._Bound.__init__
+
+    def spy(self, *args):
+        init(self, *args)
+        bound.append(self.band)
+    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    for N, banded in ((31, True), (8, False)):
+        bound.clear()
+        py, comp, taken = _both(lambda: chain(N), 0.1, monkeypatch, rtol=1e-5)
+        assert py.stats["linear_solver"] == "dense"
+        assert [b is not None for b in bound] == [banded]
+        assert taken == comp.stats["steps"] == py.stats["steps"]
+        for key, va in py.to_dict().items():
+            if key.endswith("pressure"):
+                vb = np.interp(py.times, comp.times, comp.to_dict()[key])
+                assert np.max(np.abs(vb - va)) <= 1e-6 * max(np.ptp(va), 1.0), key
+
+
 @pytest.mark.parametrize("k", range(1, bdf.MAX_ORDER + 1))
 def test_the_rescaled_table_is_the_bdfs(k):
     rng = np.random.default_rng(k)

@@ -8,8 +8,9 @@ steps, called from the integration loop (:meth:`Integrator.run
 Which runs: a network the compiled residual covers
 (:mod:`softflow.solve.netcore`), solved by the dense LU (up to
 :data:`softflow.solve.linalg.DENSE_MAX` unknowns; its factors shared with
-the Python Newton's) or, beyond, by the loop's own banded LU where the
-Jacobian orders as a band (:func:`band_layout`), whose sources are
+the Python Newton's) or by the loop's own banded LU where the Jacobian
+orders as a band (:func:`band_layout`; beyond DENSE_MAX, or narrower than a
+quarter of the matrix: :func:`_banded`), whose sources are
 constants or waveforms of the kinds :mod:`softflow.solve.wavecodes`
 describes, without per-step coefficients (a heat-transfer correlation's
 ``begin_step``), sensitivities or independent sub-networks (batched
@@ -59,7 +60,7 @@ class _Bound:
         nr, nk = network.n_regimes, network.n_kinks
         # the Python Newton's dense factors are shared with the loop's (each
         # adopts the other's); a banded Jacobian is the loop's own
-        band = self.band = None if newton.lin.kind == "dense" else band_layout(asm)
+        band = self.band = _banded(asm, newton)
         if band is None:
             flat, shape = asm.dense_index(), (n, n)
             info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
@@ -441,6 +442,23 @@ def band_layout(asm):
             layout = BandLayout(order, kl, ku, i * width + (j - i + kl))
     asm.__dict__["_band_layout"] = layout
     return layout
+
+
+def _banded(asm, newton):
+    """The :class:`BandLayout` the loop factors the network's Jacobian in,
+    or None for the dense LU shared with the Python Newton: banded where
+    the Python Newton's factors are not dense, and where the band's storage
+    is at most a quarter of the dense matrix's (BAND_SHARE: a chain of 31
+    tubes, 126 unknowns in a band 11 wide, 105 -> 22 us a step)."""
+    band = band_layout(asm)
+    if newton.lin.kind == "dense" and (band is None or BAND_SHARE * band.width > asm.n):
+        return None
+    return band
+
+
+#: the compiled loop factors a network that dense factors serve as a band
+#: where the band is at most 1/BAND_SHARE of the matrix's width (_banded)
+BAND_SHARE = 4
 
 
 def _source_rows(culprit, rows):
