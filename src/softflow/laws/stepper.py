@@ -559,7 +559,7 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0
     return HAND
 
 
-@inline
+@jit
 def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, nrtol,
           x_off, q_id, floor, links, damped, factored):
     """Full Newton from work[0] (:meth:`Newton._full`: a Jacobian at each
@@ -580,16 +580,27 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
     n = x.size
     keep_cut = fst[TIGHT_KEEP_CUT] if nrtol <= fst[TIGHT_RTOL] else fst[KEEP_CUT]
     clip = ist[CLIP] > 0
+    # the evaluations at x with the Jacobian come at the top of an
+    # iteration (``pending``: 1 the residual into F, which must be finite;
+    # 2 the Jacobian alone), so that the residual is built into this stage
+    # at two places, not five (:func:`softflow.laws.inline`); Newton._full
+    # makes them at the end of the iteration before (the last one's, which
+    # changes nothing but the count of evaluations, is left out)
+    pending = 1
     if factored:
         F[:] = F0
-    else:
-        if _evaluate(net, x, psi, t, c, True, F, none, stats) >= 0 or not _finite(F):
-            return HAND
-        jx[:] = x
+        pending = 0
     refactor = True
     watch, f_ref, used = 0, math.inf, False
     limit = 2 * ist[MAX_ITER] if damped else ist[MAX_ITER]
     for k in range(limit):
+        if pending:
+            out = F if pending == 1 else Fn
+            if (_evaluate(net, x, psi, t, c, True, out, none, stats) >= 0
+                    or (pending == 1 and not _finite(F))):
+                return HAND
+            jx[:] = x
+            pending = 0
         if refactor:
             if not factored:
                 stats[FACTORIZATIONS] += 1
@@ -656,25 +667,19 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
             watch -= 1
             for i in range(n):
                 x[i] = x[i] - step[i]
-            if _evaluate(net, x, psi, t, c, True, F, none, stats) >= 0 or not _finite(F):
-                return HAND
-            jx[:] = x
+            pending = 1
             refactor = True
             continue
         if not refactor and not f1 <= (1 - 1e-4) * f0:
             # stale factors: this iterate again on a Jacobian evaluated at x
             refactor = True
-            if _evaluate(net, x, psi, t, c, True, Fn, none, stats) >= 0:
-                return HAND
-            jx[:] = x
+            pending = 2
             continue
         refactor = lam < 1.0 or f1 > keep_cut * f0
         x[:] = xn
         F[:] = Fn
         if refactor and lam < 1.0:        # the Jacobian at the damped iterate
-            if _evaluate(net, x, psi, t, c, True, Fn, none, stats) >= 0:
-                return HAND
-            jx[:] = x
+            pending = 2
     return HAND if damped else PLAIN
 
 
@@ -735,6 +740,38 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
     without its damped stages (the BDF cuts the step), HAND where the BDF's
     own Newton must take the step (its damped stages, the culprit
     finder)."""
+    x = work[0]
+    code = _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, q_id,
+                   p_idx, T_idx, work, none, stats, nrtol)
+    if code == SOLVED or code == REFUSED:
+        return code
+    if code == HAND or mode == 3:
+        return HAND
+    if mode == 0 or (code == CONTRACTING and mode == 1):
+        # Newton's full stage: damped from the predictor (on the fresh
+        # factors made there), or from the chord's last iterate where it
+        # contracted; undamped from there (mode 1)
+        fresh_x0 = mode == 0 and code != CONTRACTING
+        if fresh_x0:
+            x[:] = x0
+        code = _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol,
+                     nrtol, x_off, q_id, floor, links, mode == 0, fresh_x0)
+        if code == SOLVED:
+            if not _positive(x, p_idx):
+                return REFUSED
+            ist[AGE] += 1
+            return SOLVED
+        return code
+    return PLAIN
+
+
+@inline
+def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, q_id,
+            p_idx, T_idx, work, none, stats, nrtol):
+    """Newton's chord stages (:func:`_solve`'s first part; backward Euler's
+    whole solve in the loop): SOLVED with the solution in work[0], REFUSED
+    (a pressure <= 0), HAND (another piece of a piecewise law, or the
+    fresh chord's HAND), or the fresh chord's PLAIN or CONTRACTING."""
     x, F, step = work[0], work[1], work[2]
     _newton_scale(x0, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, itol)
     reusable = (ist[STALE] == 0 and ist[AGE] < ist[MAX_AGE]
@@ -759,24 +796,7 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
                         return HAND
             ist[AGE] += 1
             return SOLVED
-    if code == HAND or mode == 3:
-        return HAND
-    if mode == 0 or (code == CONTRACTING and mode == 1):
-        # Newton's full stage: damped from the predictor (on the fresh
-        # factors made there), or from the chord's last iterate where it
-        # contracted; undamped from there (mode 1)
-        fresh_x0 = mode == 0 and code != CONTRACTING
-        if fresh_x0:
-            x[:] = x0
-        code = _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol,
-                     nrtol, x_off, q_id, floor, links, mode == 0, fresh_x0)
-        if code == SOLVED:
-            if not _positive(x, p_idx):
-                return REFUSED
-            ist[AGE] += 1
-            return SOLVED
-        return code
-    return PLAIN
+    return code
 
 
 @inline
@@ -1299,9 +1319,8 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
         at_break = t_new == nxt
         t_eval = np.nextafter(t_new, -math.inf) if at_break else t_new
         source_values(t_eval, base, slot, codes, factors, starts, floats, u)
-        if _solve(net, lin, x_pred, S, t_eval, h, ist, fst, itol, floor, links, natol,
-                  x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL],
-                  3) != SOLVED:
+        if _chords(net, lin, x_pred, S, t_eval, h, ist, fst, itol, floor, links, natol,
+                   x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL]) != SOLVED:
             ist[STALE] = 1
             return NEWTON, t
         x_new = work[0]
