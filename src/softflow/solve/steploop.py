@@ -449,16 +449,22 @@ def _banded(asm, newton):
     or None for the dense LU shared with the Python Newton: banded where
     the Python Newton's factors are not dense, and where the band's storage
     is at most a quarter of the dense matrix's (BAND_SHARE: a chain of 31
-    tubes, 126 unknowns in a band 11 wide, 105 -> 22 us a step)."""
+    tubes, 126 unknowns in a band 11 wide, 105 -> 36 us a step). Not
+    asked below BAND_MIN unknowns (dense; the ordering costs ~0.4 ms)."""
+    dense = newton.lin.kind == "dense"
+    if dense and asm.n < BAND_MIN:
+        return None
     band = band_layout(asm)
-    if newton.lin.kind == "dense" and (band is None or BAND_SHARE * band.width > asm.n):
+    if dense and (band is None or BAND_SHARE * band.width > asm.n):
         return None
     return band
 
 
 #: the compiled loop factors a network that dense factors serve as a band
-#: where the band is at most 1/BAND_SHARE of the matrix's width (_banded)
-BAND_SHARE = 4
+#: where the band is at most 1/BAND_SHARE of the matrix's width (_banded),
+#: and asks for a band only from BAND_MIN unknowns on (a chain of 8 tubes,
+#: 34 unknowns in a band 11 wide: dense)
+BAND_SHARE, BAND_MIN = 4, 48
 
 
 def _source_rows(culprit, rows):
