@@ -432,10 +432,13 @@ def initial_volume_records(comps):
     lo, hi, origin, policy = found
     span = hi - lo
     slack = INITIAL_VOLUME_SLACK * span
-    v0 = np.fromiter((c.initial_volume for c in comps), dtype=float, count=len(comps))
+    # each initial volume as a float, tested one by one (a group holds one or a
+    # few: NumPy's calls cost more than the tests)
+    v0 = [float(c.initial_volume) for c in comps]
+    below, above_hi = lo - slack, hi + slack
     out = []
-    for k in np.flatnonzero((v0 < lo - slack) | (v0 > hi + slack)):
-        comp, v = comps[k], float(v0[k])
+    for k in [k for k, v in enumerate(v0) if v < below or v > above_hi]:
+        comp, v = comps[k], v0[k]
         above = v > hi
         limit = hi if above else lo
         past = abs(v - limit)

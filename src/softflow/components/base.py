@@ -78,8 +78,24 @@ class Params:
         self.n = len(self.components)
         first = self.components[0]
         self.fluid = getattr(first, "fluid", None)
-        for name in type(first).param_names:
-            setattr(self, name, np.array([getattr(c, name) for c in self.components], dtype=float))
+        names = type(first).param_names
+        if not names:
+            return
+        # every parameter in one array, a row each (one conversion instead of one
+        # per name: ~1 us a name on a small group); per name where they differ
+        # in shape, as before
+        try:
+            table = np.array([[getattr(c, name) for c in self.components] for name in names],
+                             dtype=float)
+        except ValueError:
+            table = None
+        if table is None or table.ndim != 2:
+            for name in names:
+                setattr(self, name, np.array([getattr(c, name) for c in self.components],
+                                             dtype=float))
+            return
+        for name, row in zip(names, table):
+            setattr(self, name, row)
 
 
 class LibraryComponent(Component):

@@ -90,24 +90,27 @@ class _SourceParams(Params):
         offsets = np.array([getattr(c, "offset", 0.0) for c in self.components])
         self._base = offsets + [0.0 if s.func is not None else s.const for s in signals]
         # slot 0 holds 0 for constants; each distinct time-varying function gets a slot
+        # (as a list first: NumPy's scalar writes cost more on a group of one or few)
         slots = {}
         self._varying = []
-        self._slot = np.zeros(self.n, dtype=np.int64)
+        slot = [0] * self.n
         for i, s in enumerate(signals):
             if s.func is not None:
                 if id(s.func) not in slots:
                     self._varying.append(s)
                     slots[id(s.func)] = len(self._varying)
-                self._slot[i] = slots[id(s.func)]
+                slot[i] = slots[id(s.func)]
+        self._slot = np.array(slot, dtype=np.int64)
         # the common case (one source, or many driven by one waveform): no gather
-        self._one_signal = len(self._varying) == 1 and bool(np.all(self._slot == 1))
+        self._one_signal = len(self._varying) == 1 and all(k == 1 for k in slot)
         self._t = None
         self._values = self._base
         # all sources of the group at one value (one source, or one signal and one
         # offset): flat_values() and column() hand out that value as a float
         # (not for a subclass with its own values())
-        self._uniform = (not self._varying or self._one_signal) and bool(
-            np.all(self._base == self._base[0])) and type(self).values is _SourceParams.values
+        base = self._base.tolist()
+        self._uniform = (not self._varying or self._one_signal) and all(
+            b == base[0] for b in base) and type(self).values is _SourceParams.values
         self._base0 = float(self._base[0])
         self._tc = None
         self._value = self._base0

@@ -77,6 +77,9 @@ def _is_regular(A):
 #: Up to this many unknowns the regularity check factors a dense matrix
 #: (a sixth of SuperLU's time on the paper's 6 unknowns, measured).
 DENSE_CHECK_MAX = 64
+#: Up to this many terminals in all Assembly numbers the unknowns of library
+#: groups on Python lists (:func:`_number_small`) instead of NumPy calls per group.
+SMALL_NUMBERING_MAX = 256
 #: Up to this many unknowns Assembly.subnetworks finds the connected parts by
 #: union-find in Python (10-20 us) instead of scipy's sparse graph (~0.15 ms).
 SMALL_BLOCKS_MAX = 256
@@ -151,7 +154,47 @@ def _is_regular_dense(J):
     lu, _, info = _getrf(J, overwrite_a=1)
     if info < 0:
         raise ValueError(f"illegal value in argument {-info} of getrf")
-    return bool(np.abs(np.diag(lu)).min() > 1e-12)
+    # min |pivot| > 1e-12, pivot by pivot on Python floats (a NaN pivot fails
+    # both ways: NumPy's min propagates it, and NaN > 1e-12 is False)
+    return all(abs(u) > 1e-12 for u in lu.diagonal().tolist())
+
+
+class _Answers:
+    """A test's answers by the exact bytes of its arrays: the regularity tests of
+    a network's compile (:meth:`Assembly._check_structure`,
+    :meth:`Assembly.check_nonsingular`) are pure functions of the pattern and
+    the Jacobian at the initial values, which a scene compiled again (a
+    benchmark, a notebook run twice, sf.assess's runs) gives bit for bit. At
+    most ``size`` answers, the oldest forgotten first; ``calls`` counts the
+    tests made (for the tests)."""
+
+    def __init__(self, test, size=128):
+        self.test, self.size, self.known, self.calls = test, size, {}, 0
+
+    def __call__(self, key, *args):
+        known = self.known
+        got = known.get(key)
+        if got is None:
+            self.calls += 1
+            got = bool(self.test(*args))
+            if len(known) >= self.size:
+                try:        # (another thread may have forgotten it already)
+                    del known[next(iter(known))]
+                except (KeyError, RuntimeError, StopIteration):
+                    pass
+            known[key] = got
+        return got
+
+
+def _array_key(*arrays):
+    """The exact key of arrays: each one's dtype, shape and bytes."""
+    return tuple((a.dtype.str, a.shape, a.tobytes()) for a in arrays)
+
+
+#: answers of _structurally_regular, by (n, indices, indptr)
+_STRUCTURAL = _Answers(_structurally_regular)
+#: answers of _is_regular_dense, by the dense Jacobian
+_DENSE_REGULAR = _Answers(_is_regular_dense)
 
 
 #: Parameters named (where a component has them) when its scale is extreme.
@@ -219,9 +262,30 @@ class Group:
         self.kinks = None  # kinks(V): the side of the law's kinks each instance is on
         self.row = None    # a single user component's kernel (1-D calls), or None
         self.cls = self.params = None   # a library group's class and Params
-        self.affine = None  # its residual as an affine map of V (components.base.Affine), or None
+        # its residual as an affine map of V (components.base.Affine), or None;
+        # a library group's is made from cls and params on first use (affine)
+        self._affine = None
         self.col = None  # (n, nv) global unknown index of each interface variable
         self.r0 = self.r1 = self.s0 = self.s1 = self.j0 = self.j1 = 0
+
+    @property
+    def affine(self):
+        """The group's residual as an affine map of V (:class:`components.base.Affine`),
+        or None: a library group's ``cls.affine(params)``, made on first use (only
+        the per-group residual of a small network reads it, where the compiled
+        one does not serve)."""
+        got = self._affine
+        if got is _UNMADE:
+            got = self._affine = self.cls.affine(self.params)
+        return got
+
+    @affine.setter
+    def affine(self, value):
+        self._affine = value
+
+
+#: Group._affine not yet made
+_UNMADE = object()
 
 
 def _group_failure(g, err, t):
@@ -252,14 +316,13 @@ def _fluid_failure(g, err):
 
 #: What _library_group makes of a class's Params: Assembly.replace takes all of
 #: them from a group made anew (one left behind would keep the old numbers).
-_FROM_PARAMS = ("kernel", "update", "affine", "begin", "switching", "fold", "regime",
+_FROM_PARAMS = ("kernel", "update", "_affine", "begin", "switching", "fold", "regime",
                 "kinks", "cls", "params")
 
 
 def _library_group(cls, comps):
-    from ..components.base import LibraryComponent
     P = cls.make_params(comps)
-    if cls.kernel.__func__ is LibraryComponent.kernel.__func__:
+    if cls.kernel.__func__ is (_LIBRARY_KERNEL or _library_kernel()):
         kernel, update = step_functions(cls, P)     # rates and residuals (the rule)
     else:
         # a LibraryComponent subclass of a user's that writes its step equations
@@ -269,7 +332,7 @@ def _library_group(cls, comps):
               pattern=cls.jac_pattern, neq=comps[0].n_equations, ns=len(cls.state_spec),
               has_states=bool(cls.state_spec))
     g.cls, g.params = cls, P      # the compiled network residual reads them (netcore)
-    g.affine = cls.affine(P)
+    g._affine = _UNMADE           # cls.affine(P), on first use (Group.affine)
     sw = getattr(cls, "switching", None)
     if sw is not None and cls.discrete_states:
         g.switching = partial(sw, P)
@@ -287,6 +350,19 @@ def _library_group(cls, comps):
     if wants is not None and wants(P):
         g.begin = lambda V, S: cls.begin_step(P, V, S)
     return g
+
+
+_LIBRARY_KERNEL = None
+
+
+def _library_kernel():
+    """``LibraryComponent.kernel``'s function (the rule of softflow.solve.discretize),
+    imported once (the components import this package)."""
+    global _LIBRARY_KERNEL
+    if _LIBRARY_KERNEL is None:
+        from ..components.base import LibraryComponent
+        _LIBRARY_KERNEL = LibraryComponent.kernel.__func__
+    return _LIBRARY_KERNEL
 
 
 def _user_group(comp):
@@ -440,6 +516,14 @@ def _group_layout(comps):
     """The shared :class:`_Layout` of a library group, or None where its members
     differ in their terminals' or locals' quantities and roles (numbered one
     by one then, as before)."""
+    if len(comps) == 1:
+        return _own_layout(comps[0])
+    return _shared_layout(comps)
+
+
+def _shared_layout(comps):
+    """:func:`_group_layout` compared member by member (any group; a group of
+    one takes :func:`_own_layout`, the same answer without comparing)."""
     first = comps[0]
     nt, nl = len(first.terminals), len(first.locals)
     term_lists = list(map(_terminals_of, comps))
@@ -477,10 +561,63 @@ def _group_layout(comps):
     return _Layout(slots, sigs, lists, first)
 
 
+def _own_layout(comp):
+    """:func:`_group_layout` of a group of one component (nothing to compare: its
+    own interface, slot by slot)."""
+    slots, sigs = [], set()
+    for ti, t in enumerate(comp.terminals):
+        tv = t.variables
+        label = t.label
+        for vi, v in enumerate(tv):
+            slots.append((label, ti, vi, v.quantity, v.role))
+        sigs.add((tuple(dict.fromkeys(v.quantity for v in tv if v.role == "across")),
+                  tuple(dict.fromkeys(v.quantity for v in tv if v.role == "through"))))
+    for vi, v in enumerate(comp.locals):
+        slots.append((None, None, vi, v.quantity, v.role))
+    return _Layout(slots, sigs, [None] * len(comp.terminals), comp)
+
+
 _terminals_of = attrgetter("terminals")
 _locals_of = attrgetter("locals")
 _label_of = attrgetter("label")
 _variables_of = attrgetter("variables")
+
+
+def _number_small(g, slots, at, t_start, node_of, across_of, row_of, quantities,
+                  through_rows, through_cols):
+    """A library group's unknowns numbered as Assembly.__init__ numbers them with
+    NumPy (``g.col``; its node rows and columns appended to ``through_rows``
+    and ``through_cols``; its own unknowns' quantities to ``quantities``), on
+    Python lists: a small network's groups of one or a few members cost ~5 us
+    each this way against ~15 us in NumPy calls. The lists: each component's
+    first terminal, each terminal's node, and per quantity each node's across
+    unknown and conservation row."""
+    own = [k for k, slot in enumerate(slots) if slot[4] != "across"]
+    n_own = len(own)
+    base = len(quantities)
+    if own:
+        quantities += [slots[k][3] for k in own] * g.n
+    across = [(k, across_of[q], ti) for k, (_, ti, _, q, role) in enumerate(slots)
+              if role == "across"]
+    through = [(k, row_of[q], ti) for k, (_, ti, _, q, role) in enumerate(slots)
+               if role == "through"]
+    cols, trows, tcols = [], [], []
+    row = [0] * len(slots)
+    for i, pos in enumerate(at):
+        first = t_start[pos]
+        at_own = base + i * n_own
+        for j, k in enumerate(own):
+            row[k] = at_own + j
+        for k, nodes, ti in across:
+            row[k] = nodes[node_of[first + ti]]
+        for k, rows, ti in through:     # component by component, in interface order
+            trows.append(rows[node_of[first + ti]])
+            tcols.append(row[k])
+        cols.append(row[:])
+    g.col = np.array(cols, dtype=np.int64).reshape(g.n, len(slots))
+    if through:
+        through_rows.append(np.array(trows, dtype=np.int64))
+        through_cols.append(np.array(tcols, dtype=np.int64))
 
 
 def _terminal_sig(t):
@@ -570,14 +707,33 @@ class Assembly:
         # unknown indices per component interface variable: across ones at the
         # node of their terminal, the others numbered in turn, component by
         # component (one lookup per terminal; NumPy per library group)
-        tcount = np.array(tcount, dtype=np.int64)
-        t_start = np.cumsum(tcount) - tcount
-        node_arr = np.asarray(node_of, dtype=np.int64)
+        small = n_terminals <= SMALL_NUMBERING_MAX
+        node_arr = None
+        if small:       # the same numbers on Python ints (see _number_small)
+            starts, first = [], 0
+            for count in tcount:
+                starts.append(first)
+                first += count
+            lists = (starts, list(node_of),
+                     {q: a.tolist() for q, a in across_of.items()},
+                     {q: a.tolist() for q, a in row_of.items()})
+        else:
+            tcount = np.array(tcount, dtype=np.int64)
+            t_start = np.cumsum(tcount) - tcount
+            node_arr = np.asarray(node_of, dtype=np.int64)
         through_rows, through_cols = [], []
         for g, layout, at in zip(self.groups, layouts, group_pos):
             if layout is None:
+                if node_arr is None:
+                    tcount = np.array(tcount, dtype=np.int64)
+                    t_start = np.cumsum(tcount) - tcount
+                    node_arr = np.asarray(node_of, dtype=np.int64)
                 self._number_one_by_one(g, node_arr, t_start, at, across_of, row_of,
                                         quantities, through_rows, through_cols)
+                continue
+            if small:
+                _number_small(g, layout.slots, at, *lists, quantities, through_rows,
+                              through_cols)
                 continue
             slots = layout.slots
             col = np.empty((g.n, len(slots)), dtype=np.int64)
@@ -604,9 +760,23 @@ class Assembly:
         # error weights scale each by its quantity's largest magnitude)
         self.q_names = sorted(set(quantities))
         q_index = {q: k for k, q in enumerate(self.q_names)}
-        self.q_id = np.array([q_index[q] for q in quantities], dtype=np.int64)
-        self.q_order = np.argsort(self.q_id, kind="stable")
-        self.q_starts = np.searchsorted(self.q_id[self.q_order], np.arange(len(self.q_names)))
+        q_id = [q_index[q] for q in quantities]
+        self.q_id = np.array(q_id, dtype=np.int64)
+        if small:      # the unknowns by quantity, stably, and where each quantity starts
+            self.q_order = np.array(sorted(range(len(q_id)), key=q_id.__getitem__),
+                                    dtype=np.intp)
+            count = [0] * len(self.q_names)
+            for k in q_id:
+                count[k] += 1
+            first, at = [], 0
+            for c in count:
+                first.append(at)
+                at += c
+            self.q_starts = np.array(first, dtype=np.intp)
+        else:
+            self.q_order = np.argsort(self.q_id, kind="stable")
+            self.q_starts = np.searchsorted(self.q_id[self.q_order],
+                                            np.arange(len(self.q_names)))
         self.through_rows = (np.concatenate(through_rows).astype(np.int64) if through_rows
                              else np.zeros(0, dtype=np.int64))
         self.through_cols = (np.concatenate(through_cols).astype(np.int64) if through_cols
@@ -649,8 +819,9 @@ class Assembly:
         # discrete states (modes of switching components) change between steps only;
         # the step controller leaves them out of its error estimate
         self.s_discrete = np.array(s_discrete, dtype=bool)
-        self.s_continuous = np.flatnonzero(~self.s_discrete)
-        self.has_discrete = bool(self.s_discrete.any())
+        self.s_continuous = np.array([k for k, d in enumerate(s_discrete) if not d],
+                                     dtype=np.intp)
+        self.has_discrete = any(s_discrete)
         if self.n_rows != self.n:
             odd = [nd.name for nd in self.nodes
                    if len(nd.quantities("across")) != len(nd.quantities("through"))]
@@ -660,38 +831,88 @@ class Assembly:
                 f"these do not: {', '.join(odd[:5])}")
 
         # sparsity pattern: constant node entries, then each group's local patterns
-        rows = [self.through_rows]
-        cols = [self.through_cols]
-        for g in self.groups:
-            if not g.pattern:
-                continue
-            pe = np.array([e for e, _ in g.pattern], dtype=np.int64)
-            pv = np.array([v for _, v in g.pattern], dtype=np.int64)
-            inst = np.arange(g.n)[:, None]
-            rows.append((g.r0 + inst * g.neq + pe[None, :]).ravel())
-            cols.append(g.col[:, pv].ravel())
-        rows = np.concatenate(rows)
-        cols = np.concatenate(cols)
+        if small:
+            rows, cols = self._pattern_small()
+        else:
+            rows = [self.through_rows]
+            cols = [self.through_cols]
+            for g in self.groups:
+                if not g.pattern:
+                    continue
+                pe = np.array([e for e, _ in g.pattern], dtype=np.int64)
+                pv = np.array([v for _, v in g.pattern], dtype=np.int64)
+                inst = np.arange(g.n)[:, None]
+                rows.append((g.r0 + inst * g.neq + pe[None, :]).ravel())
+                cols.append(g.col[:, pv].ravel())
+            rows = np.concatenate(rows)
+            cols = np.concatenate(cols)
         self.raw = np.zeros(len(rows))
         self.raw[: len(through_rows)] = 1.0
-        key = cols * self.n + rows
-        ukey, inv = np.unique(key, return_inverse=True)
-        self.nnz = len(ukey)
-        self.indices = (ukey % self.n).astype(np.int32)
-        ucols = ukey // self.n
-        self.indptr = np.concatenate([[0], np.cumsum(np.bincount(ucols, minlength=self.n))]).astype(np.int32)
-        self.duplicates = self.nnz != len(key)
-        self._inv = inv
-        if not self.duplicates:
-            order = np.empty_like(inv)
-            order[inv] = np.arange(len(inv))
-            self._order = order
+        if small:
+            self._csc_small(rows, cols)
+        else:
+            key = cols * self.n + rows
+            ukey, inv = np.unique(key, return_inverse=True)
+            self.nnz = len(ukey)
+            self.indices = (ukey % self.n).astype(np.int32)
+            ucols = ukey // self.n
+            self.indptr = np.concatenate(
+                [[0], np.cumsum(np.bincount(ucols, minlength=self.n))]).astype(np.int32)
+            self.duplicates = self.nnz != len(key)
+            self._inv = inv
+            if not self.duplicates:
+                order = np.empty_like(inv)
+                order[inv] = np.arange(len(inv))
+                self._order = order
         self.pattern_rows = rows
         self.pattern_cols = cols
         self._compile_plans()
         #: what linear solvers derive from the pattern, kept for later runs
         self.solver_cache = {}
         self._check_structure()
+
+    def _pattern_small(self):
+        """(rows, cols) of every raw Jacobian entry, the node entries first, then
+        each group's local pattern instance by instance: the arrays
+        Assembly.__init__ makes with NumPy per group, on Python lists (a
+        small network)."""
+        rows, cols = self.through_rows.tolist(), self.through_cols.tolist()
+        for g in self.groups:
+            if not g.pattern:
+                continue
+            pe = [e for e, _ in g.pattern]
+            pv = [v for _, v in g.pattern]
+            neq, r0 = g.neq, g.r0
+            for i, at in enumerate(g.col.tolist()):
+                base = r0 + i * neq
+                rows += [base + e for e in pe]
+                cols += [at[v] for v in pv]
+        return np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
+
+    def _csc_small(self, rows, cols):
+        """The CSC pattern (indices, indptr, nnz, duplicates, _inv, _order) of the
+        raw entries at (rows, cols), as Assembly.__init__ finds it with
+        np.unique, on Python ints (a small network: ~3 us against ~20 us)."""
+        n = self.n
+        key = [c * n + r for r, c in zip(rows.tolist(), cols.tolist())]
+        ukey = sorted(set(key))
+        at = {k: i for i, k in enumerate(ukey)}
+        inv = [at[k] for k in key]
+        self.nnz = len(ukey)
+        self.indices = np.array([k % n for k in ukey], dtype=np.int32)
+        count = [0] * (n + 1)
+        for k in ukey:
+            count[k // n + 1] += 1
+        for c in range(n):
+            count[c + 1] += count[c]
+        self.indptr = np.array(count, dtype=np.int32)
+        self.duplicates = self.nnz != len(key)
+        self._inv = np.array(inv, dtype=np.intp)
+        if not self.duplicates:
+            order = [0] * len(inv)
+            for i, k in enumerate(inv):
+                order[k] = i
+            self._order = np.array(order, dtype=np.intp)
 
     @property
     def nodes(self):
@@ -771,8 +992,9 @@ class Assembly:
 
     # -- checks ---------------------------------------------------------------------------
     def _check_structure(self):
-        if self.n <= SMALL_BLOCKS_MAX and _structurally_regular(self.n, self.indices,
-                                                                self.indptr):
+        if self.n <= SMALL_BLOCKS_MAX and _STRUCTURAL(
+                (self.n, *_array_key(self.indices, self.indptr)),
+                self.n, self.indices, self.indptr):
             return      # (a network that is not is named below, as it always was)
         pat = csc_matrix((np.ones(self.nnz), self.indices, self.indptr), shape=(self.n, self.n))
         match = maximum_bipartite_matching(pat.tocsr(), perm_type="column")
@@ -799,7 +1021,8 @@ class Assembly:
             J = self.dense_jacobian()
             if not np.isfinite(J).all():
                 return
-            if _is_regular_dense(J):
+            # (the test leaves J as it is: the key is what it tested)
+            if _DENSE_REGULAR(_array_key(J), J):
                 return
         A = self.jacobian_csc()
         if n > DENSE_CHECK_MAX:       # (small systems were tested above)
@@ -965,6 +1188,8 @@ class Assembly:
         across unknown takes the first initial value given at it, in the order
         of the groups, their components and their interfaces (``compiled``:
         the interfaces just compiled, g.iface, are the components' own)."""
+        if self.n <= SMALL_NUMBERING_MAX:
+            return self._initial_unknowns_small(compiled)
         x0 = np.zeros(self.n)
         idx, vals = [], []
         for g, layout in zip(self.groups, self._layouts):
@@ -1004,6 +1229,34 @@ class Assembly:
             first, at = np.unique(idx, return_index=True)
             x0[first] = vals[at]
         return x0
+
+    def _initial_unknowns_small(self, compiled):
+        """:meth:`_initial_unknowns` of a small network on Python lists: the
+        values in the same order (group by group, component by component,
+        variable by variable), the first one given for each unknown kept."""
+        first = {}
+        for g, layout in zip(self.groups, self._layouts):
+            if layout is not None and not compiled:     # other components (replace)
+                layout = _group_layout(g.comps)
+            cols = g.col.tolist()
+            if layout is None:
+                for i, c in enumerate(g.comps):
+                    iface = g.iface[i][0] if compiled else c.interface_variables()
+                    for (_, v), k in zip(iface, cols[i]):
+                        value = v.initial_value
+                        if value is not None and k not in first:
+                            first[k] = value
+                continue
+            slots = layout.values(g.comps)
+            for i, at in enumerate(cols):
+                for k, vs in slots:
+                    value = vs[i] if isinstance(vs, list) else vs
+                    if value is not None and at[k] not in first:
+                        first[at[k]] = value
+        x0 = [0.0] * self.n
+        for k, value in first.items():
+            x0[k] = float(value)
+        return np.array(x0, dtype=float)
 
     def replace(self, components):
         """Evaluate the given components (``{label: component}``) in place of the

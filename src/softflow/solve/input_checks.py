@@ -14,6 +14,46 @@ from .settings import NEGLIGIBLE_TUBE
 from .validity import ValidityRecord
 
 
+#: the component classes and functions these checks use, imported on their
+#: first call (the components import this package; an import statement in a
+#: function costs ~1 us a call)
+_NAMES = None
+
+
+def _names():
+    """The classes and functions of the checks here, imported once."""
+    global _NAMES
+    if _NAMES is None:
+        from types import SimpleNamespace
+
+        from ..components.actuators import (Actuator, HystereticActuator,
+                                            initial_volume_records)
+        from ..components.chambers import LinearAccumulator
+        from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
+        from ..components.tubes import CircularTube, laminar_conductance
+        _NAMES = SimpleNamespace(
+            Actuator=Actuator, HystereticActuator=HystereticActuator,
+            initial_volume_records=initial_volume_records, LinearAccumulator=LinearAccumulator,
+            MassFlowSource=MassFlowSource, PressureSource=PressureSource,
+            VolumeFlowSource=VolumeFlowSource, CircularTube=CircularTube,
+            laminar_conductance=laminar_conductance)
+    return _NAMES
+
+
+def initial_volumes(asm):
+    """ValidityRecords (check ``'initial_volume_range'``) of the actuators of the
+    compiled network ``asm`` whose initial volume lies outside their PV curve's
+    data (:func:`softflow.components.actuators.initial_volume_records`, group
+    by group)."""
+    names = _NAMES if _NAMES is not None else _names()
+    actuators = (names.Actuator, names.HystereticActuator)
+    out = []
+    for g in asm.groups:
+        if isinstance(g.comps[0], actuators):
+            out.extend(names.initial_volume_records(g.comps))
+    return out
+
+
 def negligible_tubes(asm, duration, rtol):
     """ValidityRecords (check ``'tube_negligible_flow'``) of the circular tubes of
     the compiled network ``asm`` whose flow is negligible over ``duration`` [s]
@@ -36,7 +76,8 @@ def negligible_tubes(asm, duration, rtol):
     is not judged. Before a run, so that a scene whose tube does nothing says
     so before its result is read; a 1 nm x 1 km tube runs as fast as any
     (25 steps at the default rtol)."""
-    from ..components.tubes import CircularTube, laminar_conductance
+    names = _NAMES if _NAMES is not None else _names()
+    CircularTube, laminar_conductance = names.CircularTube, names.laminar_conductance
     tubes = [g for g in asm.groups if isinstance(g.comps[0], CircularTube)]
     if not tubes:
         return []
@@ -105,8 +146,9 @@ def _capacitances(asm):
     compliance, an actuator's PV curve); unknown for a user's volume, an
     actuator on a falling part of its curve, and where it is not > 0 (an
     incompressible liquid in a rigid container)."""
-    from ..components.actuators import Actuator, HystereticActuator
-    from ..components.chambers import LinearAccumulator
+    names = _NAMES if _NAMES is not None else _names()
+    Actuator, HystereticActuator = names.Actuator, names.HystereticActuator
+    LinearAccumulator = names.LinearAccumulator
     caps, unknown = {}, set()
     S0, x0, quantity = asm.S0, asm.x0, asm.s_quantity
     for g in asm.groups:
@@ -124,13 +166,14 @@ def _capacitances(asm):
         if fluid is None or not kp or g.row is not None:     # a user's volume
             unknown.update(c.label for c in comps)
             continue
-        m = S0[g.s0 + np.arange(n) * g.ns + kinds.index("mass")]
+        # (each member's mass state, a view: g.ns states a member)
+        m = S0[g.s0 + kinds.index("mass"):g.s1:g.ns]
         p = x0[col[:, kp[0]]]
         try:
             with np.errstate(all="ignore"):
                 rho = np.asarray(fluid.density(p), dtype=float)
                 C = m * np.asarray(fluid.density_dp(p), dtype=float) / rho
-                wall = np.zeros(n)       # dV/dp of the wall
+                # dV/dp of the wall
                 if isinstance(first, LinearAccumulator):
                     wall = np.fromiter((c.compliance for c in comps), dtype=float, count=n)
                 elif isinstance(first, (Actuator, HystereticActuator)):
@@ -146,6 +189,8 @@ def _capacitances(asm):
                     # (on a falling part of its curve the actuator's capacitance is
                     # negative, below any bound: no claim)
                     wall = np.where(slope > 0, 1.0 / slope, np.nan)
+                else:
+                    wall = np.zeros(n)
                 C = C + rho * wall
         except (FluidError, ValueError, ArithmeticError):
             unknown.update(c.label for c in comps)
@@ -161,7 +206,9 @@ def _capacitances(asm):
 def _links(asm):
     """({label: [node, ...]}, {node: [label, ...]}, {labels of sources}) of the
     compiled network."""
-    from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
+    names = _NAMES if _NAMES is not None else _names()
+    MassFlowSource, PressureSource, VolumeFlowSource = (
+        names.MassFlowSource, names.PressureSource, names.VolumeFlowSource)
     nodes_of, at = {}, {}
     terminals = [t for c in asm._node_comps for t in c.terminals]
     for t, k in zip(terminals, asm._node_of):

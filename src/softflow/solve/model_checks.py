@@ -135,6 +135,8 @@ from __future__ import annotations
 
 import math
 import operator
+import os
+import sys
 
 import numpy as np
 
@@ -490,8 +492,8 @@ def gas_compressibility(g, result):
         return []
     T = [float(fluid.temperature)]
     try:
-        _, temps = group_values(g, result, "temperature")
-        if temps.size:
+        _, temps = group_values(g, result, "temperature", default=(None, None))
+        if temps is not None and temps.size:
             T = [float(np.nanmin(temps)), float(np.nanmax(temps))]
     except KeyError:
         pass
@@ -563,6 +565,8 @@ def _liquid_nodes(asm, keep=None):
     if hit is not None and len(hit[0]) == len(fluids) and all(map(operator.is_, hit[0], fluids)):
         return hit[1]
     n_across = asm.n_across
+    # a small network on Python lists (~5 us against ~25 us of NumPy calls)
+    small = asm.n <= SMALL_NETWORK
     found: dict = {}
     for g in asm.groups:
         fluid = getattr(g.comps[0], "fluid", None)
@@ -570,18 +574,65 @@ def _liquid_nodes(asm, keep=None):
                              else getattr(fluid, "compressible", True)):
             continue
         col = g.col.reshape(len(g.comps), -1)
-        first = col[0]
-        pos = [k for k, i in enumerate(first.tolist())
+        rows = col.tolist() if small else None
+        first = rows[0] if small else col[0].tolist()
+        pos = [k for k, i in enumerate(first)
                if i < n_across and asm.x_quantity[i] == "pressure"]
         if not pos:
             continue
         entry = found.setdefault(id(fluid), (fluid, [], []))
-        entry[1].append(col[:, pos].ravel())
+        if small:       # col[:, pos].ravel(), member by member
+            entry[1].extend([row[k] for row in rows for k in pos])
+        else:
+            entry[1].append(col[:, pos].ravel())
         entry[2].append((g, pos))
-    out = {key: (fluid, np.unique(np.concatenate(cols)), owners)
+    out = {key: (fluid, np.array(sorted(set(cols)), dtype=np.int64) if small
+                 else np.unique(np.concatenate(cols)), owners)
            for key, (fluid, cols, owners) in found.items()}
     known[keep] = (fluids, out)
     return out
+
+
+#: Up to this many unknowns the checks' per-network work is done on Python
+#: lists rather than NumPy calls (the same numbers).
+SMALL_NETWORK = 256
+
+
+#: {(spec, temperature, tables directory variable, whether CoolProp is loaded):
+#: vapour pressure} of the liquids the cavitation check met (see _vapour_pressure)
+_VAPOUR: dict = {}
+#: (softflow.fluids.tables.TABLES_ENV, softflow.fluids.vapour.vapour_pressure),
+#: imported on first use
+_VAPOUR_FN = None
+
+
+def _vapour_pressure(fluid):
+    """:func:`softflow.fluids.vapour.vapour_pressure` of a liquid ``fluid``,
+    remembered by what it is a function of: the fluid's spec (a frozen value)
+    and temperature, the tables directory it reads (``$SOFTFLOW_FLUID_TABLES``)
+    and whether CoolProp is loaded (asked for a liquid without a record).
+    Looked up afresh for a fluid without a hashable spec."""
+    global _VAPOUR_FN
+    if _VAPOUR_FN is None:
+        from ..fluids.tables import TABLES_ENV
+        from ..fluids.vapour import vapour_pressure
+        _VAPOUR_FN = (TABLES_ENV, vapour_pressure)
+    TABLES_ENV, vapour_pressure = _VAPOUR_FN
+    spec = getattr(fluid, "spec", None)
+    try:
+        key = (spec, float(fluid.temperature), os.environ.get(TABLES_ENV),
+               "CoolProp" in sys.modules, bool(getattr(fluid, "compressible", False)))
+        hash(key)
+    except (TypeError, ValueError):
+        return vapour_pressure(fluid)       # (which says what is wrong)
+    if spec is None or type(spec).__hash__ is object.__hash__:
+        return vapour_pressure(fluid)    # (a spec compared by identity: no value)
+    got = _VAPOUR.get(key, _VAPOUR)
+    if got is _VAPOUR:
+        if len(_VAPOUR) >= 256:
+            _VAPOUR.clear()
+        got = _VAPOUR[key] = vapour_pressure(fluid)
+    return got
 
 
 def _node_pressures(result, nodes):
@@ -606,7 +657,6 @@ def _component_at_node(asm, result, owners, node):
 def cavitation(asm, result):
     """(A network check, :func:`softflow.solve.validity.register_network`.) The
     lowest pressure of each liquid against its vapour pressure (module doc)."""
-    from ..fluids.vapour import vapour_pressure
     out = []
     for fluid, nodes, owners in _liquid_nodes(asm).values():
         nodes, P = _node_pressures(result, nodes)
@@ -616,7 +666,7 @@ def cavitation(asm, result):
         low[np.isnan(low)] = np.inf            # (a node without a number at all)
         j = int(np.argmin(low))
         p_min = float(low[j])
-        p_vap = vapour_pressure(fluid)
+        p_vap = _vapour_pressure(fluid)
         if p_vap is None or not p_min > 0:
             continue
         fraction = p_vap / p_min

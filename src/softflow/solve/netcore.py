@@ -27,7 +27,7 @@ heat-transfer correlation sets at the start of each step (``begin_step``)
 is copied into the loop's floats before each call.
 
 Any other group (user components, callable curves, real fluids at the table
-or eos level, the mean-density gas law) keeps the whole network on the
+or eos level, the mean-density gas law in a thermal scene) keeps the whole network on the
 per-group path. A state a law refuses (an actuator's volume beyond a curve
 given ``extrapolate='error'``) is evaluated again on the per-group path,
 which raises the law's own error. The values are the per-group path's to
@@ -53,16 +53,52 @@ from .._laws import law_module
 from ..fluids.base import FluidError
 
 
+#: the names _covered and _covered_thermal compare a group with, imported on
+#: their first call (the components import this package; an import statement
+#: in the function cost ~1 us per call, ~40 us a compile of the paper's scenes)
+_NAMES = None
+
+
+def _names():
+    """The classes and constants of :func:`_covered`, imported once."""
+    global _NAMES
+    if _NAMES is None:
+        from types import SimpleNamespace
+
+        from ..components import thermal
+        from ..components.actuators import Actuator, HystereticActuator
+        from ..components.chambers import Container, LinearAccumulator, set_fluid_law
+        from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
+        from ..components.tubes import CircularTube, InertialCircularTube
+        from ..components.valves import CheckValve, Orifice, SnappingValve, TeslaValve
+        from ..constants import pressure_atmospheric
+        from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
+        _NAMES = SimpleNamespace(
+            thermal=thermal, Actuator=Actuator, HystereticActuator=HystereticActuator,
+            Container=Container, LinearAccumulator=LinearAccumulator,
+            set_fluid_law=set_fluid_law, MassFlowSource=MassFlowSource,
+            PressureSource=PressureSource, VolumeFlowSource=VolumeFlowSource,
+            CircularTube=CircularTube, InertialCircularTube=InertialCircularTube,
+            CheckValve=CheckValve, Orifice=Orifice, SnappingValve=SnappingValve,
+            TeslaValve=TeslaValve, pressure_atmospheric=pressure_atmospheric,
+            ISO_6358_RHO0=ISO_6358_RHO0, ISO_6358_T0=ISO_6358_T0)
+    return _NAMES
+
+
 def _covered(g):
     """(class id, option, group floats, per-instance floats (n, k) or None,
     values source or None) of a group the compiled loop evaluates, or None."""
-    from ..components.actuators import Actuator, HystereticActuator
-    from ..components.chambers import Container, LinearAccumulator, set_fluid_law
-    from ..constants import pressure_atmospheric
-    from ..components.sources import MassFlowSource, PressureSource, VolumeFlowSource
-    from ..components.tubes import CircularTube, InertialCircularTube
-    from ..components.valves import CheckValve, Orifice, SnappingValve, TeslaValve
-    from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
+    k = _NAMES if _NAMES is not None else _names()
+    Actuator, HystereticActuator = k.Actuator, k.HystereticActuator
+    Container, LinearAccumulator = k.Container, k.LinearAccumulator
+    set_fluid_law = k.set_fluid_law
+    pressure_atmospheric = k.pressure_atmospheric
+    MassFlowSource, PressureSource, VolumeFlowSource = (k.MassFlowSource, k.PressureSource,
+                                                        k.VolumeFlowSource)
+    CircularTube, InertialCircularTube = k.CircularTube, k.InertialCircularTube
+    CheckValve, Orifice, SnappingValve, TeslaValve = (k.CheckValve, k.Orifice, k.SnappingValve,
+                                                      k.TeslaValve)
+    ISO_6358_RHO0, ISO_6358_T0 = k.ISO_6358_RHO0, k.ISO_6358_T0
     net = law_module("network")
     cls, P = getattr(g, "cls", None), getattr(g, "params", None)
     if cls is None or P is None or g.row is not None:
@@ -119,15 +155,15 @@ def _covered(g):
         if P.pv is None or P.rho_kind == 2:
             return None
         pv = P.pv
-        floats = (P.rho_c, pressure_atmospheric, float(P.scaled), float(pv._mode),
-                  *_curve_floats(pv))
+        floats = np.concatenate(((P.rho_c, pressure_atmospheric, float(P.scaled),
+                                  float(pv._mode)), _curve_floats(pv)))
         return net.ACTUATOR, P.rho_kind, floats, P.pressure_scale[:, None], None
     if cls is HystereticActuator:
         if not P.compiled or P.rho_kind == 2:
             return None
         loop = P.loop
-        floats = (P.rho_c, loop.volume_high, loop.volume_low,
-                  *_curve_floats(loop.inflation), *_curve_floats(loop.deflation))
+        floats = np.concatenate(((P.rho_c, loop.volume_high, loop.volume_low),
+                                 _curve_floats(loop.inflation), _curve_floats(loop.deflation)))
         return net.HYSTERETIC_ACTUATOR, P.rho_kind, floats, None, None
     if cls is LinearAccumulator:
         if P.rho_kind == 2:
@@ -140,10 +176,10 @@ def _covered(g):
 def _covered_thermal(net, cls, P):
     """:func:`_covered` for the thermal variants (softflow.components.thermal)
     of an ideal gas whose laws :mod:`softflow.laws.thermal` compiles."""
-    from ..components import thermal as th
-    from ..components.tubes import InertialCircularTube
-    from ..constants import pressure_atmospheric
-    from ..correlations.orifice import ISO_6358_RHO0, ISO_6358_T0
+    k = _NAMES if _NAMES is not None else _names()
+    th, InertialCircularTube = k.thermal, k.InertialCircularTube
+    pressure_atmospheric = k.pressure_atmospheric
+    ISO_6358_RHO0, ISO_6358_T0 = k.ISO_6358_RHO0, k.ISO_6358_T0
     if cls is th.ThermalPressureSource:
         return net.THERMAL_PRESSURE_SOURCE, 0, (), P.T_source[:, None], P
     if cls is th.ThermalMassFlowSource or cls is th.ThermalVolumeFlowSource:
@@ -217,9 +253,11 @@ def _regime_cut():
 
 def _curve_floats(curve):
     """A compiled PV curve as the loop reads it: [knots, rows, knots...,
-    table...] (:func:`softflow.laws.network._curve`)."""
+    table...] (:func:`softflow.laws.network._curve`), one float array (its
+    values one by one as Python floats cost ~10 us an actuator)."""
     knots, table = np.asarray(curve._knots, dtype=float), np.asarray(curve._table, dtype=float)
-    return (float(knots.size), float(table.shape[0]), *knots, *table.ravel())
+    return np.concatenate(((float(knots.size), float(table.shape[0])), knots.ravel(),
+                           table.ravel()))
 
 
 #: the loop's ``Sout`` where no states are wanted (held once: the residual's calls
@@ -320,7 +358,11 @@ class CompiledNetwork:
         :func:`softflow.laws.waves.source_values` (``out=u`` fills u at a
         time t as :meth:`set_time` would; :mod:`softflow.solve.wavecodes`),
         or None where a source's signal is not a waveform those cover."""
-        from . import wavecodes
+        global _WAVECODES
+        if _WAVECODES is None:
+            from . import wavecodes
+            _WAVECODES = wavecodes
+        wavecodes = _WAVECODES
         parts = [wavecodes.describe(P) for P in self._sources]
         if any(part is None for part in parts):
             return None
@@ -333,6 +375,10 @@ class CompiledNetwork:
         if self.loop(x, S, 0.0, float(dt), False, np.empty(self.n), *self.arrays, Sout) >= 0:
             return self.asm.update_states(x, S, dt)     # a law refused the state
         return Sout
+
+
+#: softflow.solve.wavecodes, imported at the first source_arrays
+_WAVECODES = None
 
 
 def _no_time(t):
@@ -363,24 +409,30 @@ def compiled_residual(asm, failures):
     rows, cols, fpar, varying, refresh, sources = [], [], [], [], [], []
     n_u = 0
     u_parts = []
+    # each group's row as a list (made one array below), and the running sizes
+    # of cols and fpar (where the group's own start)
+    n_fields, n_col, n_f = len(net.GROUP_FIELDS), 0, 0
     for g, (cls_id, option, group_floats, per, values) in zip(asm.groups, covered):
-        row = np.zeros(len(net.GROUP_FIELDS), dtype=np.int64)
+        row = [0] * n_fields
         row[net.CLS], row[net.N], row[net.NV] = cls_id, g.n, g.col.shape[1]
-        row[net.COL] = sum(c.size for c in cols)
+        row[net.COL] = n_col
         cols.append(np.ascontiguousarray(g.col, dtype=np.int64).ravel())
+        n_col += cols[-1].size
         row[net.S0], row[net.R0], row[net.NEQ] = g.s0, g.r0, g.neq
         row[net.J0], row[net.NJ] = g.j0, len(g.pattern)
-        row[net.F0] = sum(f.size for f in fpar)
+        row[net.F0] = n_f
         fpar.append(np.asarray(group_floats, dtype=float))
+        n_f += fpar[-1].size
         if per is not None:
             per = np.ascontiguousarray(per, dtype=float)
             if getattr(g, "begin", None) is not None and cls_id in (net.FREE_VOLUME,
                                                                     net.HELD_VOLUME):
                 # h·A set at the start of each step (a heat-transfer correlation):
                 # its column of the volumes' floats is refreshed before each call
-                at = sum(f.size for f in fpar)
+                at = n_f
                 refresh.append((g.params, slice(at, at + per.size, per.shape[1])))
             fpar.append(per.ravel())
+            n_f += per.size
         row[net.OPTION] = option
         row[net.U0] = n_u
         if values is not None:

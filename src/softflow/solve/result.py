@@ -160,9 +160,17 @@ class Result:
                                f"or not among Simulation(record=...)); it has {listed}")
             g, i = self._where[label]
             iface, states = g.iface[i]
-            entries = [(v.label, v.quantity, term, "x", int(self._xcol[g.col[i, k]]))
+            # the columns as Python ints at once (an int of a NumPy scalar each cost
+            # ~0.5 us a variable)
+            xcol = self._xcol[g.col[i]].tolist()
+            s0 = g.s0 + i * g.ns
+            scol = self._scol[s0:s0 + len(states)].tolist()
+            if len(scol) < len(states):
+                raise IndexError(f"index {s0 + len(states) - 1} is out of bounds for the "
+                                 f"states of size {len(self._scol)}")
+            entries = [(v.label, v.quantity, term, "x", xcol[k])
                        for k, (term, v) in enumerate(iface)]
-            entries += [(sv.label, sv.quantity, None, "s", int(self._scol[g.s0 + i * g.ns + j]))
+            entries += [(sv.label, sv.quantity, None, "s", scol[j])
                         for j, sv in enumerate(states)]
             self._entries[label] = entries
         return self._entries[label]
@@ -199,6 +207,20 @@ class Result:
         return self.status == "success"
 
     def _entry(self, label: str, name: str, terminal: str | None) -> Any:
+        e = self._lookup(label, name, terminal)
+        if e is None:
+            entries = self._component_entries(label)
+            outs = self._component(label).outputs()
+            names = sorted({e[0] for e in entries} | {e[1] for e in entries} | set(outs))
+            raise KeyError(f"component {label!r} has no variable {name!r}"
+                           + (f" at terminal {terminal!r}" if terminal else "")
+                           + f"; it has {names}")
+        return e
+
+    def _lookup(self, label: str, name: str, terminal: str | None) -> Any:
+        """:meth:`_entry`, or None where the component has no such variable or
+        output (without the KeyError's list of what it has); an ambiguous name
+        raises as there."""
         entries = self._component_entries(label)
         by_label = [e for e in entries if e[0] == name or f"{e[0]}_{e[2]}" == name]
         cands = by_label or [e for e in entries if e[1] == name or f"{e[1]}_{e[2]}" == name]
@@ -210,10 +232,7 @@ class Result:
             outs = self._component(label).outputs()
             if name in outs and terminal is None:
                 return ("output", name)
-            names = sorted({e[0] for e in entries} | {e[1] for e in entries} | set(outs))
-            raise KeyError(f"component {label!r} has no variable {name!r}"
-                           + (f" at terminal {terminal!r}" if terminal else "")
-                           + f"; it has {names}")
+            return None
         terms = [e[2] for e in cands]
         raise KeyError(f"component {label!r}: {name!r} is ambiguous (terminals {terms}); "
                        f"pass terminal=, e.g. get({name!r}, {terms[0]!r})")

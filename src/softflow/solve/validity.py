@@ -214,16 +214,34 @@ def _register_library_checks() -> None:
     register_all(register, register_network)
 
 
+#: per component class, the checks registered for it and its bases in the order
+#: _group_checks lists them, as of registration number _VERSION (found once)
+_CHECKS_OF: dict[type, list[Callable[[Any, Any], list[ValidityRecord]]]] = {}
+_CHECKS_OF_VERSION = -1
+
+
+def _checks_of(kind: type) -> list[Callable[[Any, Any], list[ValidityRecord]]]:
+    """The registered checks of a group whose members are ``kind``s: those of
+    every registered class it is a subclass of, in registration order."""
+    global _CHECKS_OF_VERSION
+    if _CHECKS_OF_VERSION != _VERSION:
+        _CHECKS_OF.clear()
+        _CHECKS_OF_VERSION = _VERSION
+    got = _CHECKS_OF.get(kind)
+    if got is None:
+        got = _CHECKS_OF[kind] = [check for cls, checks in _CHECKS.items()
+                                  if issubclass(kind, cls) for check in checks]
+    return got
+
+
 def _group_checks(asm: Any, fatal_only: bool = False) -> Iterator[tuple[Any, Any]]:
     """(group, check) for every registered check of every group of the network;
     ``fatal_only``: only the checks that can refuse a run (``can_refuse``)."""
     _register_library_checks()
     for g in asm.groups:
-        for cls, checks in _CHECKS.items():
-            if isinstance(g.comps[0], cls):
-                for check in checks:
-                    if not fatal_only or getattr(check, "can_refuse", False):
-                        yield g, check
+        for check in _checks_of(type(g.comps[0])):
+            if not fatal_only or getattr(check, "can_refuse", False):
+                yield g, check
 
 
 def check_result(asm: Any, result: Any, fatal_only: bool = False,
@@ -237,7 +255,7 @@ def check_result(asm: Any, result: Any, fatal_only: bool = False,
     records: list[ValidityRecord] = []
     if len(result.times) == 0:
         return records
-    from ..fluids.base import FluidError
+    FluidError = _fluid_error()
     own = result.stats.get("rtol")
     if rtol is not None:
         result.stats["rtol"] = rtol
@@ -261,6 +279,18 @@ def check_result(asm: Any, result: Any, fatal_only: bool = False,
             else:
                 result.stats["rtol"] = own
     return records
+
+
+_FLUID_ERROR = None
+
+
+def _fluid_error() -> type:
+    """softflow.fluids.base.FluidError, imported once (at its first check)."""
+    global _FLUID_ERROR
+    if _FLUID_ERROR is None:
+        from ..fluids.base import FluidError
+        _FLUID_ERROR = FluidError
+    return _FLUID_ERROR
 
 
 def _not_evaluated(c: Any, check: Any, err: Exception) -> ValidityRecord:
@@ -298,10 +328,18 @@ _FOUND: weakref.WeakKeyDictionary[Any, dict[str, tuple[str, Any, Any]]] = \
     weakref.WeakKeyDictionary()
 
 
-def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]:
+#: group_values's default: raise the KeyError of a name the group does not have
+_RAISE = object()
+
+
+def group_values(g: Any, result: Any, name: str, default: Any = _RAISE
+                 ) -> tuple[list[int], np.ndarray]:
     """(indices in the group, values (times x those components)) of variable or
     output ``name`` of the recorded components of group ``g``. The components of
-    a group share one interface, so the columns are found once for all of them."""
+    a group share one interface, so the columns are found once for all of them
+    (the variables an output reads too). ``default``: returned where the
+    components have no (single) variable or output ``name``, instead of the
+    KeyError saying so (whose message lists what they have)."""
     complete = getattr(result, "_complete", False)    # every component recorded: _FOUND
     if complete:
         found = _FOUND.get(g)
@@ -309,6 +347,8 @@ def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]
         if hit is not None:
             kind, cols, keep = hit
             if kind == "missing":
+                if default is not _RAISE:
+                    return default
                 raise KeyError(cols)
             return list(keep), (result.X if kind == "x" else result.S)[:, cols]
     where = result._where
@@ -316,27 +356,42 @@ def group_values(g: Any, result: Any, name: str) -> tuple[list[int], np.ndarray]
     if not idx:
         return [], np.empty((len(result.times), 0))
     label = g.comps[idx[0]].label
-    try:
-        e = result._entry(label, name, None)
-    except KeyError as err:
-        if complete:
-            _FOUND.setdefault(g, {})[name] = ("missing", err.args[0], None)
-        raise
+    if default is not _RAISE:
+        try:
+            e = result._lookup(label, name, None)
+        except KeyError:            # ambiguous
+            e = None
+        if e is None:
+            return default
+    else:
+        try:
+            e = result._entry(label, name, None)
+        except KeyError as err:
+            if complete:
+                _FOUND.setdefault(g, {})[name] = ("missing", err.args[0], None)
+            raise
     if e[0] == "output":
         _, fn = g.comps[idx[0]].outputs()[name]
 
         def get(n: str, term: str | None = None) -> np.ndarray:
-            return _columns(g, result, result._entry(label, n, term), label, idx)[1]
+            return _variable(g, result, n, term, label, idx, complete)
         return idx, np.asarray(fn(get), dtype=float)
-    keep, values = _columns(g, result, e, label, idx)
-    if complete:       # as _columns finds them, for every member
-        k = result._component_entries(label).index(e)
-        n = len(g.comps)
-        col = g.col.reshape(n, -1)
-        hit = (("x", col[:, k].copy(), tuple(keep)) if k < col.shape[1] else
-               ("s", g.s0 + np.arange(n) * g.ns + (k - col.shape[1]), tuple(keep)))
-        _FOUND.setdefault(g, {})[name] = hit
-    return keep, values
+    return _columns(g, result, e, label, idx, name)
+
+
+def _variable(g: Any, result: Any, name: str, term: str | None, label: str,
+              idx: list[int], complete: bool) -> np.ndarray:
+    """The values of variable ``name`` (at ``term``) of the components ``idx`` of
+    group ``g`` (an output's ``get``): found once per group in a result that
+    recorded every component, as group_values finds them."""
+    key = name if term is None else (name, term)
+    if complete:
+        found = _FOUND.get(g)
+        hit = found.get(key) if found is not None else None
+        if hit is not None and hit[0] != "missing":
+            kind, cols, _ = hit
+            return (result.X if kind == "x" else result.S)[:, cols]
+    return _columns(g, result, result._entry(label, name, term), label, idx, key)[1]
 
 
 def group_times(g: Any, result: Any, keep: list[int]) -> np.ndarray:
@@ -355,18 +410,26 @@ def group_times(g: Any, result: Any, keep: list[int]) -> np.ndarray:
     return np.broadcast_to(t[:, None], (t.size, len(keep)))
 
 
-def _columns(g: Any, result: Any, entry: Any, label: str, idx: list[int]
+def _columns(g: Any, result: Any, entry: Any, label: str, idx: list[int], key: Any = None
              ) -> tuple[list[int], np.ndarray]:
     """The recorded columns of ``entry`` (of component ``label`` of group ``g``) for
-    the group's components ``idx``: (those recorded, values)."""
+    the group's components ``idx``: (those recorded, values). In a result that
+    recorded every component (``idx`` all of them), kept in _FOUND under
+    ``key`` where one is given."""
     k = result._component_entries(label).index(entry)
     i = np.asarray(idx)
     col = g.col.reshape(len(g.comps), -1)
     n_iface = col.shape[1]
     if k < n_iface:
-        cols, data = result._xcol[col[i, k]], result.X
+        kind, cols, data = "x", col[i, k], result.X
     else:
-        cols, data = result._scol[g.s0 + i * g.ns + (k - n_iface)], result.S
+        kind, cols, data = "s", g.s0 + i * g.ns + (k - n_iface), result.S
+    if result._complete:       # every column recorded, at its own index
+        keep = i.tolist()
+        if key is not None:
+            _FOUND.setdefault(g, {})[key] = (kind, cols, tuple(keep))
+        return keep, data[:, cols]
+    cols = (result._xcol if kind == "x" else result._scol)[cols]
     ok = cols >= 0
     return i[ok].tolist(), data[:, cols[ok]]
 
@@ -414,11 +477,17 @@ def pv_curve_range(g: Any, result: Any) -> list[ValidityRecord]:
     policies = sorted({c.extrapolate for c in curves})
     policy = policies[0] if len(policies) == 1 else "/".join(policies)
     origin = curves[0].origin if len(curves) == 1 else "inflation/deflation curves"
-    with np.errstate(invalid="ignore"):
-        vmax = np.nanmax(vol, axis=0)
-        vmin = np.nanmin(vol, axis=0)
+    # np.nanmax and np.nanmin as they compute them (fmax/fmin reductions, which
+    # leave NaN out), and their warning where a column holds no number at all
+    vmax = np.fmax.reduce(vol, axis=0)
+    vmin = np.fmin.reduce(vol, axis=0)
+    if np.isnan(vmax).any():
+        warnings.warn("All-NaN slice encountered", RuntimeWarning, stacklevel=1)
+        warnings.warn("All-NaN slice encountered", RuntimeWarning, stacklevel=1)
     out = []
-    for j in np.flatnonzero((vmax > hi + slack) | (vmin < lo - slack)):
+    above_hi, below_lo = hi + slack, lo - slack
+    for j in [j for j, (a, b) in enumerate(zip(vmax.tolist(), vmin.tolist()))
+              if a > above_hi or b < below_lo]:
         comp = g.comps[keep[j]]
         above = vmax[j] - hi >= lo - vmin[j]
         reached = float(vmax[j] if above else vmin[j])
