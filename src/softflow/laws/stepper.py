@@ -137,13 +137,9 @@ def lu_solve(A, piv, ir, ic, b, out):
 
 
 @jit
-def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
-    """The dense Jacobian from the raw entries (``flat``: each entry's place
-    in the flattened matrix; entries of one place summed) into J, factored
-    into LU as :class:`softflow.solve.linalg.DenseLU` factors it: as it is,
-    or rows then columns scaled to a largest entry of 1 where its pivots fail
-    the singularity test. Returns 0, 1 (not finite) or 2 (singular)."""
-    n = J.shape[0]
+def _assemble(raw, flat, J):
+    """J from the raw entries (``flat``: each entry's place in the flattened
+    J; entries of one place summed): whether every entry is finite."""
     Jf = J.ravel()
     for i in range(Jf.size):
         Jf[i] = 0.0
@@ -151,7 +147,28 @@ def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
         Jf[flat[e]] += raw[e]
     for i in range(Jf.size):
         if not math.isfinite(Jf[i]):
-            return 1
+            return False
+    return True
+
+
+@jit
+def _reciprocals(ir, ic):
+    """The scales an equilibrated factorization found, as the solves take them."""
+    for i in range(ir.size):
+        ir[i] = 1.0 / ir[i]
+        ic[i] = 1.0 / ic[i]
+
+
+@jit
+def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
+    """The dense Jacobian from the raw entries (``flat``: each entry's place
+    in the flattened matrix; entries of one place summed) into J, factored
+    into LU as :class:`softflow.solve.linalg.DenseLU` factors it: as it is,
+    or rows then columns scaled to a largest entry of 1 where its pivots fail
+    the singularity test. Returns 0, 1 (not finite) or 2 (singular)."""
+    n = J.shape[0]
+    if not _assemble(raw, flat, J):
+        return 1
     LU[:, :] = J
     d_min, d_max = lu_factor(LU, piv)
     if d_min > pivot_rtol * max(d_max, 1e-300):
@@ -178,9 +195,7 @@ def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
     d_min, d_max = lu_factor(LU, piv)
     if not d_min > pivot_rtol * max(d_max, 1e-300):
         return 2
-    for i in range(n):
-        ir[i] = 1.0 / ir[i]
-        ic[i] = 1.0 / ic[i]
+    _reciprocals(ir, ic)
     return 0
 
 
@@ -264,14 +279,8 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
     with ``scaled`` (the last factors needed it: a network's units do not
     change between steps). Returns 0, 1 (not finite) or 2 (singular)."""
     n, w = J.shape
-    Jf = J.ravel()
-    for i in range(Jf.size):
-        Jf[i] = 0.0
-    for e in range(raw.size):
-        Jf[flat[e]] += raw[e]
-    for i in range(Jf.size):
-        if not math.isfinite(Jf[i]):
-            return 1
+    if not _assemble(raw, flat, J):
+        return 1
     if not scaled:
         LU[:, :] = J
         d_min, d_max = band_lu(LU, piv, kl)
@@ -302,9 +311,7 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
     d_min, d_max = band_lu(LU, piv, kl)
     if not d_min > pivot_rtol * max(d_max, 1e-300):
         return 2
-    for i in range(n):
-        ir[i] = 1.0 / ir[i]
-        ic[i] = 1.0 / ic[i]
+    _reciprocals(ir, ic)
     return 0
 
 
