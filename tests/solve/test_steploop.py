@@ -481,8 +481,8 @@ def test_a_failure_in_a_flow_sources_region_is_the_culprit_finders(monkeypatch):
     exits = _exits(monkeypatch)
     real = steploop._source_rows
 
-    def everywhere(culprit, rows):
-        known = real(culprit, rows)
+    def everywhere(culprit, rows, point=None):
+        known = real(culprit, rows, point)
         rows[:] = 1
         return known
     with warnings.catch_warnings():

@@ -27,6 +27,7 @@ from ..network.system import NetworkError
 from .compiled import function
 from .discretize import step_functions
 from .netcore import compiled_residual
+from .settings import REGULARITY_ANSWERS, SMALL_NUMBERING_MAX
 from .userkernel import UserKernel
 from .validity import ComponentError, user_code_error
 
@@ -77,9 +78,6 @@ def _is_regular(A):
 #: Up to this many unknowns the regularity check factors a dense matrix
 #: (a sixth of SuperLU's time on the paper's 6 unknowns, measured).
 DENSE_CHECK_MAX = 64
-#: Up to this many terminals in all Assembly numbers the unknowns of library
-#: groups on Python lists (:func:`_number_small`) instead of NumPy calls per group.
-SMALL_NUMBERING_MAX = 256
 #: Up to this many unknowns Assembly.subnetworks finds the connected parts by
 #: union-find in Python (10-20 us) instead of scipy's sparse graph (~0.15 ms).
 SMALL_BLOCKS_MAX = 256
@@ -168,7 +166,7 @@ class _Answers:
     most ``size`` answers, the oldest forgotten first; ``calls`` counts the
     tests made (for the tests)."""
 
-    def __init__(self, test, size=128):
+    def __init__(self, test, size=REGULARITY_ANSWERS):
         self.test, self.size, self.known, self.calls = test, size, {}, 0
 
     def __call__(self, key, *args):

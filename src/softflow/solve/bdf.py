@@ -584,14 +584,9 @@ class BDF(Integrator):
             t1, x1, S1 = steps.run(t, x, S)[1:4]
             failed = steps.failed_here()
             if failed:
-                # the loop's rejected solves at the point it leaves, as the
-                # culprit finder counts them (hopeless, stalled): its
-                # reasons are none of those the finder acts on
-                at = x1 if t1 > t else x
-                culprit = self.culprit
-                culprit._stall = None
-                n = culprit._fails[1] if culprit._fails[0] is at else 0
-                culprit._fails = (at, n + failed)
+                # the loop's rejected solves at the point it leaves, counted
+                # by the culprit finder as its own
+                self.culprit.failed_at(x1 if t1 > t else x, failed)
             return t1, x1, S1
         return stretch
 

@@ -144,6 +144,36 @@ class Finder:
             return None
         return integ.rec.t[-1], p[0], p[1]
 
+    # -- the compiled step loop's failed solves (softflow.solve.steploop) ---------------
+    def region_rows(self, rows, point=None):
+        """The equations :meth:`_concerned` looks into after a failed solve
+        (the rows of the regions of the nodes without volume that carry a
+        flow source) as 1 in ``rows``, 0 elsewhere; whether those nodes are
+        known (found at the run's first failed solve, from the last point
+        taken, or here from ``point`` = (x, S, t) where given; not known
+        where finding them fails, as :meth:`_concerned` then finds none)."""
+        rows[:] = 0
+        if self._local_nodes is None:
+            if point is None:
+                return False
+            try:
+                self._locals(*point)
+            except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
+                return False
+        for loc in self._local_nodes:
+            if not loc.dynamic:
+                rows[loc.row] = 1
+                rows[loc.rows] = 1
+        return True
+
+    def failed_at(self, x, n):
+        """``n`` failed solves of steps from the point whose unknowns are ``x``
+        that the compiled loop rejected itself (their reasons none that
+        :meth:`stalled` or :meth:`find` act on), counted as :meth:`hopeless`
+        and :meth:`stalled` count the BDF's."""
+        self._stall = None
+        self._fails = (x, (self._fails[1] if self._fails[0] is x else 0) + n)
+
     # -- failures that no shorter step changes -----------------------------------------
     def stalled(self, t, h, out):
         """Whether the failed solves of the steps tried from t have failed

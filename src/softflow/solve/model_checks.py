@@ -146,6 +146,7 @@ from ..correlations.fanno import adiabatic_choked_massflow
 from ..correlations.gas_pipe import isothermal_choked_massflow
 from ..fluids.ideal import IdealGas
 from ..fluids.base import FluidError
+from .settings import SMALL_NETWORK
 from .validity import NEAR_FRACTION, ValidityRecord, grade, group_times, group_values
 
 #: Mach number at the low-pressure end above which the mean-density tube law's
@@ -593,9 +594,6 @@ def _liquid_nodes(asm, keep=None):
     return out
 
 
-#: Up to this many unknowns the checks' per-network work is done on Python
-#: lists rather than NumPy calls (the same numbers).
-SMALL_NETWORK = 256
 
 
 #: {(spec, temperature, tables directory variable, whether CoolProp is loaded):

@@ -115,3 +115,22 @@ COMPILED_EVENT_ROWS = 256
 #: factors that the compiled step loop still takes, with its banded LU
 #: (chains and trees of components: a few unknowns).
 COMPILED_BAND_MAX = 32
+#: A network that dense factors serve is factored as a band by the compiled
+#: loop (softflow.solve.steploop._banded) where the band is at most
+#: 1/COMPILED_BAND_SHARE of the matrix's width (a chain of 31 tubes, 126
+#: unknowns in a band 11 wide: 105 -> 36 us a step), and a band is asked for
+#: only from COMPILED_BAND_MIN unknowns on (the ordering costs ~0.4 ms; a chain
+#: of 8 tubes, 34 unknowns in a band 11 wide, stays dense).
+COMPILED_BAND_SHARE = 4
+COMPILED_BAND_MIN = 48
+
+# -- Fixed costs of a run ------------------------------------------------------------------
+#: Up to this many terminals in all, Assembly numbers the unknowns of library
+#: groups on Python lists (assembly._number_small) instead of NumPy calls per
+#: group (the same numbers); up to this many unknowns the model checks' per-network
+#: work is done on Python lists too (model_checks.SMALL_NETWORK).
+SMALL_NUMBERING_MAX = 256
+SMALL_NETWORK = 256
+#: The regularity tests' answers a process remembers by the exact bytes of the
+#: pattern and the Jacobian (assembly._Answers; the oldest forgotten first).
+REGULARITY_ANSWERS = 128

@@ -283,8 +283,8 @@ class CompiledSteps(_Bound):
                 # a failed solve that only the culprit finder's nodes, not yet
                 # found, kept from the loop: found here, from the point the
                 # finder would ask (the last taken), and the step tried again
-                bdf.culprit._locals(x, S, t)
-                ist[st.REJECT_NEWTON] = int(_source_rows(bdf.culprit, self.lin[12]))
+                ist[st.REJECT_NEWTON] = int(_source_rows(bdf.culprit, self.lin[12],
+                                                         (x, S, t)))
                 if ist[st.REJECT_NEWTON]:
                     exit_ = st.FULL
             if exit_ != st.FULL:
@@ -448,44 +448,30 @@ def _banded(asm, newton):
     """The :class:`BandLayout` the loop factors the network's Jacobian in,
     or None for the dense LU shared with the Python Newton: banded where
     the Python Newton's factors are not dense, and where the band's storage
-    is at most a quarter of the dense matrix's (BAND_SHARE: a chain of 31
-    tubes, 126 unknowns in a band 11 wide, 105 -> 36 us a step). Not
-    asked below BAND_MIN unknowns (dense; the ordering costs ~0.4 ms)."""
+    is at most a quarter of the dense matrix's
+    (:data:`softflow.solve.settings.COMPILED_BAND_SHARE`); not asked below
+    :data:`~softflow.solve.settings.COMPILED_BAND_MIN` unknowns."""
     dense = newton.lin.kind == "dense"
-    if dense and asm.n < BAND_MIN:
+    if dense and asm.n < settings.COMPILED_BAND_MIN:
         return None
     band = band_layout(asm)
-    if dense and (band is None or BAND_SHARE * band.width > asm.n):
+    if dense and (band is None or settings.COMPILED_BAND_SHARE * band.width > asm.n):
         return None
     return band
 
 
-#: the compiled loop factors a network that dense factors serve as a band
-#: where the band is at most 1/BAND_SHARE of the matrix's width (_banded),
-#: and asks for a band only from BAND_MIN unknowns on (a chain of 8 tubes,
-#: 34 unknowns in a band 11 wide: dense)
-BAND_SHARE, BAND_MIN = 4, 48
-
-
-def _source_rows(culprit, rows):
+def _source_rows(culprit, rows, point=None):
     """Whether the equations the culprit finder (:mod:`softflow.solve.culprit`)
     looks into after a step's failed solve whose reason is not a range's (a
     Newton iteration diverging, too slow) are known, and those equations
-    into ``rows`` (1: the rows of a region of a node without volume that
-    carries a flow source, :meth:`Finder._concerned`). Known without a
-    finder, or once it has found the nodes (:meth:`CompiledSteps.run` asks
-    it at the run's first failed solve)."""
-    rows[:] = 0
+    into ``rows`` (:meth:`Finder.region_rows`; ``point``: where to find
+    them if not yet known). Known without a finder, or once it has found
+    the nodes (:meth:`CompiledSteps.run` asks it at the run's first failed
+    solve)."""
     if culprit is None:
+        rows[:] = 0
         return True
-    nodes = culprit._local_nodes
-    if nodes is None:
-        return False
-    for loc in nodes:
-        if not loc.dynamic:
-            rows[loc.row] = 1
-            rows[loc.rows] = 1
-    return True
+    return culprit.region_rows(rows, point)
 
 
 def _served(integ):
