@@ -168,3 +168,39 @@ def test_no_writable_cache_compiles_in_memory_with_a_warning():
     done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                           timeout=600, check=False)
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr
+
+
+def test_no_law_or_loop_is_compiled_once_per_literal_argument():
+    # A constant passed from compiled code (``residual(..., True, ...)``) types as
+    # Literal[bool](True): numba then compiles the callee, and everything it calls,
+    # once per constant value besides the plain type. The residual was compiled
+    # three times over (a first compile of 88 s instead of 59). After runs that
+    # take the adaptive and fixed-step loops through every Newton stage, no law
+    # or loop holds a signature with a literal or omitted argument. (Callees
+    # show their signatures where this process compiled their caller: a cold
+    # cache, as in CI's first run; from a warm cache the callers' machine code
+    # is loaded whole, and only the direct calls from Python are seen.)
+    import importlib
+    import pkgutil
+    import warnings
+
+    import numba
+
+    import softflow as sf
+    from softflow import paper_scenes as ps
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for scene, fig in (("snapping", 4), ("tesla", 4)):
+            sf.Simulation(ps.fig4(scene), duration=ps.duration(fig)).run()
+            sf.Simulation(ps.fig4(scene), duration=ps.duration(fig), step=1e-3).run()
+        sf.Simulation(ps.fig5(sf.air), duration=ps.duration(5)).run()
+    literal = []
+    for info in pkgutil.iter_modules(laws.__path__):
+        module = importlib.import_module(f"softflow.laws.{info.name}")
+        for name, obj in vars(module).items():
+            if isinstance(obj, numba.core.registry.CPUDispatcher) \
+                    and obj.__module__ == module.__name__:
+                literal += [f"{info.name}.{name}{sig}" for sig in obj.signatures
+                            if "Literal" in str(sig) or "Omitted" in str(sig)]
+    assert not literal, literal

@@ -336,7 +336,7 @@ def lin_factor(lin, pivot_rtol):
         elif band[2]:            # (once more from the plain factors)
             band[2] = 0
             code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
-                               band[1], pivot_rtol, False)
+                               band[1], pivot_rtol, bool(False))
         return code
     return factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6], pivot_rtol)
 
@@ -496,7 +496,9 @@ def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
     if jac:
         stats[JACOBIANS] += 1
     raw, nr, trows, tcols, groups, cols, fpar, u = net
-    return residual(x, S, t, c, jac, F, raw, nr, trows, tcols, groups, cols, fpar, u, Sout)
+    # bool(): a constant flag would compile the residual once per literal value
+    return residual(x, S, t, c, bool(jac), F, raw, nr, trows, tcols, groups, cols, fpar, u,
+                    Sout)
 
 
 @inline

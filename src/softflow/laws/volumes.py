@@ -50,7 +50,7 @@ def bisect_right(a, lo, hi, x):
 def piece(knots, x):
     """The number of knots at or below x (a nan is past every knot): the row
     of the curve's table that holds x."""
-    return bisect_right(knots, 0, knots.size, x)
+    return bisect_right(knots, int(0), knots.size, x)    # int(): not a literal's own compile
 
 
 @jit

@@ -167,7 +167,7 @@ def source_values(t, base, slot, codes, factors, starts, floats, out):
             out[i] = base[i]
         return
     if m == 1:
-        v = _signal(0, codes, factors, starts, floats, t)
+        v = _signal(int(0), codes, factors, starts, floats, t)   # int(): one compile, not a literal's
         for i in range(n):
             out[i] = base[i] + (v if slot[i] > 0 else 0.0)
         return
