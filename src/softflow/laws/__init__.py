@@ -27,7 +27,8 @@ import hashlib
 from pathlib import Path
 
 import numba
-from numba.core import caching
+from numba.core import caching, cgutils, types
+from numba.extending import intrinsic
 
 from .. import __version__
 
@@ -142,3 +143,40 @@ def jit(function):
                           "Set NUMBA_CACHE_DIR to a writable directory to keep them",
                           RuntimeWarning, stacklevel=2)
         return numba.njit(cache=False, **options)(function)
+
+
+def _borrow_codegen(context, builder, ty, value):
+    if isinstance(ty, types.Array):
+        src = context.make_array(ty)(context, builder, value)
+        out = context.make_array(ty)(context, builder)
+        for field in ("nitems", "itemsize", "data", "shape", "strides"):
+            setattr(out, field, getattr(src, field))
+        out.meminfo = cgutils.get_null_value(out.meminfo.type)
+        out.parent = cgutils.get_null_value(out.parent.type)
+        return out._getvalue()
+    if isinstance(ty, types.BaseTuple):
+        items = [_borrow_codegen(context, builder, t, builder.extract_value(value, i))
+                 for i, t in enumerate(ty)]
+        return context.make_tuple(builder, ty, items)
+    return value
+
+
+if numba.config.DISABLE_JIT:
+    def borrowed(value):
+        """``value`` itself (pure-Python mode: see the compiled version)."""
+        return value
+else:
+    @intrinsic
+    def borrowed(typingctx, value):
+        """``value`` (an array, or a tuple of arrays and scalars, nested) with
+        each array a view that owns no reference to its memory (numba's
+        meminfo NULL). numba counts references to an array atomically at
+        every call that passes it and every view taken of it (a `lock`
+        instruction each, ~20 cycles); the step loop passes some twenty arrays
+        through each of its calls, hundreds of times a step, and those counts
+        were most of a small network's step. A borrowed view is valid while
+        the array it was taken from is held: use it only on arrays that the
+        caller of the compiled function holds (its arguments)."""
+        def codegen(context, builder, sig, args):
+            return _borrow_codegen(context, builder, value, args[0])
+        return value(value), codegen

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from . import inline, jit
+from . import borrowed, inline, jit
 from .network import kinks, regimes, residual, switching
 from .waves import source_values
 
@@ -972,6 +972,26 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     run's breakpoints (sorted, inside the run), the BDF's g_j and error
     constants. Returns (exit, t); x, S, Q and the state arrays
     are updated in place to the last step taken."""
+    n, ns, width, nk = x.size, S.size, D.shape[1], lin[11].size
+    # the loop's work arrays, held here for its call: it borrows them as it
+    # borrows the arguments
+    scratch = (np.empty(width), np.empty(width), np.empty(width), np.empty(ns + n),
+               np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),
+               np.empty(Q.size), np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n),
+               np.empty(nk), np.empty(nk), np.empty(ns))
+    return _stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats, net, lin, sources,
+                    tol, rec, dense, events, watch, breaks, G, ERRC, scratch)
+
+
+@jit
+def _stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
+             net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC, scratch):
+    """:func:`stretch` with its work arrays (``scratch``), every array
+    borrowed (:func:`borrowed`): the caller holds them for the call."""
+    x, S, D, Q, ist, fst, qmax_run, floor, stats = borrowed(
+        (x, S, D, Q, ist, fst, qmax_run, floor, stats))
+    net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC, scratch = borrowed(
+        (net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC, scratch))
     atol_s, atol_x, x_off, q_id, natol, links, p_idx, T_idx, q_sel = tol
     rec_t, rec_x, rec_s, rec_q, x_index, s_index = rec
     d_t, d_h, d_k, d_row, d_D, d_cols = dense
@@ -988,20 +1008,11 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     t_stop = T * (1 - 1e-14)
     n_rec_cap, n_dense_cap, n_ev_cap = rec_t.size, d_D.shape[0], events.shape[0]
     kmax = ist[MAX_ORDER]
-    pred = np.empty(width)
-    psi_all = np.empty(width)
-    delta = np.empty(width)
-    w = np.empty(ns + n)
-    itol = np.empty(n)
-    work = np.empty((10, n))
-    S_new = np.empty(ns)
-    Fe = np.empty(n)
-    none = np.empty(0)
-    Q_new = np.empty(nQ)
-    x_right, r0, xdot, buf = np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n)
+    (pred, psi_all, delta, w, itol, work, S_new, Fe, none, Q_new, x_right, r0, xdot,
+     buf) = scratch[:14]
     # the sides of the laws' kinks (a check valve shut, opening, open) at the
     # point: a step across one is the BDF's (its dense output, its order)
-    g0, g1, modes = np.empty(lin[11].size), np.empty(lin[11].size), np.empty(ns)
+    g0, g1, modes = scratch[14:]
     kink_at, kink_new = lin[9], lin[10]
     if kink_at.size:
         kinks(x, net[4], net[5], net[6], kink_at)
@@ -1287,6 +1298,22 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
     step in fst[H]; fst[ERR] < 0 where there is none to extrapolate from);
     ``grid``: (step, number of grid steps); ist[FAILS] holds the index of
     the last grid point reached. Returns (exit, t)."""
+    n, ns = x.size, S.size
+    # the loop's work arrays, held here for its call (see stretch)
+    scratch = (np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),
+               np.empty(n))
+    return _fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, tol,
+                          rec, watch, breaks, grid, scratch)
+
+
+@jit
+def _fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, tol, rec,
+                   watch, breaks, grid, scratch):
+    """:func:`fixed_stretch` with its work arrays (``scratch``), every array
+    borrowed (:func:`borrowed`): the caller holds them for the call."""
+    x, S, x_prev, ist, fst, floor, stats = borrowed((x, S, x_prev, ist, fst, floor, stats))
+    net, lin, sources, tol, rec, watch, breaks, grid, scratch = borrowed(
+        (net, lin, sources, tol, rec, watch, breaks, grid, scratch))
     atol_s, atol_x, x_off, q_id, natol, links, p_idx, T_idx, q_sel = tol
     rec_t, rec_x, rec_s, rec_q, x_index, s_index = rec
     w_index, w_floor = watch
@@ -1297,12 +1324,7 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
     T = fst[DURATION]
     t_stop = T * (1 - 1e-14)
     h0, n_grid = grid[0], int(grid[1])
-    itol = np.empty(n)
-    work = np.empty((10, n))
-    S_new = np.empty(ns)
-    Fe = np.empty(n)
-    none = np.empty(0)
-    x_pred = np.empty(n)
+    itol, work, S_new, Fe, none, x_pred = scratch
     used = 0
     while t < t_stop:
         if ist[N_REC] >= rec_t.size:
