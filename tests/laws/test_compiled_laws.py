@@ -204,3 +204,27 @@ def test_no_law_or_loop_is_compiled_once_per_literal_argument():
                 literal += [f"{info.name}.{name}{sig}" for sig in obj.signatures
                             if "Literal" in str(sig) or "Omitted" in str(sig)]
     assert not literal, literal
+
+
+def test_borrowed_views_share_the_data_and_the_type():
+    # laws.borrowed: views that hold no reference (the step loop's arguments);
+    # the same numba type (no new compile), the same memory, writes seen by
+    # the owner; tuples (nested, with scalars) borrowed item by item
+    import numba
+
+    from softflow.laws import borrowed
+
+    @numba.njit
+    def use(a, pair):
+        b = borrowed(a)
+        (c, k), d = borrowed(pair)
+        b[1] = 7.0
+        c[0, 1] = -1.0
+        return b.sum() + d[0] + k, b.shape[0], c.shape
+
+    a = np.arange(4.0)
+    m = np.zeros((2, 3))
+    total, size, shape = use(a, ((m, 5), np.array([0.5])))
+    assert a.tolist() == [0.0, 7.0, 2.0, 3.0] and m[0, 1] == -1.0
+    assert (total, size, shape) == (12.0 + 0.5 + 5, 4, (2, 3))
+    assert len(use.signatures) == 1
