@@ -953,9 +953,19 @@ def _crossing(net, x, S, x_new, S_new, atol_s, g0, g1, modes):
     return theta if 0.0 < theta <= 1.0 else -1.0
 
 
+def stretch_scratch(n, ns, width, nQ, nk):
+    """The work arrays of :func:`stretch` for n unknowns, ns states, a
+    difference table ``width`` wide, nQ quadratures and nk kinks (made by
+    the caller, which holds them: the loop borrows them)."""
+    return (np.empty(width), np.empty(width), np.empty(width), np.empty(ns + n),
+            np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),
+            np.empty(nQ), np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n),
+            np.empty(nk), np.empty(nk), np.empty(ns))
+
+
 @jit
 def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
-            net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC):
+            net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC, scratch):
     """Steps of the BDF from (t, x, S) until an event (module docstring).
 
     Arguments: the point and the difference table D (states, unknowns,
@@ -970,24 +980,10 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     ``dense`` (the record buffers), ``events`` (rejections and restarts: t,
     h, cause, error), ``watch`` (the watched states and their floors), the
     run's breakpoints (sorted, inside the run), the BDF's g_j and error
-    constants. Returns (exit, t); x, S, Q and the state arrays
-    are updated in place to the last step taken."""
-    n, ns, width, nk = x.size, S.size, D.shape[1], lin[11].size
-    # the loop's work arrays, held here for its call: it borrows them as it
-    # borrows the arguments
-    scratch = (np.empty(width), np.empty(width), np.empty(width), np.empty(ns + n),
-               np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),
-               np.empty(Q.size), np.empty(n), np.empty(ns), np.empty(n), np.empty(ns + n),
-               np.empty(nk), np.empty(nk), np.empty(ns))
-    return _stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats, net, lin, sources,
-                    tol, rec, dense, events, watch, breaks, G, ERRC, scratch)
-
-
-@jit
-def _stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
-             net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC, scratch):
-    """:func:`stretch` with its work arrays (``scratch``), every array
-    borrowed (:func:`borrowed`): the caller holds them for the call."""
+    constants, and the loop's work arrays (:func:`stretch_scratch`). Returns
+    (exit, t); x, S, Q and the state arrays are updated in place to the last
+    step taken. Every array is used through a view that counts no references
+    (:func:`borrowed`): the caller holds them for the call."""
     x, S, D, Q, ist, fst, qmax_run, floor, stats = borrowed(
         (x, S, D, Q, ist, fst, qmax_run, floor, stats))
     net, lin, sources, tol, rec, dense, events, watch, breaks, G, ERRC, scratch = borrowed(
@@ -1286,9 +1282,15 @@ def _stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     return DONE, t
 
 
+def fixed_scratch(n, ns):
+    """The work arrays of :func:`fixed_stretch` (see :func:`stretch_scratch`)."""
+    return (np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),
+            np.empty(n))
+
+
 @jit
 def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, tol, rec,
-                  watch, breaks, grid):
+                  watch, breaks, grid, scratch):
     """Steps of backward Euler on its fixed grid from (t, x, S)
     (:class:`softflow.solve.integrator.ImplicitEuler`: psi = S, c = h, Newton
     from the linear extrapolation of the last two points, from the last
@@ -1297,20 +1299,9 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
     buffer, the step budget, the end. ``x_prev``: the point before (its
     step in fst[H]; fst[ERR] < 0 where there is none to extrapolate from);
     ``grid``: (step, number of grid steps); ist[FAILS] holds the index of
-    the last grid point reached. Returns (exit, t)."""
-    n, ns = x.size, S.size
-    # the loop's work arrays, held here for its call (see stretch)
-    scratch = (np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),
-               np.empty(n))
-    return _fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, tol,
-                          rec, watch, breaks, grid, scratch)
-
-
-@jit
-def _fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, tol, rec,
-                   watch, breaks, grid, scratch):
-    """:func:`fixed_stretch` with its work arrays (``scratch``), every array
-    borrowed (:func:`borrowed`): the caller holds them for the call."""
+    the last grid point reached; ``scratch``: the work arrays
+    (:func:`fixed_scratch`). Returns (exit, t). Every array is borrowed, as
+    in :func:`stretch`."""
     x, S, x_prev, ist, fst, floor, stats = borrowed((x, S, x_prev, ist, fst, floor, stats))
     net, lin, sources, tol, rec, watch, breaks, grid, scratch = borrowed(
         (net, lin, sources, tol, rec, watch, breaks, grid, scratch))

@@ -271,13 +271,15 @@ class CompiledSteps(_Bound):
         x, S, Q = x.copy(), S.copy(), bdf._Q.copy()
         rec = self.buffers + (self.x_index, self.s_index)
         dense = self.dbuf + (self.d_cols,)
+        scratch = st.stretch_scratch(x.size, S.size, bdf._D.shape[1], Q.size,
+                                     self.lin[11].size)
         taken = 0
         while True:
             ist[st.WANTS_SOURCES] = 0
             exit_, t = st.stretch(float(t), x, S, bdf._D, Q, ist, fst, qmax_run, self.floor,
                                   self.stats, self.net, self.lin, self.sources, self.tol, rec,
                                   dense, self.events, self.watch, self.breaks, self.G,
-                                  self.ERRC)
+                                  self.ERRC, scratch)
             taken += self._flush(t, Q)
             if exit_ == st.NEWTON and ist[st.WANTS_SOURCES]:
                 # a failed solve that only the culprit finder's nodes, not yet
@@ -368,11 +370,13 @@ class FixedSteps(_Bound):
             self.x_prev[:] = euler._x_prev
         x, S = x.copy(), S.copy()
         rec = self.buffers + (self.x_index, self.s_index)
+        scratch = st.fixed_scratch(x.size, S.size)
         taken, used0 = 0, 0
         while True:
             exit_, t = st.fixed_stretch(float(t), x, S, self.x_prev, ist, fst, self.floor,
                                         self.stats, self.net, self.lin, self.sources,
-                                        self.tol, rec, self.watch, self.breaks, self.grid)
+                                        self.tol, rec, self.watch, self.breaks, self.grid,
+                                        scratch)
             taken += self._records_out(t, Q=False)
             ist[st.N_REC] = 0
             if exit_ != st.FULL:
