@@ -27,7 +27,14 @@ from ..network.system import NetworkError
 from .compiled import function
 from .discretize import step_functions
 from .netcore import compiled_residual
-from .settings import REGULARITY_ANSWERS, SMALL_NUMBERING_MAX
+from .settings import (
+    DENSE_CHECK_MAX,
+    NODE_DOT_MAX,
+    REGULARITY_ANSWERS,
+    SMALL_BLOCKS_MAX,
+    SMALL_NUMBERING_MAX,
+    UNROLL_MAX_GROUPS,
+)
 from .userkernel import UserKernel
 from .validity import ComponentError, user_code_error
 
@@ -73,14 +80,6 @@ def _is_regular(A):
         return False
     d = np.abs(lu.U.diagonal())
     return bool(d.size == 0 or d.min() > 1e-12)
-
-
-#: Up to this many unknowns the regularity check factors a dense matrix
-#: (a sixth of SuperLU's time on the paper's 6 unknowns, measured).
-DENSE_CHECK_MAX = 64
-#: Up to this many unknowns Assembly.subnetworks finds the connected parts by
-#: union-find in Python (10-20 us) instead of scipy's sparse graph (~0.15 ms).
-SMALL_BLOCKS_MAX = 256
 
 
 def _structurally_regular(n, indices, indptr):
@@ -232,13 +231,6 @@ def _check_fluids_at_nodes(asm, comps):
 def _fluid_name(fluid):
     frac = getattr(getattr(fluid, "spec", None), "fraction", None)
     return f"{fluid.name!r}" + (f" (fraction {frac:g})" if frac is not None else "")
-
-
-#: Up to this many groups residual() runs as unrolled code (see Assembly._unrolled_residual).
-UNROLL_MAX_GROUPS = 64
-
-#: Up to this many unknowns the node rows are one dense matrix-vector product.
-NODE_DOT_MAX = 64
 
 
 class Group:

@@ -86,8 +86,26 @@ import numpy as np
 from .dense import DenseRecorder, insert_interior, refine_counts
 from .integrator import Integrator, StepFailure
 from .newton import Outcome, gauge_offsets
+from .settings import (
+    CHATTER_STEP,
+    CHATTER_SWITCHES,
+    FAIL_HOLD,
+    FIRST_ESTIMATE,
+    FORCED_RESTART,
+    FULL_STAGE_STEPS,
+    GROW_MIN,
+    MAX_FACTOR,
+    MAX_ORDER,
+    MIN_FACTOR,
+    NEWTON_FLOOR,
+    NEWTON_FLOOR_FRACTION,
+    PEAK_FACTOR,
+    SAFETY,
+    SECANT_TRIES,
+    SWITCH_PAST,
+    UNDAMPED_FULL,
+)
 
-MAX_ORDER = 5
 #: g_j = sum_{i<=j} 1/i, the BDF coefficients in backward-difference form
 _G = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, MAX_ORDER + 2))])
 #: local error constant of order k, times nabla^(k+1) X
@@ -96,80 +114,6 @@ _ERR = np.array([0.0] + [1.0 / (k + 1) for k in range(1, MAX_ORDER + 3)])
 #: sum_j D_j and psi = predictor - (sum_{j>=1} g_j D_j) / g_k, in one product
 _PRED_PSI = [None] + [np.array([np.ones(k + 1), np.r_[1.0, 1.0 - _G[1:k + 1] / _G[k]]])
                       for k in range(1, MAX_ORDER + 1)]
-SAFETY = 0.9
-#: Newton's tolerances are at least NEWTON_FLOOR (relative to the run's
-#: largest magnitude of each quantity; ``Newton.scale_floor``) where that is
-#: below Newton's rtol times NEWTON_FLOOR_FRACTION: a settled network's
-#: vanishing flows are not asked for what round-off cannot resolve, while a
-#: decaying flow that still moves mass is resolved to its own size. Measured:
-#: the air chain of bench_accuracy (flows falling 1000x from the jump) at
-#: rtol 1e-2 took 57 steps with the floor at Newton's rtol (36 with it at
-#: 1e-6) and 351 at rtol 1e-7 (191 with it at a fifth of Newton's rtol);
-#: bench_speed_accuracy's 12 -> 18 MPa scene, settled at rtol 1e-8, stops
-#: without a floor.
-NEWTON_FLOOR, NEWTON_FLOOR_FRACTION = 1e-6, 0.2
-MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
-#: a step is only lengthened by at least this factor (each change costs a
-#: re-interpolation and, past Newton's reuse window, a factorization)
-GROW_MIN = 1.2
-#: a step that switches a mode is placed to end at most this fraction past the
-#: crossing of its switching function (less where the step moves by more than
-#: the tolerance); SECANT_TRIES placements, then bisection
-SWITCH_PAST = 1e-3
-SECANT_TRIES = 4
-#: accepted steps for which a step stays below 0.9 x the last one that failed
-#: the error test (or below the bisected step while a mode switch is located)
-FAIL_HOLD = 10
-#: a run stops where this many accepted steps in a row each switched a mode at
-#: a step of at most CHATTER_STEP x step_min: a mode that undoes itself as soon
-#: as it is taken (a flow source pushing into a snapping valve with no volume
-#: between them: ~20 step tries a switch, 10 million steps, the default limit,
-#: in ~25 minutes before)
-CHATTER_SWITCHES = 50
-CHATTER_STEP = 4.0
-#: a step taken past the error test at step_min (forced) restarts the method
-#: at order 1 from its point, unless no step has passed the test since the
-#: last restart (BDF._take): where Newton took an actuator's gas to another
-#: volume holding its mass (past a fold, in a step of its own rather than by
-#: a fold jump), the history before extrapolated a trajectory that no longer
-#: is, and the next steps bounced between the two volumes until the run
-#: stopped. The latex balloon's curve with 1 kPa of noise (many folds), a
-#: pump filling and drawing it for 38 s, 12 noise seeds: 7 runs went
-#: through before, 12 now (with newton.CRDOWN, 3 without this restart); the
-#: paper listing (an undeclared jump at 0.5 s) 106 -> 43 steps at the same
-#: error; nine paper scenes: no forced step at the default rtol, unchanged.
-#: Where the probes of a restart that only a forced step asked for fail (a
-#: marginal failure of the error test rather than a jump), BDF goes on with
-#: its history (BDF._propose)
-FORCED_RESTART = True
-#: the first step after a (re)start aims at this error estimate (order 1, in
-#: units of the tolerance): its order-1 steps carry the run's largest local
-#: errors until the order rises. Measured: the paper listing at the default
-#: rtol 0.110 % of its gauge peak from a converged run aiming at 1/4 (the
-#: first two steps 0.02 s each), 0.047 % at 1/10 (104 steps against 99)
-FIRST_ESTIMATE = 0.1
-#: Newton's damped full stage (a fresh Jacobian at every iterate, a line
-#: search) and, in thermal scenes, its flows-first stage are tried only on
-#: steps of at most this many step_min; on a longer step whose chord
-#: iterations fail on fresh factors the step is rejected and cut by 4 at
-#: once, as IDA does (a shorter step is the cheaper cure: its predictor is
-#: closer). Measured on the nine paper scenes at the default rtol:
-#: factorizations 1 445 -> 1 123, residual evaluations 7 556 -> 5 988, steps
-#: 2 089 -> 2 243; Fig. 5 with air 481 -> 257 factorizations (its snaps: a
-#: failing full stage cost ~12 factorizations each); Fig. 3's three scenes
-#: with air, adiabatic: factorizations 1 331 -> 542, residual evaluations
-#: 6 679 -> 2 333, steps 726 -> 723.
-FULL_STAGE_STEPS = 4.0
-#: on longer steps, chord iterations on fresh factors that contract too
-#: slowly go on as undamped full Newton before the step is cut
-#: (:attr:`Newton.undamped_full`). Measured: the 12 -> 18 MPa bottle of
-#: benchmarks/assess_scenes (heat transfer, table air, rtol 1e-3) 31 -> 14
-#: steps, where its turbulent tube's flow dies out; the nine paper scenes
-#: 2 243 -> 2 143 steps, 5 916 -> 6 003 Newton iterations, 1 129 -> 1 162
-#: factorizations (Fig. 5 with air 447 -> 403 steps, 257 -> 289
-#: factorizations; in runs in turns 3-6 % slower, Fig. 3's hysteretic
-#: scene 5-15 % faster).
-UNDAMPED_FULL = True
 
 
 def newton_limits(rtol, newton_rtol):
@@ -206,14 +150,6 @@ def _rescale_matrix(order, factor):
 
 #: the ufunc method: ~0.6 us against ~1.5 us for np.max on small arrays
 _max = np.maximum.reduce
-
-
-#: The error norm is the weighted RMS over the error test's entries, or the
-#: largest weighted entry over PEAK_FACTOR where that is larger: by RMS alone one
-#: entry of n may carry sqrt(n) times the tolerance, and a large network's
-#: error then grows with its size (air chain N = 200, rtol 1e-8: 23x rtol by
-#: RMS, 5x with the peak held to 3x).
-PEAK_FACTOR = 3.0
 
 
 class BDF(Integrator):

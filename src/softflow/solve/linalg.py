@@ -8,28 +8,11 @@ from scipy.linalg.lapack import dgetrf, dgetri, dgetrs
 from scipy.sparse import csc_matrix
 from scipy.sparse.linalg import splu
 
-#: Up to this many unknowns a dense LU is at least as fast as SuperLU: measured
-#: on chains (benchmarks/bench_linear_solver.py), dense wins 1.03-1.2x up to 130
-#: unknowns and loses 2x at 146 (the n^3 factorization takes over).
-DENSE_MAX = 128
-
-
-#: SuperLU's relaxed-supernode size. Its default (a few columns) merges small
-#: near-dense column groups into supernodes whose triangular solves go through a
-#: BLAS call each; on the 2x2 (pressure, temperature) blocks of thermal networks
-#: that made each solve ~2x slower (bench_thermal.py chain N=1000: 0.38 -> 0.17 ms
-#: per solve), and factoring is ~1.3x faster with 1 on both kinds of network.
-RELAX = 1
+from .settings import DENSE_MAX, DOT_MAX, INVERSE_MAX, PIVOT_RTOL, RELAX, SMALL_PIVOTS
 
 
 class SingularJacobian(RuntimeError):
     pass
-
-
-#: Largest array for the dot-product shortcuts below. OpenBLAS runs larger dot
-#: products on several threads, and on a loaded 2-core machine their hand-offs
-#: were measured to cost milliseconds each (chain N = 10 000: 3x slower runs).
-DOT_MAX = 1000
 
 
 def all_finite(a):
@@ -40,19 +23,6 @@ def all_finite(a):
     if a.size <= DOT_MAX and math.isfinite(a.dot(a)):
         return True
     return bool(np.isfinite(a).all())
-
-
-#: Up to this many unknowns DenseLU solves by a product with the inverse
-#: instead of LAPACK getrs (measured: 0.28 vs 0.44 us on 6 unknowns, 0.36 vs
-#: 1.0 on 36, 0.49 vs 1.6 on 64). Newton only needs the update to a relative
-#: accuracy far coarser than the inverse's round-off, and checks convergence on it.
-INVERSE_MAX = 64
-
-#: A dense LU whose smallest pivot is at most this times its largest is singular.
-PIVOT_RTOL = 1e-14
-
-#: Up to this many unknowns the pivots' extremes are taken on a Python list
-SMALL_PIVOTS = 32
 
 
 class DenseLU:

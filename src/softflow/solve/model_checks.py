@@ -144,23 +144,21 @@ from ..components.tubes import _friction_term
 from ..constants import pressure_atmospheric
 from ..correlations.fanno import adiabatic_choked_massflow
 from ..correlations.gas_pipe import isothermal_choked_massflow
-from ..fluids.ideal import IdealGas
 from ..fluids.base import FluidError
-from .settings import SMALL_NETWORK
+from ..fluids.ideal import IdealGas
+from .settings import (
+    ADIABATIC_PERSISTENCE,
+    MACH_INCOMPRESSIBLE,
+    SMALL_NETWORK,
+    THERMAL_DT,
+    THERMAL_FRACTION,
+    Z_GRID,
+)
 from .validity import NEAR_FRACTION, ValidityRecord, grade, group_times, group_values
 
-#: Mach number at the low-pressure end above which the mean-density tube law's
-#: neglect of the gas's acceleration is no longer small (~5 % of the drop).
-MACH_INCOMPRESSIBLE = 0.3
 #: Below this Mach number no tube is near either limit (the mean-density law's
 #: or choking), whatever its law.
 NEAR_MACH = NEAR_FRACTION * MACH_INCOMPRESSIBLE
-#: A volume's fill time below this fraction of its thermal time constant is
-#: reported as not isothermal.
-THERMAL_FRACTION = 0.1
-#: Temperature difference [K] and heat-transfer shape assumed for the thermal
-#: time constant of a volume that has no thermal model.
-THERMAL_DT = 10.0
 
 
 def _record(comp, check, measured, limit, unit, fraction, suggestion, message, **details):
@@ -412,11 +410,6 @@ def orifice_choked(g, result):
 
 
 # -- gases ---------------------------------------------------------------------------
-#: Pressures at which gas_compressibility asks CoolProp for Z (geometric, over the
-#: pressures of the volumes it checks); Z - 1 between them is interpolated.
-Z_GRID = 12
-
-
 #: Critical temperature [K], critical pressure [Pa] and acentric factor of the
 #: built-in gases (NIST Chemistry WebBook; Lemmon et al. 2000 for air as a
 #: pseudo-pure fluid), for :func:`compressibility_bound`.
@@ -854,12 +847,6 @@ def thermal_time_scale(g, result):
 
 #: np.trapezoid from NumPy 2.0, np.trapz before it (numpy>=1.23 is supported)
 _trapezoid = getattr(np, "trapezoid", None) or getattr(np, "trapz")
-
-
-#: An adiabatic gas volume's temperature that stays away from its wall's for
-#: longer than this many thermal time constants is reported: by then a real
-#: wall would have taken back most of the difference.
-ADIABATIC_PERSISTENCE = 1.0
 
 
 def adiabatic_time_scale(g, result):

@@ -50,6 +50,18 @@ import numpy as np
 from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from .linalg import DOT_MAX, SingularJacobian, all_finite  # noqa: F401 (DOT_MAX: re-exported)
+from .settings import (
+    CONTINUATION_FIRST,
+    CONTINUATION_MIN,
+    CONTINUATION_RTOL,
+    CONTINUATION_SOLVES,
+    CRDOWN,
+    FULL_KEEP_CUT,
+    SMALL,
+    TIGHT_KEEP_CUT,
+    TIGHT_RTOL,
+    WATCHDOG,
+)
 
 
 def gauge_offsets(quantities, offset=pressure_atmospheric):
@@ -77,61 +89,9 @@ class Stats:
         return dict(self.__dict__)
 
 
-#: full Newton steps the watchdog may take without residual decrease
-WATCHDOG = 6
-
-#: the damped stage (:meth:`Newton._full`) keeps its factors for the next
-#: iteration only where a full step cut the scaled residual by 1/FULL_KEEP_CUT
-#: or more (Shamanskii's variant: close to the solution Newton's quadratic
-#: convergence passes it, and a factorization is saved), and by
-#: 1/TIGHT_KEEP_CUT in a solve held to TIGHT_RTOL or less (BDF's restart
-#: probes, at 1e-12): many decades below the residual the stage starts from,
-#: a chord step that contracts only linearly costs more iterations than a
-#: refactorization. Measured: past each opening of Fig. 4's snapping valve
-#: (dp ~ mdot^2) the probes' chord steps contracted by ~10x each, 8
-#: iterations from a residual of 53 to the tolerance; with 100x there, the
-#: damped iterations 139 -> 95 over the run. Not at the run's own
-#: tolerances: the consistent start of a check valve whose root sits in its
-#: narrow opening band (tests/fons, thresholds 10 and 30 kPa) then took
-#: another path through the band and failed
-FULL_KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL = 0.1, 0.01, 1e-10
-
-#: :meth:`Newton.continuation`: its first step in lam, the smallest, and the
-#: most Newton solves it makes (a bound on the cost of a run that fails
-#: anyway: the tests/fons 2 bar pulse through a check valve, cracking 0-92.5
-#: kPa, took up to 27, 16 in the median); and the Newton rtol it holds its
-#: solves to at most (at a run's rtol 1e-2, Newton at rtol/20 accepted a first
-#: update on its predicted contraction short of a check valve's opening band,
-#: and the continuation stalled there: the fons ideal valve at 72.5 kPa)
-CONTINUATION_FIRST, CONTINUATION_MIN, CONTINUATION_SOLVES = 0.125, 1e-4, 64
-CONTINUATION_RTOL = 1e-6
-
-#: The convergence test of a chord iteration takes the contraction rate as at
-#: least CRDOWN times the rate it took at the iteration before, 1 on fresh
-#: factors (CVODE's damped rate, crate; SUNDIALS' CRDOWN = 0.3): a rate
-#: measured from the first pair of updates alone sees the predictor's jump
-#: (a source's step: 1e6 tolerances, then 805), not the slow mode left where
-#: the predictor's Jacobian is far from the root's (an orifice's slope at
-#: rest: chord rate 0.92 from there on), and the second iterate was accepted
-#: 2.5e4 tolerances from the root (tests/test_random_networks.py drawn with
-#: Python's random, seeds 1000-1599, each at fixed steps and adaptive:
-#: accepted points > 100 tolerances 61 -> 4 and 35 -> 5, statuses unchanged,
-#: Newton iterations +2.9 / +3.3 %; nine paper scenes: Newton iterations 6012 ->
-#: 6211, factorizations 1171 -> 1160). The rate the next solve's first update
-#: is judged on (``eta``) stays the measured one. The batched engine's own
-#: Newton (softflow.solve.clocks) damps each variant's rate alike
-CRDOWN = 0.3
-
-
 # the ufunc methods: 0.65 us against 0.8 us for ndarray.max/min on small arrays
 _max = np.maximum.reduce
 _min = np.minimum.reduce
-
-#: Up to this many unknowns the tolerance scale, the update norm and the
-#: pressure test reduce on Python lists: ``a.tolist()`` and the builtins max/min
-#: take 0.2-0.3 us for 6 entries where a NumPy reduction takes 0.8 us (its
-#: fixed cost, measured on NumPy 2.4); the list's cost grows ~25 ns per entry.
-SMALL = 32
 
 
 class StepLimitError(RuntimeError):

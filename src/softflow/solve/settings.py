@@ -1,11 +1,23 @@
 """The solver's thresholds and tuning constants, in one place.
 
-Each is a number the solver compares against or iterates up to; the
-modules that use it import it from here (their module attribute of the
-same name is this value). Constants of older modules (the BDF's and
-Newton's controls, the model checks' limits) still live in their modules:
-issue 38 moves them here as the step loop is compiled, where they reach
-the compiled code as arguments.
+Each is a number the solver compares against or iterates up to (or a switch
+of its tuning); the modules that use it import it from here by name (their
+module attribute of the same name is this value, and is what they read: to
+change one for a test, patch that module's attribute, ``bdf.SAFETY``; the
+compiled step loop's own are read here, ``settings.COMPILED_STEPS``). The
+compiled step loop takes the BDF's, Newton's and the linear algebra's from
+those modules' attributes at each run (softflow.solve.steploop), as arguments.
+
+Issue 38 moved the BDF's and Newton's controls and the linear algebra's,
+assembly's and the model checks' limits here. What stays in its module: the
+compiled stepper's slot indices (IST_SIZE, FST_SIZE and the indices into
+them, softflow.laws.stepper) and the laws' kind codes, which tune nothing;
+values derived from these (the BDF's coefficients bdf._G, _ERR, _PRED_PSI;
+model_checks.NEAR_MACH, validity.NEAR_FRACTION x MACH_INCOMPRESSIBLE); and
+the constants of modules not yet moved: Simulation's defaults (MAX_STEPS,
+NEWTON_RTOL, NEWTON_FRACTION), the integrator's (RESCUES_IN_A_ROW,
+INITIAL_CONFIRMS), the batched engine's (softflow.solve.clocks, batched), the
+sensitivities', and those of blocklu, condense, progress and validity.
 """
 
 # -- A run's times ---------------------------------------------------------------------------
@@ -98,6 +110,169 @@ AUTO_REFINE_MAX = 64
 #: and of each unknown's quantity, as the error test weighs the unknowns).
 AUTO_REFINE_TARGET = 1.0
 
+# -- The BDF's step control (softflow.solve.bdf) ---------------------------------------------
+#: The highest order of the adaptive BDF (Simulation's default ``max_order``).
+MAX_ORDER = 5
+#: The step controller's safety factor on the step its error estimate allows.
+SAFETY = 0.9
+#: Newton's tolerances are at least NEWTON_FLOOR (relative to the run's
+#: largest magnitude of each quantity; ``Newton.scale_floor``) where that is
+#: below Newton's rtol times NEWTON_FLOOR_FRACTION: a settled network's
+#: vanishing flows are not asked for what round-off cannot resolve, while a
+#: decaying flow that still moves mass is resolved to its own size. Measured:
+#: the air chain of bench_accuracy (flows falling 1000x from the jump) at
+#: rtol 1e-2 took 57 steps with the floor at Newton's rtol (36 with it at
+#: 1e-6) and 351 at rtol 1e-7 (191 with it at a fifth of Newton's rtol);
+#: bench_speed_accuracy's 12 -> 18 MPa scene, settled at rtol 1e-8, stops
+#: without a floor.
+NEWTON_FLOOR, NEWTON_FLOOR_FRACTION = 1e-6, 0.2
+#: The least and the most factor by which a step changes from one to the next
+#: (a rejected step's cut: at least MIN_FACTOR).
+MIN_FACTOR, MAX_FACTOR = 0.2, 2.0
+#: a step is only lengthened by at least this factor (each change costs a
+#: re-interpolation and, past Newton's reuse window, a factorization)
+GROW_MIN = 1.2
+#: a step that switches a mode is placed to end at most this fraction past the
+#: crossing of its switching function (less where the step moves by more than
+#: the tolerance); SECANT_TRIES placements, then bisection
+SWITCH_PAST = 1e-3
+SECANT_TRIES = 4
+#: accepted steps for which a step stays below 0.9 x the last one that failed
+#: the error test (or below the bisected step while a mode switch is located)
+FAIL_HOLD = 10
+#: a run stops where this many accepted steps in a row each switched a mode at
+#: a step of at most CHATTER_STEP x step_min: a mode that undoes itself as soon
+#: as it is taken (a flow source pushing into a snapping valve with no volume
+#: between them: ~20 step tries a switch, 10 million steps, the default limit,
+#: in ~25 minutes before)
+CHATTER_SWITCHES = 50
+CHATTER_STEP = 4.0
+#: a step taken past the error test at step_min (forced) restarts the method
+#: at order 1 from its point, unless no step has passed the test since the
+#: last restart (bdf.BDF._take): where Newton took an actuator's gas to another
+#: volume holding its mass (past a fold, in a step of its own rather than by
+#: a fold jump), the history before extrapolated a trajectory that no longer
+#: is, and the next steps bounced between the two volumes until the run
+#: stopped. The latex balloon's curve with 1 kPa of noise (many folds), a
+#: pump filling and drawing it for 38 s, 12 noise seeds: 7 runs went
+#: through before, 12 now (with newton.CRDOWN, 3 without this restart); the
+#: paper listing (an undeclared jump at 0.5 s) 106 -> 43 steps at the same
+#: error; nine paper scenes: no forced step at the default rtol, unchanged.
+#: Where the probes of a restart that only a forced step asked for fail (a
+#: marginal failure of the error test rather than a jump), BDF goes on with
+#: its history (bdf.BDF._propose)
+FORCED_RESTART = True
+#: the first step after a (re)start aims at this error estimate (order 1, in
+#: units of the tolerance): its order-1 steps carry the run's largest local
+#: errors until the order rises. Measured: the paper listing at the default
+#: rtol 0.110 % of its gauge peak from a converged run aiming at 1/4 (the
+#: first two steps 0.02 s each), 0.047 % at 1/10 (104 steps against 99)
+FIRST_ESTIMATE = 0.1
+#: Newton's damped full stage (a fresh Jacobian at every iterate, a line
+#: search) and, in thermal scenes, its flows-first stage are tried only on
+#: steps of at most this many step_min; on a longer step whose chord
+#: iterations fail on fresh factors the step is rejected and cut by 4 at
+#: once, as IDA does (a shorter step is the cheaper cure: its predictor is
+#: closer). Measured on the nine paper scenes at the default rtol:
+#: factorizations 1 445 -> 1 123, residual evaluations 7 556 -> 5 988, steps
+#: 2 089 -> 2 243; Fig. 5 with air 481 -> 257 factorizations (its snaps: a
+#: failing full stage cost ~12 factorizations each); Fig. 3's three scenes
+#: with air, adiabatic: factorizations 1 331 -> 542, residual evaluations
+#: 6 679 -> 2 333, steps 726 -> 723.
+FULL_STAGE_STEPS = 4.0
+#: on longer steps, chord iterations on fresh factors that contract too slowly
+#: go on as undamped full Newton before the step is cut
+#: (:attr:`softflow.solve.newton.Newton.undamped_full`). Measured: the
+#: 12 -> 18 MPa bottle of benchmarks/assess_scenes (heat transfer, table air,
+#: rtol 1e-3) 31 -> 14 steps, where its turbulent tube's flow dies out; the
+#: nine paper scenes 2 243 -> 2 143 steps, 5 916 -> 6 003 Newton iterations,
+#: 1 129 -> 1 162 factorizations (Fig. 5 with air 447 -> 403 steps, 257 -> 289
+#: factorizations; in runs in turns 3-6 % slower, Fig. 3's hysteretic scene
+#: 5-15 % faster).
+UNDAMPED_FULL = True
+#: The BDF's error norm is the weighted RMS over the error test's entries, or the
+#: largest weighted entry over PEAK_FACTOR where that is larger: by RMS alone one
+#: entry of n may carry sqrt(n) times the tolerance, and a large network's
+#: error then grows with its size (air chain N = 200, rtol 1e-8: 23x rtol by
+#: RMS, 5x with the peak held to 3x).
+PEAK_FACTOR = 3.0
+
+# -- Newton (softflow.solve.newton) -------------------------------------------------------
+#: full Newton steps the watchdog may take without residual decrease
+WATCHDOG = 6
+#: the damped stage (:meth:`softflow.solve.newton.Newton._full`) keeps its
+#: factors for the next iteration only where a full step cut the scaled
+#: residual by 1/FULL_KEEP_CUT or more (Shamanskii's variant: close to the
+#: solution Newton's quadratic convergence passes it, and a factorization is
+#: saved), and by 1/TIGHT_KEEP_CUT in a solve held to TIGHT_RTOL or less (BDF's
+#: restart probes, at 1e-12): many decades below the residual the stage starts
+#: from, a chord step that contracts only linearly costs more iterations than a
+#: refactorization. Measured: past each opening of Fig. 4's snapping valve
+#: (dp ~ mdot^2) the probes' chord steps contracted by ~10x each, 8 iterations from
+#: a residual of 53 to the tolerance; with 100x there, the damped iterations
+#: 139 -> 95 over the run. Not at the run's own tolerances: the consistent
+#: start of a check valve whose root sits in its narrow opening band
+#: (tests/fons, thresholds 10 and 30 kPa) then took another path through the
+#: band and failed
+FULL_KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL = 0.1, 0.01, 1e-10
+#: :meth:`softflow.solve.newton.Newton.continuation`: its first step in lam,
+#: the smallest, and the most Newton solves it makes (a bound on the cost of a
+#: run that fails anyway: the tests/fons 2 bar pulse through a check valve,
+#: cracking 0-92.5 kPa, took up to 27, 16 in the median); and the Newton rtol
+#: it holds its solves to at most (at a run's rtol 1e-2, Newton at rtol/20
+#: accepted a first update on its predicted contraction short of a check
+#: valve's opening band, and the continuation stalled there: the fons ideal
+#: valve at 72.5 kPa)
+CONTINUATION_FIRST, CONTINUATION_MIN, CONTINUATION_SOLVES = 0.125, 1e-4, 64
+CONTINUATION_RTOL = 1e-6
+#: The convergence test of a chord iteration takes the contraction rate as at
+#: least CRDOWN times the rate it took at the iteration before, 1 on fresh
+#: factors (CVODE's damped rate, crate; SUNDIALS' CRDOWN = 0.3): a rate
+#: measured from the first pair of updates alone sees the predictor's jump
+#: (a source's step: 1e6 tolerances, then 805), not the slow mode left where
+#: the predictor's Jacobian is far from the root's (an orifice's slope at
+#: rest: chord rate 0.92 from there on), and the second iterate was accepted
+#: 2.5e4 tolerances from the root (tests/test_random_networks.py drawn with
+#: Python's random, seeds 1000-1599, each at fixed steps and adaptive:
+#: accepted points > 100 tolerances 61 -> 4 and 35 -> 5, statuses unchanged,
+#: Newton iterations +2.9 / +3.3 %; nine paper scenes: Newton iterations 6012 ->
+#: 6211, factorizations 1171 -> 1160). The rate the next solve's first update
+#: is judged on (``eta``) stays the measured one. The batched engine's own
+#: Newton (softflow.solve.clocks) damps each variant's rate alike
+CRDOWN = 0.3
+#: Up to this many unknowns Newton's tolerance scale, update norm and
+#: pressure test reduce on Python lists: ``a.tolist()`` and the builtins max/min
+#: take 0.2-0.3 us for 6 entries where a NumPy reduction takes 0.8 us (its
+#: fixed cost, measured on NumPy 2.4); the list's cost grows ~25 ns per entry.
+SMALL = 32
+
+# -- Linear algebra (softflow.solve.linalg) -------------------------------------------------
+#: Up to this many unknowns a dense LU is at least as fast as SuperLU: measured
+#: on chains (benchmarks/bench_linear_solver.py), dense wins 1.03-1.2x up to 130
+#: unknowns and loses 2x at 146 (the n^3 factorization takes over).
+DENSE_MAX = 128
+#: SuperLU's relaxed-supernode size. Its default (a few columns) merges small
+#: near-dense column groups into supernodes whose triangular solves go through a
+#: BLAS call each; on the 2x2 (pressure, temperature) blocks of thermal networks
+#: that made each solve ~2x slower (bench_thermal.py chain N=1000: 0.38 -> 0.17 ms
+#: per solve), and factoring is ~1.3x faster with 1 on both kinds of network.
+RELAX = 1
+#: Largest array for the dot-product shortcuts (linalg.all_finite). OpenBLAS
+#: runs larger dot products on several threads, and on a loaded 2-core
+#: machine their hand-offs were measured to cost milliseconds each (chain
+#: N = 10 000: 3x slower runs).
+DOT_MAX = 1000
+#: Up to this many unknowns linalg.DenseLU solves by a product with the inverse
+#: instead of LAPACK getrs (measured: 0.28 vs 0.44 us on 6 unknowns, 0.36 vs
+#: 1.0 on 36, 0.49 vs 1.6 on 64). Newton only needs the update to a relative
+#: accuracy far coarser than the inverse's round-off, and checks convergence on it.
+INVERSE_MAX = 64
+#: A dense LU whose smallest pivot is at most this times its largest is singular.
+PIVOT_RTOL = 1e-14
+#: Up to this many unknowns the pivots' extremes are taken on a Python list
+#: (DenseLU)
+SMALL_PIVOTS = 32
+
 
 # -- The compiled step loop (softflow.solve.steploop) ------------------------------------------
 #: Whether the adaptive BDF takes its usual steps in the compiled loop
@@ -134,3 +309,35 @@ SMALL_NETWORK = 256
 #: The regularity tests' answers a process remembers by the exact bytes of the
 #: pattern and the Jacobian (assembly._Answers; the oldest forgotten first).
 REGULARITY_ANSWERS = 128
+
+# -- Model checks (softflow.solve.model_checks) ----------------------------------------------
+#: Mach number at the low-pressure end above which the mean-density tube law's
+#: neglect of the gas's acceleration is no longer small (~5 % of the drop).
+MACH_INCOMPRESSIBLE = 0.3
+#: A volume's fill time below this fraction of its thermal time constant is
+#: reported as not isothermal.
+THERMAL_FRACTION = 0.1
+#: Temperature difference [K] and heat-transfer shape assumed for the thermal
+#: time constant of a volume that has no thermal model.
+THERMAL_DT = 10.0
+#: Pressures at which gas_compressibility asks CoolProp for Z (geometric, over the
+#: pressures of the volumes it checks); Z - 1 between them is interpolated.
+Z_GRID = 12
+#: An adiabatic gas volume's temperature that stays away from its wall's for
+#: longer than this many thermal time constants is reported: by then a real
+#: wall would have taken back most of the difference.
+ADIABATIC_PERSISTENCE = 1.0
+
+# -- Assembly's fast paths (softflow.solve.assembly) -----------------------------------------
+#: Up to this many unknowns the regularity check factors a dense matrix
+#: (a sixth of SuperLU's time on the paper's 6 unknowns, measured).
+DENSE_CHECK_MAX = 64
+#: Up to this many unknowns Assembly.subnetworks finds the connected parts by
+#: union-find in Python (10-20 us) instead of scipy's sparse graph (~0.15 ms).
+SMALL_BLOCKS_MAX = 256
+#: Up to this many groups Assembly.residual runs as unrolled code
+#: (Assembly._unrolled_residual).
+UNROLL_MAX_GROUPS = 64
+#: Up to this many unknowns Assembly's node rows are one dense matrix-vector
+#: product.
+NODE_DOT_MAX = 64
