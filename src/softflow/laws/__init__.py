@@ -146,6 +146,9 @@ def jit(function):
 
 
 def _borrow_codegen(context, builder, ty, value):
+    """:func:`borrowed`'s LLVM value for ``value`` of numba type ``ty``: an
+    array's struct with its meminfo and parent NULL, a tuple's items each
+    so, anything else as it is."""
     if isinstance(ty, types.Array):
         src = context.make_array(ty)(context, builder, value)
         out = context.make_array(ty)(context, builder)
@@ -176,7 +179,9 @@ else:
         through each of its calls, hundreds of times a step, and those counts
         were most of a small network's step. A borrowed view is valid while
         the array it was taken from is held: use it only on arrays that the
-        caller of the compiled function holds (its arguments)."""
+        caller of the compiled function holds (its arguments), and never
+        return one to Python (it would come back as an array that does not
+        own its data)."""
         def codegen(context, builder, sig, args):
             return _borrow_codegen(context, builder, value, args[0])
         return value(value), codegen
