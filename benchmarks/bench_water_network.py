@@ -438,14 +438,8 @@ def invariants(net, res):
     finite = all(np.isfinite(v).all() for v in res.to_dict().values())
     pressures = [res[c] for c in res.columns() if c.split(".")[1].startswith("pressure")]
     p_min = min(float(p.min()) for p in pressures)
-    masses = {c: res.get(c, "mass") for c in net.volumes}
-    stored = sum((m - m[0] for m in masses.values()), np.zeros(len(res.times)))
-    delivered = [-res.integral(c, "massflow") for c in net.sources]
-    supplied = sum(delivered, np.zeros(len(res.times)))
-    scale = max(np.abs(stored).max(), sum(np.abs(d).max() for d in delivered),
-                sum(abs(m[0]) for m in masses.values()), 1e-20)
-    gap = float(np.abs(stored - supplied).max())
-    return finite, p_min, gap / scale
+    gap, scale = trn.mass_gap(net, res)
+    return finite, p_min, float(gap) / scale
 
 
 def band_of(sim):

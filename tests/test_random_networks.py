@@ -363,6 +363,20 @@ def _known(err):
     return None
 
 
+def mass_gap(net, res):
+    """(largest gap between what the volumes of ``net`` stored and what its
+    sources delivered over the run ``res``, its scale: the masses held and
+    the largest masses moved, flows that cancel included; a network without
+    volumes moves round-off only: 1e-20 kg is the floor) [kg]."""
+    masses = {c: res.get(c, "mass") for c in net.volumes}
+    stored = sum((m - m[0] for m in masses.values()), np.zeros(len(res.times)))
+    delivered = [-res.integral(c, "massflow") for c in net.sources]
+    supplied = sum(delivered, np.zeros(len(res.times)))
+    scale = max(np.abs(stored).max(), sum(np.abs(d).max() for d in delivered),
+                sum(abs(m[0]) for m in masses.values()), 1e-20)
+    return np.abs(stored - supplied).max(), scale
+
+
 def check(net):
     """Run one network; return its outcome, asserting the invariants."""
     system = net.system
@@ -406,15 +420,7 @@ def check(net):
         assert np.isfinite(values).all(), column
     pressures = [res[c] for c in res.columns() if c.split(".")[1].startswith("pressure")]
     assert min(p.min() for p in pressures) > 0, "non-positive absolute pressure"
-    masses = {c: res.get(c, "mass") for c in net.volumes}
-    stored = sum((m - m[0] for m in masses.values()), np.zeros(len(res.times)))
-    delivered = [-res.integral(c, "massflow") for c in net.sources]
-    supplied = sum(delivered, np.zeros(len(res.times)))
-    # scale: the masses held and the largest masses moved (flows that cancel included)
-    # (a network without volumes moves round-off only: 1e-20 kg is the floor)
-    scale = max(np.abs(stored).max(), sum(np.abs(d).max() for d in delivered),
-                sum(abs(m[0]) for m in masses.values()), 1e-20)
-    gap = np.abs(stored - supplied).max()
+    gap, scale = mass_gap(net, res)
     # round-off: the nodes' balances hold to the linear solve's round-off, which
     # a drawn network's conditioning amplifies (a 0.2 mm x 3 m tube beside
     # 0.1 mL of gas: 1.3e-12 of the masses once, in a full CI run, where the

@@ -160,6 +160,21 @@ def _reciprocals(ir, ic):
 
 
 @jit
+def _row_maxima(J, ir):
+    """ir[i] = max_j |J_ij| over the stored entries of each row (a dense
+    matrix's, or a band's: its places outside the matrix hold 0); False
+    where a row is all zero (singular)."""
+    for i in range(J.shape[0]):
+        r = 0.0
+        for o in range(J.shape[1]):
+            r = max(r, abs(J[i, o]))
+        if not r > 0.0:
+            return False
+        ir[i] = r
+    return True
+
+
+@jit
 def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
     """The dense Jacobian from the raw entries (``flat``: each entry's place
     in the flattened matrix; entries of one place summed) into J, factored
@@ -175,13 +190,8 @@ def factor(raw, flat, J, LU, piv, ir, ic, pivot_rtol):
         ir[:] = 1.0
         ic[:] = 1.0
         return 0
-    for i in range(n):
-        r = 0.0
-        for k in range(n):
-            r = max(r, abs(J[i, k]))
-        if not r > 0.0:
-            return 2
-        ir[i] = r
+    if not _row_maxima(J, ir):
+        return 2
     for k in range(n):
         c = 0.0
         for i in range(n):
@@ -288,13 +298,8 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
             ir[:] = 1.0
             ic[:] = 1.0
             return 0
-    for i in range(n):
-        r = 0.0
-        for o in range(w):
-            r = max(r, abs(J[i, o]))
-        if not r > 0.0:
-            return 2
-        ir[i] = r
+    if not _row_maxima(J, ir):
+        return 2
     ic[:] = 0.0
     for i in range(n):
         for o in range(w):
