@@ -147,6 +147,36 @@ def test_square_values_and_breakpoints():
     np.testing.assert_allclose(np.diff(b[::2]), 0.5)
 
 
+#: periodic waveforms that jump, on periods that are no binary fractions
+#: (before the edges were computed as breakpoints_until computes them, 4 % of
+#: these breakpoints had the jump an ulp or more before them, 27 % after)
+JUMPING = [Square(0.0, 1.0, f, duty, start) for f in (3.0, 7.0, 1.7, 100 / 3)
+           for duty in (0.1, 0.3, 0.5, 0.7) for start in (0.0, 0.01, 0.1)]
+JUMPING += [Trapezoid(0.0, 1.0, rise, hold, fall, start, period)
+            for period in (1 / 3, 0.7, 1 / 7, 0.13, None)
+            for rise, hold, fall in ((0.0, 0.05, 0.0), (0.0, 0.03, 0.01), (0.01, 0.02, 0.0))
+            for start in (0.0, 0.01, 1 / 3)]
+
+
+@pytest.mark.parametrize("w", JUMPING, ids=[f"{type(w).__name__}-{i}" for i, w in enumerate(JUMPING)])
+def test_a_jump_falls_exactly_at_its_breakpoint(w):
+    # the step that lands on a breakpoint b sees the inputs at the float just
+    # before b (their left limit), the next one starts at b: the value must
+    # change exactly between those two floats, in scalar and array evaluation
+    bps = w.breakpoints_until(3.0)
+    assert len(bps) >= (5 if w.period is not None else 1)
+    jumps = 0
+    for b in bps:
+        eps = 1e-9
+        left, right = math.nextafter(b, -math.inf), b
+        assert w(left) == w(b - eps) or abs(w(left) - w(b - eps)) < 1e-6, (b, "left")
+        assert w(right) == w(b + eps) or abs(w(right) - w(b + eps)) < 1e-6, (b, "right")
+        pair = w(np.array([left, right]))
+        assert pair[0] == w(left) and pair[1] == w(right)
+        jumps += abs(w(right) - w(left)) > 0.5
+    assert jumps > 0
+
+
 # ---------------------------------------------------------------------------------------
 # bad input
 # ---------------------------------------------------------------------------------------

@@ -665,3 +665,43 @@ def test_slow_chord_goes_on_as_undamped_full_newton(monkeypatch):
     assert res.stats["steps"] < 0.7 * cut.stats["steps"]
     p, q = res.get("bottle", "pressure"), cut.get("bottle", "pressure")
     assert p[-1] == pytest.approx(q[-1], abs=1e-3 * 6e6)
+
+
+def _early_jump_scene(duration):
+    """A tank filled from a source whose jump comes half a step_min before the
+    breakpoint it declares, with a second breakpoint 1.1 step_min before that
+    one: the step to the breakpoint is step_min stretched over the sliver."""
+    from helpers import filling_tank
+    step_min = duration * 1e-9           # Simulation's default
+    jump = 0.01 - 0.5 * step_min
+
+    def p(t):
+        return 1.3e5 if t >= jump else 1.0e5
+    p.breakpoints = (0.01 - 1.1 * step_min, 0.01)
+    return filling_tank(sf.PressureSource("src", pressure=p))
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled-loop", "python-steps"])
+def test_a_jump_inside_the_stretched_smallest_step_is_forced_not_retried(monkeypatch, compiled):
+    # The smallest step stretched over a sliver before a breakpoint (up to
+    # 1.2 step_min) is the smallest too: a jump inside it forces the step.
+    # It was rejected, shrunk to step_min and stretched back until max_steps
+    # (randomized water networks with square waves stalled so, an ulp's jump).
+    from softflow.solve import settings
+    monkeypatch.setattr(settings, "COMPILED_STEPS", compiled)
+    T = 0.02
+    res = sf.Simulation(_early_jump_scene(T), duration=T, max_steps=400).run()
+    assert res.stats["forced_steps"] >= 1
+    assert res.stats["steps"] + res.stats["rejected_steps"] < 100
+    assert res.get("tank", "pressure")[-1] > 1.04e5      # the jump came (1.0 -> 1.3 bar)
+
+
+def test_a_jump_inside_the_stretched_smallest_step_is_forced_in_a_batch():
+    from softflow.solve.batched import _run_batched
+    T = 0.02
+    sim = sf.Simulation(_early_jump_scene(T), duration=T, max_steps=400)
+    variants = [{"tube.diameter": d} for d in (0.8e-3, 1e-3, 1.2e-3)]
+    results = _run_batched(sim, variants, own_clocks=True)
+    for res in results:
+        assert res.stats["steps"] + res.stats["rejected_steps"] < 100
+        assert res.get("tank", "pressure")[-1] > 1.03e5

@@ -96,6 +96,32 @@ def _time(value: Any, name: str, owner: str, *, positive: bool = False,
 # ---------------------------------------------------------------------------------------
 # base
 # ---------------------------------------------------------------------------------------
+def period_base(t: float, start: float, period: float) -> float:
+    """The start [s] of the period of a periodic waveform that holds t >= start:
+    ``start + k period`` as :meth:`Waveform.breakpoints_until` computes it, with
+    k the one for which t lies in [start + k period, start + (k + 1) period) in
+    floating point. ``floor((t - start) / period)`` alone can be off by one at
+    a period's edge, and a remainder computed from it puts a jump an ulp away
+    from its declared breakpoint: the step landing there saw the new value (or
+    the next one's start the old). :mod:`softflow.laws.waves` computes the
+    same, operation for operation."""
+    k = math.floor((t - start) / period)
+    base = start + k * period
+    if t < base:
+        return start + (k - 1) * period
+    if t >= start + (k + 1) * period:
+        return start + (k + 1) * period
+    return base
+
+
+def _period_base_array(t: Array, start: float, period: float) -> Array:
+    # period_base, elementwise
+    k = np.floor((t - start) / period)
+    base = start + k * period
+    base = np.where(t < base, start + (k - 1) * period, base)
+    return np.where(t >= start + (k + 1) * period, start + (k + 1) * period, base)
+
+
 class Waveform:
     """Base class: a function of time with a unit and breakpoints.
 
@@ -131,6 +157,8 @@ class Waveform:
         k0 = max(0, math.floor((0.0 - start) / self.period))
         k = k0
         while True:
+            # the same float as period_base gives the evaluation, so that a
+            # jump falls exactly at its breakpoint (not an ulp before it)
             base = start + k * self.period
             if base > until:
                 break
@@ -343,32 +371,38 @@ class Trapezoid(Waveform):
                                  f"rise + hold + fall ({self._t_low} s)")
         self._breaks = tuple(sorted({self.start + x for x in
                                      (0.0, self._t_hold, self._t_fall, self._t_low)}))
+        # the edges' offsets from a period's start: base + offset is the float
+        # breakpoints_until gives (start + x itself when not periodic), and
+        # the value changes side exactly there
+        self._edges = tuple((self.start + x) - self.start if self.period is not None else x
+                            for x in (self._t_hold, self._t_fall, self._t_low))
 
     def _scalar(self, t: float) -> float:
-        tau = t - self.start
-        if tau < 0.0:
+        if t < self.start:
             return self.low
-        if self.period is not None:
-            tau -= math.floor(tau / self.period) * self.period
-            if tau < 0.0:       # the remainder rounded below 0: a period's very end
-                return self.low
-        if tau < self._t_hold:
+        base = self.start if self.period is None else period_base(t, self.start, self.period)
+        tau = t - base
+        e_hold, e_fall, e_low = self._edges
+        if t < base + e_hold:
             return self.low + (self.high - self.low) * tau / self.rise
-        if tau < self._t_fall:
+        if t < base + e_fall:
             return self.high
-        if tau < self._t_low:
+        if t < base + e_low:
             return self.high - (self.high - self.low) * (tau - self._t_fall) / self.fall
         return self.low
 
     def _array(self, t: Array) -> Array:
-        tau = t - self.start
-        if self.period is not None:
-            tau = np.where(tau < 0.0, tau, tau - np.floor(tau / self.period) * self.period)
+        if self.period is None:
+            base = np.full_like(t, self.start)
+        else:
+            base = _period_base_array(t, self.start, self.period)
+        tau = t - base
+        e_hold, e_fall, e_low = self._edges
         span = self.high - self.low
         with np.errstate(divide="ignore", invalid="ignore"):
             rising = self.low + span * tau / self.rise
             falling = self.high - span * (tau - self._t_fall) / self.fall
-        return np.select([tau < 0.0, tau < self._t_hold, tau < self._t_fall, tau < self._t_low],
+        return np.select([t < self.start, t < base + e_hold, t < base + e_fall, t < base + e_low],
                          [self.low, rising, self.high, falling], default=self.low)
 
 
@@ -433,18 +467,17 @@ class Square(Waveform):
         self.start = float(_time(start, "start", owner))
         self._t_off = self.duty * self.period
         self._breaks = (self.start, self.start + self._t_off)
+        # the fall's offset from a period's start, as breakpoints_until adds it
+        self._off = self._breaks[1] - self.start
 
     def _scalar(self, t: float) -> float:
-        tau = t - self.start
-        if tau < 0.0:
+        if t < self.start:
             return self.low
-        tau -= math.floor(tau / self.period) * self.period
-        return self.high if tau < self._t_off else self.low
+        return self.high if t < period_base(t, self.start, self.period) + self._off else self.low
 
     def _array(self, t: Array) -> Array:
-        tau = t - self.start
-        phase = tau - np.floor(tau / self.period) * self.period
-        return np.where((tau >= 0) & (phase < self._t_off), self.high, self.low)
+        base = _period_base_array(t, self.start, self.period)
+        return np.where((t >= self.start) & (t < base + self._off), self.high, self.low)
 
 
 def from_csv(path: str | Path, time_column: str | None = None, value_column: str | None = None,

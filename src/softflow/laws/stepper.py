@@ -1050,8 +1050,11 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         k, h = ist[K], fst[H]
         # the step: no overshoot of the limit, no sliver left before it
         h_try = min(h, fst[STEP_MAX], fst[H_CAP], fst[FAIL_CAP])
+        # the smallest step, step_min stretched over a sliver included (BDF._propose)
+        smallest = h_try <= smin
         if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
             h_try = limit - t
+        smallest = smallest or h_try <= smin
         if h_try != h:
             _rescale(D, k, h_try / h)
             fst[H] = h = h_try
@@ -1083,7 +1086,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             # would look into (its nodes of flow sources not yet known, or
             # the worst equation in one's region), or a run logged in
             # detail: the BDF's
-            if code != PLAIN or h <= smin or ist[LOG_SWITCHES]:
+            if code != PLAIN or smallest or ist[LOG_SWITCHES]:
                 return NEWTON, t
             if not ist[REJECT_NEWTON]:
                 # (the caller may find those nodes and call again)
@@ -1135,7 +1138,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         err = ERRC[k] * _enorm(delta, w, m_err, n_disc, fst[PEAK_FACTOR])
         fst[ERR] = err
         if err > 1.0:
-            if h <= smin:
+            if smallest:
                 return FORCED, t
             stats[REJECTED] += 1
             stats[ERROR_FAILS] += 1
@@ -1163,7 +1166,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         # a mode switched: the step is shortened to end just past the
         # crossing where the part past it moves the solution by more than
         # the tolerance (BDF._switch_rejected)
-        if switched and h > smin:
+        if switched and not smallest:
             for i in range(ns):
                 buf[i] = S_new[i] - S[i]
             for i in range(n):

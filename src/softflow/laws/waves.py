@@ -16,9 +16,10 @@ code               floats[at:]
 :data:`LINEAR`     n, times[0..n-1], values[0..n-1] (PiecewiseLinear)
 :data:`HELD`       n, times[0..n-1], values[0..n-1] (PiecewiseConstant)
 :data:`TRAPEZOID`  low, high, rise, fall, start, period (0: not periodic),
-                   t_hold, t_fall, t_low (the class's ``_t_hold`` ...)
+                   t_fall (the class's ``_t_fall``), the edges' offsets
+                   (``_edges``: hold, fall, low)
 :data:`SINE`       offset, amplitude, omega (``_omega`` = 2 pi frequency), phase
-:data:`SQUARE`     low, high, start, period, t_off (``_t_off`` = duty period)
+:data:`SQUARE`     low, high, start, period, the fall's offset (``_off``)
 =================  ==========================================================
 
 :mod:`softflow.solve.wavecodes` writes these arrays from the waveform objects.
@@ -43,7 +44,7 @@ from .volumes import bisect_right
 #: kind codes of the waveforms (one per class of softflow.curves.waveforms)
 CONSTANT, STEP, RAMP, LINEAR, HELD, TRAPEZOID, SINE, SQUARE = 0, 1, 2, 3, 4, 5, 6, 7
 #: how many floats each kind stores (tables: 1 + 2 n, see :func:`size`)
-SIZES = {CONSTANT: 1, STEP: 3, RAMP: 5, TRAPEZOID: 9, SINE: 4, SQUARE: 5}
+SIZES = {CONSTANT: 1, STEP: 3, RAMP: 5, TRAPEZOID: 10, SINE: 4, SQUARE: 5}
 
 
 def size(code: int, n: int = 0) -> int:
@@ -78,35 +79,43 @@ def _held(floats, at, t):
 
 
 @jit
+def period_base(t, start, period):
+    """softflow.curves.waveforms.period_base: the start of t's period, the
+    float that breakpoints_until gives (k kept as a float)."""
+    k = np.floor((t - start) / period)
+    base = start + k * period
+    if t < base:
+        return start + (k - 1.0) * period
+    if t >= start + (k + 1.0) * period:
+        return start + (k + 1.0) * period
+    return base
+
+
+@jit
 def _trapezoid(floats, at, t):
     low, high, rise, fall = floats[at], floats[at + 1], floats[at + 2], floats[at + 3]
-    start, period = floats[at + 4], floats[at + 5]
-    t_hold, t_fall, t_low = floats[at + 6], floats[at + 7], floats[at + 8]
-    tau = t - start
-    if tau < 0.0:
+    start, period, t_fall = floats[at + 4], floats[at + 5], floats[at + 6]
+    e_hold, e_fall, e_low = floats[at + 7], floats[at + 8], floats[at + 9]
+    if t < start:
         return low
-    if period > 0.0:
-        tau -= np.floor(tau / period) * period
-        if tau < 0.0:       # the remainder rounded below 0: a period's very end
-            return low
-    if tau < t_hold:
+    base = period_base(t, start, period) if period > 0.0 else start
+    tau = t - base
+    if t < base + e_hold:
         return low + (high - low) * tau / rise
-    if tau < t_fall:
+    if t < base + e_fall:
         return high
-    if tau < t_low:
+    if t < base + e_low:
         return high - (high - low) * (tau - t_fall) / fall
     return low
 
 
 @jit
 def _square(floats, at, t):
-    low, high, start, period, t_off = (floats[at], floats[at + 1], floats[at + 2],
-                                       floats[at + 3], floats[at + 4])
-    tau = t - start
-    if tau < 0.0:
+    low, high, start, period, off = (floats[at], floats[at + 1], floats[at + 2],
+                                     floats[at + 3], floats[at + 4])
+    if t < start:
         return low
-    tau -= np.floor(tau / period) * period
-    return high if tau < t_off else low
+    return high if t < period_base(t, start, period) + off else low
 
 
 @jit

@@ -438,6 +438,7 @@ class BDF(Integrator):
         self._k = self._n_equal = self._fails = 0
         self._forced = self._passed = self._forced_restart = False
         self._h_cap, self._cap_hold = math.inf, 0     # while a mode switch is being located
+        self._smallest = False     # the step tried is the smallest (_propose)
         # below a step that failed the error test, for a while: without it a step
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
         # fails, halves, doubles and fails again every third step
@@ -489,8 +490,16 @@ class BDF(Integrator):
         h, k = self._h, self._k
         # the step: no overshoot of the limit, no sliver left before it
         h_try = min(h, self.step_max, self._h_cap, self._fail_cap)
+        smin = self.step_min * 1.0000001
+        # the smallest step: step_min, or step_min stretched over the sliver
+        # before the limit (up to 1.2 step_min): at it, a failed error test
+        # forces the step, a failed Newton stops. Without the stretched case
+        # a jump inside the last step_min before a breakpoint was rejected
+        # until max_steps (the stretch undid each shrink to step_min)
+        smallest = h_try <= smin
         if t + h_try >= limit or limit - (t + h_try) < 0.2 * h_try:
             h_try = limit - t
+        self._smallest = smallest or h_try <= smin
         if h_try != h:
             self._rescale(self._tables, k, h_try / h)
             self._h = h = h_try
@@ -529,8 +538,7 @@ class BDF(Integrator):
     def _newton_failed(self, t, t_new, out):
         h = self._h
         self.progress.rejected(t_new, h, "newton", out)
-        if h <= self.step_min * 1.0000001 or (self.culprit is not None
-                                              and self.culprit.stalled(t, h, out)):
+        if self._smallest or (self.culprit is not None and self.culprit.stalled(t, h, out)):
             x_far = self._fold_jump(t, out)
             if x_far is None:
                 raise StepFailure(t_new, h, out)
@@ -641,9 +649,9 @@ class BDF(Integrator):
         w = self._weights(S, S_new, x_new)
         k, h = self._k, self._h
         err = self._err = _ERR[k] * self._enorm(delta[self._iErr], w[self._iErr])
-        smin = self.step_min * 1.0000001
+        smallest = self._smallest
         if err > 1.0:
-            if h > smin:
+            if not smallest:
                 stats = self.stats
                 stats.rejected_steps += 1
                 stats.error_test_failures += 1
@@ -672,7 +680,7 @@ class BDF(Integrator):
             self._forced = False
         disc = self._disc
         switched = self._switched = disc is not None and bool((S_new[disc] != S[disc]).any())
-        if switched and h > smin and self._switch_rejected(t_new, h, x, S, x_new, S_new, w):
+        if switched and not smallest and self._switch_rejected(t_new, h, x, S, x_new, S_new, w):
             return None
         self._secant_tries = 0
         return t_new

@@ -839,6 +839,7 @@ class VariantBDF:
         self.fail_hold = np.zeros(K, dtype=np.int64)
         # while a mode switch is being located (as BDF)
         self.h_cap = np.full(K, math.inf)
+        self.smallest = np.zeros(K, dtype=bool)   # the step tried is the smallest
         self.cap_hold = np.zeros(K, dtype=np.int64)
         self.secant_tries = np.zeros(K, dtype=np.int64)
         self.D = np.zeros((kmax + 3, K, ns + 2 * nx))
@@ -886,7 +887,10 @@ class VariantBDF:
             h_try = np.minimum(np.minimum(np.minimum(h, self.step_max), self.fail_cap),
                                self.h_cap)
             short = (self.t + h_try >= lim) | (lim - (self.t + h_try) < 0.2 * h_try)
+            # the smallest step, step_min stretched over a sliver included (BDF._propose)
+            smallest = h_try <= smin
             h_try = np.where(short, lim - self.t, h_try)
+            self.smallest = smallest = smallest | (h_try <= smin)
             change = live & (h_try != h)
             if change.any():
                 ids = np.flatnonzero(change)
@@ -921,9 +925,9 @@ class VariantBDF:
                 ids = np.flatnonzero(nf)
                 self.rejected[ids] += 1
                 self.stats.rejected_steps += ids.size
-                gone = ids[h[ids] <= smin]
+                gone = ids[smallest[ids]]
                 fail(gone, "Newton failed at the smallest step")
-                ids = ids[h[ids] > smin]
+                ids = ids[~smallest[ids]]
                 factor = np.maximum(0.25, self.step_min / h[ids])
                 self._rescale(ids, factor)
                 h[ids] *= factor
@@ -937,7 +941,7 @@ class VariantBDF:
             w = self._weights(self.Sv, S_new, X_new)
             err = _ERR[self.k] * self._norms(d, dx, w)
             big = ok & (err > 1.0)
-            efail = big & (h > smin)
+            efail = big & ~smallest
             self.forced_steps += int((big & ~efail).sum())
             if efail.any():
                 ids = np.flatnonzero(efail)
@@ -1028,8 +1032,7 @@ class VariantBDF:
         retried to end just past the secant crossing of the switching functions,
         or bisected where there is none, until the part past the switch moves
         the solution by no more than the tolerance); their steps are cut."""
-        smin = self.step_min * 1.0000001
-        locate = switched & (h > smin)
+        locate = switched & ~self.smallest
         if not locate.any():
             return np.zeros(self.K, dtype=bool)
         motion = self._norms(S_new - self.Sv, X_new - self.Xv, w, every=True)

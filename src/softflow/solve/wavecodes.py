@@ -51,11 +51,11 @@ def _floats(w: Any) -> tuple[int, list[float]] | None:
     if kind is wf.Trapezoid:
         period = 0.0 if w.period is None else w.period
         return waves.TRAPEZOID, [w.low, w.high, w.rise, w.fall, w.start, period,
-                                 w._t_hold, w._t_fall, w._t_low]
+                                 w._t_fall, *w._edges]
     if kind is wf.Sine:
         return waves.SINE, [w.offset, w.amplitude, w._omega, w.phase]
     if kind is wf.Square:
-        return waves.SQUARE, [w.low, w.high, w.start, w.period, w._t_off]
+        return waves.SQUARE, [w.low, w.high, w.start, w.period, w._off]
     return None
 
 
