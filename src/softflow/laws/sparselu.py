@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 
-from . import borrowed, inline, jit
+from . import inline, jit
 
 #: what :func:`sparse_lu` returns besides the pivots' range
 OK, SINGULAR, CAPACITY = 0, 2, 3
