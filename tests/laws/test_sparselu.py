@@ -30,6 +30,7 @@ class Factors:
         self.Li, self.Ui = np.zeros(room, np.int64), np.zeros(room, np.int64)
         self.Lx, self.Ux, self.Ud = np.zeros(room), np.zeros(room), np.zeros(n)
         self.pinv, self.prow = np.zeros(n, np.int64), np.zeros(n, np.int64)
+        self.Ar = np.zeros(A.nnz, np.int64)
         self.iw, self.x, self.z = np.zeros(4 * n, np.int64), np.zeros(n), np.zeros(n)
         self.Sx, self.ir, self.ic = np.zeros(A.nnz), np.ones(n), np.ones(n)
         self.state = np.zeros(2, np.int64)
@@ -38,7 +39,8 @@ class Factors:
         self.state[:] = (1 if reuse else 0, 1 if scaled else 0)
         return sparselu.sparse_factor(self.Ap, self.Ai, self.Ax, self.Q, self.Lp, self.Li,
                                       self.Lx, self.Up, self.Ui, self.Ux, self.Ud, self.pinv,
-                                      self.prow, self.iw, self.x, self.Sx, self.ir, self.ic,
+                                      self.prow, self.Ar, self.iw, self.x, self.Sx, self.ir,
+                                      self.ic,
                                       pivot_rtol, refactor_rtol, self.state)
 
     def solve(self, b):
@@ -104,7 +106,7 @@ def test_factors_reproduce_the_matrix():
     L = np.eye(n)
     for k in range(n):
         for e in range(f.Lp[k], f.Lp[k + 1]):
-            L[f.pinv[f.Li[e]], k] = f.Lx[e]
+            L[f.Li[e], k] = f.Lx[e]
     U = np.diag(f.Ud)
     for j in range(n):
         for e in range(f.Up[j], f.Up[j + 1]):
@@ -182,4 +184,5 @@ def test_a_new_matrix_of_the_same_pattern_reuses_the_row_order_while_it_serves()
     f.Ax[:] = A3.data
     assert f.factor(reuse=True) == sparselu.OK
     assert not np.array_equal(f.prow, prow)
+    assert not f.x.any()          # the work row is zero again, as the next call needs
     np.testing.assert_allclose(A3 @ f.solve(b), b, atol=1e-9 * np.abs(b).max())

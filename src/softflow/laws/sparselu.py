@@ -20,16 +20,16 @@ Python instead):
 
 - the matrix: compressed columns ``Ap`` (n + 1), ``Ai`` (row of each entry),
   values ``Ax`` (the caller's order; duplicates summed);
-- L, unit lower triangular in pivot order, by columns: ``Lp``, ``Li``
-  (original row indices), ``Lx``;
+- L, unit lower triangular, by columns: ``Lp``, ``Li`` (rows in pivot
+  order: the column of L whose pivot row it is), ``Lx``;
 - U by columns without its diagonal: ``Up``, ``Ui`` (pivot-order row, i.e.
   the column of L whose pivot row it is), ``Ux``; the diagonal ``Ud``;
 - ``pinv`` (original row -> its pivot column, -1 before), ``prow`` (pivot
-  column -> original row);
-- ``iw`` (4 n integers of work), ``x`` (n floats of work).
+  column -> original row), ``Ar`` (each entry's row in pivot order);
+- ``iw`` (4 n integers of work), ``x`` (n floats of work, zero between
+  calls).
 
-So that ``A[prow, Q] = L U`` with ``L[pinv[Li], k] = Lx`` below its unit
-diagonal.
+So that ``A[prow, Q] = L U`` with ``L[Li, k] = Lx`` below its unit diagonal.
 """
 from __future__ import annotations
 
@@ -79,7 +79,7 @@ def _reach(i0, j, Lp, Li, pinv, mark, xi, top, stack, pstack):
 
 
 @jit
-def sparse_lu(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x):
+def sparse_lu(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, x):
     """The LU factors of the matrix (``Ap``, ``Ai``, ``Ax``) with its columns
     in the order ``Q`` and rows by partial pivoting, into the arrays of the
     module docstring. Returns (code, smallest |pivot|, largest |pivot|):
@@ -90,6 +90,7 @@ def sparse_lu(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x):
     for i in range(n):
         pinv[i] = -1
         mark[i] = -1
+        x[i] = 0.0            # (zero again after each column, and so on return)
     d_min, d_max = math.inf, 0.0
     lnz = unz = 0
     Lp[0] = Up[0] = 0
@@ -99,8 +100,6 @@ def sparse_lu(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x):
         for p in range(Ap[q], Ap[q + 1]):
             if mark[Ai[p]] != j:
                 top = _reach(Ai[p], j, Lp, Li, pinv, mark, xi, top, stack, pstack)
-        for p in range(top, n):
-            x[xi[p]] = 0.0
         for p in range(Ap[q], Ap[q + 1]):
             x[Ai[p]] += Ax[p]
         # the triangular solve with the columns of L the pattern reaches
@@ -147,6 +146,15 @@ def sparse_lu(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x):
                 lnz += 1
         Lp[j + 1] = lnz
         Up[j + 1] = unz
+        for p in range(top, n):
+            x[xi[p]] = 0.0
+    # L's rows and the matrix's in pivot order, U's columns sorted: what
+    # the refactorization and the solves read
+    for e in range(lnz):
+        Li[e] = pinv[Li[e]]
+    for p in range(Ap[n]):
+        Ar[p] = pinv[Ai[p]]
+    sort_columns(Up, Ui, Ux)
     return OK, d_min, d_max
 
 
@@ -167,38 +175,36 @@ def sort_columns(Up, Ui, Ux):
 
 
 @jit
-def sparse_refactor(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, prow, x, pivot_rtol):
+def sparse_refactor(Ap, Ar, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, x, pivot_rtol):
     """The factors of a matrix of the same pattern as the one :func:`sparse_lu`
-    factored last (U's columns sorted: :func:`sort_columns`), with its row
-    order: no search, the triangular solves alone (KLU's refactorization).
-    Returns (code, smallest |pivot|, largest |pivot|); :data:`SINGULAR` where
-    a pivot is zero or below ``pivot_rtol`` times its column's largest entry
-    below it (the old row order no longer serves: factor again with
-    :func:`sparse_lu`)."""
+    factored last, on its row order: no search, the triangular solves alone
+    (KLU's refactorization). Returns (code, smallest |pivot|, largest
+    |pivot|); :data:`SINGULAR` where a pivot is zero or below ``pivot_rtol``
+    times its column's largest entry below it (the old row order no longer
+    serves: factor again with :func:`sparse_lu`)."""
     n = Q.size
     d_min, d_max = math.inf, 0.0
     for j in range(n):
         q = Q[j]
-        for e in range(Up[j], Up[j + 1]):
-            x[prow[Ui[e]]] = 0.0
-        x[prow[j]] = 0.0
-        for e in range(Lp[j], Lp[j + 1]):
-            x[Li[e]] = 0.0
         for p in range(Ap[q], Ap[q + 1]):
-            x[Ai[p]] += Ax[p]
+            x[Ar[p]] += Ax[p]
         for e in range(Up[j], Up[j + 1]):
             k = Ui[e]
-            xk = x[prow[k]]
+            xk = x[k]
+            x[k] = 0.0
             Ux[e] = xk
             if xk != 0.0:
                 for f in range(Lp[k], Lp[k + 1]):
                     x[Li[f]] -= Lx[f] * xk
-        d = x[prow[j]]
+        d = x[j]
+        x[j] = 0.0
         ad = abs(d)
         below = 0.0
         for e in range(Lp[j], Lp[j + 1]):
             below = max(below, abs(x[Li[e]]))
         if not ad > pivot_rtol * below or ad == 0.0:
+            for e in range(Lp[j], Lp[j + 1]):
+                x[Li[e]] = 0.0
             return SINGULAR, 0.0, d_max
         Ud[j] = d
         d_min = min(d_min, ad)
@@ -206,6 +212,7 @@ def sparse_refactor(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, prow, x, pivot_rt
         r = 1.0 / d
         for e in range(Lp[j], Lp[j + 1]):
             Lx[e] = x[Li[e]] * r
+            x[Li[e]] = 0.0
     return OK, d_min, d_max
 
 
@@ -215,30 +222,30 @@ def sparse_solve(Q, Lp, Li, Lx, Up, Ui, Ux, Ud, prow, ir, ic, b, out, z):
     column scales ir, ic: ones where A was factored as it is; ``z``: n
     floats of work); subnormal values are stored as 0 (:data:`TINY`)."""
     n = Q.size
-    for i in range(n):
-        z[i] = ir[i] * b[i]
-    # L y = P R b, y in pivot order (into out)
     for k in range(n):
-        y = z[prow[k]]
+        i = prow[k]
+        z[k] = ir[i] * b[i]
+    # L y = P R b, in pivot order
+    for k in range(n):
+        y = z[k]
         if abs(y) < TINY:
             y = 0.0
-        out[k] = y
+            z[k] = 0.0
         if y != 0.0:
             for e in range(Lp[k], Lp[k + 1]):
                 z[Li[e]] -= Lx[e] * y
     # U w = y, by columns from the last
     for j in range(n - 1, -1, -1):
-        w = out[j] / Ud[j]
+        w = z[j] / Ud[j]
         if abs(w) < TINY:
             w = 0.0
-        out[j] = w
+        z[j] = w
         if w != 0.0:
             for e in range(Up[j], Up[j + 1]):
-                out[Ui[e]] -= Ux[e] * w
+                z[Ui[e]] -= Ux[e] * w
     for j in range(n):
-        z[Q[j]] = out[j]
-    for i in range(n):
-        out[i] = z[i] * ic[i]
+        c = Q[j]
+        out[c] = z[j] * ic[c]
 
 
 @jit
@@ -268,8 +275,8 @@ def _equilibrate(Ap, Ai, Ax, Sx, ir, ic):
 
 
 @jit
-def _factor_once(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x, Sx, ir, ic,
-                 pivot_rtol, refactor_rtol, scaled, reuse):
+def _factor_once(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, x, Sx, ir,
+                 ic, pivot_rtol, refactor_rtol, scaled, reuse):
     # one factorization, as the matrix is or equilibrated: on the last row
     # order where ``reuse`` and its pivots hold, else with a new one
     n = Q.size
@@ -281,15 +288,13 @@ def _factor_once(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x, S
         M = Ax
     code, d_min, d_max = SINGULAR, 0.0, 0.0
     if reuse:
-        code, d_min, d_max = sparse_refactor(Ap, Ai, M, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, prow,
-                                             x, refactor_rtol)
-    fresh = code != OK
-    if fresh:
+        code, d_min, d_max = sparse_refactor(Ap, Ar, M, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, x,
+                                             refactor_rtol)
+    if code != OK:
         code, d_min, d_max = sparse_lu(Ap, Ai, M, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow,
-                                       iw, x)
+                                       Ar, iw, x)
         if code != OK:
             return code, False
-        sort_columns(Up, Ui, Ux)
     if not d_min > pivot_rtol * max(d_max, 1e-300):
         return SINGULAR, True
     if scaled:
@@ -304,8 +309,8 @@ def _factor_once(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x, S
 
 
 @jit
-def sparse_factor(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x, Sx, ir, ic,
-                  pivot_rtol, refactor_rtol, state):
+def sparse_factor(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, x, Sx, ir,
+                  ic, pivot_rtol, refactor_rtol, state):
     """The factors of the matrix (``Ap``, ``Ai``, ``Ax``) with the singularity
     test of the dense and banded factorizations
     (:func:`softflow.laws.stepper.factor`): as it is where its pivots pass,
@@ -316,7 +321,7 @@ def sparse_factor(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x, 
     column), the last factors were equilibrated (tried so at once: a
     network's units do not change between steps)], updated. Returns 0, 2
     (singular) or 3 (capacity: the caller factors otherwise)."""
-    args = (Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, iw, x, Sx, ir, ic)
+    args = (Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, x, Sx, ir, ic)
     scaled = state[1] > 0
     code, valid = _factor_once(*args, pivot_rtol, refactor_rtol, scaled, state[0] > 0)
     state[0] = 1 if valid else 0
