@@ -162,6 +162,36 @@ def test_ideal_gas_density_against_coolprop_z(bar, rtol, warned):
     assert "gas_compressibility" not in _checks(_run(table, rtol=rtol))
 
 
+@pytest.mark.parametrize("bar, rtol, cleared", [(1.2, 1e-4, True), (1.5, 1e-5, False),
+                                               (8.0, 1e-3, True), (20.0, 1e-4, False)])
+def test_the_table_screen_gives_coolprops_records(monkeypatch, bar, rtol, cleared):
+    """gas_compressibility reads the gas's property table before CoolProp and
+    stops where its |Z - 1| stays short of a near miss: the records are those
+    the CoolProp grid gives (none there), and near misses still ask CoolProp."""
+    from softflow.solve import model_checks
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=bar * 1e5)
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-4, initial_pressure=bar * 1e5)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(s, duration=0.01, rtol=rtol)
+        res = sim.run(raise_on_failure=False)
+    asked, table_clears = [], model_checks._table_clears
+
+    def screen(*args):
+        asked.append(table_clears(*args))
+        return asked[-1]
+    monkeypatch.setattr(model_checks, "_table_clears", screen)
+    (g,) = [g for g in sim.asm.groups if type(g.comps[0]).__name__ == "Container"]
+    with_table = model_checks.gas_compressibility(g, res)
+    assert asked == [cleared] and (with_table == []) is cleared
+    monkeypatch.setattr(model_checks, "_table_clears", lambda *args: False)
+    assert model_checks.gas_compressibility(g, res) == with_table
+
+
 @pytest.mark.parametrize("diameter, warned", [(4e-3, True), (0.1e-3, False)])
 def test_isothermal_volume_filled_faster_than_its_wall_exchanges_heat(diameter, warned):
     s = sf.System()

@@ -52,7 +52,9 @@ Checks
     A gas at the ``ideal`` level whose compressibility factor Z (from CoolProp
     at the pressures and temperatures the run visited) differs from 1 by more
     than ``max(10 rtol, 1e-3)``: the ideal-gas density is off by that much.
-    Fraction: ``|Z - 1|`` / that limit.
+    Fraction: ``|Z - 1|`` / that limit. CoolProp is asked only where a virial
+    bound and then the gas's property table (built from the installed CoolProp)
+    cannot rule a near miss out (``settings.Z_TABLE_MARGIN``).
 ``tube_inertia``
     A liquid tube without inertance whose column's inertial pressure, l/A
     times the fastest change of its mass flow (steps where the flow jumped by
@@ -153,6 +155,7 @@ from .settings import (
     THERMAL_DT,
     THERMAL_FRACTION,
     Z_GRID,
+    Z_TABLE_MARGIN,
 )
 from .validity import NEAR_FRACTION, ValidityRecord, grade, group_times, group_values
 
@@ -472,6 +475,64 @@ def _largest_on_ranges(grid, rows, lo, hi):
     return z[np.arange(lo.size), np.argmax(np.abs(z), axis=1)]
 
 
+#: {(fluid spec, temperature, tables directory): its table level or None}: the
+#: tables _table_clears reads (a TableFluid costs ~0.17 ms to make)
+_Z_TABLES = {}
+
+
+def _z_table(fluid):
+    """The table level of gas ``fluid`` at its own temperature, or None where
+    there is none to trust in CoolProp's place: no catalog entry, no table, a
+    table built with another CoolProp version than the installed one (whose
+    warning a check must not raise)."""
+    from ..fluids.tables import TABLES_ENV
+    spec = getattr(fluid, "spec", None)
+    if spec is None:
+        return None
+    # (the directory by the variable that moves it: resolving the default path
+    # costs ~0.1 ms)
+    key = (spec, float(fluid.temperature), os.environ.get(TABLES_ENV))
+    try:
+        return _Z_TABLES[key]
+    except KeyError:
+        pass
+    except TypeError:        # an unhashable spec
+        return None
+    table = None
+    try:
+        import json
+
+        from ..fluids.tables import coolprop_version, table_files, tables_directory
+        _, json_path = table_files(spec.table_stem, tables_directory())
+        built = json.loads(json_path.read_text()).get("coolprop_version")
+        if built is not None and built == coolprop_version():
+            table = fluid.with_level("table")
+            if table.liquid:
+                table = None
+    except Exception:        # no table, unreadable, a temperature outside it
+        table = None
+    _Z_TABLES[key] = table
+    return table
+
+
+def _table_clears(fluid, grid, T, near):
+    """Whether the gas's property table shows |Z - 1| short of ``near`` (a near
+    miss) by more than :data:`Z_TABLE_MARGIN` at every pressure of ``grid`` and
+    temperature of ``T``: then CoolProp's Z there, and every value
+    gas_compressibility interpolates between them, is short of it too, and the
+    check has no record to give. False where the table cannot tell (none, a
+    state outside it)."""
+    table = _z_table(fluid)
+    if table is None:
+        return False
+    try:
+        dz = np.array([table.compressibility(grid, tt) for tt in T], dtype=float) - 1.0
+    except Exception:        # a state outside the table
+        return False
+    largest = float(np.abs(dz).max()) if dz.size else math.nan
+    return math.isfinite(largest) and largest + Z_TABLE_MARGIN < near
+
+
 def gas_compressibility(g, result):
     """One record per gas volume of group ``g`` whose ideal-gas density is off
     by ``|Z - 1|`` near or past the limit over its own pressures (volumes at
@@ -511,15 +572,17 @@ def gas_compressibility(g, result):
              np.flatnonzero(bound >= NEAR_FRACTION * limit))
     if not asked.size:
         return []
+    # Z - 1 on a grid of pressures over every volume asked (a few CoolProp calls
+    # however many volumes), read per volume over its own pressure range
+    lo, hi = float(np.nanmin(p_min[asked])), float(np.nanmax(p_max[asked]))
+    grid = np.unique(np.geomspace(lo, hi, Z_GRID) if hi > lo else np.array([hi]))
+    if _table_clears(fluid, grid, T, NEAR_FRACTION * limit):
+        return []
     try:
         from ..fluids.base import Fluid
         real = Fluid(fluid.name, level="eos", temperature=T[0])
     except Exception:        # a fluid CoolProp does not know
         return []
-    # Z - 1 on a grid of pressures over every volume asked (a few CoolProp calls
-    # however many volumes), read per volume over its own pressure range
-    lo, hi = float(np.nanmin(p_min[asked])), float(np.nanmax(p_max[asked]))
-    grid = np.unique(np.geomspace(lo, hi, Z_GRID) if hi > lo else np.array([hi]))
     try:
         dz_grid = np.array([[float(real.compressibility(pp, tt)) - 1.0 for pp in grid]
                             for tt in T])

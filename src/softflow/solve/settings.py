@@ -323,6 +323,12 @@ THERMAL_DT = 10.0
 #: Pressures at which gas_compressibility asks CoolProp for Z (geometric, over the
 #: pressures of the volumes it checks); Z - 1 between them is interpolated.
 Z_GRID = 12
+#: Before asking CoolProp, gas_compressibility reads Z - 1 on the same grid from
+#: the gas's property table (built from the installed CoolProp version; its Z within
+#: ~3e-8 of CoolProp's): where the largest |Z - 1| there plus this margin stays
+#: short of a near miss, CoolProp could give no record either, and is not asked
+#: (nor imported: 2-7 s on a first run). The margin is ~40x the tables' error bound.
+Z_TABLE_MARGIN = 1e-6
 #: An adiabatic gas volume's temperature that stays away from its wall's for
 #: longer than this many thermal time constants is reported: by then a real
 #: wall would have taken back most of the difference.
