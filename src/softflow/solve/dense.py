@@ -166,7 +166,9 @@ class DenseOutput:
 
     def __init__(self, t_end, h, k, row, diffs, X, S, Q, discrete, linear=False):
         self.t_end, self.h, self.k, self.row = t_end, h, k, row
-        self.off = np.concatenate([[0], np.cumsum(k)[:-1]]).astype(np.int64)
+        # each entry's first row in diffs: the orders before it, summed
+        off = self.off = np.zeros(max(k.size, 1), dtype=np.int64)
+        np.cumsum(k[:-1], out=off[1:])
         self.diffs = diffs
         self.X, self.S, self._Q = X, S, Q
         self.discrete = (np.empty(0, dtype=np.int64) if discrete is None

@@ -152,7 +152,8 @@ class _Jacobian:
         rows = np.asarray(rows, dtype=np.int64)
         cols = np.asarray(cols, dtype=np.int64)
         if self.dense is not None:
-            return self.dense[np.ix_(rows, cols)]
+            # np.ix_'s block, without its per-call checks (a third of a small block's cost)
+            return self.dense[rows[:, None], cols]
         if np.unique(cols).size != cols.size:        # a column asked twice
             return self.csr[rows][:, cols].toarray()
         pos = self.pos
