@@ -51,8 +51,8 @@ SOLVED, PLAIN, CONTRACTING, HAND, REFUSED = range(5)
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
  N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB, CAP_HOLD, SECANT_TRIES,
  MAX_SECANT, LOG_SWITCHES, UNDAMPED, REJECT_NEWTON, FAILS_HERE, WATCHDOG,
- WANTS_SOURCES) = range(33)
-IST_SIZE = 33
+ WANTS_SOURCES, FLOWS_FIRST) = range(34)
+IST_SIZE = 34
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
@@ -818,10 +818,15 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
            T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s, mode):
     """Backward Euler from (x0, S) at t over h, Newton held to 1e-12 (or the
     run's own tolerance where that fails; not where the solve converged on
-    a pressure <= 0), solved by ``mode`` (:func:`_solve`: 0 with Newton's
-    full stage, 3 the chord stages only): True with the unknowns in work[0]
-    and the states' rate in ``rate`` (discrete states: 0), or False, where
-    the BDF's own probe (with continuation) must take over (:meth:`BDF._probe`)."""
+    a pressure <= 0), as :meth:`BDF._probe` solves it: at 1e-12 with
+    Newton's full stage (the BDF's probes turn it on), at the run's
+    tolerance by ``mode`` (:func:`_solve`: 0 with the full stage, 3 the
+    chord stages only). True with the unknowns in work[0] and the states'
+    rate in ``rate`` (discrete states: 0), or False, where the BDF's own
+    probe (with continuation) must take over: also where a failed solve at
+    1e-12 would go on to Newton's flows-first stage there (ist[FLOWS_FIRST]:
+    a thermal network, :meth:`Newton._flows_first`), which the loop has
+    not, before the tolerance is loosened."""
     base, slot, codes, factors, starts, floats = sources
     source_values(t + h, base, slot, codes, factors, starts, floats, net[7])
     nrtol = fst[NEWTON_RTOL]
@@ -829,14 +834,21 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
     for tight in range(2):
         if tight == 1 and not nrtol > 1e-12:
             break
+        # (at 1e-12 the damped stage, as the BDF's probe: with the chord
+        # stages alone there, as mode 3 was, a chord contracting too slowly
+        # at 1e-12, common after a breakpoint, went on to the chord at the
+        # run's tolerance, which converged on a point the BDF's damped stage
+        # does not give: a probe of 5e-9 s on the 63-component water network
+        # had states' rates 1e-3 off the BDF's, the first step a predictor
+        # Newton could not solve: 77 failed solves in the run, 2 in Python)
         code = _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off,
                       q_id, p_idx, T_idx, work, none, stats,
-                      min(nrtol, 1e-12) if tight == 0 else nrtol, mode)
+                      min(nrtol, 1e-12) if tight == 0 else nrtol, 0 if tight == 0 else mode)
         if code == SOLVED:
             solved = True
             break
         ist[STALE] = 1           # (as Newton after a failed solve)
-        if code == REFUSED:      # (the BDF's probe takes it from here)
+        if code == REFUSED or ist[FLOWS_FIRST]:   # (the BDF's probe takes it from here)
             break
     if not solved:
         return False
@@ -868,9 +880,12 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
     backward Euler probes of tiny steps, a third over the step the first
     derivatives suggest; the first step aims at an order-1 error estimate
     of FIRST_ESTIMATE. Returns the step, or -1 where a probe needs the
-    BDF's own (its damped stages, continuation). (One probe call in a loop over the three:
-    :func:`softflow.laws.inline`.)"""
+    BDF's own (its damped stages, continuation); then Newton's contraction
+    estimates are as they were before the probes, so that the BDF's
+    restart starts from the state it would have had without the loop. (One
+    probe call in a loop over the three: :func:`softflow.laws.inline`.)"""
     ns, n = S.size, x.size
+    eta0, crate0, one0 = fst[ETA], fst[CRATE], ist[ONE_ITER]
     n_disc, m = ist[N_DISC], ist[M_ERR]
     span = limit - t
     h_p = min(max(fst[STEP_MIN], 1e-7 * fst[DURATION]), 0.25 * span)
@@ -899,12 +914,17 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
                     q_id, p_idx, T_idx, work, none, stats, sources, Fe, out, n_disc, atol_s,
                     0 if probe == 2 or ist[RESTART_DUE] == 2 else 3)
         # a probe not solved here: the BDF's own restart (its continuation).
-        # The first two probes take Newton's damped stage here only after a
-        # mode switch (a snapping valve's: the chord diverges on the new
-        # piece, the damped stage converges); after a breakpoint (a source's
-        # jump, which may ask what no state gives: the culprit finder's
-        # ground) a failing damped stage would only be done twice
+        # Each probe takes Newton's damped stage at 1e-12, as the BDF's do
+        # (after a breakpoint, one that fails there is done twice: here and
+        # in the BDF's probe; a chord at 1e-12 contracting too slowly is the
+        # usual case, which the damped stage converges in the loop); at the
+        # run's tolerance the first two take it only after a mode switch (a
+        # snapping valve's: the chord diverges on the new piece, the damped
+        # stage converges); after a breakpoint (a source's jump, which may
+        # ask what no state gives: the culprit finder's ground) a failing
+        # damped stage there would only be done twice
         if not ok:
+            fst[ETA], fst[CRATE], ist[ONE_ITER] = eta0, crate0, one0
             return -1.0
         if probe == 0:
             x1[:] = work[0]

@@ -112,6 +112,12 @@ class _Bound:
         ist[st.MAX_AGE] = newton.max_age
         ist[st.N_DISC] = int(np.count_nonzero(~np.isfinite(atol_s)))
         ist[st.CLIP] = int(newton._T_idx.size > 0)
+        # where a failed solve with Newton's full stage goes on to its
+        # flows-first stage (thermal networks of up to 256 unknowns,
+        # Newton.solve and Newton._flows_first): a restart probe's failed
+        # solve at 1e-12 is the BDF's then, not loosened in the loop
+        ist[st.FLOWS_FIRST] = int(newton._E_rows.size == newton._T_idx.size > 0
+                                  and asm.n <= 256)
         fst[st.NEWTON_RTOL] = newton.rtol
         fst[st.RATIO_LO], fst[st.RATIO_HI] = newton.dt_ratio
         lo, hi = newton._T_range if newton._T_range is not None else (-math.inf, math.inf)
