@@ -146,6 +146,7 @@ class LoopSpy:
         self.runs = self.bound = self.calls = self.steps = 0
         self.cpu = 0.0
         self.exits, self.why_not = collections.Counter(), collections.Counter()
+        self.sparse_state = None      # the sparse LU's state (laws.sparselu), where bound so
         me = self
         self._saved = []
 
@@ -168,6 +169,8 @@ class LoopSpy:
                 me.calls += 1
                 me.steps += int(out[4])
                 me.exits[EXITS[int(out[0])]] += 1
+                if getattr(s, "sparse", None) is not None:
+                    me.sparse_state = s.lin[16][11]
                 return out
             return run
 
@@ -188,6 +191,14 @@ class LoopSpy:
     def share(self, steps):
         """'taken/steps (pct %)' of ``steps`` accepted steps in all."""
         return f"{self.steps}/{steps} ({100.0 * self.steps / max(steps, 1):.0f} %)"
+
+    def lu_text(self):
+        """The loop's sparse LU's factorizations (with a new row order /
+        refactorizations on the last), or '' where it had none."""
+        st = self.sparse_state
+        if st is None:
+            return ""
+        return f"sparse LU: {int(st[2])} new row orders, {int(st[3])} refactorizations"
 
     def exits_text(self):
         """Why the loop handed back ('done 3 newton 2'), or why it was not bound."""

@@ -525,6 +525,8 @@ def report(net, sim_cpu, res, err, cpu, caught, spy, label, counts=None):
     if spy is not None:
         print(f"  compiled loop: {spy.share(steps)} accepted steps, {spy.calls} calls, "
               f"{spy.cpu:.2f} s CPU inside; hand-backs: {spy.exits_text()}")
+        if hasattr(spy, "lu_text") and spy.lu_text():
+            print(f"  {spy.lu_text()}")
     print("  warnings caught: " + (", ".join(f"{k} {v}" for k, v in caught.items()) or "none"))
     if res is not None and res.status == "success":
         finite, p_min, gap = invariants(net, res)

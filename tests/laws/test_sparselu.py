@@ -33,10 +33,10 @@ class Factors:
         self.Ar = np.zeros(A.nnz, np.int64)
         self.iw, self.x, self.z = np.zeros(4 * n, np.int64), np.zeros(n), np.zeros(n)
         self.Sx, self.ir, self.ic = np.zeros(A.nnz), np.ones(n), np.ones(n)
-        self.state = np.zeros(2, np.int64)
+        self.state = np.zeros(4, np.int64)
 
     def factor(self, pivot_rtol=1e-14, scaled=False, refactor_rtol=1e-3, reuse=False):
-        self.state[:] = (1 if reuse else 0, 1 if scaled else 0)
+        self.state[:2] = (1 if reuse else 0, 1 if scaled else 0)
         return sparselu.sparse_factor(self.Ap, self.Ai, self.Ax, self.Q, self.Lp, self.Li,
                                       self.Lx, self.Up, self.Ui, self.Ux, self.Ud, self.pinv,
                                       self.prow, self.Ar, self.iw, self.x, self.Sx, self.ir,

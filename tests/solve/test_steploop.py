@@ -337,6 +337,67 @@ def test_a_narrow_band_is_factored_as_a_band_below_the_dense_limit(monkeypatch):
                 assert np.max(np.abs(vb - va)) <= 1e-6 * max(np.ptp(va), 1.0), key
 
 
+def _hub(branches):
+    """A pressure source stepping up into a junction (no volume) that feeds
+    ``branches`` tubes, each into an accumulator and on through a second
+    tube into a container: ~6 unknowns a branch, in no narrow band (the
+    junction's balance meets every branch's first flow)."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.waveforms.Step(0.002, sf.Q_(1.0, "bar"),
+                                                              sf.Q_(1.4, "bar")))
+    s += sf.CircularTube("feed", sf.water, 0.3, 2e-3)
+    s.connect("src", "feed")
+    hub = [("feed", "b")]
+    for k in range(branches):
+        d = 0.6e-3 + 0.4e-3 * (k % 5) / 4
+        s += sf.CircularTube(f"a{k}", sf.water, 0.2 + 0.01 * k, d)
+        s += sf.LinearAccumulator(f"acc{k}", sf.water, volume=1e-6,
+                                  compliance=(1 + k % 3) * 1e-11)
+        s += sf.CircularTube(f"b{k}", sf.water, 0.3, 0.8e-3)
+        s += sf.Container(f"c{k}", sf.water, 2e-6)
+        hub.append((f"a{k}", "a"))
+        s.connect((f"a{k}", "b"), (f"acc{k}", "a"), (f"b{k}", "a"))
+        s.connect((f"b{k}", "b"), (f"c{k}", "a"))
+    s.connect(*hub)
+    return s
+
+
+def test_a_network_without_a_narrow_band_is_factored_sparse_in_the_loop(monkeypatch):
+    """A junction feeding 40 branches (325 unknowns: SuperLU's in the Python
+    Newton; a band far wider than COMPILED_BAND_MAX): the loop binds with
+    its own sparse LU (softflow.laws.sparselu), refactors on its row order
+    nearly always, and takes the Python loop's steps, the same pressures
+    to 1e-6 of their range; with the sparse LU off, the Python loop takes
+    the run."""
+    bound = []
+    init = steploop._Bound.__init__
+
+    def spy(self, *args):
+        init(self, *args)
+        bound.append(self)
+    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    py, comp, taken = _both(lambda: _hub(40), 0.02, monkeypatch, rtol=1e-5)
+    assert py.stats["linear_solver"] != "dense"
+    assert steploop.band_layout(sf.Simulation(_hub(40), duration=0.02).asm) is None
+    assert len(bound) == 1 and bound[0].sparse is not None and bound[0].band is None
+    state = bound[0].lin[16][11]
+    assert state[3] > 10 * state[2] > 0         # refactorizations, new row orders
+    assert taken >= 0.9 * comp.stats["steps"]
+    assert comp.stats["steps"] == py.stats["steps"]
+    assert comp.stats["rejected_steps"] == py.stats["rejected_steps"]
+    for key, va in py.to_dict().items():
+        if key.endswith("pressure"):
+            vb = np.interp(py.times, comp.times, comp.to_dict()[key])
+            assert np.max(np.abs(vb - va)) <= 1e-6 * max(np.ptp(va), 1.0), key
+    bound.clear()
+    monkeypatch.setattr(settings, "COMPILED_SPARSE", False)
+    taken_off = _spied(monkeypatch)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        off = sf.Simulation(_hub(40), duration=0.02, refine=1, rtol=1e-5).run()
+    assert not bound and not taken_off and off.stats["steps"] == py.stats["steps"]
+
+
 @pytest.mark.parametrize("k", range(1, bdf.MAX_ORDER + 1))
 def test_the_rescaled_table_is_the_bdfs(k):
     rng = np.random.default_rng(k)

@@ -276,7 +276,7 @@ def _equilibrate(Ap, Ai, Ax, Sx, ir, ic):
 
 @jit
 def _factor_once(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, x, Sx, ir,
-                 ic, pivot_rtol, refactor_rtol, scaled, reuse):
+                 ic, pivot_rtol, refactor_rtol, scaled, state):
     # one factorization, as the matrix is or equilibrated: on the last row
     # order where ``reuse`` and its pivots hold, else with a new one
     n = Q.size
@@ -287,10 +287,13 @@ def _factor_once(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, 
     else:
         M = Ax
     code, d_min, d_max = SINGULAR, 0.0, 0.0
-    if reuse:
+    if state[0] > 0:
         code, d_min, d_max = sparse_refactor(Ap, Ar, M, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, x,
                                              refactor_rtol)
+        if code == OK:
+            state[3] += 1
     if code != OK:
+        state[2] += 1
         code, d_min, d_max = sparse_lu(Ap, Ai, M, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow,
                                        Ar, iw, x)
         if code != OK:
@@ -319,16 +322,17 @@ def sparse_factor(Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw,
     :func:`sparse_solve` takes them). ``state``: [a row order to reuse
     (:func:`sparse_refactor`, its pivots at least ``refactor_rtol`` of their
     column), the last factors were equilibrated (tried so at once: a
-    network's units do not change between steps)], updated. Returns 0, 2
-    (singular) or 3 (capacity: the caller factors otherwise)."""
+    network's units do not change between steps), the factorizations with
+    a new row order so far, the refactorizations so far], updated. Returns
+    0, 2 (singular) or 3 (capacity: the caller factors otherwise)."""
     args = (Ap, Ai, Ax, Q, Lp, Li, Lx, Up, Ui, Ux, Ud, pinv, prow, Ar, iw, x, Sx, ir, ic)
     scaled = state[1] > 0
-    code, valid = _factor_once(*args, pivot_rtol, refactor_rtol, scaled, state[0] > 0)
+    code, valid = _factor_once(*args, pivot_rtol, refactor_rtol, scaled, state)
     state[0] = 1 if valid else 0
     if code == OK or code == CAPACITY:
         return code
     # the other way: equilibrated where plain failed, plain where scaled did
-    code, valid = _factor_once(*args, pivot_rtol, refactor_rtol, not scaled, state[0] > 0)
+    code, valid = _factor_once(*args, pivot_rtol, refactor_rtol, not scaled, state)
     state[0] = 1 if valid else 0
     if code == OK:
         state[1] = 0 if scaled else 1

@@ -29,6 +29,7 @@ import numpy as np
 
 from . import borrowed, inline, jit
 from .network import kinks, regimes, residual, switching
+from .sparselu import sparse_factor, sparse_solve
 from .waves import source_values
 
 #: why the loop returned
@@ -51,8 +52,8 @@ SOLVED, PLAIN, CONTRACTING, HAND, REFUSED = range(5)
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
  N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB, CAP_HOLD, SECANT_TRIES,
  MAX_SECANT, LOG_SWITCHES, UNDAMPED, REJECT_NEWTON, FAILS_HERE, WATCHDOG,
- WANTS_SOURCES, FLOWS_FIRST) = range(34)
-IST_SIZE = 34
+ WANTS_SOURCES, FLOWS_FIRST, PROBE_FAILED) = range(35)
+IST_SIZE = 35
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
@@ -320,19 +321,37 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
     return 0
 
 
-# -- the network's linear algebra, dense or banded ------------------------------------
+# -- the network's linear algebra, dense, banded or sparse ---------------------------
 #: ``lin``: (raw entries, their places in J, J, LU, pivots, row and column
 #: scales, the pieces of the Jacobian's laws, the pieces at a solution, the
 #: kinks' sides at the point and at a step's end, switching values, the
-#: rows the culprit finder looks into, the band (1 or 0 for dense, kl,
-#: whether its last factors were equilibrated),
+#: rows the culprit finder looks into, the kind (0 dense, 1 banded, 2
+#: sparse; the band's kl; whether its last factors were equilibrated),
 #: the band's order (its rows' original rows, its columns' original
-#: unknowns, each original row's band row), two scratch rows)
+#: unknowns, each original row's band row), two scratch rows, the sparse
+#: LU's integer arrays (Ap, Ai, Q, Lp, Li, Up, Ui, pinv, prow, Ar, iw,
+#: state) and its float arrays (Lx, Ux, Ud, x, Sx, z, [refactor_rtol]):
+#: :mod:`.sparselu`; a sparse J is one row of its values, (1, nnz))
+DENSE, BANDED, SPARSE = 0, 1, 2
+
+
 @jit
 def lin_factor(lin, pivot_rtol):
     """The Jacobian from the raw entries, factored (:func:`factor`, or
-    :func:`band_factor` where ``lin`` is banded)."""
-    if lin[13][0]:
+    :func:`band_factor` where ``lin`` is banded, or
+    :func:`softflow.laws.sparselu.sparse_factor` where sparse: its
+    factors too large for their arrays count as singular, which hands the
+    step to the BDF's own Newton)."""
+    kind = lin[13][0]
+    if kind == SPARSE:
+        if not _assemble(lin[0], lin[1], lin[2]):
+            return 1
+        si, sx = lin[16], lin[17]
+        code = sparse_factor(si[0], si[1], lin[2][0], si[2], si[3], si[4], sx[0], si[5],
+                             si[6], sx[1], sx[2], si[7], si[8], si[9], si[10], sx[3], sx[4],
+                             lin[5], lin[6], pivot_rtol, sx[6][0], si[11])
+        return 0 if code == 0 else 2
+    if kind == BANDED:
         band = lin[13]
         code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
                            band[1], pivot_rtol, band[2] > 0)
@@ -349,7 +368,12 @@ def lin_factor(lin, pivot_rtol):
 @jit
 def lin_solve(lin, b, out):
     """out = J^-1 b on the current factors."""
-    if lin[13][0]:
+    kind = lin[13][0]
+    if kind == SPARSE:
+        si, sx = lin[16], lin[17]
+        sparse_solve(si[2], si[3], si[4], sx[0], si[5], si[6], sx[1], sx[2], si[8], lin[5],
+                     lin[6], b, out, sx[5])
+    elif kind == BANDED:
         order, tmp = lin[14], lin[15]
         n = b.size
         for i in range(n):
@@ -366,9 +390,18 @@ def lin_row_scale(lin, rs):
     """rs[i] = 1 / max_j |J_ij| of the current Jacobian's rows
     (:attr:`DenseLU.row_scale`)."""
     J = lin[2]
-    band = lin[13][0] > 0
+    kind = lin[13][0]
+    if kind == SPARSE:
+        Ap, Ai = lin[16][0], lin[16][1]
+        rs[:] = 0.0
+        for c in range(rs.size):
+            for p in range(Ap[c], Ap[c + 1]):
+                rs[Ai[p]] = max(rs[Ai[p]], abs(J[0, p]))
+        for i in range(rs.size):
+            rs[i] = 1.0 / max(rs[i], 1e-300)
+        return
     for i in range(rs.size):
-        r = lin[14][2, i] if band else i
+        r = lin[14][2, i] if kind == BANDED else i
         m = 0.0
         for j in range(J.shape[1]):
             m = max(m, abs(J[r, j]))
@@ -925,6 +958,11 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
         # damped stage there would only be done twice
         if not ok:
             fst[ETA], fst[CRATE], ist[ONE_ITER] = eta0, crate0, one0
+            # which probe failed its solve at 1e-12 (the BDF's probe there
+            # goes on at the run's tolerance without solving it again: the
+            # same damped stage failing twice was most of a failed run's
+            # work; not where the BDF's flows-first stage would follow)
+            ist[PROBE_FAILED] = -1 if ist[FLOWS_FIRST] else probe
             return -1.0
         if probe == 0:
             x1[:] = work[0]

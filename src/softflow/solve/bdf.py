@@ -309,22 +309,26 @@ class BDF(Integrator):
         return max(float(math.sqrt(np.max(acc / np.maximum(size, 1.0)))), peak / PEAK_FACTOR)
 
     # -- restarts ------------------------------------------------------------------
-    def _probe(self, x, S, t, h, continuation=True):
+    def _probe(self, x, S, t, h, continuation=True, tight=True):
         """Backward Euler from (x, S) at t over h, Newton held tight: (x_h, rate at
         x_h), rate = (update(x_h, S, h) - S) / h exactly (discrete states: 0).
         None if Newton fails, also by continuation (:meth:`Newton.continued`,
         with ``continuation``: the first two probes of every restart, at t =
         0, a breakpoint, a switch or a fold jump, without which the run
-        stops)."""
+        stops). ``tight`` False: at the run's Newton tolerance at once (the
+        compiled loop's probe failed at 1e-12 already: :meth:`_restart`)."""
         newton = self.newton
         newton.full_stage = True
         rtol = newton.rtol
-        newton.rtol = min(rtol, 1e-12)
-        try:
-            out = newton.solve(x, S, t + h, h)
-        finally:
-            newton.rtol = rtol
-        if not out.converged and rtol > 1e-12:
+        if tight or rtol <= 1e-12:
+            newton.rtol = min(rtol, 1e-12)
+            try:
+                out = newton.solve(x, S, t + h, h)
+            finally:
+                newton.rtol = rtol
+        else:
+            out = None
+        if (out is None or not out.converged) and rtol > 1e-12:
             # held to the run's own Newton tolerance where 1e-12 is out of
             # reach (round-off of an ill-conditioned point: flows starting
             # from rest beside a gas volume's ~1e-10 dm/dp)
@@ -347,11 +351,15 @@ class BDF(Integrator):
         derivatives, and the first step aims at an order-1 error estimate of
         FIRST_ESTIMATE (Hairer, Norsett & Wanner I, sec. II.4, for a DAE)."""
         span = limit - t
+        # the probe whose solve at 1e-12 the compiled loop tried and failed
+        # at this point (steploop.CompiledSteps.run): not solved so again
+        hint, self._tight_failed = self._tight_failed, None
+        done = hint[1] if hint is not None and hint[0] == t else -1
         h_p = min(max(self.step_min, 1e-7 * self.T), 0.25 * span)
-        p1, out = self._probe(x, S, t, h_p)
+        p1, out = self._probe(x, S, t, h_p, tight=done != 0)
         if p1 is None:
             raise StepFailure(t + h_p, h_p, out)
-        p2, out = self._probe(p1[0], S, t, 2 * h_p)
+        p2, out = self._probe(p1[0], S, t, 2 * h_p, tight=done != 1)
         if p2 is None:
             raise StepFailure(t + 2 * h_p, 2 * h_p, out)
         (x1, r0), (x2, _) = p1, p2
@@ -364,7 +372,7 @@ class BDF(Integrator):
         d0, d1 = self._norm(S, w, x_right[:na]), self._norm(r0, w, xdot[:na])
         h0 = 1e-6 * span if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
         h0 = min(max(h0, 4 * h_p), span, self.step_max)
-        p3, _ = self._probe(x_right, S, t, h0, continuation=False)
+        p3, _ = self._probe(x_right, S, t, h0, continuation=False, tight=done != 2)
         if p3 is None:
             h = 0.1 * h0
         else:
@@ -439,6 +447,7 @@ class BDF(Integrator):
         self._forced = self._passed = self._forced_restart = False
         self._h_cap, self._cap_hold = math.inf, 0     # while a mode switch is being located
         self._smallest = False     # the step tried is the smallest (_propose)
+        self._tight_failed = None  # (t, probe) the compiled loop's restart failed at 1e-12
         # below a step that failed the error test, for a while: without it a step
         # that doubles across a stability boundary (a fast mode near h·lambda = 1)
         # fails, halves, doubles and fails again every third step

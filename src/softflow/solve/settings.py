@@ -298,6 +298,19 @@ COMPILED_BAND_MAX = 32
 #: of 8 tubes, 34 unknowns in a band 11 wide, stays dense).
 COMPILED_BAND_SHARE = 4
 COMPILED_BAND_MIN = 48
+#: A network too large for dense factors whose band is wider than
+#: COMPILED_BAND_MAX is factored by the compiled loop's sparse LU
+#: (softflow.laws.sparselu; False: such runs take the Python loop, with its
+#: SuperLU or condensed factors).
+COMPILED_SPARSE = True
+#: The sparse LU refactors on its last row order while each pivot stays at
+#: least this fraction of the largest entry below it in its column (KLU's
+#: default pivot tolerance, 0.001), and searches a new order otherwise.
+COMPILED_SPARSE_REFACTOR = 1e-3
+#: Room for the sparse factors: this many times the entries of SuperLU's L
+#: and U of the network's pattern (the loop's partial pivoting may fill
+#: more; a factorization that does not fit hands the step to Python).
+COMPILED_SPARSE_ROOM = 3
 
 # -- Fixed costs of a run ------------------------------------------------------------------
 #: Up to this many terminals in all, Assembly numbers the unknowns of library

@@ -59,26 +59,45 @@ class _Bound:
         network = asm.residual.network
         nr, nk = network.n_regimes, network.n_kinks
         # the Python Newton's dense factors are shared with the loop's (each
-        # adopts the other's); a banded Jacobian is the loop's own
-        band = self.band = _banded(asm, newton)
-        if band is None:
+        # adopts the other's); a banded or sparse Jacobian is the loop's own
+        band = _banded(asm, newton)
+        sparse = _sparse(asm, newton) if band is None else None
+        self.band, self.sparse = band, sparse
+        self.own = band is not None or sparse is not None
+        lu_shape = None
+        no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
+        sp_int, sp_float = (no_int,) * 12, (no_float,) * 7
+        if band is not None:
+            flat, shape = band.flat, (n, band.width)
+            info, order = np.array([st.BANDED, band.kl, 0], dtype=np.int64), band.order
+        elif sparse is not None:
+            flat, shape, lu_shape = sparse.flat, (1, sparse.Ai.size), (1, 1)
+            info, order = np.array([st.SPARSE, 0, 0], dtype=np.int64), np.zeros((3, n), np.int64)
+            room, nnz = sparse.room, sparse.Ai.size
+            sp_int = (sparse.Ap, sparse.Ai, sparse.Q, np.zeros(n + 1, dtype=np.int64),
+                      np.zeros(room, dtype=np.int64), np.zeros(n + 1, dtype=np.int64),
+                      np.zeros(room, dtype=np.int64), np.zeros(n, dtype=np.int64),
+                      np.zeros(n, dtype=np.int64), np.zeros(nnz, dtype=np.int64),
+                      np.zeros(4 * n, dtype=np.int64), np.zeros(4, dtype=np.int64))
+            sp_float = (np.zeros(room), np.zeros(room), np.zeros(n), np.zeros(n),
+                        np.zeros(nnz), np.zeros(n),
+                        np.array([settings.COMPILED_SPARSE_REFACTOR]))
+        else:
             flat, shape = asm.dense_index(), (n, n)
             info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
-        else:
-            flat, shape = band.flat, (n, band.width)
-            info, order = np.array([1, band.kl, 0], dtype=np.int64), band.order
         # (J, LU, pivots, scales; the pieces of the Jacobian's laws and at a
         # solution; the kinks' sides at the point and at a step's end; the
         # switching functions; the culprit finder's rows; the band: the
         # layout of softflow.laws.stepper's lin)
         self.lin = (net[0], np.ascontiguousarray(flat, dtype=np.int64),
-                    np.zeros(shape), np.zeros(shape), np.zeros(n, dtype=np.int64),
+                    np.zeros(shape), np.zeros(lu_shape or shape), np.zeros(n, dtype=np.int64),
                     np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
                     np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0,
                                                            dtype=np.int64),
                     np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
                     np.zeros(network.n_switching),
-                    np.zeros(n, dtype=np.int64), info, order, np.zeros((2, n)))
+                    np.zeros(n, dtype=np.int64), info, order, np.zeros((2, n)), sp_int,
+                    sp_float)
         links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
         self.tol = (np.ascontiguousarray(atol_s, dtype=float),
                     np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
@@ -146,7 +165,7 @@ class _Bound:
         lin = newton.lin
         r_fact = self.lin[7]
         pieces = newton._jac_regime
-        if (self.band is None and not newton.stale and newton.lu_dt is not None
+        if (not self.own and not newton.stale and newton.lu_dt is not None
                 and lin.lu is not None and (not r_fact.size or pieces is not None)):
             LU, piv, ir, ic = self.lin[3:7]
             if r_fact.size:
@@ -192,7 +211,7 @@ class _Bound:
         if ist[st.HAS_FLOOR]:
             floor = self.floor.copy()
             newton.scale_floor = floor.tolist() if newton._small else floor
-        if self.band is not None:
+        if self.own:
             # (the Python Newton's own factors, older than the loop's steps)
             newton.stale = True
             return
@@ -270,6 +289,7 @@ class CompiledSteps(_Bound):
         ist[st.LOG_SWITCHES] = int(getattr(bdf.progress, "_debug", False))
         ist[st.REJECT_NEWTON] = int(_source_rows(bdf.culprit, self.lin[12]))
         ist[st.FAILS_HERE] = 0
+        ist[st.PROBE_FAILED] = -1
         fst[st.H], fst[st.FAIL_CAP], fst[st.H_CAP] = bdf._h, bdf._fail_cap, bdf._h_cap
         fst[st.ERR] = getattr(bdf, "_err", 0.0)
         qmax_run = (np.zeros(self.floor.size) if bdf._qmax_run is None
@@ -303,6 +323,9 @@ class CompiledSteps(_Bound):
             self._used = used
         # the state out
         self._newton_out()
+        if exit_ == st.RESTART and ist[st.PROBE_FAILED] >= 0:
+            # (the restart's probe whose solve at 1e-12 failed here)
+            bdf._tight_failed = (float(t), int(ist[st.PROBE_FAILED]))
         bdf._k, bdf._n_equal, bdf._fails = int(ist[st.K]), int(ist[st.N_EQUAL]), int(ist[st.FAILS])
         bdf._fail_hold, bdf._passed = int(ist[st.FAIL_HOLD]), bool(ist[st.PASSED])
         bdf._h, bdf._fail_cap, bdf._err = float(fst[st.H]), float(fst[st.FAIL_CAP]), float(fst[st.ERR])
@@ -454,6 +477,61 @@ def band_layout(asm):
     return layout
 
 
+class SparseLayout:
+    """A network's Jacobian in compressed columns for the loop's sparse LU
+    (:mod:`softflow.laws.sparselu`, :func:`sparse_layout`): ``Ap``, ``Ai``
+    its columns' starts and rows, ``flat`` each raw entry's place among its
+    values, ``Q`` the order its columns are factored in, ``room`` the
+    entries L and U may hold each."""
+
+    def __init__(self, Ap, Ai, flat, Q, room):
+        self.Ap, self.Ai, self.flat, self.Q, self.room = Ap, Ai, flat, Q, room
+
+
+def sparse_layout(asm):
+    """The :class:`SparseLayout` of a network's Jacobian, or None where its
+    pattern is structurally singular. The column order is SuperLU's COLAMD
+    (SciPy's splu, on the pattern with random values: the order depends on
+    the pattern alone), which keeps the fill of a network's factors small
+    (the 2 000-component water network: 9 763 nonzeros, 8 386 entries of L
+    and U off their diagonals); the room for L and U is
+    :data:`softflow.solve.settings.COMPILED_SPARSE_ROOM` times what SuperLU's
+    own factors of that matrix hold (a factorization that needs more hands
+    the step back to Python). Kept on the Assembly (one per network)."""
+    got = asm.__dict__.get("_sparse_layout", False)
+    if got is not False:
+        return got
+    from scipy.sparse import csc_matrix
+    from scipy.sparse.linalg import splu
+    n = asm.n
+    rows = np.asarray(asm.pattern_rows, dtype=np.int64)
+    cols = np.asarray(asm.pattern_cols, dtype=np.int64)
+    places, flat = np.unique(cols * n + rows, return_inverse=True)
+    Ai = places % n
+    Ap = np.searchsorted(places // n, np.arange(n + 1)).astype(np.int64)
+    values = np.random.default_rng(0).uniform(1.0, 2.0, places.size)
+    layout = None
+    try:
+        lu = splu(csc_matrix((values, Ai, Ap), shape=(n, n)), permc_spec="COLAMD")
+    except RuntimeError:                 # structurally (or by chance) singular
+        pass
+    else:
+        room = int(settings.COMPILED_SPARSE_ROOM * (lu.L.nnz + lu.U.nnz)) + n
+        Q = np.argsort(lu.perm_c).astype(np.int64)    # (L U = Pr A Pc, Pc[i, perm_c[i]] = 1)
+        layout = SparseLayout(Ap, Ai.astype(np.int64), flat.astype(np.int64), Q, room)
+    asm.__dict__["_sparse_layout"] = layout
+    return layout
+
+
+def _sparse(asm, newton):
+    """The :class:`SparseLayout` the loop factors a network's Jacobian in
+    where it is neither dense (the Python Newton's factors are) nor banded
+    (:func:`_banded`), or None (off: settings.COMPILED_SPARSE)."""
+    if newton.lin.kind == "dense" or not settings.COMPILED_SPARSE:
+        return None
+    return sparse_layout(asm)
+
+
 def _banded(asm, newton):
     """The :class:`BandLayout` the loop factors the network's Jacobian in,
     or None for the dense LU shared with the Python Newton: banded where
@@ -494,7 +572,8 @@ def _served(integ):
     if (net is None or newton is None or asm.has_begin_step or integ.sens is not None
             or newton.offset is not None or not asm.n):
         return None
-    if newton.lin.kind != "dense" and band_layout(asm) is None:
+    if (newton.lin.kind != "dense" and band_layout(asm) is None
+            and (not settings.COMPILED_SPARSE or sparse_layout(asm) is None)):
         return None
     sources = net.source_arrays()
     if sources is None:
