@@ -582,6 +582,16 @@ class Newton:
                     return out
                 if last.reason.startswith(("singular", "absolute pressure")):
                     break
+        if (self.full_stage and self._has_p and last is not None
+                and last.reason.startswith("absolute pressure")):
+            # converged on an absolute pressure <= 0: where that is the mirror
+            # root of a gas law in p^2 (p1^2 - p2^2 = 0 at p2 = -p1: a node
+            # without volume between a tube and an orifice, started adiabatic),
+            # the damped stage held to positive pressures finds the physical
+            # one; where none is, the failure stays as it was
+            out = self._full(x0, S, t, dt, positive=True)
+            if out.converged and self._accept(out) is None:
+                return out
         if (self.full_stage and self._E_rows.size == self._T_idx.size > 0
                 and not last.reason.startswith("absolute pressure")):
             out = self._flows_first(x0, S, t, dt)
@@ -749,7 +759,7 @@ class Newton:
         return Outcome(False, x, limit, f"no convergence in {limit} iterations ({stage} Jacobian)",
                        self._worst_row(F))
 
-    def _full(self, x0, S, t, dt, undamped=False):
+    def _full(self, x0, S, t, dt, undamped=False, positive=False):
         """Damped Newton. The factors are kept for the next iteration only when the
         last full step cut the scaled residual by 1/FULL_KEEP_CUT (1/TIGHT_KEEP_CUT
         in a solve held to TIGHT_RTOL) or more (Shamanskii's
@@ -770,7 +780,12 @@ class Newton:
         chord iterations that contracted too slowly) it takes full steps
         only: at most ``max_iter`` iterations, and it fails at the first full
         step that neither lowers the residual nor contracts (where the line
-        search would begin)."""
+        search would begin).
+
+        With ``positive`` a trial point with an absolute pressure <= 0 counts
+        as one without descent (the line search halves the step; no watchdog
+        step goes there): after a solve that converged on such a point, the
+        mirror root of a gas law in p^2 (:meth:`solve`)."""
         x = x0.copy()
         F = self._F_at_x0
         factored = F is not None
@@ -813,6 +828,11 @@ class Newton:
             lam = 1.0
             while not watch:
                 xn = x + lam * dx
+                if positive and not self._positive(xn):
+                    lam *= 0.5
+                    if lam < 1e-4:
+                        break
+                    continue
                 # the full step is usually taken: evaluate its Jacobian with it
                 Fn = self._eval(xn, S, t, dt, jac=lam == 1.0)
                 f1 = np.linalg.norm(Fn * rs) if all_finite(Fn) else np.inf
@@ -827,7 +847,7 @@ class Newton:
                 if lam < 1e-4:
                     break
             if watch or lam < 1e-4:
-                if watch == 1 or (not watch and used):
+                if watch == 1 or (not watch and used) or positive:
                     return Outcome(False, x_ref if watch else x, k + 1, "line search failed: no "
                                    "decrease of the residual along the Newton direction",
                                    self._worst_row(F_ref if watch else F))
