@@ -432,7 +432,7 @@ def test_a_pump_stepping_up_behind_a_check_valve_at_rest_runs(step, monkeypatch)
     # the valve opens 194 Pa below the tank's pressure; Newton from the point
     # (the valve closed, its leakage's slope) went to a root at -4.3 MPa, and
     # the run failed at t = 0.002 s ('absolute pressure ... <= 0'), at HEAD
-    # too: the step is solved again from the node's balance
+    # too: the step is solved again from the node's balance (the finder)
     res = _run(pump_through_check_valve(), duration=0.01, step=step)
     assert res.status == "success", res.message
     p_tank = res.get("tank", "pressure")
@@ -442,6 +442,19 @@ def test_a_pump_stepping_up_behind_a_check_valve_at_rest_runs(step, monkeypatch)
     assert res.get("valve", "massflow", "a")[-1] == pytest.approx(1e-6, rel=1e-6)
     _finder_off(monkeypatch)
     monkeypatch.setattr(culprit.Finder, "retry", lambda self, out, *a: out)
+    # without the finder, Newton's damped stage held to positive pressures
+    # (after a solve that converged on the root at -4.3 MPa) finds it too
+    alone = _run(pump_through_check_valve(), duration=0.01, step=step)
+    assert alone.status == "success", alone.message
+    assert alone.get("valve", "massflow", "a")[-1] == pytest.approx(1e-6, rel=1e-6)
+    # and without either, the run fails there (as it did before both)
+    full = Newton._full
+
+    def unheld(self, *args, positive=False, **kwargs):
+        if positive:
+            return Outcome(False, args[0], 0, "off")
+        return full(self, *args, **kwargs)
+    monkeypatch.setattr(Newton, "_full", unheld)
     assert _run(pump_through_check_valve(), duration=0.01, step=step).status == "failed"
 
 
