@@ -617,6 +617,74 @@ def above_cap(asm, x):
     return bool(cols.size) and float(x[cols].max()) > PRESSURE_CAP
 
 
+def dead_end_start(asm, x):
+    """A start for the consistent point at t = 0 with each dead end at the
+    pressure of the node it hangs from: x with the pressure of every node
+    whose components are all two-ports (each joins it to one other node)
+    and that leads nowhere but to such nodes (a dead end; a chain or tree of
+    them) set to the pressure of the node the dead ends hang from; None
+    where there is none, or all are at it already.
+
+    At rest nothing flows into a dead end, so its pressure is its
+    neighbour's (a two-port passes nothing at equal pressures). Started at
+    another pressure (1 atm where none is given), a gas restriction in front
+    of it may be choked there (a Cd orifice or a check valve from a 2.5 bar
+    container to a dead end at 1 atm: the pressure ratio 0.41 is below the
+    critical 0.528), and a choked flow does not depend on its outlet's
+    pressure: the dead end's column of the Jacobian is zero (or a leak's
+    1e-14 of the others), and Newton stops on a singular Jacobian there.
+    Read off the topology alone (the components at each node and the nodes
+    of their across unknowns), for
+    :meth:`softflow.solve.integrator.Integrator._solve_initial`, where the
+    start from the initial values failed."""
+    p_of = asm.node_across.get("pressure")
+    if p_of is None:
+        return None
+    top = _topology(asm)
+    node_of, across_of, owners_at = top.node_of_col, top.across_of, top.owners_at
+    p_list = p_of.tolist()
+    # the nodes whose components are all two-ports: their distinct other nodes
+    nbrs = {}
+    for j, pj in enumerate(p_list):
+        if pj < 0:
+            continue
+        comps = owners_at(j)
+        if not comps:
+            continue
+        others = set()
+        for k in comps:
+            at = {node_of[c] for c in across_of(k)}
+            if len(at) != 2 or j not in at:
+                break
+            (o,) = at - {j}
+            if o < 0 or p_list[o] < 0:
+                break
+            others.add(o)
+        else:
+            nbrs[j] = others
+    # dead ends: pruned as leaves, each hanging from its one other neighbour
+    left = {j: set(o) for j, o in nbrs.items()}
+    queue = sorted(j for j, o in left.items() if len(o) == 1)
+    parent, order = {}, []
+    while queue:
+        j = queue.pop(0)
+        if j in parent or len(left[j]) != 1:
+            continue              # (a tree of dead ends with nothing it hangs from)
+        (r,) = left[j]
+        parent[j] = r
+        order.append(j)
+        if r in left:
+            left[r].discard(j)
+            if len(left[r]) == 1 and r not in parent:
+                queue.append(r)
+    if not order:
+        return None
+    out = x.copy()
+    for j in reversed(order):     # each node's parent before it
+        out[p_list[j]] = out[p_list[parent[j]]]
+    return None if np.array_equal(out, x) else out
+
+
 # -- the same balance at a step that cannot be taken ------------------------------------
 @dataclass
 class Unbalanced:
