@@ -139,15 +139,21 @@ def test_incompressible_orifice_below_the_critical_pressure_ratio(p1, warned):
     assert "orifice_choked" not in _checks(_run(iso))      # ISO 6358 models choking
 
 
-@pytest.mark.parametrize("bar, rtol, warned", [(200.0, 1e-3, True), (5.0, 1e-3, False),
-                                               (20.0, 1e-4, True)])
-def test_ideal_gas_density_against_coolprop_z(bar, rtol, warned):
+def _tank_at(bar):
+    """0.1 L of air held at ``bar`` by a source through 0.5 m of 1 mm tube."""
     s = sf.System()
     s += sf.PressureSource("src", pressure=bar * 1e5)
     s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
     s += sf.Container("tank", sf.air, 1e-4, initial_pressure=bar * 1e5)
     s.connect("src", "tube")
     s.connect("tube", "tank")
+    return s
+
+
+@pytest.mark.parametrize("bar, rtol, warned", [(200.0, 1e-3, True), (5.0, 1e-3, False),
+                                               (20.0, 1e-4, True)])
+def test_ideal_gas_density_against_coolprop_z(bar, rtol, warned):
+    s = _tank_at(bar)
     res = _run(s, rtol=rtol)
     assert ("gas_compressibility" in _checks(res)) is warned
     z = float(sf.Fluid("air", level="eos").compressibility(bar * 1e5))
@@ -169,12 +175,7 @@ def test_the_table_screen_gives_coolprops_records(monkeypatch, bar, rtol, cleare
     stops where its |Z - 1| stays short of a near miss: the records are those
     the CoolProp grid gives (none there), and near misses still ask CoolProp."""
     from softflow.solve import model_checks
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=bar * 1e5)
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-4, initial_pressure=bar * 1e5)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
+    s = _tank_at(bar)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(s, duration=0.01, rtol=rtol)

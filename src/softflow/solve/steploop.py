@@ -438,6 +438,13 @@ class BandLayout:
         self.width = 2 * kl + ku + 1
 
 
+def _pattern(asm):
+    """(n, rows, cols): the network's unknowns and its Jacobian's raw entries'
+    rows and columns (int64)."""
+    return (asm.n, np.asarray(asm.pattern_rows, dtype=np.int64),
+            np.asarray(asm.pattern_cols, dtype=np.int64))
+
+
 def band_layout(asm):
     """The Jacobian of a network too large for dense factors, ordered as a
     band (:class:`BandLayout`), or None where its band is wider than
@@ -453,9 +460,7 @@ def band_layout(asm):
         return got
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import maximum_bipartite_matching, reverse_cuthill_mckee
-    n = asm.n
-    rows = np.asarray(asm.pattern_rows, dtype=np.int64)
-    cols = np.asarray(asm.pattern_cols, dtype=np.int64)
+    n, rows, cols = _pattern(asm)
     layout = None
     pattern = csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
     match = maximum_bipartite_matching(pattern, perm_type="column")
@@ -503,9 +508,7 @@ def sparse_layout(asm):
         return got
     from scipy.sparse import csc_matrix
     from scipy.sparse.linalg import splu
-    n = asm.n
-    rows = np.asarray(asm.pattern_rows, dtype=np.int64)
-    cols = np.asarray(asm.pattern_cols, dtype=np.int64)
+    n, rows, cols = _pattern(asm)
     places, flat = np.unique(cols * n + rows, return_inverse=True)
     Ai = places % n
     Ap = np.searchsorted(places // n, np.arange(n + 1)).astype(np.int64)
