@@ -80,12 +80,7 @@ def isothermal_pipe(pa, mf, pb, area, c2, phi):
     p1sq = p1 * p1
     choked = pd < Gc
     pe = Gc if choked else pd
-    # |p1|: at a trial point with the upstream pressure p0 < 0 (Newton's
-    # iterate only) p1 = p0 exp(-z/2) < 0 and ln(p1/pe) was NaN; with |p1| the
-    # law in p^2 goes on evenly in p0 (its mirror, as p1^2 - pe^2 already
-    # does), finite, its partials the same formulas, so the line search can
-    # judge the point and step back (unchanged wherever p1 > 0)
-    log_ratio = math.log(abs(p1) / pe)
+    log_ratio = math.log(p1 / pe)
     F_forward = p1sq - pe * pe - 2.0 * GGc2 * log_ratio
     if not inside:
         F_forward -= p0sq * (a - INV_E)
