@@ -398,6 +398,31 @@ def test_a_network_without_a_narrow_band_is_factored_sparse_in_the_loop(monkeypa
     assert not bound and not taken_off and off.stats["steps"] == py.stats["steps"]
 
 
+def test_fixed_steps_on_a_wide_band_take_the_loops_sparse_lu(monkeypatch):
+    """Backward Euler at 1 ms on the 40-branch junction: the fixed-step loop
+    binds with the sparse LU and gives the Python loop's pressures (to 1e-6
+    of their range)."""
+    bound = []
+    init = steploop._Bound.__init__
+
+    def spy(self, *args):
+        init(self, *args)
+        bound.append(self)
+    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    taken = _spied(monkeypatch)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        monkeypatch.setattr(settings, "COMPILED_STEPS", False)
+        py = sf.Simulation(_hub(40), duration=0.02, step=1e-3).run()
+        monkeypatch.setattr(settings, "COMPILED_STEPS", True)
+        comp = sf.Simulation(_hub(40), duration=0.02, step=1e-3).run()
+    assert len(bound) == 1 and bound[0].sparse is not None
+    assert sum(taken) >= 0.9 * comp.stats["steps"] and comp.stats["steps"] == py.stats["steps"]
+    for key, va in py.to_dict().items():
+        if key.endswith("pressure"):
+            assert np.max(np.abs(comp.to_dict()[key] - va)) <= 1e-6 * max(np.ptp(va), 1.0), key
+
+
 @pytest.mark.parametrize("k", range(1, bdf.MAX_ORDER + 1))
 def test_the_rescaled_table_is_the_bdfs(k):
     rng = np.random.default_rng(k)
