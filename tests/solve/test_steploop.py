@@ -286,13 +286,24 @@ def test_a_chain_is_ordered_as_a_narrow_band():
         assert (J[rows, unknowns] == 1.0).all()
 
 
-def test_a_network_too_large_for_dense_factors_runs_in_the_compiled_loop(monkeypatch):
+@pytest.mark.parametrize("sparse", [True, False], ids=["sparse-lu", "banded-lu"])
+def test_a_network_too_large_for_dense_factors_runs_in_the_compiled_loop(monkeypatch, sparse):
     """A chain of 60 tubes and tanks (242 unknowns: the Python Newton's factors
     are condensed) behind a square wave (a restart at each edge) and a check
     valve at its end (steps across its kinks handed back, taken by the
     Python loop on its own factors): the compiled loop takes most steps on
-    its banded LU, the same steps as the Python loop, the same pressures
-    to 1e-6 of their range (round-off: rtol 1e-5)."""
+    its sparse LU (or, with COMPILED_SPARSE off, its banded LU), the same
+    steps as the Python loop, the same pressures to 1e-6 of their range
+    (round-off: rtol 1e-5)."""
+    monkeypatch.setattr(settings, "COMPILED_SPARSE", sparse)
+    bound = []
+    init = steploop._Bound.__init__
+
+    def spy(self, *args):
+        init(self, *args)
+        bound.append(self)
+    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+
     def build():
         s = chain(60, p_source=sf.waveforms.Square(sf.pressure_atmospheric + 3e4,
                                                    sf.pressure_atmospheric, 20.0))
@@ -304,6 +315,8 @@ def test_a_network_too_large_for_dense_factors_runs_in_the_compiled_loop(monkeyp
     py, comp, taken = _both(build, 0.1, monkeypatch, rtol=1e-5)
     assert py.success and comp.success
     assert py.stats["linear_solver"] != "dense"
+    assert len(bound) == 1
+    assert (bound[0].sparse is not None, bound[0].band is not None) == (sparse, not sparse)
     assert taken >= 0.5 * comp.stats["steps"]
     assert comp.stats["steps"] == py.stats["steps"]
     for key, va in py.to_dict().items():

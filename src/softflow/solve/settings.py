@@ -298,10 +298,11 @@ COMPILED_BAND_MAX = 32
 #: of 8 tubes, 34 unknowns in a band 11 wide, stays dense).
 COMPILED_BAND_SHARE = 4
 COMPILED_BAND_MIN = 48
-#: A network too large for dense factors whose band is wider than
-#: COMPILED_BAND_MAX is factored by the compiled loop's sparse LU
-#: (softflow.laws.sparselu; False: such runs take the Python loop, with its
-#: SuperLU or condensed factors).
+#: A network too large for dense factors is factored by the compiled loop's
+#: sparse LU (softflow.laws.sparselu), faster than its banded LU even where
+#: the band is narrow (chains: steploop._sparse); False: by the banded LU
+#: where the band is within COMPILED_BAND_MAX, else the run takes the Python
+#: loop, with its SuperLU or condensed factors.
 COMPILED_SPARSE = True
 #: The sparse LU refactors on its last row order while each pivot stays at
 #: least this fraction of the largest entry below it in its column (KLU's

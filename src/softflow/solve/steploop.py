@@ -60,8 +60,8 @@ class _Bound:
         nr, nk = network.n_regimes, network.n_kinks
         # the Python Newton's dense factors are shared with the loop's (each
         # adopts the other's); a banded or sparse Jacobian is the loop's own
-        band = _banded(asm, newton)
-        sparse = _sparse(asm, newton) if band is None else None
+        sparse = _sparse(asm, newton)
+        band = _banded(asm, newton) if sparse is None else None
         self.band, self.sparse = band, sparse
         self.own = band is not None or sparse is not None
         lu_shape = None
@@ -528,8 +528,13 @@ def sparse_layout(asm):
 
 def _sparse(asm, newton):
     """The :class:`SparseLayout` the loop factors a network's Jacobian in
-    where it is neither dense (the Python Newton's factors are) nor banded
-    (:func:`_banded`), or None (off: settings.COMPILED_SPARSE)."""
+    where the Python Newton's factors are not dense, or None (off:
+    settings.COMPILED_SPARSE; then the band of :func:`_banded` where it is
+    narrow enough). Even where the band is narrow the sparse LU is the
+    faster: a chain of 1 000 tubes at fixed 1 ms steps (4 002 unknowns, a
+    band 3-4 wide) ~97 -> ~76 ms a run (the Python loop ~87 ms), of 128
+    tubes 15.4 -> 13.2 ms; the adaptive chain of 200 at rtol 1e-8 ~93 ->
+    ~77 ms (fastest of 7; benchmarks/bench_loop_lu.py)."""
     if newton.lin.kind == "dense" or not settings.COMPILED_SPARSE:
         return None
     return sparse_layout(asm)
@@ -575,8 +580,9 @@ def _served(integ):
     if (net is None or newton is None or asm.has_begin_step or integ.sens is not None
             or newton.offset is not None or not asm.n):
         return None
-    if (newton.lin.kind != "dense" and band_layout(asm) is None
-            and (not settings.COMPILED_SPARSE or sparse_layout(asm) is None)):
+    if (newton.lin.kind != "dense"
+            and (not settings.COMPILED_SPARSE or sparse_layout(asm) is None)
+            and band_layout(asm) is None):
         return None
     sources = net.source_arrays()
     if sources is None:
