@@ -31,6 +31,18 @@ def _spied(monkeypatch):
     return taken
 
 
+def _bound_spy(monkeypatch):
+    """A list that collects each compiled loop bound to a run (its _Bound)."""
+    bound = []
+    init = steploop._Bound.__init__
+
+    def spy(self, *args):
+        init(self, *args)
+        bound.append(self)
+    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    return bound
+
+
 def _both(build, duration, monkeypatch, **options):
     """(Python's run, the compiled loop's run, the compiled loop's steps)."""
     taken = _spied(monkeypatch)
@@ -296,13 +308,7 @@ def test_a_network_too_large_for_dense_factors_runs_in_the_compiled_loop(monkeyp
     steps as the Python loop, the same pressures to 1e-6 of their range
     (round-off: rtol 1e-5)."""
     monkeypatch.setattr(settings, "COMPILED_SPARSE", sparse)
-    bound = []
-    init = steploop._Bound.__init__
-
-    def spy(self, *args):
-        init(self, *args)
-        bound.append(self)
-    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    bound = _bound_spy(monkeypatch)
 
     def build():
         s = chain(60, p_source=sf.waveforms.Square(sf.pressure_atmospheric + 3e4,
@@ -331,18 +337,12 @@ def test_a_narrow_band_is_factored_as_a_band_below_the_dense_limit(monkeypatch):
     as a band of its own (not shared with the Python Newton), a chain of 8
     (34 unknowns) densely; either run takes the Python loop's steps, the
     same pressures to 1e-6 of their range."""
-    bound = []
-    init = steploop._Bound.__init__
-
-    def spy(self, *args):
-        init(self, *args)
-        bound.append(self.band)
-    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    bound = _bound_spy(monkeypatch)
     for N, banded in ((31, True), (8, False)):
         bound.clear()
         py, comp, taken = _both(lambda: chain(N), 0.1, monkeypatch, rtol=1e-5)
         assert py.stats["linear_solver"] == "dense"
-        assert [b is not None for b in bound] == [banded]
+        assert [b.band is not None for b in bound] == [banded]
         assert taken == comp.stats["steps"] == py.stats["steps"]
         for key, va in py.to_dict().items():
             if key.endswith("pressure"):
@@ -382,13 +382,7 @@ def test_a_network_without_a_narrow_band_is_factored_sparse_in_the_loop(monkeypa
     nearly always, and takes the Python loop's steps, the same pressures
     to 1e-6 of their range; with the sparse LU off, the Python loop takes
     the run."""
-    bound = []
-    init = steploop._Bound.__init__
-
-    def spy(self, *args):
-        init(self, *args)
-        bound.append(self)
-    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    bound = _bound_spy(monkeypatch)
     py, comp, taken = _both(lambda: _hub(40), 0.02, monkeypatch, rtol=1e-5)
     assert py.stats["linear_solver"] != "dense"
     assert steploop.band_layout(sf.Simulation(_hub(40), duration=0.02).asm) is None
@@ -415,13 +409,7 @@ def test_fixed_steps_on_a_wide_band_take_the_loops_sparse_lu(monkeypatch):
     """Backward Euler at 1 ms on the 40-branch junction: the fixed-step loop
     binds with the sparse LU and gives the Python loop's pressures (to 1e-6
     of their range)."""
-    bound = []
-    init = steploop._Bound.__init__
-
-    def spy(self, *args):
-        init(self, *args)
-        bound.append(self)
-    monkeypatch.setattr(steploop._Bound, "__init__", spy)
+    bound = _bound_spy(monkeypatch)
     taken = _spied(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
