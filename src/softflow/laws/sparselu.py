@@ -249,16 +249,22 @@ def sparse_solve(Q, Lp, Li, Lx, Up, Ui, Ux, Ud, prow, ir, ic, b, out, z):
 
 
 @jit
+def row_maxima(Ap, Ai, Ax, out):
+    """out[i] = max |A_ij| over the stored entries of row i (0 for none)."""
+    for i in range(out.size):
+        out[i] = 0.0
+    for c in range(Ap.size - 1):
+        for p in range(Ap[c], Ap[c + 1]):
+            out[Ai[p]] = max(out[Ai[p]], abs(Ax[p]))
+
+
+@jit
 def _equilibrate(Ap, Ai, Ax, Sx, ir, ic):
     """Sx = the matrix's rows then columns scaled to a largest entry of 1
     (row maxima into ir, the scaled columns' into ic); False where a row or
     column is all zero."""
     n = ir.size
-    for i in range(n):
-        ir[i] = 0.0
-    for c in range(n):
-        for p in range(Ap[c], Ap[c + 1]):
-            ir[Ai[p]] = max(ir[Ai[p]], abs(Ax[p]))
+    row_maxima(Ap, Ai, Ax, ir)
     for i in range(n):
         if not ir[i] > 0.0:
             return False

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import borrowed, inline, jit
 from .network import kinks, regimes, residual, switching
-from .sparselu import sparse_factor, sparse_solve
+from .sparselu import row_maxima, sparse_factor, sparse_solve
 from .waves import source_values
 
 #: why the loop returned
@@ -392,11 +392,7 @@ def lin_row_scale(lin, rs):
     J = lin[2]
     kind = lin[13][0]
     if kind == SPARSE:
-        Ap, Ai = lin[16][0], lin[16][1]
-        rs[:] = 0.0
-        for c in range(rs.size):
-            for p in range(Ap[c], Ap[c + 1]):
-                rs[Ai[p]] = max(rs[Ai[p]], abs(J[0, p]))
+        row_maxima(lin[16][0], lin[16][1], J[0], rs)
         for i in range(rs.size):
             rs[i] = 1.0 / max(rs[i], 1e-300)
         return

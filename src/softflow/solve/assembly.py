@@ -1003,24 +1003,21 @@ class Assembly:
         """Factor the Jacobian once at the initial values; if it is singular, name
         the components of each independent sub-network whose block is singular
         (e.g. a closed loop of liquid with nothing fixing its pressure). With
-        dt = 0 this checks the consistent-initial-value problem at t = 0."""
-        with np.errstate(all="ignore"):
-            self.residual(self.x0, self.S0, 0.0, dt, jac=True)
-        n = self.n
-        if n <= DENSE_CHECK_MAX:      # the usual answer for small systems, without sparse matrices
-            J = self.dense_jacobian()
-            if not np.isfinite(J).all():
-                return
-            # (the test leaves J as it is: the key is what it tested)
-            if _DENSE_REGULAR(_array_key(J), J):
-                return
-        A = self.jacobian_csc()
-        if n > DENSE_CHECK_MAX:       # (small systems were tested above)
-            if not np.isfinite(A.data).all():
-                return  # reported with time and equation by the first Newton solve
-            if _is_regular(A):
-                return
-        if self._regular_from_dead_ends(dt):
+        dt = 0 this checks the consistent-initial-value problem at t = 0.
+
+        A Jacobian singular there is tested once more with each dead end at
+        the pressure of the node it hangs from
+        (:func:`softflow.solve.sourcenodes.dead_end_start`): a gas restriction
+        choked in front of a dead end started at 1 atm (a Cd orifice from a
+        2.5 bar container) has no slope in the dead end's pressure there,
+        which is no structural singularity (the consistent start begins from
+        there where the first start fails)."""
+        regular, A = self._regular_at(self.x0, dt)
+        if regular is not False:
+            return      # (not finite: reported with time and equation by the first solve)
+        from . import sourcenodes
+        start = sourcenodes.dead_end_start(self, self.x0)
+        if start is not None and self._regular_at(start, dt)[0] is True:
             return
         sym = (abs(A) + abs(A).T).tocsr()
         n_blocks, label = connected_components(sym, directed=False)
@@ -1051,22 +1048,28 @@ class Assembly:
                    "typically a closed loop of incompressible fluid with no pressure "
                    "reference, or a floating sub-network"))
 
-    def _regular_from_dead_ends(self, dt):
-        """Whether the Jacobian is regular with each dead end at the pressure
-        of the node it hangs from (:func:`softflow.solve.sourcenodes.dead_end_start`),
-        where the initial values' Jacobian was not: a gas restriction choked
-        in front of a dead end started at 1 atm (a Cd orifice from a 2.5 bar
-        container) has no slope in the dead end's pressure there, which is
-        no structural singularity (the consistent start begins from there
-        where the first start fails). The Jacobian is left at that point."""
-        from . import sourcenodes
-        x = sourcenodes.dead_end_start(self, self.x0)
-        if x is None:
-            return False
+    def _regular_at(self, x, dt):
+        """(whether the Jacobian at x, S0, t = 0 is regular: True, False, or
+        None where it is not finite; the Jacobian as a sparse matrix where it
+        was made, else None). Small systems are tested on the dense matrix
+        (the usual answer, without sparse matrices)."""
         with np.errstate(all="ignore"):
             self.residual(x, self.S0, 0.0, dt, jac=True)
+        n = self.n
+        if n <= DENSE_CHECK_MAX:
+            J = self.dense_jacobian()
+            if not np.isfinite(J).all():
+                return None, None
+            # (the test leaves J as it is: the key is what it tested)
+            if _DENSE_REGULAR(_array_key(J), J):
+                return True, None
         A = self.jacobian_csc()
-        return bool(np.isfinite(A.data).all() and _is_regular(A))
+        if n > DENSE_CHECK_MAX:       # (small systems were tested above)
+            if not np.isfinite(A.data).all():
+                return None, A
+            if _is_regular(A):
+                return True, A
+        return False, A
 
     def _rigid_liquid_hint(self, labels):
         """Where rigid containers of a liquid are among ``labels``, a sentence

@@ -580,9 +580,8 @@ def _served(integ):
     if (net is None or newton is None or asm.has_begin_step or integ.sens is not None
             or newton.offset is not None or not asm.n):
         return None
-    if (newton.lin.kind != "dense"
-            and (not settings.COMPILED_SPARSE or sparse_layout(asm) is None)
-            and band_layout(asm) is None):
+    if (newton.lin.kind != "dense" and _sparse(asm, newton) is None
+            and _banded(asm, newton) is None):
         return None
     sources = net.source_arrays()
     if sources is None:
