@@ -219,7 +219,7 @@ def test_a_gas_container_drained_by_a_mass_flow_source_stops_with_its_mass(optio
     assert info.value.time == pytest.approx(m0 / 1e-4, rel=1e-6)
     # the last step taken ends 1e-3 of itself short of the crossing
     assert res.times[-1] == pytest.approx(m0 / 1e-4, rel=2e-3) and res.times[-1] < m0 / 1e-4
-    assert res.stats["residual_evaluations"] <= 25
+    assert res.stats["residual_evaluations"] <= 30
 
 
 def test_a_liquid_accumulator_drained_to_no_volume_is_named():

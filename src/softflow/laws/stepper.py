@@ -44,8 +44,9 @@ ERROR_EVENT, RESTART_EVENT, SWITCH_EVENT, NEWTON_EVENT = 0.0, 1.0, 2.0, 3.0
 #: stage may go on); failed in a way only the BDF's own Newton reports
 #: (a residual not finite, a law's refusal, a singular Jacobian, another
 #: piece of a piecewise law); converged on an absolute pressure <= 0 (the
-#: BDF's too, which a looser tolerance does not change)
-SOLVED, PLAIN, CONTRACTING, HAND, REFUSED = range(5)
+#: BDF's too, which a looser tolerance does not change); a restart's
+#: probe handed back before its damped stage (:func:`_solve`'s mode 4)
+SOLVED, PLAIN, CONTRACTING, HAND, REFUSED, SOURCES = range(6)
 
 #: slots of the integer state ``ist``
 (K, N_EQUAL, FAILS, FAIL_HOLD, PASSED, AGE, STALE, ONE_ITER, FACTORED, BUDGET_LEFT,
@@ -63,9 +64,11 @@ IST_SIZE = 35
 FST_SIZE = 36
 #: slots of ``stats``
 (STEPS, REJECTED, ERROR_FAILS, ITERATIONS, RESIDUALS, JACOBIANS, FACTORIZATIONS) = range(7)
-#: then the accepted steps per order 0..5 (7 + k), then the failed solves
+#: then the accepted steps per order 0..5 (7 + k), then the failed solves,
+#: then the residual evaluations made when the last step was accepted
 NEWTON_FAILS = 13
-STATS_SIZE = 14
+RESIDUALS_AT_STEP = 14
+STATS_SIZE = 15
 
 
 # -- dense linear algebra ------------------------------------------------------------
@@ -772,8 +775,10 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
     """Newton's solve of one step (:meth:`Newton.solve`): chord iterations
     on reused factors where they serve the step, then on fresh ones, then,
     by ``mode``: 0 (Newton's full stage on: BDF's steps within
-    FULL_STAGE_STEPS of the smallest, its restart probes) the damped full
-    stage (:func:`_full`); 1 (BDF's other steps,
+    FULL_STAGE_STEPS of the smallest) the damped full stage (:func:`_full`);
+    4 (a restart's probe at 1e-12) as 0, but SOURCES where the chords
+    diverged on a flow source's region, or before those regions are known
+    (ist[WANTS_SOURCES] then set); 1 (BDF's other steps,
     :data:`softflow.solve.bdf.UNDAMPED_FULL`) chord iterations that
     contracted too slowly go on as undamped full Newton; 2 no more; 3 no
     more, and any failure is handed back (backward Euler's steps: its own
@@ -790,6 +795,21 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
         return code
     if code == HAND or mode == 3:
         return HAND
+    if mode == 4:
+        # a restart's probe at 1e-12: mode 0, unless the chords diverged on
+        # an equation the culprit finder looks into (a flow source's region;
+        # any, while those are not known), where a flow source may ask what
+        # no pressure gives (a source's jump at a breakpoint) and the finder,
+        # not a damped stage, says so: SOURCES, before that stage (a failing
+        # one was most of such a run's work: 114 of its 239 residual
+        # evaluations after its last step, a pump behind a shut valve)
+        if code == PLAIN:
+            if not ist[REJECT_NEWTON]:
+                ist[WANTS_SOURCES] = 1     # (the caller finds them and calls again)
+                return SOURCES
+            if lin[12][_worst_row(work[1], lin)]:
+                return SOURCES
+        mode = 0
     if mode == 0 or (code == CONTRACTING and mode == 1):
         # Newton's full stage: damped from the predictor (on the fresh
         # factors made there), or from the chord's last iterate where it
@@ -850,12 +870,14 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
     a pressure <= 0), as :meth:`BDF._probe` solves it: at 1e-12 with
     Newton's full stage (the BDF's probes turn it on), at the run's
     tolerance by ``mode`` (:func:`_solve`: 0 with the full stage, 3 the
-    chord stages only). True with the unknowns in work[0] and the states'
-    rate in ``rate`` (discrete states: 0), or False, where the BDF's own
-    probe (with continuation) must take over: also where a failed solve at
-    1e-12 would go on to Newton's flows-first stage there (ist[FLOWS_FIRST]:
-    a thermal network, :meth:`Newton._flows_first`), which the loop has
-    not, before the tolerance is loosened."""
+    chord stages only). SOLVED with the unknowns in work[0] and the states'
+    rate in ``rate`` (discrete states: 0), or where the BDF's own probe
+    (with continuation) must take over: SOURCES where the chords at 1e-12
+    diverged on an equation the culprit finder looks into (:func:`_solve`'s
+    mode 4: the finder before any damped stage), else HAND; also where a
+    failed solve at 1e-12 would go on to Newton's flows-first stage there
+    (ist[FLOWS_FIRST]: a thermal network, :meth:`Newton._flows_first`),
+    which the loop has not, before the tolerance is loosened."""
     base, slot, codes, factors, starts, floats = sources
     source_values(t + h, base, slot, codes, factors, starts, floats, net[7])
     nrtol = fst[NEWTON_RTOL]
@@ -872,23 +894,25 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
         # Newton could not solve: 77 failed solves in the run, 2 in Python)
         code = _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off,
                       q_id, p_idx, T_idx, work, none, stats,
-                      min(nrtol, 1e-12) if tight == 0 else nrtol, 0 if tight == 0 else mode)
+                      min(nrtol, 1e-12) if tight == 0 else nrtol, 4 if tight == 0 else mode)
         if code == SOLVED:
             solved = True
             break
         ist[STALE] = 1           # (as Newton after a failed solve)
+        if code == SOURCES:
+            return SOURCES
         if code == REFUSED or ist[FLOWS_FIRST]:   # (the BDF's probe takes it from here)
             break
     if not solved:
-        return False
+        return HAND
     if _evaluate(net, work[0], S, t + h, h, False, Fe, rate, stats) >= 0:
-        return False
+        return HAND
     stats[RESIDUALS] -= 1
     for i in range(S.size):
         rate[i] = (rate[i] - S[i]) / h
         if n_disc and not math.isfinite(atol_s[i]):
             rate[i] = 0.0
-    return True
+    return SOLVED
 
 
 @jit
@@ -952,13 +976,16 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
         # stage converges); after a breakpoint (a source's jump, which may
         # ask what no state gives: the culprit finder's ground) a failing
         # damped stage there would only be done twice
-        if not ok:
+        if ok != SOLVED:
             fst[ETA], fst[CRATE], ist[ONE_ITER] = eta0, crate0, one0
             # which probe failed its solve at 1e-12 (the BDF's probe there
             # goes on at the run's tolerance without solving it again: the
             # same damped stage failing twice was most of a failed run's
-            # work; not where the BDF's flows-first stage would follow)
-            ist[PROBE_FAILED] = -1 if ist[FLOWS_FIRST] else probe
+            # work; not where the BDF's flows-first stage would follow), or
+            # 3 + the probe whose chords diverged on a flow source's region
+            # (the BDF asks the culprit finder first)
+            ist[PROBE_FAILED] = (3 + probe if ok == SOURCES
+                                 else -1 if ist[FLOWS_FIRST] else probe)
             return -1.0
         if probe == 0:
             x1[:] = work[0]
@@ -1264,6 +1291,7 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             if not ist[CAP_HOLD]:
                 fst[H_CAP] = math.inf
         stats[STEPS] += 1
+        stats[RESIDUALS_AT_STEP] = stats[RESIDUALS]
         stats[7 + k] += 1
         ist[FAILS_HERE] = 0
         for i in range(nQ):
@@ -1423,6 +1451,7 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
                     return SWITCH, t
         used += 1
         stats[STEPS] += 1
+        stats[RESIDUALS_AT_STEP] = stats[RESIDUALS]
         r_ = ist[N_REC]
         rec_t[r_] = t_new
         for i in range(x_index.size):

@@ -363,6 +363,7 @@ class Integrator:
                 self._approached = self._empty_tries > 0
                 self._empty_tries = 0
             stats.steps += 1
+            stats.residuals_at_last_step = stats.residual_evaluations
             x, S, t = take(t, x, S, x_new, psi, c, S_new, t_new)
             tick(t)
             if begin is not None:

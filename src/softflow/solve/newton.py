@@ -84,6 +84,9 @@ class Stats:
     factorizations: int = 0
     newton_failures: int = 0
     error_test_failures: int = 0
+    #: residual_evaluations when the last step was accepted (0 before the
+    #: first): a failed run's work after it is the difference
+    residuals_at_last_step: int = 0
 
     def as_dict(self):
         return dict(self.__dict__)
@@ -245,6 +248,14 @@ class Newton:
     #: instead (no solution to continue to, or one found from another start),
     #: or None (softflow.solve.culprit.Finder.before_continuation)
     before_continuation = None
+
+    #: None, or a callable (out, x0, S, t, dt) -> bool, asked before the damped
+    #: stage of a solve whose chord iterations failed or converged on an
+    #: absolute pressure <= 0 (``out``): True where no step gets to t (a flow
+    #: source at a node without volume asking what no pressure there gives,
+    #: a source setting a pressure outside its fluid's range), and the solve
+    #: fails with ``out`` at once (softflow.solve.culprit.Finder.before_full)
+    before_full = None
 
     #: None, or a constant subtracted from every residual this Newton evaluates
     #: (:meth:`continuation`): it solves F(x) = offset, with F's Jacobian
@@ -570,6 +581,9 @@ class Newton:
                         # once more from there, on its own piece's Jacobian
                         out = self._chord(out.x, S, t, dt, stage)
                         self._F_at_x0 = None        # (those factors are not x0's)
+                elif (not undamped and self.before_full is not None and last is not None
+                      and self.before_full(last, x0, S, t, dt)):
+                    break       # no step gets there: the damped stage would only fail
                 elif last is not None and last.contracting:
                     # a contracting chord iteration got closer than x0: go on from
                     # there (thermal chain N = 1000, second step: 14 -> 10 iterations)
@@ -583,7 +597,9 @@ class Newton:
                 if last.reason.startswith(("singular", "absolute pressure")):
                     break
         if (self.full_stage and self._has_p and last is not None
-                and last.reason.startswith("absolute pressure")):
+                and last.reason.startswith("absolute pressure")
+                and not (self.before_full is not None
+                         and self.before_full(last, x0, S, t, dt))):
             # converged on an absolute pressure <= 0: where that is the mirror
             # root of a gas law in p^2 (p1^2 - p2^2 = 0 at p2 = -p1: a node
             # without volume between a tube and an orifice, started adiabatic),

@@ -51,8 +51,11 @@ class Result:
     message : str
         Why a run failed (time, component, equation), or ``''``.
     stats : dict
-        Counters: steps, rejected_steps, newton_iterations, jacobian_evaluations,
-        factorizations, ...
+        Counters: steps, rejected_steps, newton_iterations, residual_evaluations,
+        jacobian_evaluations, factorizations, ...; ``residuals_at_last_step``:
+        the residual evaluations made when the last step was accepted (a
+        failed run's work after its last step is ``residual_evaluations``
+        minus this).
     warnings : list of ValidityRecord
         What the run's validity checks found (:mod:`softflow.solve.validity`): each
         with ``component``, ``check``, ``measured``, ``limit``, ``unit``,

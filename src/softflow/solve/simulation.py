@@ -567,6 +567,7 @@ class Simulation:
         culprit = Finder(asm, newton, integ)
         integ.culprit = culprit  # type: ignore[assignment]
         newton.before_continuation = culprit.before_continuation  # type: ignore[assignment]
+        newton.before_full = culprit.before_full  # type: ignore[assignment]
         integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
         sens: Sensitivities | None = None
         if sensitivities:

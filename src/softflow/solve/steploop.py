@@ -194,6 +194,9 @@ class _Bound:
         newton, ist, fst, s = integ.newton, self.ist, self.fst, self.stats
         integ._ib, integ._next = int(ist[st.IB]), float(fst[st.NEXT_BREAK])
         stats = integ.stats
+        if s[st.STEPS]:
+            stats.residuals_at_last_step = (stats.residual_evaluations
+                                             + int(s[st.RESIDUALS_AT_STEP]))
         stats.steps += int(s[st.STEPS])
         stats.rejected_steps += int(s[st.REJECTED])
         stats.error_test_failures += int(s[st.ERROR_FAILS])
@@ -307,10 +310,12 @@ class CompiledSteps(_Bound):
                                   dense, self.events, self.watch, self.breaks, self.G,
                                   self.ERRC, scratch)
             taken += self._flush(t, Q)
-            if exit_ == st.NEWTON and ist[st.WANTS_SOURCES]:
-                # a failed solve that only the culprit finder's nodes, not yet
+            if exit_ in (st.NEWTON, st.RESTART) and ist[st.WANTS_SOURCES]:
+                # a failed solve (a step's, or a restart probe's before its
+                # damped stage) that only the culprit finder's nodes, not yet
                 # found, kept from the loop: found here, from the point the
-                # finder would ask (the last taken), and the step tried again
+                # finder would ask (the last taken), and the step or the
+                # restart tried again
                 ist[st.REJECT_NEWTON] = int(_source_rows(bdf.culprit, self.lin[12],
                                                          (x, S, t)))
                 if ist[st.REJECT_NEWTON]:
@@ -323,8 +328,11 @@ class CompiledSteps(_Bound):
             self._used = used
         # the state out
         self._newton_out()
-        if exit_ == st.RESTART and ist[st.PROBE_FAILED] >= 0:
-            # (the restart's probe whose solve at 1e-12 failed here)
+        if exit_ == st.RESTART and 0 <= ist[st.PROBE_FAILED] < 3:
+            # (the restart's probe whose solve at 1e-12 failed here; from 3
+            # on, one whose chords diverged on a flow source's region, which
+            # the BDF's probe solves whole, its Newton asking the culprit
+            # finder before its damped stage)
             bdf._tight_failed = (float(t), int(ist[st.PROBE_FAILED]))
         bdf._k, bdf._n_equal, bdf._fails = int(ist[st.K]), int(ist[st.N_EQUAL]), int(ist[st.FAILS])
         bdf._fail_hold, bdf._passed = int(ist[st.FAIL_HOLD]), bool(ist[st.PASSED])
