@@ -516,8 +516,10 @@ def test_the_consistent_start_is_confirmed_on_a_jacobian_at_its_point(monkeypatc
     many times its slope at the flow it reaches, and chord iterations on it
     stopped 10 kPa off the middle node's pressure with small updates. The
     consistent point is now confirmed on a Jacobian at it, and solved again
-    from there where it is not (INITIAL_CONFIRMS)."""
-    from softflow.solve import integrator
+    from there where it is not (INITIAL_CONFIRMS). (The chord's updates there
+    also flip about the root; halving such an update, settings.FLIP_MATCH,
+    gets there without the confirmation: both are checked alone.)"""
+    from softflow.solve import integrator, newton
 
     def middle_at_start():
         s = sf.System()
@@ -532,7 +534,11 @@ def test_the_consistent_start_is_confirmed_on_a_jacobian_at_its_point(monkeypatc
     exact = sf.pressure_atmospheric + (3e5 - sf.pressure_atmospheric) / 17
     assert middle_at_start() == pytest.approx(exact, abs=5.0)
     monkeypatch.setattr(integrator, "INITIAL_CONFIRMS", 0)
+    assert middle_at_start() == pytest.approx(exact, abs=5.0)     # the halved flip
+    monkeypatch.setattr(newton, "FLIP_MATCH", 0.0)                 # neither
     assert abs(middle_at_start() - exact) > 5e3
+    monkeypatch.setattr(integrator, "INITIAL_CONFIRMS", 3)         # the confirmation
+    assert middle_at_start() == pytest.approx(exact, abs=5.0)
 
 
 def test_continuation_solves_the_unmodified_equations_last(monkeypatch):

@@ -126,3 +126,28 @@ def test_a_chain_of_dead_ends_behind_choked_orifices_starts_at_rest():
     assert res.status == "success"
     for label in ("o1", "o2", "o3"):
         assert res.get(label, "pressure_b")[0] == pytest.approx(5e5, rel=1e-6)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["loop", "python"])
+@pytest.mark.parametrize("thermal", ["isothermal", "adiabatic"])
+def test_an_orifice_into_a_dead_end_runs_without_crawling(compiled, thermal, monkeypatch):
+    # nothing flows: the dead end's pressure is the tank's. The chord's
+    # updates flipped +-2 Pa about it on the nozzle's square root (its linear
+    # band ~0.03 Pa) and were called diverging: the steps shrank to ~6 ns,
+    # 16 144 of them by t = 0.1 ms. Half of a flipping update is taken
+    # (settings.FLIP_MATCH): the run's 0.1 s in a few dozen steps
+    from softflow.solve import settings
+    monkeypatch.setattr(settings, "COMPILED_STEPS", compiled)
+    s = sf.System()
+    s += sf.Container("tank", sf.air, volume=1e-4, initial_pressure=1.5e5)
+    s += sf.Orifice("o", sf.air, diameter=1e-3, Cd=0.6)
+    s.connect("tank", ("o", "a"))
+    res = sf.Simulation(s, duration=0.1, allow_unconnected=True, thermal=thermal,
+                        max_steps=200).run()
+    assert res.status == "success"
+    assert res.stats["steps"] < 50
+    # the dead end's pressure within Newton's tolerance (rtol of its gauge
+    # pressure), no flow: the tank's pressure stays
+    assert res.get("o", "pressure", "b") == pytest.approx(1.5e5, abs=1e-3 * (1.5e5 - P0))
+    assert abs(res.get("o", "massflow", "a")).max() < 1e-12
+    assert res.get("tank", "pressure") == pytest.approx(1.5e5, rel=1e-9)

@@ -60,8 +60,8 @@ IST_SIZE = 35
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
  MIN_FACTOR, MAX_FACTOR, GROW_MIN, PEAK_FACTOR, PIVOT_RTOL, CRDOWN, NEXT_BREAK,
  FIRST_STEP, FIRST_ESTIMATE, H_CAP, SWITCH_PAST, CHATTER_STEP, FULL_STAGE_STEPS,
- KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL) = range(36)
-FST_SIZE = 36
+ KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL, FLIP_MATCH) = range(37)
+FST_SIZE = 37
 #: slots of ``stats``
 (STEPS, REJECTED, ERROR_FAILS, ITERATIONS, RESIDUALS, JACOBIANS, FACTORIZATIONS) = range(7)
 #: then the accepted steps per order 0..5 (7 + k), then the failed solves,
@@ -540,17 +540,19 @@ def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
 
 @inline
 def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0, none,
-           stats):
+           stats, last):
     """Chord iterations from x0 (:meth:`Newton._chord`): SOLVED with the
     solution in x; PLAIN (diverging, an update not finite, no convergence
     within the iterations), CONTRACTING (too slow: x the last iterate) or
     HAND (a residual not finite, a law's refusal, a singular Jacobian). One
     evaluation of the residual per pass (:func:`softflow.laws.inline`):
     at x0 first (with the Jacobian on fresh factors, and a copy of the
-    residual into F0), then at each update."""
+    residual into F0), then at each update. ``last``: scratch, the update
+    before (an update flipping it back is halved once: FLIP_MATCH)."""
     x[:] = x0
     limit = ist[MAX_ITER] if fresh else ist[MAX_REUSE]
     prev = -1.0
+    flipped = False
     clip = ist[CLIP] > 0
     for k in range(limit):
         jac = fresh and k == 0
@@ -579,7 +581,22 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0
             _clip(x, step, T_idx, fst[T_LO], fst[T_HI])
         if not math.isfinite(nrm):
             return PLAIN
-        if prev >= 0.0:
+        flip = False
+        if prev >= 0.0 and nrm >= 0.9 * prev and not flipped and nrm * 0.9 <= prev:
+            # flipping about a root where the law's slope is not the
+            # Jacobian's (Newton._chord, settings.FLIP_MATCH): half of it
+            back = 0.0
+            for i in range(x.size):
+                v = abs(step[i] + last[i]) * itol[i]
+                if not v <= back:
+                    back = v
+            flip = back <= fst[FLIP_MATCH] * nrm
+        if flip:
+            flipped = True
+            for i in range(x.size):
+                step[i] = 0.5 * step[i]
+            done = False
+        elif prev >= 0.0:
             rate = nrm / prev
             if rate >= 0.9:
                 return PLAIN
@@ -600,6 +617,7 @@ def _chord(net, lin, x0, psi, t, c, fresh, ist, fst, itol, T_idx, x, F, step, F0
                 ist[STALE] = 1
             return SOLVED
         prev = nrm
+        last[:] = step
     # (Newton's F here is the last update's residual, not evaluated here:
     # its worst equation, which the culprit finder reads, is the BDF's)
     return HAND
@@ -777,7 +795,7 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
     by ``mode``: 0 (Newton's full stage on: BDF's steps within
     FULL_STAGE_STEPS of the smallest) the damped full stage (:func:`_full`);
     4 (a restart's probe at 1e-12) as 0, but SOURCES where the chords
-    diverged on a flow source's region, or before those regions are known
+    failed on a flow source's region, or before those regions are known
     (ist[WANTS_SOURCES] then set); 1 (BDF's other steps,
     :data:`softflow.solve.bdf.UNDAMPED_FULL`) chord iterations that
     contracted too slowly go on as undamped full Newton; 2 no more; 3 no
@@ -796,14 +814,14 @@ def _solve(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off, 
     if code == HAND or mode == 3:
         return HAND
     if mode == 4:
-        # a restart's probe at 1e-12: mode 0, unless the chords diverged on
+        # a restart's probe at 1e-12: mode 0, unless the chords failed on
         # an equation the culprit finder looks into (a flow source's region;
         # any, while those are not known), where a flow source may ask what
         # no pressure gives (a source's jump at a breakpoint) and the finder,
         # not a damped stage, says so: SOURCES, before that stage (a failing
         # one was most of such a run's work: 114 of its 239 residual
         # evaluations after its last step, a pump behind a shut valve)
-        if code == PLAIN:
+        if code == PLAIN or code == CONTRACTING:
             if not ist[REJECT_NEWTON]:
                 ist[WANTS_SOURCES] = 1     # (the caller finds them and calls again)
                 return SOURCES
@@ -844,7 +862,7 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
         if stage == 0 and not reusable:
             continue
         code = _chord(net, lin, x0, psi, t, c, stage == 1, ist, fst, itol, T_idx, x, F,
-                      step, work[9], none, stats)
+                      step, work[9], none, stats, work[3])
         if code == SOLVED:
             if not _positive(x, p_idx):
                 return REFUSED
@@ -873,7 +891,7 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
     chord stages only). SOLVED with the unknowns in work[0] and the states'
     rate in ``rate`` (discrete states: 0), or where the BDF's own probe
     (with continuation) must take over: SOURCES where the chords at 1e-12
-    diverged on an equation the culprit finder looks into (:func:`_solve`'s
+    failed on an equation the culprit finder looks into (:func:`_solve`'s
     mode 4: the finder before any damped stage), else HAND; also where a
     failed solve at 1e-12 would go on to Newton's flows-first stage there
     (ist[FLOWS_FIRST]: a thermal network, :meth:`Newton._flows_first`),
@@ -982,7 +1000,7 @@ def _restart(net, lin, x, S, t, limit, ist, fst, itol, floor, links, natol, x_of
             # goes on at the run's tolerance without solving it again: the
             # same damped stage failing twice was most of a failed run's
             # work; not where the BDF's flows-first stage would follow), or
-            # 3 + the probe whose chords diverged on a flow source's region
+            # 3 + the probe whose chords failed on a flow source's region
             # (the BDF asks the culprit finder first)
             ist[PROBE_FAILED] = (3 + probe if ok == SOURCES
                                  else -1 if ist[FLOWS_FIRST] else probe)

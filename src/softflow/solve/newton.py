@@ -56,6 +56,7 @@ from .settings import (
     CONTINUATION_RTOL,
     CONTINUATION_SOLVES,
     CRDOWN,
+    FLIP_MATCH,
     FULL_KEEP_CUT,
     SMALL,
     TIGHT_KEEP_CUT,
@@ -724,7 +725,8 @@ class Newton:
                 return self._singular(x, 0, err)
             self._F_at_x0 = F
         limit = self.max_iter if fresh else self.max_reuse_iter
-        prev = None
+        prev = prev_step = None
+        flipped = False
         solve, norm, stats, clip = self.lin.solve, self._norm, self.stats, self._T_idx.size
         for k in range(limit):
             # minus the Newton update, used as it comes (x - step is bitwise
@@ -739,7 +741,14 @@ class Newton:
                 step = -self._clip_temperature(x, -step)
             if not math.isfinite(nrm):
                 return Outcome(False, x, k + 1, "Newton update not finite")
-            if prev is not None:
+            if prev is not None and nrm >= 0.9 * prev and not flipped and (
+                    nrm * 0.9 <= prev and norm(step + prev_step) <= FLIP_MATCH * nrm):
+                # flipping about a root where the law's slope is not the
+                # Jacobian's (settings.FLIP_MATCH): half of the update
+                flipped = True
+                step = 0.5 * step
+                done = False
+            elif prev is not None:
                 rate = nrm / prev
                 if rate >= 0.9:
                     return Outcome(False, x, k + 1, f"Newton diverging (rate {rate:.2f})",
@@ -771,7 +780,7 @@ class Newton:
                               self._not_finite("residual not finite along the Newton step"),
                                self._nonfinite_row(Fn))
             x, F = xn, Fn
-            prev = nrm
+            prev, prev_step = nrm, step
         return Outcome(False, x, limit, f"no convergence in {limit} iterations ({stage} Jacobian)",
                        self._worst_row(F))
 

@@ -145,6 +145,7 @@ class _Bound:
         fst[st.KEEP_CUT], fst[st.TIGHT_KEEP_CUT] = (newton_mod.FULL_KEEP_CUT,
                                                     newton_mod.TIGHT_KEEP_CUT)
         fst[st.TIGHT_RTOL] = newton_mod.TIGHT_RTOL
+        fst[st.FLIP_MATCH] = newton_mod.FLIP_MATCH
         ist[st.WATCHDOG] = newton_mod.WATCHDOG
         fst[st.DURATION] = integ.T
 
@@ -330,7 +331,7 @@ class CompiledSteps(_Bound):
         self._newton_out()
         if exit_ == st.RESTART and 0 <= ist[st.PROBE_FAILED] < 3:
             # (the restart's probe whose solve at 1e-12 failed here; from 3
-            # on, one whose chords diverged on a flow source's region, which
+            # on, one whose chords failed on a flow source's region, which
             # the BDF's probe solves whole, its Newton asking the culprit
             # finder before its damped stage)
             bdf._tight_failed = (float(t), int(ist[st.PROBE_FAILED]))
