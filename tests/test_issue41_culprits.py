@@ -556,3 +556,32 @@ def test_two_pumps_on_joined_nodes_that_only_each_other_supply_are_refused_at_th
     assert "a node without volume (as is node(" in msg and "behind it)" in msg, msg
     assert "CheckValve 'e1'" in msg
     assert err.result.stats["residual_evaluations"] <= 1000
+
+
+def test_a_flow_source_past_its_table_is_asked_at_its_first_failed_step():
+    # (a random air network, table level): the pump's density leaves the
+    # table at 20 MPa in the failed solve, whose worst equation is another
+    # node's source; the finder asks the pump's node for the fluid error
+    # its law raised (its group's labels), not only for the worst equation:
+    # at the first failed step, not at the smallest (1 452 residual
+    # evaluations before, 14 rejected steps down to 3e-11 s)
+    air = sf.air.with_level("table")
+    s = sf.System()
+    s += sf.PressureSource("src0", W.Sine(amplitude=5751.16, offset=107210.0,
+                                          frequency=195.382), gauge=True)
+    s += sf.PressureSource("src1", W.Square(low=122020.0, high=117999.0, frequency=958.85,
+                                            duty=0.1, start=0.0145599))
+    s += sf.VolumeFlowSource("src2", W.Step(time=1e-6, before=-1e-8, after=1e-5), air)
+    s += sf.CircularTube("e0", air, length=0.8975, diameter=3.5e-4)
+    s += sf.TeslaValve("e1", air, length=0.3656, diameter=2e-4, diodicity=4.99)
+    s.connect("src0", ("e0", "b"), ("e1", "b"))
+    s.connect("src1", ("e0", "a"))
+    s.connect("src2", ("e1", "a"))
+    err = _error(s, duration=0.02, step=2e-3)
+    assert err.component == "src2"
+    assert ("VolumeFlowSource 'src2' pushes 0.002314 kg/s into node(src2.a, e1.a), a node "
+            "without volume, at t = 0.002 s") in str(err)
+    assert "where the fluid's range ends" in str(err)
+    stats = err.result.stats
+    assert stats["rejected_steps"] == 1
+    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 250

@@ -298,9 +298,11 @@ def _group_name(g):
 
 def _fluid_failure(g, err):
     """The FluidError ``err`` of group ``g``'s kernel, saying which components asked
-    for the bad state (``component``: the label, where the group has one)."""
+    for the bad state (``component``: the label, where the group has one;
+    ``components``: the labels of the group)."""
     out = FluidError(f"in {_group_name(g)}: {err}")
     out.component = g.comps[0].label if len(g.comps) == 1 else None
+    out.components = frozenset(c.label for c in g.comps)
     return out
 
 

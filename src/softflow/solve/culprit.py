@@ -269,10 +269,15 @@ class Finder:
         row, unknown = out.row, getattr(out, "unknown", None)
         if row is None and unknown is None:
             return every
+        # a fluid's range left in a flow source's own law (a volume flow
+        # source's density at a pressure past a table's end: its node's
+        # region, whatever the worst equation)
+        named = getattr(self.newton.fluid_error, "components", frozenset())
         return frozenset(k for k, loc in enumerate(locals_)
                          if (row is not None and (row == loc.row or row in loc.rows_set))
                          or (unknown is not None and (unknown == loc.p
-                                                      or unknown in loc.cols_set)))
+                                                      or unknown in loc.cols_set))
+                         or (named and any(c.label in named for c in loc.sources)))
 
     def retry(self, out, x_start, psi, t, c):
         """After a step's failed solve (``out``, from ``x_start``; the step's
