@@ -19,7 +19,6 @@ the Simulation use the latter).
 """
 from __future__ import annotations
 
-import bisect
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pint
 
+from .._laws import law_module
 from ..units import UnitError, describe_dimension, to_si, ureg
 
 if TYPE_CHECKING:
@@ -96,47 +96,60 @@ def _time(value: Any, name: str, owner: str, *, positive: bool = False,
 # ---------------------------------------------------------------------------------------
 # base
 # ---------------------------------------------------------------------------------------
-def period_base(t: float, start: float, period: float) -> float:
-    """The start [s] of the period of a periodic waveform that holds t >= start:
-    ``start + k period`` as :meth:`Waveform.breakpoints_until` computes it, with
-    k the one for which t lies in [start + k period, start + (k + 1) period) in
-    floating point. ``floor((t - start) / period)`` alone can be off by one at
-    a period's edge, and a remainder computed from it puts a jump an ulp away
-    from its declared breakpoint: the step landing there saw the new value (or
-    the next one's start the old). :mod:`softflow.laws.waves` computes the
-    same, operation for operation."""
-    k = math.floor((t - start) / period)
-    base = start + k * period
-    if t < base:
-        return start + (k - 1) * period
-    if t >= start + (k + 1) * period:
-        return start + (k + 1) * period
-    return base
+_WAVES: list[Any] = []
 
 
-def _period_base_array(t: Array, start: float, period: float) -> Array:
-    # period_base, elementwise
-    k = np.floor((t - start) / period)
-    base = start + k * period
-    base = np.where(t < base, start + (k - 1) * period, base)
-    return np.where(t >= start + (k + 1) * period, start + (k + 1) * period, base)
+def _waves() -> Any:
+    """softflow.laws.waves, imported at the first evaluation (not with this
+    module: numba is imported where a law is first used)."""
+    if not _WAVES:
+        _WAVES.append(law_module("waves"))
+    return _WAVES[0]
 
 
 class Waveform:
     """Base class: a function of time with a unit and breakpoints.
 
-    Subclasses implement ``_scalar(t: float) -> float`` and ``_array(t) -> ndarray``
-    and set ``unit`` (pint Unit in SI base units, or None) and ``_breaks``.
+    The library's waveforms state their law once, compiled
+    (:mod:`softflow.laws.waves`): each gives its kind and floats in that
+    module's layout (``_layout() -> (kind name, floats)``), and its values,
+    scalar or array, are that law's (``wave_value``, ``wave_values``). Other
+    subclasses implement ``_scalar(t: float) -> float`` and ``_array(t) ->
+    ndarray`` themselves. Each sets ``unit`` (pint Unit in SI base units, or
+    None) and ``_breaks``.
     """
 
     unit: Any = None                    # a pint Unit in SI base units, or None
     period: float | None = None
     _breaks: tuple[float, ...] = ()
 
-    if TYPE_CHECKING:                   # what subclasses implement
-        def _scalar(self, t: float) -> float: ...
+    if TYPE_CHECKING:                   # what subclasses implement, or inherit
+        def _layout(self) -> tuple[str, list[float]]: ...
 
-        def _array(self, t: Array) -> Array: ...
+    def __setattr__(self, name: str, value: Any) -> None:
+        # an attribute changed: the compiled law's floats are made again
+        object.__setattr__(self, name, value)
+        self.__dict__.pop("_law", None)
+
+    def _coded(self) -> tuple[int, Array]:
+        """(kind code, floats) of this waveform for softflow.laws.waves, made at
+        first use (and again after an attribute changes)."""
+        got = self.__dict__.get("_law")
+        if got is None:
+            kind, floats = self._layout()
+            got = (int(getattr(_waves(), kind)), np.array(floats, dtype=np.float64))
+            self.__dict__["_law"] = got
+        return got
+
+    def _scalar(self, t: float) -> float:
+        code, floats = self._coded()
+        return float(_waves().wave_value(code, floats, 0, t))
+
+    def _array(self, t: Array) -> Array:
+        code, floats = self._coded()
+        out = np.empty(t.shape)
+        _waves().wave_values(code, floats, 0, t.ravel(), out.reshape(-1))
+        return out
 
     def __call__(self, t: float | ArrayLike) -> float | Array:
         if isinstance(t, float) or np.ndim(t) == 0:
@@ -157,7 +170,7 @@ class Waveform:
         k0 = max(0, math.floor((0.0 - start) / self.period))
         k = k0
         while True:
-            # the same float as period_base gives the evaluation, so that a
+            # the same float as laws.waves.period_base gives the evaluation, so that a
             # jump falls exactly at its breakpoint (not an ulp before it)
             base = start + k * self.period
             if base > until:
@@ -193,11 +206,8 @@ class Constant(Waveform):
     def __init__(self, value: Scalar) -> None:
         self.value, self.unit = _scalar_value(value, "value", "Constant")
 
-    def _scalar(self, t: float) -> float:
-        return self.value
-
-    def _array(self, t: Array) -> Array:
-        return np.full(t.shape, self.value)
+    def _layout(self) -> tuple[str, list[float]]:
+        return "CONSTANT", [self.value]
 
 
 class Step(Waveform):
@@ -217,11 +227,8 @@ class Step(Waveform):
         self.unit = _common_unit([("before", ub), ("after", ua)], owner)
         self._breaks = (self.time,)
 
-    def _scalar(self, t: float) -> float:
-        return self.after if t >= self.time else self.before
-
-    def _array(self, t: Array) -> Array:
-        return np.where(t >= self.time, self.after, self.before)
+    def _layout(self) -> tuple[str, list[float]]:
+        return "STEP", [self.time, self.before, self.after]
 
 
 class Ramp(Waveform):
@@ -246,15 +253,8 @@ class Ramp(Waveform):
         self._slope = (self.v1 - self.v0) / (self.t1 - self.t0)
         self._breaks = (self.t0, self.t1)
 
-    def _scalar(self, t: float) -> float:
-        if t <= self.t0:
-            return self.v0
-        if t >= self.t1:
-            return self.v1
-        return self.v0 + self._slope * (t - self.t0)
-
-    def _array(self, t: Array) -> Array:
-        return np.interp(t, [self.t0, self.t1], [self.v0, self.v1])
+    def _layout(self) -> tuple[str, list[float]]:
+        return "RAMP", [self.t0, self.t1, self.v0, self.v1, self._slope]
 
 
 def _checked_table(times: ArrayLike, values: ArrayLike, owner: str
@@ -298,18 +298,8 @@ class PiecewiseLinear(_Tabulated):
     values : array [SI of the source] or Quantity array
     """
 
-    def _scalar(self, t: float) -> float:
-        ts, vs = self._t, self._v
-        i = bisect.bisect_right(ts, t)
-        if i == 0:
-            return vs[0]
-        if i == len(ts):
-            return vs[-1]
-        t0, t1 = ts[i - 1], ts[i]
-        return vs[i - 1] + (vs[i] - vs[i - 1]) * (t - t0) / (t1 - t0)
-
-    def _array(self, t: Array) -> Array:
-        return np.interp(t, self.times, self.values)
+    def _layout(self) -> tuple[str, list[float]]:
+        return "LINEAR", [float(len(self._t)), *self._t, *self._v]
 
 
 class PiecewiseConstant(_Tabulated):
@@ -329,12 +319,8 @@ class PiecewiseConstant(_Tabulated):
     def _table_breaks(self) -> tuple[float, ...]:
         return tuple(self._t[1:])   # values[0] holds before times[0]: no jump there
 
-    def _scalar(self, t: float) -> float:
-        return self._v[max(bisect.bisect_right(self._t, t) - 1, 0)]
-
-    def _array(self, t: Array) -> Array:
-        i = np.maximum(np.searchsorted(self.times, t, side="right") - 1, 0)
-        return self.values[i]
+    def _layout(self) -> tuple[str, list[float]]:
+        return "HELD", [float(len(self._t)), *self._t, *self._v]
 
 
 class Trapezoid(Waveform):
@@ -377,33 +363,10 @@ class Trapezoid(Waveform):
         self._edges = tuple((self.start + x) - self.start if self.period is not None else x
                             for x in (self._t_hold, self._t_fall, self._t_low))
 
-    def _scalar(self, t: float) -> float:
-        if t < self.start:
-            return self.low
-        base = self.start if self.period is None else period_base(t, self.start, self.period)
-        tau = t - base
-        e_hold, e_fall, e_low = self._edges
-        if t < base + e_hold:
-            return self.low + (self.high - self.low) * tau / self.rise
-        if t < base + e_fall:
-            return self.high
-        if t < base + e_low:
-            return self.high - (self.high - self.low) * (tau - self._t_fall) / self.fall
-        return self.low
-
-    def _array(self, t: Array) -> Array:
-        if self.period is None:
-            base = np.full_like(t, self.start)
-        else:
-            base = _period_base_array(t, self.start, self.period)
-        tau = t - base
-        e_hold, e_fall, e_low = self._edges
-        span = self.high - self.low
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rising = self.low + span * tau / self.rise
-            falling = self.high - span * (tau - self._t_fall) / self.fall
-        return np.select([t < self.start, t < base + e_hold, t < base + e_fall, t < base + e_low],
-                         [self.low, rising, self.high, falling], default=self.low)
+    def _layout(self) -> tuple[str, list[float]]:
+        period = 0.0 if self.period is None else self.period
+        return "TRAPEZOID", [self.low, self.high, self.rise, self.fall, self.start, period,
+                             self._t_fall, *self._edges]
 
 
 class Sine(Waveform):
@@ -429,11 +392,8 @@ class Sine(Waveform):
         self.phase = float(to_si(phase, "rad", name="phase", owner=owner))
         self._omega = 2.0 * math.pi * self.frequency
 
-    def _scalar(self, t: float) -> float:
-        return self.offset + self.amplitude * math.sin(self._omega * t + self.phase)
-
-    def _array(self, t: Array) -> Array:
-        return self.offset + self.amplitude * np.sin(self._omega * t + self.phase)
+    def _layout(self) -> tuple[str, list[float]]:
+        return "SINE", [self.offset, self.amplitude, self._omega, self.phase]
 
 
 class Square(Waveform):
@@ -470,14 +430,8 @@ class Square(Waveform):
         # the fall's offset from a period's start, as breakpoints_until adds it
         self._off = self._breaks[1] - self.start
 
-    def _scalar(self, t: float) -> float:
-        if t < self.start:
-            return self.low
-        return self.high if t < period_base(t, self.start, self.period) + self._off else self.low
-
-    def _array(self, t: Array) -> Array:
-        base = _period_base_array(t, self.start, self.period)
-        return np.where((t >= self.start) & (t < base + self._off), self.high, self.low)
+    def _layout(self) -> tuple[str, list[float]]:
+        return "SQUARE", [self.low, self.high, self.start, self.period, self._off]
 
 
 def from_csv(path: str | Path, time_column: str | None = None, value_column: str | None = None,

@@ -24,13 +24,11 @@ code               floats[at:]
 
 :mod:`softflow.solve.wavecodes` writes these arrays from the waveform objects.
 
-The arithmetic is each class's ``_scalar``, operation for operation and in
-the same order (its comparisons included, so that a time exactly at a
-breakpoint takes the same side, and a nan the same branch), so the values are
-the same to the last bit; the one difference in kind is that a period's count
-is kept as a float (``floor`` of a float is an integer-valued float, which
-Python's ``math.floor`` returns as an int and converts back exactly before
-multiplying), so that no time overflows an integer.
+This is the waveforms' one law: the classes give their floats in this
+layout (``Waveform._layout``) and evaluate through :func:`wave_value` and
+:func:`wave_values`, in Python as in the compiled step loop. A period's count
+is kept as a float (``floor`` of a float is an integer-valued float), so that
+no time overflows an integer.
 """
 from __future__ import annotations
 
@@ -80,8 +78,14 @@ def _held(floats, at, t):
 
 @jit
 def period_base(t, start, period):
-    """softflow.curves.waveforms.period_base: the start of t's period, the
-    float that breakpoints_until gives (k kept as a float)."""
+    """The start [s] of the period of a periodic waveform that holds t >= start:
+    ``start + k period`` as :meth:`Waveform.breakpoints_until` computes it,
+    with k the one for which t lies in [start + k period, start + (k + 1)
+    period) in floating point (k kept as a float). ``floor((t - start) /
+    period)`` alone can be off by one at a period's edge, and a remainder
+    computed from it put a jump an ulp away from its declared breakpoint:
+    the step landing there saw the new value (or the next one's start the
+    old)."""
     k = np.floor((t - start) / period)
     base = start + k * period
     if t < base:
@@ -150,6 +154,14 @@ def wave_value(code, floats, at, t):
     if code == SQUARE:
         return _square(floats, at, t)
     return math.nan
+
+
+@jit
+def wave_values(code, floats, at, t, out):
+    """:func:`wave_value` at each time of t (1-D) into out: a waveform's values
+    at many times (``Waveform(t)`` for an array t)."""
+    for i in range(t.size):
+        out[i] = wave_value(code, floats, at, t[i])
 
 
 @jit

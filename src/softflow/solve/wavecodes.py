@@ -33,30 +33,21 @@ if TYPE_CHECKING:
 Described = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
+#: the waveform classes whose law softflow.laws.waves states (exactly these:
+#: a subclass may compute otherwise)
+_COVERED = (wf.Constant, wf.Step, wf.Ramp, wf.PiecewiseLinear, wf.PiecewiseConstant,
+            wf.Trapezoid, wf.Sine, wf.Square)
+
+
 def _floats(w: Any) -> tuple[int, list[float]] | None:
     """(kind code, floats) of the waveform w in the layout of
-    :mod:`softflow.laws.waves`, or None when its class is not covered
-    (exactly one of the classes: a subclass may compute otherwise)."""
-    waves = law_module("waves")
-    kind = type(w)
-    if kind is wf.Constant:
-        return waves.CONSTANT, [w.value]
-    if kind is wf.Step:
-        return waves.STEP, [w.time, w.before, w.after]
-    if kind is wf.Ramp:
-        return waves.RAMP, [w.t0, w.t1, w.v0, w.v1, w._slope]
-    if kind is wf.PiecewiseLinear or kind is wf.PiecewiseConstant:
-        code = waves.LINEAR if kind is wf.PiecewiseLinear else waves.HELD
-        return code, [float(len(w._t)), *w._t, *w._v]
-    if kind is wf.Trapezoid:
-        period = 0.0 if w.period is None else w.period
-        return waves.TRAPEZOID, [w.low, w.high, w.rise, w.fall, w.start, period,
-                                 w._t_fall, *w._edges]
-    if kind is wf.Sine:
-        return waves.SINE, [w.offset, w.amplitude, w._omega, w.phase]
-    if kind is wf.Square:
-        return waves.SQUARE, [w.low, w.high, w.start, w.period, w._off]
-    return None
+    :mod:`softflow.laws.waves` (its ``_layout``), or None when its class is
+    not covered (exactly one of the classes: a subclass may compute
+    otherwise)."""
+    if type(w) not in _COVERED:
+        return None
+    kind, values = w._layout()
+    return int(getattr(law_module("waves"), kind)), values
 
 
 def _closure(func: Any) -> dict[str, Any]:
