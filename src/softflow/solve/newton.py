@@ -566,6 +566,7 @@ class Newton:
                 return out
         else:
             self._set_scale(x0)
+        hopeless = False     # the culprit finder said no step gets there (before_full)
         if last is None or not last.reason.startswith(("singular", "absolute pressure")):
             for stage in ("fresh", "full"):
                 self.fluid_error = None       # each stage reports its own fluid-range error
@@ -584,7 +585,8 @@ class Newton:
                         self._F_at_x0 = None        # (those factors are not x0's)
                 elif (not undamped and self.before_full is not None and last is not None
                       and self.before_full(last, x0, S, t, dt)):
-                    break       # no step gets there: the damped stage would only fail
+                    hopeless = True   # no step gets there: the damped stages would only fail
+                    break
                 elif last is not None and last.contracting:
                     # a contracting chord iteration got closer than x0: go on from
                     # there (thermal chain N = 1000, second step: 14 -> 10 iterations)
@@ -609,7 +611,7 @@ class Newton:
             out = self._full(x0, S, t, dt, positive=True)
             if out.converged and self._accept(out) is None:
                 return out
-        if (self.full_stage and self._E_rows.size == self._T_idx.size > 0
+        if (self.full_stage and self._E_rows.size == self._T_idx.size > 0 and not hopeless
                 and not last.reason.startswith("absolute pressure")):
             out = self._flows_first(x0, S, t, dt)
             if out is not None and out.converged and self._accept(out) is None:
