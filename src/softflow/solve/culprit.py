@@ -79,6 +79,7 @@ import numpy as np
 
 from ..fluids.base import FluidError
 from . import sourcenodes
+from .newton import Outcome
 from .settings import (
     FAR_BELOW,
     MODE_NAMES,
@@ -131,6 +132,7 @@ class Finder:
         self._start_nodes = None  # the consistent start's (_locals)
         self._fixed_rows = None   # found once (_fixed)
         self._hit = None          # (x of the point, Finding) hopeless found
+        self._start_refused = None  # (x, Unbalanced): a start node alone, unbalanced
         self._stall = None        # (t, reason, refused x, h, repeats) (stalled)
         self._retried = None      # the x of the point retry last tried from
         self._fails = (None, 0)   # (x of the point, failed solves from it) (hopeless)
@@ -361,6 +363,22 @@ class Finder:
             self._hit = (self._cache[0], found)
         return found is not None
 
+    def start_refusal(self, x):
+        """The consistent start's refusal (a failed Outcome, as
+        :func:`sourcenodes.balanced_start` gives it) where this finder already
+        found, from the initial values ``x`` (their values), a node without
+        volume that carries a flow source and that, alone, no pressure
+        balances; else None. Asked before the start searches the nodes itself
+        (the same search made twice was ~47 residual evaluations of a refused
+        start's ~110)."""
+        got = self._start_refused
+        if got is None or not np.array_equal(got[0], x):
+            return None
+        u = got[1]
+        loc = u.local
+        why = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge)
+        return Outcome(False, x.copy(), 0, why, loc.source_rows[0], unknown=loc.p)
+
     def unbalanced(self, t, t_new, x, S, asked=None):
         """The :class:`~softflow.solve.sourcenodes.Unbalanced` nodes at time
         t_new from the point (x, S) at t (of :meth:`_locals`, those whose
@@ -374,7 +392,9 @@ class Finder:
             # only the other supplies: each alone balances, together not)
             found = sourcenodes.unbalanced(asm, x, S, t, newton.atol, newton.stats,
                                            self._locals(x, S, t, start=True))
-            if not found:
+            if found:
+                self._start_refused = (x, found[0])
+            else:
                 self._locals(x, S, t)
                 regions = [loc for loc in self._local_nodes if len(loc.inside) > 1]
                 if regions:

@@ -563,8 +563,14 @@ class Integrator:
                 # pressure far from the initial one: each such node balanced
                 # alone first (softflow.solve.sourcenodes), or the run refused
                 # where no pressure up to the cap balances it
-                start, refusal = sourcenodes.balanced_start(
-                    asm, asm.x0, asm.S0, newton.atol, self.stats)
+                # (refused already where the culprit finder, asked before
+                # the continuation, found such a node alone: not searched twice)
+                refusal = (None if self.culprit is None
+                           else self.culprit.start_refusal(asm.x0))
+                start = None
+                if refusal is None:
+                    start, refusal = sourcenodes.balanced_start(
+                        asm, asm.x0, asm.S0, newton.atol, self.stats)
                 if refusal is not None:
                     raise StepFailure(0.0, 0.0, refusal)
                 if start is not None:

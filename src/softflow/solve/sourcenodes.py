@@ -582,12 +582,12 @@ def balanced_start(asm, x, S, atol, stats, locals_=None):
         if kind == "root":
             x, moved = bal.x, True
             continue
-        return None, Outcome(False, x, 0, _refusal(asm, loc, kind, p, bal.range_error),
+        return None, Outcome(False, x, 0, refusal(asm, loc, kind, p, bal.range_error),
                              loc.source_rows[0], unknown=loc.p)
     return (x if moved else None), None
 
 
-def _refusal(asm, loc, kind, p, edge):
+def refusal(asm, loc, kind, p, edge):
     """The reason a run is refused where node ``loc`` has no balancing
     pressure up to (``kind`` 'above') or down to ('below') ``p``; ``edge``:
     the FluidError past p, where a fluid's range ends there."""
