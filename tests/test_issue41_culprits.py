@@ -29,7 +29,7 @@ import pytest
 import softflow as sf
 from softflow.solve import culprit
 from softflow.solve.newton import Newton, Outcome
-from test_bad_input_catalogue import ringing_scene
+from test_bad_input_catalogue import inertial_start, ringing_scene
 
 W = sf.waveforms
 ATM = sf.pressure_atmospheric
@@ -269,12 +269,7 @@ def test_a_refused_start_comes_without_the_continuation():
     # a volume flow source pushing into an inertial tube at rest: refused at t
     # = 0 as before, without the 64 continuation solves first (1 160 residual
     # evaluations before)
-    s = sf.System()
-    s += sf.VolumeFlowSource("src", 1e-8, sf.air)
-    s += sf.Container("tank", sf.air, volume=1e-7, initial_pressure=5e4)
-    s += sf.CircularTube("tube", sf.air, length=0.005, diameter=2e-4, inertance=True)
-    s.connect("src", ("tube", "b"))
-    s.connect("tank", ("tube", "a"))
+    s = inertial_start()
     err = _error(s, duration=0.01, step=1e-3)
     assert "no consistent start at t = 0: VolumeFlowSource 'src' pushes more" in str(err)
     assert err.time == 0.0
@@ -295,12 +290,7 @@ def test_the_start_refuses_from_the_finders_search_in_the_same_words(monkeypatch
         calls.append(1)
         return search(*args, **kw)
     monkeypatch.setattr(sourcenodes, "balanced_start", spy)
-    s = sf.System()
-    s += sf.VolumeFlowSource("src", 1e-8, sf.air)
-    s += sf.Container("tank", sf.air, volume=1e-7, initial_pressure=5e4)
-    s += sf.CircularTube("tube", sf.air, length=0.005, diameter=2e-4, inertance=True)
-    s.connect("src", ("tube", "b"))
-    s.connect("tank", ("tube", "a"))
+    s = inertial_start()
     first = _error(s, duration=0.01, step=1e-3)
     assert calls == []
     monkeypatch.setattr(culprit.Finder, "start_refusal", lambda self, x: None)
