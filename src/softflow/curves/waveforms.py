@@ -19,6 +19,7 @@ the Simulation use the latter).
 """
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -96,15 +97,11 @@ def _time(value: Any, name: str, owner: str, *, positive: bool = False,
 # ---------------------------------------------------------------------------------------
 # base
 # ---------------------------------------------------------------------------------------
-_WAVES: list[Any] = []
-
-
+@functools.cache
 def _waves() -> Any:
     """softflow.laws.waves, imported at the first evaluation (not with this
     module: numba is imported where a law is first used)."""
-    if not _WAVES:
-        _WAVES.append(law_module("waves"))
-    return _WAVES[0]
+    return law_module("waves")
 
 
 class Waveform:

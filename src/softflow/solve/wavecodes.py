@@ -41,13 +41,13 @@ _COVERED = (wf.Constant, wf.Step, wf.Ramp, wf.PiecewiseLinear, wf.PiecewiseConst
 
 def _floats(w: Any) -> tuple[int, list[float]] | None:
     """(kind code, floats) of the waveform w in the layout of
-    :mod:`softflow.laws.waves` (its ``_layout``), or None when its class is
-    not covered (exactly one of the classes: a subclass may compute
-    otherwise)."""
+    :mod:`softflow.laws.waves` (the ones it evaluates with itself,
+    ``Waveform._coded``), or None when its class is not covered (exactly one
+    of the classes: a subclass may compute otherwise)."""
     if type(w) not in _COVERED:
         return None
-    kind, values = w._layout()
-    return int(getattr(law_module("waves"), kind)), values
+    code, floats = w._coded()
+    return code, floats.tolist()
 
 
 def _closure(func: Any) -> dict[str, Any]:
