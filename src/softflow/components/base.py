@@ -134,6 +134,11 @@ class LibraryComponent(Component):
     """
 
     vectorized = True
+    #: whether the component may impose a flow at its node whatever the
+    #: node's pressure (the flow sources): the solver's culprit finder looks
+    #: for nodes that no pressure balances only in networks with such a
+    #: component (user components, which do not say, count as such)
+    imposes_flow = False
     #: thermal model resolved by the Simulation (None: isothermal, the paper's model);
     #: see :mod:`softflow.solve.thermal`
     _thermal = None

@@ -258,6 +258,8 @@ class MassFlowSource(_Source):
         the temperature of the gas at its terminal); ignored when isothermal.
     """
 
+    imposes_flow = True
+
     jac_pattern: tuple = ((0, 1),)
 
     def __init__(self, label: str, massflow: Input, *,
@@ -307,6 +309,8 @@ class VolumeFlowSource(_Source):
         Temperature of the gas the source delivers in a thermal scene (default:
         the temperature of the gas at its terminal); ignored when isothermal.
     """
+
+    imposes_flow = True
 
     jac_pattern: tuple = ((0, 0), (0, 1))
 

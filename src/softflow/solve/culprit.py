@@ -99,7 +99,20 @@ STALL_REASONS = ("absolute pressure",)
 #: balancing pressures (:meth:`Finder.retry`): a root below vacuum, where
 #: Newton followed a closed valve's slope past the one the node has
 RETRY_REASONS = ("absolute pressure",)
+#: ... or a residual not finite where a trial point's pressure was <= 0 (a
+#: fluid's message: a watchdog step of the damped stage below vacuum)
+RETRY_NOT_FINITE = ("residual not finite", "not a positive absolute pressure")
 
+
+def _below_vacuum(reason):
+    """Whether a failed solve's ``reason`` says it went to an absolute
+    pressure <= 0 (:data:`RETRY_REASONS`, :data:`RETRY_NOT_FINITE`)."""
+    return reason.startswith(RETRY_REASONS) or (
+        reason.startswith(RETRY_NOT_FINITE[0]) and RETRY_NOT_FINITE[1] in reason)
+
+
+#: Finder._retried where the consistent start was solved again (start_retry)
+_START = object()
 
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
@@ -136,6 +149,7 @@ class Finder:
         self._stall = None        # (t, reason, refused x, h, repeats) (stalled)
         self._retried = None      # the x of the point retry last tried from
         self._fails = (None, 0)   # (x of the point, failed solves from it) (hopeless)
+        self._imposes = None      # whether a component may impose a flow (_may_impose_flow)
 
     # -- the last accepted point ----------------------------------------------------
     def point(self):
@@ -236,8 +250,9 @@ class Finder:
                                   and self._fails[0] is x)
         asked = self._concerned(x, S, t, t_new, out)
         c = self._cache
-        if c is not None and c[0] is x and (c[3] or not ranged) and asked <= c[4] and (
-                c[5] or not held) and (
+        start = t_new == t        # (where no inputs are asked: any reason alike)
+        if c is not None and c[0] is x and (c[3] or not ranged or start) and asked <= c[4] and (
+                c[5] or not held or start) and (
                 c[1] == t_new or (c[2] is None and t < t_new <= c[1])):
             # the same question, or a shorter step from the same point where
             # the longer one found nothing (inputs and demands are asked at
@@ -295,7 +310,7 @@ class Finder:
         the point's pressure."""
         at = self.point()
         if (at is None or c == 0.0 or self._retried is at[1]
-                or not out.reason.startswith(RETRY_REASONS)):
+                or not _below_vacuum(out.reason)):
             return out
         t0, x, S = at
         self._retried = x
@@ -321,28 +336,66 @@ class Finder:
         or None (on to the continuation)."""
         if self.hopeless(x0, S, t, dt, out):
             return out
-        if dt > 0.0:
-            again = self.retry(out, x0, S, t, dt)
-            if again.converged:
-                return again
-        return None
+        again = self.retry(out, x0, S, t, dt) if dt > 0.0 else self.start_retry(out, x0, S)
+        return again if again.converged else None
+
+    def start_retry(self, out, x0, S):
+        """The consistent start's failed solve ``out`` from ``x0``, once per
+        run: the converged Outcome of the start solved again with each node
+        without volume that carries a flow source, and the nodes without
+        volume beyond it, at the pressure that balances them
+        (:func:`sourcenodes.rebalanced` on the regions :meth:`hopeless` read
+        off, where it found each balanced at some pressure), else ``out``.
+        Before the continuation, which does not find such a root where it
+        lies beyond the balance's minimum: a volume flow source into a
+        junction behind a valve shut on a 2 bar container balances at 2 MPa,
+        but from 1 atm its balance falls as the pressure rises (the source's
+        flow, rho(p) Q, grows faster than the leak's), and Newton and the
+        continuation follow it down to vacuum (4 641 residual evaluations
+        before the run was refused)."""
+        regions = self._local_nodes
+        if self._retried is _START or not regions:
+            return out
+        self._retried = _START
+        newton = self.newton
+        try:
+            start = sourcenodes.rebalanced(self.asm, x0, S, 0.0, newton.atol, newton.stats,
+                                           regions)
+        except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
+            return out
+        if start is None:
+            return out
+        again = newton.solve(start, S, 0.0, 0.0)
+        return again if again.converged else out
 
     def before_full(self, out, x0, S, t, dt):
         """Newton's hook (``Newton.before_full``) where a solve's chord
         iterations diverged or converged on a pressure <= 0 (``out``) and its
         damped stage would follow (a restart's probe, a step near the
-        smallest): whether no step gets to time t, as
+        smallest, the consistent start): whether no step gets to time t, as
         :meth:`hopeless` asks, but before that stage, whose line searches
         failing on a flow source that no pressure balances were most of such
         a run's work (a pump behind a shut snapping valve: 112 of the 239
-        residual evaluations after its last step). Not at the consistent
-        start (dt = 0), whose chords fail from the initial values in most
-        runs: the nodes' analysis there (~0.2 ms of a run of ~2 ms at N = 8)
-        would be paid by runs that succeed; the start asks its own
-        (:func:`sourcenodes.balanced_start`) where its solve fails."""
-        if dt == 0.0:
+        residual evaluations after its last step; a flow source into an
+        inertial tube at rest, refused at the start: 74 of 82). At the
+        consistent start (dt = 0), whose chords fail from the initial values
+        in most runs, only where a component may impose a flow
+        (:meth:`_may_impose_flow`): the nodes' analysis (~0.1 ms at N = 8)
+        is not paid by networks that have none."""
+        if dt == 0.0 and not self._may_impose_flow():
             return False
         return self._found(x0, S, t, dt, out)
+
+    def _may_impose_flow(self):
+        """Whether a component of the network may impose a flow at its node
+        whatever its pressure (a flow source, a user component: its class's
+        ``imposes_flow``, True where the class does not say), found once:
+        without one, no node is left unbalanced at the start."""
+        got = self._imposes
+        if got is None:
+            got = self._imposes = any(getattr(g.comps[0], "imposes_flow", True)
+                                      for g in self.asm.groups if g.comps)
+        return got
 
     def hopeless(self, x0, S, t, dt, out=None):
         """Newton's hook (via :meth:`before_continuation`) and the integration
