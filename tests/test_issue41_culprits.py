@@ -294,6 +294,7 @@ def test_the_start_refuses_from_the_finders_search_in_the_same_words(monkeypatch
     first = _error(s, duration=0.01, step=1e-3)
     assert calls == []
     monkeypatch.setattr(culprit.Finder, "start_refusal", lambda self, x: None)
+    monkeypatch.setattr(culprit.Finder, "start_hopeless", lambda self, x: False)
     again = _error(s, duration=0.01, step=1e-3)
     assert calls == [1]
     assert str(again) == str(first)
@@ -582,7 +583,9 @@ def test_a_flow_source_past_its_table_is_asked_at_its_first_failed_step():
     # node's source; the finder asks the pump's node for the fluid error
     # its law raised (its group's labels), not only for the worst equation:
     # at the first failed step, not at the smallest (1 452 residual
-    # evaluations before, 14 rejected steps down to 3e-11 s)
+    # evaluations before, 14 rejected steps down to 3e-11 s), and before its
+    # damped stage (all the nodes asked where the chords fail: 215 -> 27);
+    # the pressure the search stops at is the table's edge (one trial)
     air = sf.air.with_level("table")
     s = sf.System()
     s += sf.PressureSource("src0", W.Sine(amplitude=5751.16, offset=107210.0,
@@ -597,9 +600,9 @@ def test_a_flow_source_past_its_table_is_asked_at_its_first_failed_step():
     s.connect("src2", ("e1", "a"))
     err = _error(s, duration=0.02, step=2e-3)
     assert err.component == "src2"
-    assert ("VolumeFlowSource 'src2' pushes 0.002314 kg/s into node(src2.a, e1.a), a node "
+    assert ("VolumeFlowSource 'src2' pushes 0.002316 kg/s into node(src2.a, e1.a), a node "
             "without volume, at t = 0.002 s") in str(err)
-    assert "where the fluid's range ends" in str(err)
+    assert "at any pressure up to 2e+07 Pa, where the fluid's range ends" in str(err)
     stats = err.result.stats
     assert stats["rejected_steps"] == 1
-    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 250
+    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50

@@ -41,7 +41,14 @@ LEVELS = ("ideal", "table", "eos")
 
 
 class FluidError(ValueError):
-    """Bad fluid input: unknown name, a state outside the valid range, a bad table file."""
+    """Bad fluid input: unknown name, a state outside the valid range, a bad table file.
+
+    A state outside a fluid's range says which edge it crossed: ``quantity``
+    ('pressure' or 'temperature') and ``limit`` (that edge, in Pa or K); both
+    None otherwise."""
+
+    quantity: str | None = None
+    limit: float | None = None
 
 
 class _FluidConstructor(type):

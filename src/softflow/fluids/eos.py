@@ -111,8 +111,11 @@ def check_state_range(owner: object, p: Array, T: Array, T_range: tuple[float, f
             ("temperature", "K", T_lo, T_hi, Tmin, Tmax, slack_T)):
         if vmin < lo - s_lo or vmax > hi + s_hi:
             bad = vmin if vmin < lo else vmax
-            raise FluidError(f"{name_of}: {name} {_distinct(bad, lo, hi)} {unit} is outside "
+            err = FluidError(f"{name_of}: {name} {_distinct(bad, lo, hi)} {unit} is outside "
                              f"the {what} range {lo:g} ... {hi:g} {unit}")
+            # the edge crossed, for a search that can stop there
+            err.quantity, err.limit = name, float(lo if vmin < lo - s_lo else hi)
+            raise err
         if not (np.isfinite(vmin) and np.isfinite(vmax)):
             raise FluidError(f"{name_of}: {name} is not finite")
 

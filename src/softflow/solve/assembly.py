@@ -301,6 +301,7 @@ def _fluid_failure(g, err):
     for the bad state (``component``: the label, where the group has one;
     ``components``: the labels of the group)."""
     out = FluidError(f"in {_group_name(g)}: {err}")
+    out.quantity, out.limit = err.quantity, err.limit
     out.component = g.comps[0].label if len(g.comps) == 1 else None
     out.components = frozenset(c.label for c in g.comps)
     return out
@@ -1589,6 +1590,7 @@ class Assembly:
                         g.update(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns), dt)
                     except FluidError:
                         named = FluidError(f"in {_group_name(g)}: {err}")
+                        named.quantity, named.limit = err.quantity, err.limit
                         named.component = g.comps[0].label
                         raise named from None
             raise

@@ -222,7 +222,7 @@ class Finder:
         return False
 
     # -- what no step gets past -------------------------------------------------------
-    def find(self, t_new, x=None, S=None, out=None):
+    def find(self, t_new, x=None, S=None, out=None, every=False):
         """The :class:`Finding` that no step from the last accepted point (or
         from the point (x, S) given: the consistent start's) gets past at time
         t_new, or None: a pressure an input sets outside its fluid's range
@@ -248,7 +248,7 @@ class Finder:
         # at a quarter of the step)
         held = reason is None or ("range" in reason and self._fails[1] >= 2
                                   and self._fails[0] is x)
-        asked = self._concerned(x, S, t, t_new, out)
+        asked = self._concerned(x, S, t, t_new, None if every else out)
         c = self._cache
         start = t_new == t        # (where no inputs are asked: any reason alike)
         if c is not None and c[0] is x and (c[3] or not ranged or start) and asked <= c[4] and (
@@ -382,9 +382,9 @@ class Finder:
         in most runs, only where a component may impose a flow
         (:meth:`_may_impose_flow`): the nodes' analysis (~0.1 ms at N = 8)
         is not paid by networks that have none."""
-        if dt == 0.0 and not self._may_impose_flow():
+        if not self._may_impose_flow():
             return False
-        return self._found(x0, S, t, dt, out)
+        return self._found(x0, S, t, dt, out, every=True)
 
     def _may_impose_flow(self):
         """Whether a component of the network may impose a flow at its node
@@ -409,12 +409,25 @@ class Finder:
             self._fails = (point, self._fails[1] + 1 if self._fails[0] is point else 1)
         return self._found(x0, S, t, dt, out)
 
-    def _found(self, x0, S, t, dt, out):
-        """:meth:`hopeless`'s answer, the finding kept for :meth:`explain`."""
-        found = self.find(t, x0, S, out) if dt == 0.0 else self.find(t, out=out)
+    def _found(self, x0, S, t, dt, out, every=False):
+        """:meth:`hopeless`'s answer, the finding kept for :meth:`explain`
+        (``every``: all the nodes' regions asked, not only those the failed
+        solve names: :meth:`before_full`)."""
+        found = (self.find(t, x0, S, out) if dt == 0.0
+                 else self.find(t, out=out, every=every))
         if found is not None:
             self._hit = (self._cache[0], found)
         return found is not None
+
+    def start_hopeless(self, x):
+        """Whether this finder found, from the initial values ``x`` (their
+        values), that no start gets past a node (or a region of nodes)
+        without volume that carries a flow source (:meth:`hopeless` at
+        dt = 0): the start's other tries (the nodes balanced alone, the dead
+        ends at their neighbours' pressures: ~170 residual evaluations of a
+        refused start's ~270) would not change that."""
+        hit = self._hit
+        return hit is not None and np.array_equal(hit[0], x)
 
     def start_refusal(self, x):
         """The consistent start's refusal (a failed Outcome, as

@@ -565,8 +565,13 @@ class Integrator:
                 # where no pressure up to the cap balances it
                 # (refused already where the culprit finder, asked before
                 # the continuation, found such a node alone: not searched twice)
+                # (and where it found a region of such nodes that no pressure
+                # balances: the run stops there, the finder's message its own)
                 refusal = (None if self.culprit is None
                            else self.culprit.start_refusal(asm.x0))
+                if (refusal is None and self.culprit is not None
+                        and self.culprit.start_hopeless(asm.x0)):
+                    raise StepFailure(0.0, 0.0, out)
                 start = None
                 if refusal is None:
                     start, refusal = sourcenodes.balanced_start(

@@ -514,6 +514,15 @@ def _search(bal, p0):
             return "below", p_prev
         p = min(p_prev * factor, PRESSURE_CAP) if up else max(p_prev / factor, PRESSURE_FLOOR)
         at = bal(p)
+        if at is None and edge is None and _edge_between(bal.range_error, p_prev, p):
+            # past a fluid's pressure range: its edge tried next (one trial
+            # where narrowing the march towards it took ~10)
+            edge = bal.range_error
+            p = edge.limit
+            at = bal(p)
+            if at is not None and not ((at[0] >= 0.0) if up else (at[0] <= 0.0)):
+                bal.range_error = edge
+                return ("above" if up else "below"), p
         if at is None:
             if bal.range_error is None:
                 return None
@@ -703,6 +712,14 @@ class Unbalanced:
     edge: object = None
 
 
+def _edge_between(err, a, b):
+    """Whether the FluidError ``err`` (or None) names a fluid's pressure edge
+    strictly between pressures a and b."""
+    limit = getattr(err, "limit", None)
+    return (limit is not None and getattr(err, "quantity", None) == "pressure"
+            and min(a, b) < limit < max(a, b))
+
+
 def _reach(bal, p0):
     """:func:`_search`'s answer without the root where there is one: ('root',
     None) where a pressure between p0 and the limit the balance points to
@@ -728,6 +745,15 @@ def _reach(bal, p0):
         return ("above" if up else "below"), (PRESSURE_CAP if up else PRESSURE_FLOOR)
     if bal.range_error is None:
         return None       # not solved there: no answer (a diagnosis only)
+    edge = bal.range_error
+    if _edge_between(edge, p0, PRESSURE_CAP if up else PRESSURE_FLOOR):
+        # past a fluid's pressure range: the sign at its edge
+        at = bal(edge.limit)
+        if at is not None:
+            if (at[0] >= 0.0) if up else (at[0] <= 0.0):
+                return "root", None
+            bal.range_error = edge
+            return ("above" if up else "below"), edge.limit
     # past a fluid's range: marching to its edge, each trial from the last
     found = _search(bal, p0)
     return None if found is None else (("root", None) if found[0] == "root" else found)
