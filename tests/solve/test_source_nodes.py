@@ -174,3 +174,46 @@ def test_table_air_is_refused_at_the_edge_of_its_range():
         _run(s, step=1e-3)
     assert info.value.component == "pump"
     assert info.value.result.stats["residual_evaluations"] <= 15
+
+
+# -- a region of nodes without volume balanced at the start (Finder.start_retry) -----------
+SHUT_Q, SHUT_G, SHUT_PV = 1e-8, 1e-14, 1.96e5   # [m^3/s], [m^3/(s Pa)], [Pa]
+
+
+def _shut_valve():
+    """(A random air network's, reduced): a volume flow source pushes 10 uL/s
+    through 1.8 m of tube into a junction behind a snapping valve shut on a
+    0.1 mL container at 1.96 bar; the shut valve leaks rho(p_mean) G dp."""
+    s = sf.System()
+    s += sf.VolumeFlowSource("pump", SHUT_Q, AIR)
+    s += sf.CircularTube("tube", AIR, length=1.8, diameter=1.5e-3)
+    s += sf.SnappingValve("valve", AIR, opening_pressure=3e6, closing_pressure=1e6,
+                          closed_conductance=SHUT_G, diameter=2e-3, initially_open=False)
+    s += sf.Container("tank", AIR, volume=1e-7, initial_pressure=SHUT_PV)
+    s.connect("pump", ("tube", "a"))
+    s.connect(("tube", "b"), ("valve", "a"))
+    s.connect(("valve", "b"), "tank")
+    return s
+
+
+def test_a_junction_behind_a_shut_valve_starts_at_its_balance():
+    # the pump's node and the junction balance together (the tube between
+    # them passes the flow at a few Pa): rho(p) Q = rho((p + pv)/2) G (p - pv),
+    # for an ideal gas p = Q/G + sqrt((Q/G)^2 + pv^2) = 2.019 MPa. From 1 atm
+    # the balance falls as p rises (the source's flow grows faster than the
+    # leak's up to Q/G), Newton and the continuation went to vacuum and the
+    # run was refused after 4 641 residual evaluations; the start solved
+    # again from the region balanced gets there
+    res = _run(_shut_valve(), step=1e-3)
+    exact = SHUT_Q / SHUT_G + np.hypot(SHUT_Q / SHUT_G, SHUT_PV)
+    assert res.get("valve", "pressure_a")[0] == pytest.approx(exact, rel=1e-5)
+    assert res.stats["residual_evaluations"] <= 200
+
+
+def test_without_the_region_retry_that_start_fails(monkeypatch):
+    # the retry is what solves it: the nodes alone (the junction held at
+    # 1 atm) balance the pump's node near 1 atm, not at 2 MPa
+    from softflow.solve import culprit
+    monkeypatch.setattr(culprit.Finder, "start_retry", lambda self, out, x0, S: out)
+    with pytest.raises(sf.SimulationError, match="absolute pressure"):
+        _run(_shut_valve(), step=1e-3)
