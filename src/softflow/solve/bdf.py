@@ -533,6 +533,7 @@ class BDF(Integrator):
 
         def stretch(t, x, S):
             if ((self._restart_due and self._forced_restart) or self._empty_tries
+                    or self._approached
                     or (self._k < 1 and not self._restart_due)):
                 return None
             t1, x1, S1 = steps.run(t, x, S)[1:4]

@@ -37,8 +37,10 @@ at its limit), so the stepper first retries it shortened to end just short
 of the crossing (:data:`EMPTY_PAST` of it; the crossing from a secant of the
 state between the step's ends, as BDF places a mode switch; up to
 :data:`EMPTY_TRIES` times, then by quarters). The state truly reaches its
-limit where the step right after such a located one goes past it again, or
-the smallest step does: the run stops there with
+limit where the step right after such a located one goes past it again (that
+step ends :data:`EMPTY_AHEAD` times its distance to the estimated crossing
+past its start: a short solve, where the next step of the grid or the
+controller failed Newton near the emptied volume), or the smallest step does: the run stops there with
 :class:`softflow.solve.validity.EmptiedError` (Simulation.run: a
 SimulationError naming the component and the time of the crossing, status
 'failed', the result up to the located step, just short of it). A linear
@@ -64,6 +66,7 @@ from .newton import StepLimitError
 from .progress import SILENT
 from .settings import (
     EMPTY_ATOL_FIXED,
+    EMPTY_AHEAD,
     EMPTY_PAST,
     EMPTY_SLACK_ATOL,
     EMPTY_SLACK_SHARE,
@@ -294,6 +297,7 @@ class Integrator:
         # tries in a row at locating where a volume empties; whether the last
         # step taken was one (it ended just short of the crossing)
         self._empty_tries, self._approached = 0, False
+        self._cross_at = math.inf    # a located crossing's time (_emptied)
         # the usual steps in the compiled loop, where the stepper has one
         # (BDF: softflow.solve.steploop); each pass it hands back is the
         # stepper's own in Python
@@ -365,6 +369,12 @@ class Integrator:
             stats.steps += 1
             stats.residuals_at_last_step = stats.residual_evaluations
             x, S, t = take(t, x, S, x_new, psi, c, S_new, t_new)
+            if self._approached:
+                # just short of a located crossing: the next step ends a
+                # little past it (EMPTY_AHEAD), where the watch stops the run
+                ahead = EMPTY_AHEAD * (self._cross_at - t)
+                if 0.0 < ahead < self._h:
+                    self._shrink(max(ahead, self.step_min) / self._h)
             tick(t)
             if begin is not None:
                 begin(x, S)
@@ -418,6 +428,7 @@ class Integrator:
         if self._approached or h <= self.step_min * 1.0000001:
             raise self._emptied_error(j, t, t + th * h, x_new, S_new)
         self.progress.rejected(t_new, h, "emptied")
+        self._cross_at = t + th * h          # (linear: where the next step aims)
         tries = self._empty_tries = self._empty_tries + 1
         factor = th * (1.0 - EMPTY_PAST) if tries <= EMPTY_TRIES else 0.25
         self._shrink(max(factor, self.step_min / h))

@@ -96,6 +96,12 @@ EMPTY_ATOL_FIXED = 1e-12
 #: a step retried to locate where a volume empties ends this fraction of the
 #: located crossing short of it; EMPTY_TRIES such placements, then quarters
 EMPTY_PAST, EMPTY_TRIES = 1e-3, 4
+#: the step after one that ended just short of a located crossing ends this
+#: many times its distance to the crossing (linear estimate) past its start:
+#: past the crossing, where the run stops, in a step whose solve is short
+#: (the grid's next step from there failed Newton twice in the random
+#: networks, 80-170 residual evaluations before the stop)
+EMPTY_AHEAD = 4.0
 
 # -- Recorded points (softflow.solve.simulation) ----------------------------------------
 #: Largest ``refine=`` (points recorded per adaptive step).
