@@ -635,3 +635,33 @@ def test_a_flow_source_past_its_table_is_asked_at_its_first_failed_step():
     stats = err.result.stats
     assert stats["rejected_steps"] == 1
     assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50
+
+
+def test_a_pump_into_rigid_chambers_of_liquid_is_stopped_at_its_first_step():
+    # (a random water network's, reduced): a pump steps up into a rigid chamber
+    # of table water joined by a thin tube to another, behind an orifice. A
+    # rigid chamber of liquid admits no flow (mdot = 0: no volume at its node),
+    # so the pump's flow must pass the thin tube and the orifice: 6.2 mL/s
+    # needs more than table water's 20 MPa. The region's second chamber has a
+    # mass state its equation does not read: not a moving component (an
+    # inertial tube's), so the region is asked after the start (the run went
+    # on down to a step of 3e-11 s: 654 residual evaluations after its last
+    # step, a non-finite residual its message)
+    water = sf.water.with_level("table")
+    s = sf.System()
+    s += sf.PressureSource("src", ATM)
+    s += sf.Orifice("orifice", water, diameter=2e-4, Cd=0.3)
+    s += sf.Container("tank1", water, volume=1e-7)
+    s += sf.CircularTube("tube", water, length=1.5, diameter=2e-4)
+    s += sf.Container("tank2", water, volume=8.6e-7)
+    s += sf.VolumeFlowSource("pump", W.Step(time=1e-6, before=1e-8, after=6.2e-6), water)
+    s.connect("src", ("orifice", "a"))
+    s.connect(("orifice", "b"), "tank1", ("tube", "a"))
+    s.connect(("tube", "b"), "tank2", "pump")
+    err = _error(s, duration=0.01, step=5e-4)
+    assert ("VolumeFlowSource 'pump' pushes 0.006244 kg/s into node(tube.b, tank2.a, pump.a), "
+            "a node without volume (as is node(orifice.b, tank1.a, tube.a) behind it)") in str(err)
+    assert "up to 2e+07 Pa, where the fluid's range ends" in str(err)
+    stats = err.result.stats
+    assert stats["steps"] == 1
+    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50

@@ -310,6 +310,7 @@ def local_nodes(asm, x, S, t=0.0, region=False):
     if not np.isfinite(F).all():
         return []
     J = _Jacobian(asm)
+    F = np.array(F, dtype=float)
     top = _topology(asm)
     inst, node_of_col = top.inst, top.node_of_col
     rows_of, own_of, across_of = top.rows_of, top.own_of, top.across_of
@@ -338,6 +339,7 @@ def local_nodes(asm, x, S, t=0.0, region=False):
 
     node_of_flow = top.node_of_flow
     found = []
+    state_rows = None         # the rows that read a continuous state (_state_rows)
     for node, srcs in sources.items():
         p, row = int(p_of[node]), int(m_of[node])
         if p < 0 or row < 0:
@@ -389,16 +391,36 @@ def local_nodes(asm, x, S, t=0.0, region=False):
             if at <= inside:
                 continue          # wholly inside: passes nothing out of it
             members.append((k, [c for c in own_of(k) if node_of_flow.get(c, -1) in inside]))
-        dynamic = any(inst[k][0].ns and not asm.s_discrete[
+        # an inertial tube inside: its equation ties its flow to its state,
+        # which moves within any step (a rigid chamber of liquid, whose mass
+        # state its equation, mdot = 0, does not read, is no such component)
+        moving = [k for k in comps - set(srcs) if inst[k][0].ns and not asm.s_discrete[
             inst[k][0].s0 + inst[k][1] * inst[k][0].ns:
-            inst[k][0].s0 + (inst[k][1] + 1) * inst[k][0].ns].all()
-            for k in comps - set(srcs))
+            inst[k][0].s0 + (inst[k][1] + 1) * inst[k][0].ns].all()]
+        if moving and state_rows is None:
+            state_rows = _state_rows(asm, x, S, t, F)
+        dynamic = any(state_rows[rows_of(k)].any() for k in moving)
         found.append(Local(node, p, row, rows, cols,
                            [inst[k][0].comps[inst[k][1]] for k in srcs],
                            [rows_of(k)[0] for k in srcs], np.array(ends, dtype=np.int64),
                            [(inst[k][0].comps[inst[k][1]], c) for k, c in members],
                            sorted(inside), dynamic))
     return found
+
+
+def _state_rows(asm, x, S, t, F):
+    """Which rows of the residual F at (x, S, t, dt = 0) read a continuous
+    state: those that change where every continuous state moves by a part
+    in 1e6 (one residual evaluation; all rows where it fails)."""
+    S = np.asarray(S, dtype=float)
+    moved = S.copy()
+    cont = ~np.asarray(asm.s_discrete, dtype=bool)
+    moved[cont] += 1e-6 * np.abs(S[cont]) + 1e-9
+    try:
+        F2 = asm.residual(x, moved, t, 0.0)
+    except (FluidError, ComponentError):
+        return np.ones(F.size, dtype=bool)
+    return np.asarray(F2, dtype=float) != F
 
 
 def _grow(node, comps, inside, owners_at, across_of, node_of_col, volumeless):
