@@ -451,11 +451,27 @@ class _Balance:
     def __init__(self, asm, local, x, S, atol, stats, t=0.0):
         self.asm, self.local, self.S, self.stats, self.t = asm, local, S, stats, t
         self.x = x.copy()
-        self.atol = np.broadcast_to(np.asarray(atol, dtype=float), (asm.n,))[local.cols]
+        # the node's other balances (energy) and across unknowns (its
+        # temperature) held: where its mass does not balance (every trial
+        # pressure but the root), its energy balance has no physical
+        # solution (a source delivering gas at the node's own temperature:
+        # (mdot_in - mdot_out) h(T) = 0), and the search would go where it
+        # takes the temperature (a pump into a check valve near cracking,
+        # adiabatic: 498 K, past air's table, at 111 kPa, and the start was
+        # refused where it balances at 111.8 kPa)
+        node = local.node
+        held_rows = {int(a[node]) for a in asm.node_rows.values() if a[node] >= 0} - {local.row}
+        held_cols = {int(a[node]) for a in asm.node_across.values() if a[node] >= 0} - {local.p}
+        rows, cols = local.rows, local.cols
+        if held_rows and held_cols and len(held_rows) == len(held_cols):
+            rows = rows[~np.isin(rows, list(held_rows))]
+            cols = cols[~np.isin(cols, list(held_cols))]
+        self.rows, self.cols = rows, cols
+        self.atol = np.broadcast_to(np.asarray(atol, dtype=float), (asm.n,))[cols]
         # absolute pressures and temperatures among the unknowns: each update
         # of theirs is clipped to [-50 %, +100 %] of their value (as Newton
         # clips node temperatures)
-        q = np.asarray(asm.x_quantity, dtype=object)[local.cols]
+        q = np.asarray(asm.x_quantity, dtype=object)[cols]
         self.positive = np.flatnonzero((q == "pressure") | (q == "temperature"))
 
     #: the last FluidError met at a trial pressure (a fluid's range left), or None
@@ -484,7 +500,7 @@ class _Balance:
         x = self.x.copy()
         x[loc.p] = p
         x[loc.ends] = p
-        rows, cols, atol, pos = loc.rows, loc.cols, self.atol, self.positive
+        rows, cols, atol, pos = self.rows, self.cols, self.atol, self.positive
         for _ in range(INNER_ITERATIONS):
             F, J = self._eval(x)
             if F is None:
