@@ -240,7 +240,9 @@ class Finder:
         else:
             t = t_new
         reason = None if out is None else out.reason
-        ranged = reason is None or reason.startswith(RANGE_REASONS)
+        # (``every``, before a damped stage: the inputs asked whatever the
+        # chords' reason, one residual evaluation)
+        ranged = reason is None or every or reason.startswith(RANGE_REASONS)
         # inputs held outside a fluid's range since before the point: asked
         # where no solve is given, or where a fluid's range failed a shorter
         # step from the point too (a first failure may be the step's: a square
@@ -377,12 +379,16 @@ class Finder:
         failing on a flow source that no pressure balances were most of such
         a run's work (a pump behind a shut snapping valve: 112 of the 239
         residual evaluations after its last step; a flow source into an
-        inertial tube at rest, refused at the start: 74 of 82). At the
-        consistent start (dt = 0), whose chords fail from the initial values
-        in most runs, only where a component may impose a flow
-        (:meth:`_may_impose_flow`): the nodes' analysis (~0.1 ms at N = 8)
-        is not paid by networks that have none."""
-        if not self._may_impose_flow():
+        inertial tube at rest, refused at the start: 74 of 82). Asked of
+        every flow source's region and, after the start, of the inputs
+        whatever the chords' reason (their worst equation need not lie in
+        the region, nor their reason name a fluid's range: a pressure source
+        stepping below water's table failed a 67-evaluation damped stage
+        first). At the consistent start (dt = 0), whose chords fail from the
+        initial values in most runs, only where a component may impose a
+        flow (:meth:`_may_impose_flow`): the nodes' analysis (~0.1 ms at
+        N = 8) is not paid by networks that have none."""
+        if dt == 0.0 and not self._may_impose_flow():
             return False
         return self._found(x0, S, t, dt, out, every=True)
 
