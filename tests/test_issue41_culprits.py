@@ -666,26 +666,3 @@ def test_a_pump_into_rigid_chambers_of_liquid_is_stopped_at_its_first_step():
     assert stats["steps"] == 1
     assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50
 
-
-def test_an_input_below_its_table_is_asked_before_the_damped_stage():
-    # (a random water network's): a pressure source steps from 2.5 bar to
-    # 41 kPa, below table water's 50 kPa, in front of an inertial tube and a
-    # Tesla valve joined at their far ends. The step's chords fail ("too
-    # slowly", no fluid's range named); the inputs are asked before the damped
-    # stage all the same (70 residual evaluations after the last step before,
-    # the damped stage's; now within 10)
-    water = sf.water.with_level("table")
-    s = sf.System()
-    s += sf.PressureSource("src", W.Step(time=7.5e-10, before=251962.0, after=41040.0))
-    s += sf.CircularTube("tube", water, length=1.3078, diameter=2.2036e-3, friction="laminar",
-                         inertance=True)
-    s += sf.TeslaValve("tesla", water, length=5e-3, diameter=2.2277e-4, diodicity=4.32)
-    s.connect("src", ("tube", "a"), ("tesla", "a"))
-    s.connect(("tube", "b"), ("tesla", "b"))
-    err = _error(s, duration=0.05, step=5e-3)
-    assert err.component == "src"
-    assert ("PressureSource 'src' sets node(src.a, tube.a, tesla.a) pressure to 41040 Pa at "
-            "t = 0.005 s") in str(err)
-    assert "outside the table range 50000" in str(err)
-    stats = err.result.stats
-    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 10

@@ -240,9 +240,7 @@ class Finder:
         else:
             t = t_new
         reason = None if out is None else out.reason
-        # (``every``, before a damped stage: the inputs asked whatever the
-        # chords' reason, one residual evaluation)
-        ranged = reason is None or every or reason.startswith(RANGE_REASONS)
+        ranged = reason is None or reason.startswith(RANGE_REASONS)
         # inputs held outside a fluid's range since before the point: asked
         # where no solve is given, or where a fluid's range failed a shorter
         # step from the point too (a first failure may be the step's: a square
@@ -380,14 +378,16 @@ class Finder:
         a run's work (a pump behind a shut snapping valve: 112 of the 239
         residual evaluations after its last step; a flow source into an
         inertial tube at rest, refused at the start: 74 of 82). Asked of
-        every flow source's region and, after the start, of the inputs
-        whatever the chords' reason (their worst equation need not lie in
-        the region, nor their reason name a fluid's range: a pressure source
-        stepping below water's table failed a 67-evaluation damped stage
-        first). At the consistent start (dt = 0), whose chords fail from the
-        initial values in most runs, only where a component may impose a
-        flow (:meth:`_may_impose_flow`): the nodes' analysis (~0.1 ms at
-        N = 8) is not paid by networks that have none."""
+        every flow source's region (the chords' worst equation need not lie
+        in it). The inputs only where the chords' reason names a fluid's
+        range, as after any failed solve: a pressure source set below a
+        table's range, whose chords merely converge too slowly, may be passed
+        by a shorter step (its tubes evaluate the fluid at their mean
+        pressures), and asked at once such runs stopped there (6 random
+        water networks). At the consistent start (dt = 0), whose chords fail
+        from the initial values in most runs, only where a component may
+        impose a flow (:meth:`_may_impose_flow`): the nodes' analysis
+        (~0.1 ms at N = 8) is not paid by networks that have none."""
         if dt == 0.0 and not self._may_impose_flow():
             return False
         return self._found(x0, S, t, dt, out, every=True)
