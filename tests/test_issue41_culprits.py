@@ -280,18 +280,24 @@ def test_a_refused_start_comes_without_the_continuation():
     assert err.result.stats["residual_evaluations"] <= 15
 
 
+def _spy(monkeypatch, module, name):
+    """A list that gets a 1 at each call of module.name (patched for the test)."""
+    calls = []
+    real = getattr(module, name)
+
+    def spy(*args, **kw):
+        calls.append(1)
+        return real(*args, **kw)
+    monkeypatch.setattr(module, name, spy)
+    return calls
+
+
 def test_a_network_without_flow_sources_is_not_searched_at_the_start(monkeypatch):
     # the start's chords fail from the initial values in most runs; the nodes'
     # analysis before the damped stage is made only where a component may
     # impose a flow (LibraryComponent.imposes_flow; user components may)
     from softflow.solve import sourcenodes
-    calls = []
-    found = sourcenodes.local_nodes
-
-    def spy(*args, **kw):
-        calls.append(1)
-        return found(*args, **kw)
-    monkeypatch.setattr(sourcenodes, "local_nodes", spy)
+    calls = _spy(monkeypatch, sourcenodes, "local_nodes")
     s = sf.System()
     s += sf.PressureSource("src", pressure=1.2e5)
     prev = "src"
@@ -312,13 +318,7 @@ def test_the_start_refuses_from_the_finders_search_in_the_same_words(monkeypatch
     # the start takes the refusal from the finder's search (it does not
     # search again), and says what its own search says
     from softflow.solve import culprit, sourcenodes
-    calls = []
-    search = sourcenodes.balanced_start
-
-    def spy(*args, **kw):
-        calls.append(1)
-        return search(*args, **kw)
-    monkeypatch.setattr(sourcenodes, "balanced_start", spy)
+    calls = _spy(monkeypatch, sourcenodes, "balanced_start")
     s = inertial_start()
     first = _error(s, duration=0.01, step=1e-3)
     assert calls == []
