@@ -1390,6 +1390,30 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
     return DONE, t
 
 
+@jit
+def start_solve(x, S, ist, fst, floor, stats, net, lin, sources, tol, scratch):
+    """The consistent point at t = 0 (dt = 0, the states S at their initial
+    values) solved from x as Newton solves it (:meth:`Newton.solve`: chord
+    iterations on fresh factors, then the damped full stage), in one call,
+    for :meth:`softflow.solve.integrator.Integrator._solve_initial` where no
+    component may impose a flow and no node has a temperature (the Python
+    solve's hooks and stages beyond these do not apply). Returns
+    :func:`_solve`'s code, the solution in x where SOLVED. ``scratch``: as
+    :func:`fixed_scratch`'s. Every array is borrowed, as in :func:`stretch`."""
+    x, S, ist, fst, floor, stats = borrowed((x, S, ist, fst, floor, stats))
+    net, lin, sources, tol, scratch = borrowed((net, lin, sources, tol, scratch))
+    atol_s, atol_x, x_off, q_id, natol, links, p_idx, T_idx, q_sel = tol
+    base, slot, codes, factors, starts, floats = sources
+    itol, work, S_new, Fe, none, x_pred = scratch
+    source_values(0.0, base, slot, codes, factors, starts, floats, net[7])
+    x_pred[:] = x
+    code = _solve(net, lin, x_pred, S, 0.0, 0.0, ist, fst, itol, floor, links, natol,
+                  x_off, q_id, p_idx, T_idx, work, none, stats, fst[NEWTON_RTOL], 0)
+    if code == SOLVED:
+        x[:] = work[0]
+    return code
+
+
 def fixed_scratch(n, ns):
     """The work arrays of :func:`fixed_stretch` (see :func:`stretch_scratch`)."""
     return (np.empty(n), np.empty((10, n)), np.empty(ns), np.empty(n), np.empty(0),

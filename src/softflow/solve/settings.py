@@ -296,6 +296,11 @@ SMALL_PIVOTS = 32
 #: (:func:`softflow.laws.stepper.stretch`) where it serves the run; False
 #: takes every step in Python (the benchmarks compare both).
 COMPILED_STEPS = True
+#: Whether the consistent start's solve from the initial values is made in
+#: one compiled call (:func:`softflow.laws.stepper.start_solve`) where that
+#: serves the run (:func:`softflow.solve.steploop.start_solver`; the Python
+#: solve where it does not converge); False: always the Python solve.
+COMPILED_START = True
 #: Accepted steps the compiled loop records before it hands them to the
 #: run's recorder (and reports progress); each call allocates nothing.
 COMPILED_RECORD_ROWS = 256

@@ -56,8 +56,6 @@ class _Bound:
         asm, newton = integ.asm, integ.newton
         n, ns = asm.n, asm.S0.size
         self.net, self.sources = net, sources
-        network = asm.residual.network
-        nr, nk = network.n_regimes, network.n_kinks
         # the Python Newton's dense factors are shared with the loop's (each
         # adopts the other's); a banded or sparse Jacobian is the loop's own
         sparse = _sparse(asm, newton)
@@ -85,28 +83,8 @@ class _Bound:
         else:
             flat, shape = asm.dense_index(), (n, n)
             info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
-        # (J, LU, pivots, scales; the pieces of the Jacobian's laws and at a
-        # solution; the kinks' sides at the point and at a step's end; the
-        # switching functions; the culprit finder's rows; the band: the
-        # layout of softflow.laws.stepper's lin)
-        self.lin = (net[0], np.ascontiguousarray(flat, dtype=np.int64),
-                    np.zeros(shape), np.zeros(lu_shape or shape), np.zeros(n, dtype=np.int64),
-                    np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
-                    np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0,
-                                                           dtype=np.int64),
-                    np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
-                    np.zeros(network.n_switching),
-                    np.zeros(n, dtype=np.int64), info, order, np.zeros((2, n)), sp_int,
-                    sp_float)
-        links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
-        self.tol = (np.ascontiguousarray(atol_s, dtype=float),
-                    np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
-                    np.ascontiguousarray(x_off, dtype=float),
-                    np.ascontiguousarray(asm.q_id, dtype=np.int64),
-                    np.ascontiguousarray(np.broadcast_to(newton.atol, (n,)), dtype=float),
-                    links, np.ascontiguousarray(newton._p_idx, dtype=np.int64),
-                    np.ascontiguousarray(newton._T_idx, dtype=np.int64),
-                    np.asarray(q_sel, dtype=np.int64))
+        self.lin = _lin_tuple(net, asm, flat, shape, lu_shape, info, order, sp_int, sp_float)
+        self.tol = _tol_tuple(integ, newton, atol_s, x_off, q_sel)
         watch = integ._watch
         self.watch = ((np.zeros(0, dtype=np.int64), np.zeros(0)) if watch is None else
                       (np.ascontiguousarray(watch.index, dtype=np.int64),
@@ -124,30 +102,8 @@ class _Bound:
         self.stats = np.zeros(st.STATS_SIZE, dtype=np.int64)
         self.floor = np.zeros(len(asm.q_names))
         self.breaks = np.asarray(integ.breaks, dtype=float)
-        from . import linalg
-        from . import newton as newton_mod
-        ist, fst = self.ist, self.fst
-        ist[st.MAX_REUSE], ist[st.MAX_ITER] = newton.max_reuse_iter, newton.max_iter
-        ist[st.MAX_AGE] = newton.max_age
-        ist[st.N_DISC] = int(np.count_nonzero(~np.isfinite(atol_s)))
-        ist[st.CLIP] = int(newton._T_idx.size > 0)
-        # where a failed solve with Newton's full stage goes on to its
-        # flows-first stage (thermal networks of up to 256 unknowns,
-        # Newton.solve and Newton._flows_first): a restart probe's failed
-        # solve at 1e-12 is the BDF's then, not loosened in the loop
-        ist[st.FLOWS_FIRST] = int(newton._E_rows.size == newton._T_idx.size > 0
-                                  and asm.n <= 256)
-        fst[st.NEWTON_RTOL] = newton.rtol
-        fst[st.RATIO_LO], fst[st.RATIO_HI] = newton.dt_ratio
-        lo, hi = newton._T_range if newton._T_range is not None else (-math.inf, math.inf)
-        fst[st.T_LO], fst[st.T_HI] = lo, hi
-        fst[st.PIVOT_RTOL], fst[st.CRDOWN] = linalg.PIVOT_RTOL, newton_mod.CRDOWN
-        fst[st.KEEP_CUT], fst[st.TIGHT_KEEP_CUT] = (newton_mod.FULL_KEEP_CUT,
-                                                    newton_mod.TIGHT_KEEP_CUT)
-        fst[st.TIGHT_RTOL] = newton_mod.TIGHT_RTOL
-        fst[st.FLIP_MATCH] = newton_mod.FLIP_MATCH
-        ist[st.WATCHDOG] = newton_mod.WATCHDOG
-        fst[st.DURATION] = integ.T
+        _newton_settings(st, self.ist, self.fst, newton, asm.n, atol_s)
+        self.fst[st.DURATION] = integ.T
 
     def _newton_in(self):
         """Newton's factors, contraction estimates and tolerance floor in."""
@@ -380,6 +336,67 @@ class CompiledSteps(_Bound):
         return int(self.ist[self.st.FAILS_HERE]) if self.bdf.culprit is not None else 0
 
 
+def _lin_tuple(net, asm, flat, shape, lu_shape, info, order, sp_int, sp_float):
+    """softflow.laws.stepper's ``lin`` for the network ``net`` (its arrays) of
+    ``asm``: the Jacobian's raw entries' places ``flat`` in J of ``shape``,
+    LU of ``lu_shape`` (or the same), the pivots and scales; the pieces of
+    the Jacobian's laws and at a solution; the kinks' sides at the point and
+    at a step's end; the switching functions; the culprit finder's rows; the
+    kind (``info``), band ``order`` and sparse arrays."""
+    network = asm.residual.network
+    n, nr, nk = asm.n, network.n_regimes, network.n_kinks
+    return (net[0], np.ascontiguousarray(flat, dtype=np.int64),
+            np.zeros(shape), np.zeros(lu_shape or shape), np.zeros(n, dtype=np.int64),
+            np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
+            np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
+            np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
+            np.zeros(network.n_switching),
+            np.zeros(n, dtype=np.int64), info, order, np.zeros((2, n)), sp_int, sp_float)
+
+
+def _tol_tuple(integ, newton, atol_s, x_off, q_sel):
+    """softflow.laws.stepper's ``tol``: the states' and unknowns' absolute
+    tolerances, the unknowns' offsets and quantities, Newton's tolerances
+    and magnitude links, the pressures and temperatures among the unknowns,
+    the unknowns integrated."""
+    asm = integ.asm
+    n = asm.n
+    links = np.array([[q, b, f] for q, b, f in newton._links], dtype=float).reshape(-1, 3)
+    return (np.ascontiguousarray(atol_s, dtype=float),
+            np.ascontiguousarray(getattr(integ, "atol_x", np.zeros(n)), dtype=float),
+            np.ascontiguousarray(x_off, dtype=float),
+            np.ascontiguousarray(asm.q_id, dtype=np.int64),
+            np.ascontiguousarray(np.broadcast_to(newton.atol, (n,)), dtype=float),
+            links, np.ascontiguousarray(newton._p_idx, dtype=np.int64),
+            np.ascontiguousarray(newton._T_idx, dtype=np.int64),
+            np.asarray(q_sel, dtype=np.int64))
+
+
+def _newton_settings(st, ist, fst, newton, n, atol_s):
+    """Newton's settings into the loop's ``ist`` and ``fst``."""
+    from . import linalg
+    from . import newton as newton_mod
+    ist[st.MAX_REUSE], ist[st.MAX_ITER] = newton.max_reuse_iter, newton.max_iter
+    ist[st.MAX_AGE] = newton.max_age
+    ist[st.N_DISC] = int(np.count_nonzero(~np.isfinite(atol_s)))
+    ist[st.CLIP] = int(newton._T_idx.size > 0)
+    # where a failed solve with Newton's full stage goes on to its
+    # flows-first stage (thermal networks of up to 256 unknowns,
+    # Newton.solve and Newton._flows_first): a restart probe's failed
+    # solve at 1e-12 is the BDF's then, not loosened in the loop
+    ist[st.FLOWS_FIRST] = int(newton._E_rows.size == newton._T_idx.size > 0 and n <= 256)
+    fst[st.NEWTON_RTOL] = newton.rtol
+    fst[st.RATIO_LO], fst[st.RATIO_HI] = newton.dt_ratio
+    lo, hi = newton._T_range if newton._T_range is not None else (-math.inf, math.inf)
+    fst[st.T_LO], fst[st.T_HI] = lo, hi
+    fst[st.PIVOT_RTOL], fst[st.CRDOWN] = linalg.PIVOT_RTOL, newton_mod.CRDOWN
+    fst[st.KEEP_CUT], fst[st.TIGHT_KEEP_CUT] = (newton_mod.FULL_KEEP_CUT,
+                                                newton_mod.TIGHT_KEEP_CUT)
+    fst[st.TIGHT_RTOL] = newton_mod.TIGHT_RTOL
+    fst[st.FLIP_MATCH] = newton_mod.FLIP_MATCH
+    ist[st.WATCHDOG] = newton_mod.WATCHDOG
+
+
 class FixedSteps(_Bound):
     """The compiled loop bound to one run of backward Euler at fixed steps
     (:class:`softflow.solve.integrator.ImplicitEuler`)."""
@@ -605,6 +622,73 @@ def compiled_steps(bdf):
     if served is None or bdf._n_blocks > 1:
         return None
     return CompiledSteps(bdf, *served)
+
+
+def start_solver(integ, lin0):
+    """The consistent start's solve from the initial values in one compiled
+    call (:func:`softflow.laws.stepper.start_solve`), for
+    :meth:`softflow.solve.integrator.Integrator._solve_initial`: a function
+    of x0 that returns the solution (a new array, the counters added to the
+    run's and Newton's contraction estimates set as its solve sets them),
+    or None where the compiled solve did not converge (the Python solve
+    takes the start then, from x0). None where it does not serve the run:
+    the compiled network's residual, a dense solver of the start's own
+    (``lin0``), no node temperatures (the thermal solve's flows-first
+    stage), no component that may impose a flow (the culprit finder's
+    hooks before the damped stage and the continuation), and
+    ``settings.COMPILED_START``."""
+    if not settings.COMPILED_START or lin0 is None:
+        return None
+    newton = integ.newton
+    culprit = getattr(integ, "culprit", None)
+    if newton._T_idx.size or (culprit is not None and culprit._may_impose_flow()):
+        return None
+    served = _served(integ)
+    if served is None:
+        return None
+    net, sources = served
+    asm = integ.asm
+    st = law_module("stepper")
+    n, ns = asm.n, asm.S0.size
+    info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
+    no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
+    lin = _lin_tuple(net, asm, asm.dense_index(), (n, n), None, info, order,
+                     (no_int,) * 12, (no_float,) * 7)
+    atol_s = np.zeros(ns)
+    if asm.has_discrete:
+        atol_s[asm.s_discrete] = math.inf
+    tol = _tol_tuple(integ, newton, atol_s, np.zeros(n), np.zeros(0, dtype=np.int64))
+    ist = np.zeros(st.IST_SIZE, dtype=np.int64)
+    fst = np.zeros(st.FST_SIZE)
+    _newton_settings(st, ist, fst, newton, n, atol_s)
+    ist[st.STALE] = 1                 # no factors to reuse: the fresh chord first
+    fst[st.DT_LO], fst[st.DT_HI] = 1.0, -1.0
+    fst[st.ETA], fst[st.CRATE] = newton.eta, newton._crate
+    fst[st.FIRST_MAX] = newton.first_max
+    ist[st.ONE_ITER] = int(newton._one_iteration)
+    floor = np.zeros(len(asm.q_names))
+    if newton.scale_floor is not None:
+        floor[:] = newton.scale_floor
+        ist[st.HAS_FLOOR] = 1
+    counters = np.zeros(st.STATS_SIZE, dtype=np.int64)
+    S0 = np.ascontiguousarray(asm.S0, dtype=float)
+
+    def solve(x0):
+        x = np.array(x0, dtype=float)
+        counters[:] = 0
+        code = st.start_solve(x, S0, ist, fst, floor, counters, net, lin, sources, tol,
+                              st.fixed_scratch(n, ns))
+        stats = integ.stats
+        stats.newton_iterations += int(counters[st.ITERATIONS])
+        stats.residual_evaluations += int(counters[st.RESIDUALS])
+        stats.jacobian_evaluations += int(counters[st.JACOBIANS])
+        stats.factorizations += int(counters[st.FACTORIZATIONS])
+        if code != st.SOLVED:
+            return None
+        newton.eta, newton._crate = float(fst[st.ETA]), float(fst[st.CRATE])
+        newton._one_iteration = bool(ist[st.ONE_ITER])
+        return x
+    return solve
 
 
 def fixed_steps(euler):
