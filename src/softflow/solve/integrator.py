@@ -40,7 +40,8 @@ state between the step's ends, as BDF places a mode switch; up to
 limit where the step right after such a located one goes past it again (that
 step ends :data:`EMPTY_AHEAD` times its distance to the estimated crossing
 past its start: a short solve, where the next step of the grid or the
-controller failed Newton near the emptied volume), or the smallest step does: the run stops there with
+controller failed Newton near the emptied volume), or the smallest step
+does: the run stops there with
 :class:`softflow.solve.validity.EmptiedError` (Simulation.run: a
 SimulationError naming the component and the time of the crossing, status
 'failed', the result up to the located step, just short of it). A linear

@@ -33,8 +33,15 @@ restart probes) and the rejection of a step whose solve fails otherwise
 (a quarter of the step, as BDF._newton_failed). Backward Euler's steps
 hand back every failed solve (its Newton's damped stages then take it).
 
+The consistent start's solve from the initial values is one compiled call
+too, :func:`softflow.laws.stepper.start_solve` through :func:`start_solver`,
+where the dense LU serves the run, no component may impose a flow and no
+node has a temperature (the Python solve takes it elsewhere, and where that
+call does not converge).
+
 :data:`softflow.solve.settings.COMPILED_STEPS` turns the loop off (the
-benchmarks compare both).
+benchmarks compare both), :data:`~softflow.solve.settings.COMPILED_START` the
+compiled start.
 """
 from __future__ import annotations
 
