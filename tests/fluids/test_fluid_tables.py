@@ -189,6 +189,23 @@ def test_out_of_range_raises_by_default_and_names_the_quantity():
         air.density(1e3)      # the isothermal (T=None) path checks too
 
 
+def test_out_of_range_errors_name_the_edge_they_crossed():
+    # (the solver's searches stop at that edge in one trial: FluidError.limit)
+    air = sf.air.with_level("table")
+    cases = [(lambda: air.density(np.array([1e5, 3e7])), "pressure", 2e7),
+             (lambda: air.density(1e3), "pressure", 1e4),
+             (lambda: air.viscosity(1e5, 500.0), "temperature", 423.15),
+             (lambda: air.viscosity(1e5, 200.0), "temperature", 233.15)]
+    for call, quantity, limit in cases:
+        with pytest.raises(sf.FluidError) as info:
+            call()
+        assert info.value.quantity == quantity
+        assert info.value.limit == pytest.approx(limit)
+    with pytest.raises(sf.FluidError) as info:
+        sf.Fluid("no such fluid")
+    assert info.value.quantity is None and info.value.limit is None
+
+
 @pytest.mark.parametrize("name", ["air", "nitrogen"])
 def test_gas_tables_reach_vacuum_actuator_pressures(name):
     """The gas tables start at 10 kPa abs (vacuum actuators run to about -0.9 bar
