@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from softflow.solve import culprit
 
 P0 = sf.pressure_atmospheric
 
@@ -374,9 +375,38 @@ def test_steep_check_valve_start_and_source_drop_are_reached_by_continuation(
     assert np.ptp(tank[after]) < 1.0                       # the valve holds it
     monkeypatch.setattr(Newton, "continuation", lambda self, *args: None)
     monkeypatch.setattr(Newton, "_off_piece", lambda self, x: False)
+    # (and without the junctions' balance, which gets past the drop too: the
+    # test below)
+    monkeypatch.setattr(culprit.Finder, "_junctions_balanced", lambda self, *args: None)
     failed = sf.Simulation(_check_valve_pulse(threshold, ideal), duration=1.0, **kw).run(
         raise_on_failure=False)
     assert failed.status == "failed" and failed.times[-1] == (0.0 if rtol is None else 0.5)
+
+
+def test_a_source_drop_in_front_of_a_check_valve_is_reached_from_the_junction_balanced(
+        monkeypatch):
+    """The pulse's drop at 0.5 s through the 60 kPa valve at rtol 1e-4, with
+    neither continuation nor Newton's check of the valve's pieces: the
+    node between the tube and the valve (no volume, no flow source) solved
+    alone for the pressure that balances its flows at the step's end, the
+    source at its new value (Finder._junctions_balanced), and the step
+    solved from there; the valve holds the tank as with continuation."""
+    from softflow.solve.newton import Newton
+    monkeypatch.setattr(Newton, "continuation", lambda self, *args: None)
+    monkeypatch.setattr(Newton, "_off_piece", lambda self, x: False)
+    calls = []
+    real = culprit.Finder._junctions_balanced
+
+    def spy(self, *args):
+        got = real(self, *args)
+        calls.append(got is not None)
+        return got
+    monkeypatch.setattr(culprit.Finder, "_junctions_balanced", spy)
+    res = sf.Simulation(_check_valve_pulse(60e3, False), duration=1.0, rtol=1e-4).run()
+    assert any(calls)
+    tank = res.get("tank", "pressure")
+    assert tank[-1] == pytest.approx(2e5 - 60e3, abs=1050.0)
+    assert np.ptp(tank[res.times > 0.6]) < 1.0
 
 
 @pytest.mark.parametrize("threshold, ideal, damped_enough",
@@ -589,6 +619,8 @@ def test_a_step_that_fails_at_the_smallest_step_is_solved_by_continuation(monkey
     monkeypatch.setattr(bdf, "FORCED_RESTART", False)
     monkeypatch.setattr(Newton, "_off_piece", lambda self, x: False)
     monkeypatch.setattr(Assembly, "has_kinks", property(lambda self: False))
+    # (the junctions' balance, tried first, solves this step too: off here)
+    monkeypatch.setattr(culprit.Finder, "_junctions_balanced", lambda self, *args: None)
     rescued = []
     orig = Integrator._rescue
 

@@ -290,7 +290,7 @@ def _topology(asm):
     return got
 
 
-def local_nodes(asm, x, S, t=0.0, region=False):
+def local_nodes(asm, x, S, t=0.0, region=False, junctions=False):
     """The nodes without volume that carry a flow source (module docstring),
     read off the Jacobian at (x, S) at time t (0: the start) and dt = 0, as
     :class:`Local` s; [] where the network has no pressures or no mass
@@ -322,6 +322,10 @@ def local_nodes(asm, x, S, t=0.0, region=False):
         own = own_of(k)
         if own and _regular(_block(J, rows_of(k), own)):
             sources.setdefault(node, []).append(k)
+    if junctions:
+        # the nodes without a flow source instead (each alone): junctions
+        # whose pressure only their components' flows set
+        sources = {j: [] for j in range(len(p_of)) if j not in sources}
     if not sources:
         return []
     t_rows, t_cols, owner = top.t_rows, top.t_cols, top.owner
