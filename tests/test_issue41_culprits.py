@@ -667,7 +667,6 @@ def test_a_pump_into_rigid_chambers_of_liquid_is_stopped_at_its_first_step():
     assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50
 
 
-
 def _tesla_network():
     """(The well-posed random air network that did not complete, seed 1 #59):
     a square wave of 1 atm / 2.69 bar behind a Tesla valve into a junction
