@@ -1589,8 +1589,7 @@ class Assembly:
                     try:
                         g.update(x[g.col], S[g.s0:g.s1].reshape(g.n, g.ns), dt)
                     except FluidError:
-                        named = FluidError(f"in {_group_name(g)}: {err}")
-                        named.quantity, named.limit = err.quantity, err.limit
+                        named = _fluid_failure(g, err)
                         named.component = g.comps[0].label
                         raise named from None
             raise

@@ -117,15 +117,13 @@ class _Bound:
         st, integ = self.st, self.integ
         newton, ist, fst = integ.newton, self.ist, self.fst
         ist[st.N_REC] = ist[st.N_DENSE] = ist[st.N_EVENTS] = ist[st.FACTORED] = 0
-        ist[st.ONE_ITER] = int(newton._one_iteration)
         ist[st.IB], fst[st.NEXT_BREAK] = integ._ib, integ._next
         stats = integ.stats
         # the steps left to max_steps, or before the progress bar's next look
         ist[st.BUDGET_LEFT] = min(integ.max_steps - stats.steps - stats.rejected_steps
                                   if integ.max_steps is not None else 1 << 62,
                                   integ.progress.steps_to_look())
-        fst[st.ETA], fst[st.CRATE] = newton.eta, newton._crate
-        fst[st.FIRST_MAX] = newton.first_max
+        _estimates_in(st, ist, fst, self.floor, newton)
         lin = newton.lin
         r_fact = self.lin[7]
         pieces = newton._jac_regime
@@ -146,10 +144,6 @@ class _Bound:
         else:
             ist[st.STALE] = 1
             fst[st.DT_LO], fst[st.DT_HI] = 1.0, -1.0
-        floor = newton.scale_floor
-        if floor is not None:
-            self.floor[:] = floor
-        ist[st.HAS_FLOOR] = int(floor is not None)
         self.stats[:] = 0
 
     def _newton_out(self):
@@ -164,10 +158,7 @@ class _Bound:
         stats.steps += int(s[st.STEPS])
         stats.rejected_steps += int(s[st.REJECTED])
         stats.error_test_failures += int(s[st.ERROR_FAILS])
-        stats.newton_iterations += int(s[st.ITERATIONS])
-        stats.residual_evaluations += int(s[st.RESIDUALS])
-        stats.jacobian_evaluations += int(s[st.JACOBIANS])
-        stats.factorizations += int(s[st.FACTORIZATIONS])
+        _solve_counts_out(st, s, stats)
         stats.newton_failures += int(s[st.NEWTON_FAILS])
         if s[st.STEPS]:
             integ._chatter = 0
@@ -379,6 +370,35 @@ def _tol_tuple(integ, newton, atol_s, x_off, q_sel):
             np.asarray(q_sel, dtype=np.int64))
 
 
+def _modes_only(asm):
+    """The states' absolute tolerances of a loop without an error test (the
+    fixed steps, the start): inf for the discrete states (modes), else 0."""
+    atol_s = np.zeros(asm.S0.size)
+    if asm.has_discrete:
+        atol_s[asm.s_discrete] = math.inf
+    return atol_s
+
+
+def _estimates_in(st, ist, fst, floor, newton):
+    """Newton's contraction estimates and its magnitudes' floor into the
+    loop's ``ist``, ``fst`` and ``floor``."""
+    ist[st.ONE_ITER] = int(newton._one_iteration)
+    fst[st.ETA], fst[st.CRATE] = newton.eta, newton._crate
+    fst[st.FIRST_MAX] = newton.first_max
+    if newton.scale_floor is not None:
+        floor[:] = newton.scale_floor
+    ist[st.HAS_FLOOR] = int(newton.scale_floor is not None)
+
+
+def _solve_counts_out(st, counters, stats):
+    """The loop's Newton counters (iterations, residuals, Jacobians,
+    factorizations) added to the run's ``stats``."""
+    stats.newton_iterations += int(counters[st.ITERATIONS])
+    stats.residual_evaluations += int(counters[st.RESIDUALS])
+    stats.jacobian_evaluations += int(counters[st.JACOBIANS])
+    stats.factorizations += int(counters[st.FACTORIZATIONS])
+
+
 def _newton_settings(st, ist, fst, newton, n, atol_s):
     """Newton's settings into the loop's ``ist`` and ``fst``."""
     from . import linalg
@@ -410,9 +430,7 @@ class FixedSteps(_Bound):
 
     def __init__(self, euler, net, sources):
         asm = euler.asm
-        atol_s = np.zeros(asm.S0.size)
-        if asm.has_discrete:
-            atol_s[asm.s_discrete] = math.inf
+        atol_s = _modes_only(asm)
         # (Newton's magnitudes of absolute values: backward Euler sets no gauge)
         super().__init__(euler, net, sources, atol_s, np.zeros(asm.n),
                          np.zeros(0, dtype=np.int64), 0)
@@ -661,22 +679,15 @@ def start_solver(integ, lin0):
     no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
     lin = _lin_tuple(net, asm, asm.dense_index(), (n, n), None, info, order,
                      (no_int,) * 12, (no_float,) * 7)
-    atol_s = np.zeros(ns)
-    if asm.has_discrete:
-        atol_s[asm.s_discrete] = math.inf
+    atol_s = _modes_only(asm)
     tol = _tol_tuple(integ, newton, atol_s, np.zeros(n), np.zeros(0, dtype=np.int64))
     ist = np.zeros(st.IST_SIZE, dtype=np.int64)
     fst = np.zeros(st.FST_SIZE)
     _newton_settings(st, ist, fst, newton, n, atol_s)
     ist[st.STALE] = 1                 # no factors to reuse: the fresh chord first
     fst[st.DT_LO], fst[st.DT_HI] = 1.0, -1.0
-    fst[st.ETA], fst[st.CRATE] = newton.eta, newton._crate
-    fst[st.FIRST_MAX] = newton.first_max
-    ist[st.ONE_ITER] = int(newton._one_iteration)
     floor = np.zeros(len(asm.q_names))
-    if newton.scale_floor is not None:
-        floor[:] = newton.scale_floor
-        ist[st.HAS_FLOOR] = 1
+    _estimates_in(st, ist, fst, floor, newton)
     counters = np.zeros(st.STATS_SIZE, dtype=np.int64)
     S0 = np.ascontiguousarray(asm.S0, dtype=float)
 
@@ -685,11 +696,7 @@ def start_solver(integ, lin0):
         counters[:] = 0
         code = st.start_solve(x, S0, ist, fst, floor, counters, net, lin, sources, tol,
                               st.fixed_scratch(n, ns))
-        stats = integ.stats
-        stats.newton_iterations += int(counters[st.ITERATIONS])
-        stats.residual_evaluations += int(counters[st.RESIDUALS])
-        stats.jacobian_evaluations += int(counters[st.JACOBIANS])
-        stats.factorizations += int(counters[st.FACTORIZATIONS])
+        _solve_counts_out(st, counters, integ.stats)
         if code != st.SOLVED:
             return None
         newton.eta, newton._crate = float(fst[st.ETA]), float(fst[st.CRATE])
