@@ -623,7 +623,16 @@ def _source_rows(culprit, rows, point=None):
 
 def _served(integ):
     """The compiled network's arrays and sources' description for the run of
-    ``integ``, or None where the loop does not serve it (module docstring)."""
+    ``integ``, or None where the loop does not serve it (module docstring);
+    found once a run (the start's solve and the steps ask alike)."""
+    got = integ.__dict__.get("_served_by_loop", False)
+    if got is False:
+        got = integ.__dict__["_served_by_loop"] = _find_served(integ)
+    return got
+
+
+def _find_served(integ):
+    """:func:`_served`'s answer, found."""
     if not settings.COMPILED_STEPS:
         return None
     asm, newton = integ.asm, integ.newton
