@@ -125,10 +125,9 @@ def main():
     # shared VM, where the serial loop (~9 s) varies ~10 %: 5 repeats
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-dask", action="store_true", help="skip phase 2 (Dask)")
     args = ap.parse_args()
     warnings.simplefilter("ignore", sf.ModelWarning)    # wide tubes pass Mach 0.3 at t = 0
-
-    from distributed import Client, LocalCluster
 
     diameters = np.linspace(0.5e-3, 2e-3, args.variants)
     variants = {"tube.diameter": diameters}
@@ -147,13 +146,36 @@ def main():
             lambda: sf.sweep(sim, variants, engine="processes", workers=args.workers, **end),
     }
     if importlib.util.find_spec("softflow.solve.batched") is not None:
-        ways["batched"] = lambda: sf.sweep(sim, variants, engine="batched", **end)
+        if importlib.util.find_spec("softflow.solve.variants") is not None:
+            from softflow.solve import settings
+
+            def vectorized():
+                # the same engine with its variants on the vectorized BDF
+                # (softflow.solve.clocks) instead of the compiled loop
+                settings.COMPILED_VARIANTS = False
+                try:
+                    return sf.sweep(sim, variants, engine="batched", **end)
+                finally:
+                    settings.COMPILED_VARIANTS = True
+            ways["batched (compiled loop, 2 threads)"] = (
+                lambda: sf.sweep(sim, variants, engine="batched", **end))
+            ways["batched (vectorized clocks)"] = vectorized
+        else:
+            ways["batched"] = lambda: sf.sweep(sim, variants, engine="batched", **end)
     else:
         print("batched: softflow.solve.batched is not in this tree\n")
     ends = {}
     print("phase 1: no Dask cluster in this process")
     walls, cpus = take_turns(ways, args.repeat, ends)
+    walls2, cpus2 = {}, {}
+    if not args.no_dask:
+        walls2, cpus2 = phase_dask(args, sim, variants, end, ways[serial], ends, serial)
+    table(args, walls, cpus, walls2, cpus2, serial, ends, diameters)
 
+
+def phase_dask(args, sim, variants, end, serial_way, ends, serial):
+    """Phase 2: the Dask engine timed in turns with a serial loop of its own."""
+    from distributed import Client, LocalCluster
     t0 = time.perf_counter()
     cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                            dashboard_address=None, silence_logs=logging.ERROR)
@@ -161,23 +183,29 @@ def main():
     print(f"\nphase 2: LocalCluster ({args.workers} worker processes) started in "
           f"{time.perf_counter() - t0:.1f} s (not counted), timed in turns with the serial loop")
     dask = f"dask LocalCluster ({args.workers} workers)"
-    beside = {serial + " (beside Dask)": ways[serial],
+    beside = {serial + " (beside Dask)": serial_way,
               dask: lambda: sf.sweep(sim, variants, engine="dask", client=client, **end)}
     walls2, cpus2 = take_turns(beside, args.repeat, ends)
     client.close()
     cluster.close()
+    return walls2, cpus2
 
+
+def table(args, walls, cpus, walls2, cpus2, serial, ends, diameters):
+    """The throughput table and the end pressures' errors."""
     print("\n| way | variants/s, wall (median) | range | ratio to serial | CPU ms per "
           "variant | variants/s on its cores alone (est.) | ratio |")
     print("|---|---|---|---|---|---|---|")
-    for table, reference in ((walls, serial), (walls2, serial + " (beside Dask)")):
-        cpu_of = cpus if table is walls else cpus2
-        base = statistics.median(table[reference])
+    for rows, reference in ((walls, serial), (walls2, serial + " (beside Dask)")):
+        if not rows:
+            continue
+        cpu_of = cpus if rows is walls else cpus2
+        base = statistics.median(rows[reference])
         cpu_base = statistics.median(cpu_of[reference])
-        for name, w in table.items():
+        for name, w in rows.items():
             rates = [args.variants / x for x in w]
             cpu = statistics.median(cpu_of[name])
-            cores = args.workers if ("workers" in name) else 1
+            cores = args.workers if ("workers" in name or "2 threads" in name) else 1
             print(f"| {name} | {args.variants / statistics.median(w):.1f} | "
                   f"{min(rates):.1f}-{max(rates):.1f} | {base / statistics.median(w):.2f}x | "
                   f"{1e3 * cpu / args.variants:.1f} | {cores * args.variants / cpu:.1f} | "

@@ -38,10 +38,17 @@ Engines
     one Result-like object per variant, in order, each with ``times``,
     ``status``, ``message``, ``warnings`` and ``get(label, name)``). Each
     variant meets the tolerance on its own: within the tolerance of, not
-    bitwise equal to, its serial run. Where :mod:`softflow.solve.clocks`
-    covers the scene (adaptive, library components; from 64 variants) each variant also keeps its own clock, taking the steps its own
-    run would take (``stats['clocks'] == 'own'``); other scenes share one
-    step sequence (``'shared'``, ``stats['shared_because']`` says why).
+    bitwise equal to, its serial run. Where the compiled step loop serves
+    the scene (adaptive, library components, no check valve or per-step
+    heat-transfer correlation: :mod:`softflow.solve.variants`), each
+    variant is its own run in that loop, taking exactly the steps its own
+    run takes, the variants over two threads (``stats['clocks'] == 'own'``,
+    ``stats['engine'] == 'compiled loop'``); elsewhere, where
+    :mod:`softflow.solve.clocks` covers the scene (adaptive, library
+    components; from 64 variants), each variant also keeps its own clock on
+    a BDF vectorized over the variants, taking about the steps its own run
+    would take; other scenes share one step sequence (``'shared'``,
+    ``stats['shared_because']`` says why).
     Batched beats processes on many variants of a small scene; on variants
     that are themselves large networks, or widely different ones on shared
     steps, processes (or Dask) may be faster. Its bar is the batched run's,
@@ -652,7 +659,7 @@ def _sample(results: Sequence[Any], outputs: list[str], times: Array) -> list[Ar
     NaN past the end of a run that stopped early), read from the run's own
     interpolant where it has one (:meth:`Result.at`; a batch that shares its
     steps interpolated once for all its variants), else linearly between its
-    points (variants on own clocks)."""
+    points (variants on the vectorized own clocks)."""
     from .solve.batched import VariantResult, sample
     from .solve.result import Result
     batches: dict[int, Any] = {}
@@ -660,13 +667,16 @@ def _sample(results: Sequence[Any], outputs: list[str], times: Array) -> list[Ar
     for r in results:
         if type(r) is VariantResult:
             held = r._result
-            if r._n is None and getattr(held, "_dense", None) is not None:
+            # a batch sharing its steps, or its variants each on the compiled
+            # loop (each its own interpolant, softflow.solve.variants)
+            if (getattr(held, "_dense", None) is not None
+                    and (r._n is None or held.stats.get("engine") == "compiled loop")):
                 if id(held) not in batches:
                     batches[id(held)] = held._at_times(times)
                 at = batches[id(held)]
                 twin = object.__new__(VariantResult)
                 twin.__dict__.update(r.__dict__)
-                twin._result, twin.times = at, at.times
+                twin._result, twin.times, twin._n = at, at.times, None
                 r = twin
         elif isinstance(r, Result) and getattr(r, "_dense", None) is not None:
             r = r._at_times(times)

@@ -6,13 +6,20 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from softflow.solve import clocks
+from softflow.solve import clocks, settings
 from softflow.solve.batched import _run_batched, build_batch
 from softflow.solve.bdf import _rescale_matrix
 from helpers import (UserChamber, chattering_valve_scene, crossing_time, filling_tank,
                      gauge_error, gauge_reference, snapping_valve_scene)
 
 P0 = sf.pressure_atmospheric
+
+
+@pytest.fixture(autouse=True)
+def _vectorized_clocks(monkeypatch):
+    """These tests are the vectorized BDF's: the compiled loop's variants
+    (softflow.solve.variants, tests/solve/test_variants.py) off."""
+    monkeypatch.setattr(settings, "COMPILED_VARIANTS", False)
 
 
 def scene(source=None, friction="Haaland"):

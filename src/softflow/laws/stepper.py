@@ -1514,3 +1514,152 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
         x[:] = x_new
         S[:] = S_new
     return DONE, t
+
+
+#: how a variant's run on :func:`variants` ended, beside the EXITS of the
+#: stretch that stopped it: its start's solve failed (whatever Newton's
+#: code), the records' room ran out (the variant is run again once the
+#: caller gave more)
+START_FAILED, NO_ROOM = -1, -2
+
+
+@jit
+def variants(j0, j1, given, first, net0, lin, tol, start_tol, rec, dense, events, w_index,
+             G, ERRC, scratch, start_scratch, work, out, pos, meta, totals):
+    """The variants j0 <= j < j1 of one scene, each its own run of the BDF on
+    its own clock: the consistent start solved from its initial values
+    (:func:`start_solve`, then solved again from its solution, fresh
+    factors at it, while that takes more than one iteration, up to three
+    times: the Python start's confirmation) and its steps by
+    :func:`stretch` to the end, one after the other, every variant from the
+    same first state of the loop (``first``). For the batched engine
+    (:mod:`softflow.solve.variants`, which makes the arguments; several
+    threads may each run a range of variants, each with work arrays of its
+    own: the loop holds no lock).
+
+    ``given``: the variants' own arrays, one row each (initial unknowns and
+    states, the network's floats and source values, the sources'
+    descriptions padded (base, slot, codes, factors, starts, floats) with
+    their number of signals, the watched volumes' floors, the breakpoints
+    padded and their number); ``first``: the
+    loop's ``ist`` and ``fst`` at a run's first stretch, the start's, Newton's
+    floor and the run's magnitudes; ``net0``: the network's arrays (its
+    floats and source values replaced by each variant's); ``lin``, ``tol``,
+    ``rec``, ``dense``, ``events``, ``G``, ``ERRC``, ``scratch``
+    as :func:`stretch` takes them (``start_tol`` and ``start_scratch`` for
+    the start's solve), ``w_index`` the watched states; ``work``: the
+    point, difference table, quadratures and state arrays the runs work in.
+
+    Each variant's points (its start's included) go to ``out`` (t, x, S,
+    Q rows, and each point's step, order and first row of its differences
+    in the last of ``out``, the dense output's entries) from row ``pos[0]``
+    on (the differences from row ``pos[1]``); ``meta`` receives per variant its first
+    row, its number of points, how it ended (DONE, another of the EXITS,
+    :data:`START_FAILED`), its accepted and rejected steps; ``totals`` the
+    counters of all. Returns the next variant to run: j1, or the variant
+    whose points did not fit in ``out`` (its row count is then NO_ROOM and
+    it is run again from its start when called again)."""
+    X0, S00, FPAR, U, BASE, SLOT, CODES, FACTORS, STARTS, FLOATS, M, WFLOOR, BREAKS, NB = given
+    ist0, fst0, sist0, sfst0, floor0, qmax0 = first
+    x, S, D, Q, ist, fst, sist, sfst, floor, qmax_run, stats, counters, u = work
+    out_t, out_x, out_s, out_q, out_h, out_k, out_off, out_D = out
+    v_first, v_count, v_code, v_steps, v_rejected = meta
+    rec_t, rec_x, rec_s, rec_q, x_index, s_index = rec
+    d_t, d_h, d_k, d_row, d_D, d_cols = dense
+    cap, d_cap = out_t.size, out_D.shape[0]
+    for j in range(j0, j1):
+        net = (net0[0], net0[1], net0[2], net0[3], net0[4], net0[5], FPAR[j], u)
+        m = M[j]
+        sources = (BASE[j], SLOT[j], CODES[j][:m], FACTORS[j][:m], STARTS[j][:m], FLOATS[j])
+        watch = (w_index, WFLOOR[j])
+        breaks = BREAKS[j][:NB[j]]
+        start, d_start = pos[0], pos[1]
+        v_first[j], v_count[j], v_steps[j], v_rejected[j] = start, 0, 0, 0
+        # the consistent start
+        x[:] = X0[j]
+        S[:] = S00[j]
+        sist[:] = sist0
+        sfst[:] = sfst0
+        floor[:] = floor0
+        counters[:] = 0
+        code = start_solve(x, S, sist, sfst, floor, counters, net, lin, sources, start_tol,
+                           start_scratch)
+        tries = 0
+        while code == SOLVED and tries < 3:
+            done_before = counters[ITERATIONS]
+            sist[STALE] = 1
+            sfst[DT_LO], sfst[DT_HI] = 1.0, -1.0
+            code = start_solve(x, S, sist, sfst, floor, counters, net, lin, sources, start_tol,
+                               start_scratch)
+            tries += 1
+            if counters[ITERATIONS] - done_before <= 1:
+                break
+        for c in range(counters.size):
+            totals[c] += counters[c]
+        if code != SOLVED:
+            v_code[j] = START_FAILED
+            continue
+        if start >= cap:
+            v_count[j] = NO_ROOM
+            return j
+        out_t[start] = 0.0
+        out_x[start, :] = x
+        out_s[start, :] = S
+        out_q[start, :] = 0.0
+        out_h[start], out_k[start], out_off[start] = 0.0, 0, d_start
+        row, d_row_ = start + 1, d_start
+        # the steps, from the loop's first state with the start's estimates
+        ist[:] = ist0
+        fst[:] = fst0
+        ist[IB] = 0
+        fst[NEXT_BREAK] = breaks[0] if breaks.size else math.inf
+        ist[ONE_ITER] = sist[ONE_ITER]
+        fst[ETA], fst[CRATE] = sfst[ETA], sfst[CRATE]
+        floor[:] = floor0
+        qmax_run[:] = qmax0
+        D[:, :] = 0.0
+        Q[:] = 0.0
+        stats[:] = 0
+        t = 0.0
+        used = 0
+        exit_ = DONE
+        room = True
+        while True:
+            exit_, t = stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats, net, lin,
+                               sources, tol, rec, dense, events, watch, breaks, G, ERRC,
+                               scratch)
+            taken = ist[N_REC]
+            if row + taken > cap or d_row_ + ist[N_DENSE] > d_cap:
+                room = False
+                break
+            dd = 0
+            for r in range(taken):
+                out_t[row + r] = rec_t[r]
+                for i in range(x_index.size):
+                    out_x[row + r, x_index[i]] = rec_x[r, i]
+                for i in range(s_index.size):
+                    out_s[row + r, s_index[i]] = rec_s[r, i]
+                out_q[row + r, :] = rec_q[r, :]
+                # the step's polynomial (the dense output's entry)
+                k = d_k[r]
+                out_h[row + r], out_k[row + r], out_off[row + r] = d_h[r], k, d_row_
+                out_D[d_row_:d_row_ + k, :] = d_D[dd:dd + k, :]
+                dd += k
+                d_row_ += k
+            row += taken
+            ist[N_REC] = ist[N_DENSE] = ist[N_EVENTS] = 0
+            if exit_ != FULL:
+                break
+            now = stats[STEPS] + stats[REJECTED]
+            ist[BUDGET_LEFT] -= now - used
+            used = now
+        for c in range(stats.size):
+            totals[c] += stats[c]
+        if not room:
+            v_count[j] = NO_ROOM
+            return j
+        pos[0], pos[1] = row, d_row_
+        v_count[j] = row - start
+        v_code[j] = exit_
+        v_steps[j], v_rejected[j] = stats[STEPS], stats[REJECTED]
+    return j1

@@ -2,22 +2,28 @@
 
 ``sweep(..., engine='batched')`` (:mod:`softflow.sweep`) builds one System
 holding a relabelled copy of the scene per variant (``v<k>/<label>``), each
-with that variant's run-time parameters, and runs it once. The copies share
-no node, so the network is K independent sub-networks: the kernels evaluate
-each component class for all variants in one vectorized call, and Newton
-solves the block-diagonal system (one sparse factorization, or, on own
-clocks, each variant's small dense block).
+with that variant's run-time parameters, and compiles it once. The copies
+share no node, so the network is K independent sub-networks. In the
+compiled step loop each variant then runs on its own, on its copy's arrays
+taken out of the batch network's; elsewhere the batch runs as one network:
+the kernels evaluate each component class for all variants in one
+vectorized call, and Newton solves the block-diagonal system (one sparse
+factorization, or, on the vectorized clocks, each variant's small dense
+block).
 
-Each variant meets the tolerance on its own, and, where
-:mod:`softflow.solve.clocks` covers the scene (library components,
-snapping valves, hysteretic actuators and thermal models included, adaptive
-BDF) and the sweep has at least
-:data:`OWN_CLOCKS_MIN` variants, each variant keeps its own clock:
-its own time, step, order and error test, the batch advancing all of them
-together, so a stiff variant takes small steps without making the others
-take them, and each valve snaps on its own clock (``result.stats['clocks']
-== 'own'``). Other scenes (user components, fixed steps) share one step
-sequence (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
+Each variant meets the tolerance on its own, and, where the scene allows,
+keeps its own clock (``result.stats['clocks'] == 'own'``): its own time,
+step, order and error test, so a stiff variant takes small steps without
+making the others take them, and each valve snaps on its own clock. Two
+engines give own clocks: first each variant's own run of the BDF in the
+compiled step loop (:mod:`softflow.solve.variants`, ``stats['engine'] ==
+'compiled loop'``: exactly the steps the variant's own run takes, the
+variants over two threads), wherever that loop serves the scene, whatever
+the number of variants; else, from :data:`OWN_CLOCKS_MIN` variants, the
+BDF vectorized over the variants (:mod:`softflow.solve.clocks`, the
+batch advancing all of them together). Other scenes (user components,
+fixed steps, check valves) share one step sequence
+(``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
 the error test takes the largest of the sub-networks' own error norms, each
 unknown scaled by its quantity's magnitude in its own sub-network
 (:class:`softflow.solve.bdf.BDF`), so where one variant needs small steps
@@ -45,11 +51,12 @@ batches of 250, ~0.6 s in all): the four batch runs ~0.45 s, the checks,
 building and compiling the batches ~0.1 s. The shared step sequences take
 more steps than their variants would alone (340 against 4-57 per variant run
 serially, 173 for the 250 widest tubes whose own runs take 40-57), at
-~1.3 ms a step. On own clocks the same 1 000 variants run as one batch of
+~1.3 ms a step. On the vectorized clocks the same 1 000 variants run as one batch of
 71 passes (the most attempts any variant makes: its steps, its rejections
-and its restarts), each variant taking about its own run's steps, in ~0.3 s
-of ~0.4 s; the rest is checking, building and compiling the batch (~0.08 s),
-the validity checks on each variant's times (~0.03 s) and the results.
+and its restarts), each variant taking about its own run's steps; in the
+compiled loop each variant's run costs ~65 us of CPU, and the checks,
+building and compiling the batch, the validity checks and the results are
+most of the sweep (module :mod:`softflow.solve.variants`).
 """
 from __future__ import annotations
 
@@ -129,18 +136,15 @@ def sample(results, outputs, times):
         rest = [m for m, f in enumerate(found) if f is None]
         x_cols = np.array([found[m][1] for m in xs], dtype=np.int64).reshape(len(xs), len(ks))
         s_cols = np.array([found[m][1] for m in ss], dtype=np.int64).reshape(len(ss), len(ks))
+        if xs or ss:
+            _sample_batch(results, ks, values, xs, x_cols, ss, s_cols, times)
         for j, k in enumerate(ks):
             r = results[k]
             t = r.times
             n = len(t)
-            if not n:
+            if not n or not rest:
                 continue
-            cols = []
-            if xs:
-                cols += zip(xs, r._result.X[:n, x_cols[:, j]].T)
-            if ss:
-                cols += zip(ss, r._result.S[:n, s_cols[:, j]].T)
-            cols += ((m, r.get(split[m][0], split[m][2])) for m in rest)
+            cols = [(m, r.get(split[m][0], split[m][2])) for m in rest]
             if r.status == "success":
                 at, reached = times, slice(None)
             else:
@@ -150,6 +154,60 @@ def sample(results, outputs, times):
             for m, y in cols:
                 out[m, reached] = np.interp(at, t, y)
     return values
+
+
+def _sample_batch(results, ks, values, xs, x_cols, ss, s_cols, times):
+    """:func:`sample` of the variants ``ks`` of one batch's result, for the
+    outputs ``xs`` and ``ss`` (their columns in the batch's X and S, one per
+    variant), into ``values``: each variant's places among its points found
+    once for all its outputs, and each output interpolated for all the
+    variants in a few array operations, by ``np.interp``'s own formula (the
+    same numbers, bitwise: tested; 1 000 variants, 10 outputs ~70 -> ~15 ms).
+    A variant's points are the first of the batch's rows."""
+    first = results[ks[0]]._result
+    K, P = len(ks), times.size
+    lo = np.zeros((K, P), dtype=np.int64)
+    left = np.zeros((K, P), dtype=bool)        # at or before the first point
+    right = np.zeros((K, P), dtype=bool)       # at or past the last
+    last = np.zeros(K, dtype=np.int64)
+    reached = np.ones((K, P), dtype=bool)
+    for j, k in enumerate(ks):
+        r = results[k]
+        t = r.times
+        n = len(t)
+        if not n:
+            reached[j] = False
+            continue
+        last[j] = n - 1
+        at = np.searchsorted(t, times, side="right") - 1
+        left[j] = at < 0
+        right[j] = times >= t[-1]
+        lo[j] = np.clip(at, 0, max(n - 2, 0))
+        if r.status != "success":
+            reached[j] = times <= t[-1] * (1 + 1e-12)
+    var = np.arange(K)[:, None]
+    tt = np.empty((len(first.times), K))
+    for j, k in enumerate(ks):
+        t = results[k].times
+        tt[:len(t), j] = t
+    x0, x1 = tt[lo, var], tt[np.minimum(lo + 1, last[:, None]), var]
+    single = (last == 0)[:, None]
+    for ms, data, cols in ((xs, first.X, x_cols), (ss, first.S, s_cols)):
+        for i, m in enumerate(ms):
+            Y = data[:, cols[i]]
+            y0, y1 = Y[lo, var], Y[np.minimum(lo + 1, last[:, None]), var]
+            with np.errstate(all="ignore"):
+                slope = (y1 - y0) / (x1 - x0)
+                y = slope * (times[None, :] - x0) + y0
+                again = np.isnan(y)
+                if again.any():
+                    y2 = slope * (times[None, :] - x1) + y1
+                    y = np.where(again, np.where(np.isnan(y2) & (y0 == y1), y0, y2), y)
+            y = np.where(left | single, Y[0, :][:, None], y)
+            y = np.where(right, Y[last, np.arange(K)][:, None], y)
+            y = np.where(reached, y, np.nan)
+            for j, k in enumerate(ks):
+                values[k][m] = y[j]
 
 
 def _relabel(record, prefix):
@@ -410,17 +468,20 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
     run-time parameters, solved in batches of ``batch_size`` similar variants
     (module doc). ``prepared``: the variants already checked by
     :func:`prepare` (else they are checked here, all before any runs).
-    ``own_clocks``: each variant on its own clock where
-    :mod:`softflow.solve.clocks` covers the scene (True), never (False), or
-    where there are at least :data:`OWN_CLOCKS_MIN` variants (None)."""
-    from .clocks import reason_not
+    ``own_clocks``: each variant on its own clock where the compiled loop
+    (:mod:`softflow.solve.variants`) or :mod:`softflow.solve.clocks` covers
+    the scene (True), never (False), or (None) in the compiled loop
+    whatever the number of variants and on :mod:`~softflow.solve.clocks`
+    where there are at least :data:`OWN_CLOCKS_MIN` variants."""
+    from . import clocks
+    from . import variants as compiled
     if prepared is None:
         prepared = prepare(sim, variants)
     variants = prepared.variants
     built = prepared.built
     if own_clocks is None:
-        own_clocks = len(variants) >= OWN_CLOCKS_MIN
-    if own_clocks and reason_not(sim) is None:
+        own_clocks = True if len(variants) >= OWN_CLOCKS_MIN else "compiled"
+    if own_clocks and (compiled.reason_not(sim) is None or clocks.reason_not(sim) is None):
         batch_size = max(batch_size, OWN_CLOCKS_BATCH_SIZE)
     order = sorted(range(len(variants)), key=lambda k: _order_key(variants[k]))
     results = [None] * len(variants)
@@ -437,10 +498,19 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
     return results
 
 
-def _on_own_clocks(batch_sim, todo, progress=None):
-    """(the batch run with a clock per variant (:mod:`softflow.solve.clocks`),
-    None), or (None, why not) where it keeps the shared step sequence."""
-    from . import clocks
+def _on_own_clocks(sim, batch_sim, todo, progress=None, vectorized=True):
+    """(the batch run with a clock per variant, None), or (None, why not)
+    where it keeps the shared step sequence: each variant's run in the
+    compiled loop (:mod:`softflow.solve.variants`) where that serves the
+    scene, else, where ``vectorized``, the BDF vectorized over the variants
+    (:mod:`softflow.solve.clocks`)."""
+    from . import clocks, variants
+    try:
+        return variants.run(sim, batch_sim, len(todo), progress), None
+    except variants.Unsupported as err:
+        if not vectorized:
+            return None, (f"{err}; fewer than {OWN_CLOCKS_MIN} variants for the "
+                          "vectorized clocks")
     try:
         return clocks.run(batch_sim, len(todo), progress), None
     except clocks.Unsupported as err:
@@ -482,7 +552,8 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True, found=None)
             with warnings.catch_warnings():      # issued once per check (_summarize)
                 warnings.simplefilter("ignore", ModelWarning)
                 batch_sim = Simulation(batch, **kw)
-                own, why = (_on_own_clocks(batch_sim, todo, progress) if own_clocks else
+                own, why = (_on_own_clocks(sim, batch_sim, todo, progress,
+                                           vectorized=own_clocks is True) if own_clocks else
                             (None, f"fewer than {OWN_CLOCKS_MIN} variants"))
                 if own is not None:
                     res, counts, times, (steps, rejected), failed = own

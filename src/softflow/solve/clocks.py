@@ -66,6 +66,7 @@ from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import CRDOWN, Newton, Stats, gauge_offsets
+from .variants import Layout, Unsupported as _Unsupported
 
 #: Newton on the batch: chord iterations, at most NEWTON_MAX on fresh factors.
 #: Dense blocks get fresh factors at every pass: one Jacobian evaluation of the
@@ -105,79 +106,8 @@ NEWTON_MAX_AGE = 50
 REPLANS_MAX = 3
 
 
-class Unsupported(Exception):
+class Unsupported(_Unsupported):
     """The batch cannot run on own clocks (see :func:`reason_not`)."""
-
-
-class Layout:
-    """Where each variant's unknowns, states and rows are in the batch's vectors:
-    ``xperm`` orders the unknowns variant by variant (``x[xperm].reshape(K, nx)``
-    is variant-major, each row in the same order as every other), likewise
-    ``sperm`` the states and ``rperm`` the residual rows; ``inst`` maps each
-    group to its instances' variants."""
-
-    def __init__(self, asm, K):
-        self.K = K
-        n, ns = asm.n, len(asm.S0)
-        x_var = np.full(n, -1, dtype=np.int64)
-        s_var = np.full(ns, -1, dtype=np.int64)
-        r_var = np.full(n, -1, dtype=np.int64)
-        self.inst = {}
-        for g in asm.groups:
-            v = np.array([_variant_of(c.label) for c in g.comps], dtype=object)
-            if any(e is None for e in v):
-                raise Unsupported("a component outside the variants' copies")
-            v = v.astype(np.int64)
-            self.inst[id(g)] = v
-            col = g.col.reshape(g.n, -1)
-            x_var[col] = v[:, None]
-            if g.ns:
-                s_var[g.s0:g.s1] = np.repeat(v, g.ns)
-            r_var[g.r0:g.r1] = np.repeat(v, (g.r1 - g.r0) // g.n)
-        nr = asm.n_node_rows
-        if nr:
-            r_var[asm.through_rows] = x_var[asm.through_cols]
-        if (x_var < 0).any() or (r_var < 0).any() or (ns and (s_var < 0).any()):
-            raise Unsupported("unknowns or equations of no variant")
-        for name, var, size in (("unknowns", x_var, n), ("states", s_var, ns),
-                                ("equations", r_var, n)):
-            if size % K or (np.bincount(var, minlength=K) != size // K).any():
-                raise Unsupported(f"the variants differ in their number of {name}")
-        self.xperm = np.argsort(x_var, kind="stable")
-        self.sperm = np.argsort(s_var, kind="stable")
-        self.rperm = np.argsort(r_var, kind="stable")
-        self.nx, self.ns = n // K, ns // K
-        # each unknown's (state's, equation's) variant and place among its own
-        nx = self.nx
-        self.x_var, self.s_var = x_var, s_var
-        self.x_local = _places(self.xperm, nx)
-        self.s_local = _places(self.sperm, self.ns)
-        r_local = _places(self.rperm, nx)
-        # each Jacobian entry's place in its variant's dense block (K, nx, nx)
-        rows, cols = asm.pattern_rows, asm.pattern_cols
-        if (r_var[rows] != x_var[cols]).any():
-            raise Unsupported("an equation of one variant on another's unknown")
-        self.block_pos = (r_var[rows] * nx + r_local[rows]) * nx + self.x_local[cols]
-        xq = np.asarray(asm.x_quantity, dtype=object)[self.xperm].reshape(K, self.nx)
-        sq = np.asarray(asm.s_quantity, dtype=object)[self.sperm].reshape(K, self.ns)
-        if (xq != xq[0]).any() or (sq != sq[0]).any():
-            raise Unsupported("the variants' unknowns are ordered differently")
-        self.x_quantity, self.s_quantity = list(xq[0]), list(sq[0])
-
-    def to_v(self, x):
-        """Batch vector of unknowns -> (K, nx)."""
-        return x[self.xperm].reshape(self.K, self.nx)
-
-    def s_to_v(self, S):
-        return S[self.sperm].reshape(self.K, self.ns)
-
-    def from_v(self, Xv, out):
-        out[self.xperm] = Xv.ravel()
-        return out
-
-    def s_from_v(self, Sv, out):
-        out[self.sperm] = Sv.ravel()
-        return out
 
 
 # -- per-variant reductions -------------------------------------------------------------
@@ -198,14 +128,6 @@ def _row_sum_squares(a):
 def _row_any(a):
     """Whether each row of the boolean ``a`` (K, m) has a True entry."""
     return np.ascontiguousarray(a.T).any(axis=0)
-
-
-def _places(perm, n_local):
-    """Each index's position within its variant's, given the variant-major
-    order ``perm`` of a vector whose variants hold ``n_local`` entries each."""
-    out = np.empty(perm.size, dtype=np.int64)
-    out[perm] = np.arange(perm.size) % max(n_local, 1)
-    return out
 
 
 def reason_not(sim):

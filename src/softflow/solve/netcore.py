@@ -285,6 +285,9 @@ class CompiledNetwork:
     between F and Sout, above), each of them by name (``raw``,
     ``n_node_rows``, ``trows``, ``tcols``, ``groups``, ``cols``, ``fpar``,
     ``u``), ``n`` (unknowns and rows), ``no_states`` (:data:`NO_STATES`),
+    ``float_sizes`` (per group: how many of its floats in ``fpar`` all its
+    instances share, how many each instance has after them, whether it
+    has source values in ``u``, one per instance),
     ``time_dependent`` (whether ``u`` or ``fpar`` change with time or step:
     then :meth:`set_time` must run, in Python, before the loop at a new time,
     unless the caller fills ``u`` itself from :meth:`source_arrays`; a scene
@@ -407,6 +410,7 @@ def compiled_residual(asm, failures):
         return None
     net = law_module("network")
     rows, cols, fpar, varying, refresh, sources = [], [], [], [], [], []
+    sizes = []      # per group: its shared floats, each instance's floats, whether it has u
     n_u = 0
     u_parts = []
     # each group's row as a list (made one array below), and the running sizes
@@ -423,6 +427,8 @@ def compiled_residual(asm, failures):
         row[net.F0] = n_f
         fpar.append(np.asarray(group_floats, dtype=float))
         n_f += fpar[-1].size
+        sizes.append([fpar[-1].size, 0 if per is None else np.shape(per)[1],
+                      int(values is not None)])
         if per is not None:
             per = np.ascontiguousarray(per, dtype=float)
             if getattr(g, "begin", None) is not None and cls_id in (net.FREE_VOLUME,
@@ -458,6 +464,7 @@ def compiled_residual(asm, failures):
                 fpar[at] = P.hA
         varying.append((None, refreshed, None, None))
     network = CompiledNetwork(asm, groups, cols, fpar, u, trows, tcols, varying, sources)
+    network.float_sizes = np.array(sizes, dtype=np.int64).reshape(-1, 3)
     if varying:
         passed, failure = failures["PASS"], failures["failure"]
         fluid_failure = failures["fluid_failure"]

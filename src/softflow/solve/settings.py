@@ -301,6 +301,11 @@ COMPILED_STEPS = True
 #: serves the run (:func:`softflow.solve.steploop.start_solver`; the Python
 #: solve where it does not converge); False: always the Python solve.
 COMPILED_START = True
+#: Whether a batched sweep's variants run each on its own clock in the
+#: compiled loop (:mod:`softflow.solve.variants`) where that serves the
+#: scene; False: the BDF vectorized over the variants
+#: (:mod:`softflow.solve.clocks`) or the shared step sequence.
+COMPILED_VARIANTS = True
 #: Accepted steps the compiled loop records before it hands them to the
 #: run's recorder (and reports progress); each call allocates nothing.
 COMPILED_RECORD_ROWS = 256

@@ -31,6 +31,9 @@ from .validity import (PV_CURVE_SLACK, ComponentError, beyond, can_refuse,
 from .settings import ROUND_OFF, MAX_REFINE
 from .thermal import check_model, configure_like, configure_thermal
 
+#: Simulation._integrator's record when not given: the run's own
+_RUN_RECORD = object()
+
 if TYPE_CHECKING:
     from .._typing import Array, Scalar
     from ..network.system import System
@@ -532,44 +535,9 @@ class Simulation:
         # in result.warnings with the findings on the solution
         found = self._input_records()
         issue(found)
-        components = [g.comps[i] for g, i in asm.where.values()]
-        stats = Stats()
-        lin = make_linear_solver(asm, self.linear_solver_kind)
-        newton = Newton(asm, lin, stats, rtol=self._newton_rtol(),
-                        atol=self._atol_vector(asm.x_quantity, 1e-3))
-        gas = None if self.thermal == "isothermal" else next(
-            (c.fluid for c in components
-             if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
-        if gas is not None:
-            T = gas.temperature
-            newton.set_magnitude_link("energyflow", "massflow",
-                                      float(gas.cp(pressure_atmospheric, T)) * T)
-            ranges = [getattr(c.fluid, "T_range", (0.0, math.inf)) for c in components
-                      if getattr(c, "fluid", None) is not None and c.fluid.compressible]
-            newton.set_temperature_range(max(r[0] for r in ranges), min(r[1] for r in ranges))
-        breaks = list(self.breakpoints)
-        for c in components:
-            # periodic inputs have endless breakpoints: ask for those within the run
-            until = getattr(c, "breakpoints_until", None)
-            breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
-        integ: BDF | ImplicitEuler
-        if self.adaptive:
-            integ = BDF(asm, newton, stats, duration=self.duration, rtol=self.rtol,
-                        atol_states=self._atol_vector(asm.s_quantity),
-                        atol_unknowns=self._atol_vector(asm.x_quantity), step_min=self.step_min,
-                        step_max=self.step_max, max_order=self.max_order,
-                        first_step=self.step, breakpoints=breaks, record=self.record,
-                        refine=None if self.refine_auto and not sensitivities else self.refine)
-        else:
-            integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
-                                  step_min=self.step_min, breakpoints=breaks, record=self.record)
-        integ.max_steps = self.max_steps
-        culprit = Finder(asm, newton, integ)
-        integ.culprit = culprit  # type: ignore[assignment]
-        newton.before_continuation = culprit.before_continuation  # type: ignore[assignment]
-        newton.before_full = culprit.before_full  # type: ignore[assignment]
-        integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
+        integ, newton, lin, stats, culprit = self._integrator(bool(sensitivities))
         sens: Sensitivities | None = None
+        integ.progress = Progress(self.duration, progress, asm.s_names)  # type: ignore[assignment]
         if sensitivities:
             if self.times_requested is not None:
                 raise ValueError(f"Simulation.run: sensitivities are computed at the steps; "
@@ -677,6 +645,56 @@ class Simulation:
             if raise_on_failure:
                 raise error
         return result
+
+    def _integrator(self, sensitivities: bool = False,
+                    record: Any = _RUN_RECORD) -> tuple[Any, Any, Any, Any, Any]:
+        """The stepper of a run with the parameters in force, not yet run:
+        (integ, newton, lin, stats, culprit), the stepper (BDF or backward
+        Euler) with its Newton, linear solver, counters and culprit finder
+        as :meth:`run` makes them (the batched engine's variants on the
+        compiled loop, :mod:`softflow.solve.variants`, make one to read
+        their settings from). ``sensitivities``: whether the run computes
+        any. ``record``: the run's (Simulation(record=)) unless given, None
+        for every unknown and state."""
+        asm = self.asm
+        record = self.record if record is _RUN_RECORD else record
+        components = [g.comps[i] for g, i in asm.where.values()]
+        stats = Stats()
+        lin = make_linear_solver(asm, self.linear_solver_kind)
+        newton = Newton(asm, lin, stats, rtol=self._newton_rtol(),
+                        atol=self._atol_vector(asm.x_quantity, 1e-3))
+        gas = None if self.thermal == "isothermal" else next(
+            (c.fluid for c in components
+             if getattr(c, "fluid", None) is not None and c.fluid.compressible), None)
+        if gas is not None:
+            T = gas.temperature
+            newton.set_magnitude_link("energyflow", "massflow",
+                                      float(gas.cp(pressure_atmospheric, T)) * T)
+            ranges = [getattr(c.fluid, "T_range", (0.0, math.inf)) for c in components
+                      if getattr(c, "fluid", None) is not None and c.fluid.compressible]
+            newton.set_temperature_range(max(r[0] for r in ranges), min(r[1] for r in ranges))
+        breaks = list(self.breakpoints)
+        for c in components:
+            # periodic inputs have endless breakpoints: ask for those within the run
+            until = getattr(c, "breakpoints_until", None)
+            breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
+        integ: BDF | ImplicitEuler
+        if self.adaptive:
+            integ = BDF(asm, newton, stats, duration=self.duration, rtol=self.rtol,
+                        atol_states=self._atol_vector(asm.s_quantity),
+                        atol_unknowns=self._atol_vector(asm.x_quantity), step_min=self.step_min,
+                        step_max=self.step_max, max_order=self.max_order,
+                        first_step=self.step, breakpoints=breaks, record=record,
+                        refine=None if self.refine_auto and not sensitivities else self.refine)
+        else:
+            integ = ImplicitEuler(asm, newton, stats, duration=self.duration, step=self.step,
+                                  step_min=self.step_min, breakpoints=breaks, record=record)
+        integ.max_steps = self.max_steps
+        culprit = Finder(asm, newton, integ)
+        integ.culprit = culprit  # type: ignore[assignment]
+        newton.before_continuation = culprit.before_continuation  # type: ignore[assignment]
+        newton.before_full = culprit.before_full  # type: ignore[assignment]
+        return integ, newton, lin, stats, culprit
 
     def _input_records(self):
         """ValidityRecords of the inputs in force, found before the run: actuators

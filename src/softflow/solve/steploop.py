@@ -232,10 +232,10 @@ class CompiledSteps(_Bound):
         fst[st.FULL_STAGE_STEPS] = bdf_mod.FULL_STAGE_STEPS
         ist[st.UNDAMPED] = 1 if bdf.newton.undamped_full else 2
 
-    def run(self, t, x, S):
-        """Steps from (t, x, S) until the loop hands back (or the run's end):
-        (why, t, x, S, steps taken), the point after the steps taken (the
-        same where none was)."""
+    def state_in(self):
+        """The BDF's and Newton's state into the loop's ``ist`` and ``fst``
+        (before each :meth:`run`; the batched engine's variants,
+        :mod:`softflow.solve.variants`, read a run's first from them)."""
         st, bdf = self.st, self.bdf
         ist, fst = self.ist, self.fst
         self._newton_in()
@@ -250,6 +250,14 @@ class CompiledSteps(_Bound):
         ist[st.PROBE_FAILED] = -1
         fst[st.H], fst[st.FAIL_CAP], fst[st.H_CAP] = bdf._h, bdf._fail_cap, bdf._h_cap
         fst[st.ERR] = getattr(bdf, "_err", 0.0)
+
+    def run(self, t, x, S):
+        """Steps from (t, x, S) until the loop hands back (or the run's end):
+        (why, t, x, S, steps taken), the point after the steps taken (the
+        same where none was)."""
+        st, bdf = self.st, self.bdf
+        ist, fst = self.ist, self.fst
+        self.state_in()
         qmax_run = (np.zeros(self.floor.size) if bdf._qmax_run is None
                     else np.array(bdf._qmax_run, dtype=float))
         x, S, Q = x.copy(), S.copy(), bdf._Q.copy()
@@ -673,30 +681,13 @@ def start_solver(integ, lin0):
     ``settings.COMPILED_START``."""
     if not settings.COMPILED_START or lin0 is None:
         return None
-    newton = integ.newton
-    culprit = getattr(integ, "culprit", None)
-    if newton._T_idx.size or (culprit is not None and culprit._may_impose_flow()):
+    setup = start_setup(integ)
+    if setup is None:
         return None
-    served = _served(integ)
-    if served is None:
-        return None
-    net, sources = served
-    asm = integ.asm
+    net, sources, lin, tol, ist, fst, floor = setup
+    asm, newton = integ.asm, integ.newton
     st = law_module("stepper")
     n, ns = asm.n, asm.S0.size
-    info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
-    no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
-    lin = _lin_tuple(net, asm, asm.dense_index(), (n, n), None, info, order,
-                     (no_int,) * 12, (no_float,) * 7)
-    atol_s = _modes_only(asm)
-    tol = _tol_tuple(integ, newton, atol_s, np.zeros(n), np.zeros(0, dtype=np.int64))
-    ist = np.zeros(st.IST_SIZE, dtype=np.int64)
-    fst = np.zeros(st.FST_SIZE)
-    _newton_settings(st, ist, fst, newton, n, atol_s)
-    ist[st.STALE] = 1                 # no factors to reuse: the fresh chord first
-    fst[st.DT_LO], fst[st.DT_HI] = 1.0, -1.0
-    floor = np.zeros(len(asm.q_names))
-    _estimates_in(st, ist, fst, floor, newton)
     counters = np.zeros(st.STATS_SIZE, dtype=np.int64)
     S0 = np.ascontiguousarray(asm.S0, dtype=float)
 
@@ -712,6 +703,45 @@ def start_solver(integ, lin0):
         newton._one_iteration = bool(ist[st.ONE_ITER])
         return x
     return solve
+
+
+def start_setup(integ, hooks_aside=False):
+    """What :func:`softflow.laws.stepper.start_solve` takes for the run of
+    ``integ`` beside the point: (net, sources, lin, tol, ist, fst, floor),
+    the dense ``lin`` its own; or None where the compiled start does not
+    serve the run (:func:`start_solver`; ``settings.COMPILED_START`` and the
+    start's dense solver aside). ``hooks_aside``: set up also where the
+    Python solve would ask the culprit finder (a component that may impose
+    a flow) or take its flows-first stage (node temperatures), which the
+    compiled solve has not: for callers that take a start it does not
+    converge elsewhere (the batched variants, :mod:`softflow.solve.variants`:
+    such a variant runs alone)."""
+    newton = integ.newton
+    culprit = getattr(integ, "culprit", None)
+    if not hooks_aside and (newton._T_idx.size
+                            or (culprit is not None and culprit._may_impose_flow())):
+        return None
+    served = _served(integ)
+    if served is None:
+        return None
+    net, sources = served
+    asm = integ.asm
+    st = law_module("stepper")
+    n = asm.n
+    info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
+    no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
+    lin = _lin_tuple(net, asm, asm.dense_index(), (n, n), None, info, order,
+                     (no_int,) * 12, (no_float,) * 7)
+    atol_s = _modes_only(asm)
+    tol = _tol_tuple(integ, newton, atol_s, np.zeros(n), np.zeros(0, dtype=np.int64))
+    ist = np.zeros(st.IST_SIZE, dtype=np.int64)
+    fst = np.zeros(st.FST_SIZE)
+    _newton_settings(st, ist, fst, newton, n, atol_s)
+    ist[st.STALE] = 1                 # no factors to reuse: the fresh chord first
+    fst[st.DT_LO], fst[st.DT_HI] = 1.0, -1.0
+    floor = np.zeros(len(asm.q_names))
+    _estimates_in(st, ist, fst, floor, newton)
+    return net, sources, lin, tol, ist, fst, floor
 
 
 def fixed_steps(euler):

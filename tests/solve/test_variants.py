@@ -1,0 +1,254 @@
+"""Batched variants on the compiled loop (softflow.solve.variants): each
+variant's own run of the BDF, in the compiled step loop."""
+import warnings
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.solve import variants as variants_mod
+from softflow.solve.batched import _run_batched, build_batch, sample
+from helpers import filling_tank, snapping_valve_scene
+
+
+def _run(sim, variants, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        return _run_batched(sim, variants, own_clocks=True, **kw)
+
+
+def _alone(sim, variant):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        return sim.run(params=variant, raise_on_failure=False)
+
+
+def _compiled(result):
+    return result.stats.get("engine") == "compiled loop"
+
+
+def test_each_variant_takes_the_steps_of_its_own_run():
+    """20 tube diameters 0.5-2 mm (time constants ~250x apart), over two
+    threads: every variant takes exactly the accepted and rejected steps of
+    its own run and ends where it ends."""
+    sim = sf.Simulation(filling_tank(), duration=0.1)
+    variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 20)]
+    assert len(variants) >= variants_mod.THREAD_MIN
+    out = _run(sim, variants)
+    for v, b in zip(variants, out):
+        assert b.success and _compiled(b), b.stats
+        own = _alone(sim, v)
+        assert (b.stats["steps"], b.stats["rejected_steps"]) == (
+            own.stats["steps"], own.stats["rejected_steps"]), v
+        assert len(b.times) == b.stats["steps"] + 1 and b.times[-1] == 0.1
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
+                                   rtol=1e-9)
+    steps = [b.stats["steps"] for b in out]
+    assert max(steps) > 3 * min(steps)          # each on its own clock
+
+
+def test_threads_and_record_room_leave_the_numbers_as_they_are(monkeypatch):
+    """One thread or two, records given room for every step at once or grown
+    variant by variant (each variant that did not fit run again): the same
+    points, bitwise."""
+    sim = sf.Simulation(filling_tank(), duration=0.05)
+    variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 17)]
+    runs = []
+    for threads_from, rows in ((1, 64), (10 ** 9, 64), (1, 1)):
+        monkeypatch.setattr(variants_mod, "THREAD_MIN", threads_from)
+        monkeypatch.setattr(variants_mod, "ROWS_PER_VARIANT", rows)
+        out = _run(sim, variants)
+        assert all(_compiled(b) for b in out)
+        runs.append([(b.times, b.get("tank", "pressure"), b.get("tube", "massflow", "a"))
+                     for b in out])
+    for other in runs[1:]:
+        for a, b in zip(runs[0], other):
+            for x, y in zip(a, b):
+                np.testing.assert_array_equal(x, y)
+
+
+def test_a_jump_is_a_point_of_every_variant_and_a_restart():
+    """A source stepping at 20 ms: each variant lands on the jump and takes
+    its own run's steps."""
+    step = sf.waveforms.Step(0.02, sf.Q_(0.3, "bar"), sf.Q_(0.1, "bar"))
+    sim = sf.Simulation(filling_tank(sf.PressureSource("src", pressure=step, gauge=True)),
+                        duration=0.06)
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1e-3, 2e-3)]
+    for v, b in zip(variants, _run(sim, variants)):
+        assert _compiled(b) and np.any(b.times == 0.02)
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"]
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
+                                   rtol=1e-9)
+
+
+def test_each_variant_follows_its_own_source_signal():
+    """The source's waveform a run-time parameter (ramps of three heights,
+    sines of two frequencies): each variant's signal is its own."""
+    ramps = [sf.waveforms.Ramp(0.0, 0.03, sf.Q_(0.0, "bar"), sf.Q_(h, "bar")) for h in (0.1, 0.3)]
+    sines = [sf.waveforms.Sine(sf.Q_(0.2, "bar"), f, offset=sf.Q_(0.2, "bar")) for f in (20, 50)]
+    sim = sf.Simulation(filling_tank(sf.PressureSource("src", pressure=ramps[0], gauge=True)),
+                        duration=0.06)
+    variants = [{"src.pressure": w} for w in ramps + sines]
+    out = _run(sim, variants)
+    ends = []
+    for v, b in zip(variants, out):
+        assert _compiled(b)
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"]
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
+                                   rtol=1e-9)
+        ends.append(b.get("tank", "pressure")[-1])
+    assert len(set(np.round(ends, 3))) == 4
+
+
+def test_snapping_valves_switch_within_each_variants_run():
+    """Opening pressure x tube diameter: each valve snaps in its own run (the
+    compiled loop locates the switch as it does for one run)."""
+    sim = sf.Simulation(snapping_valve_scene(), duration=0.2)
+    variants = [{"valve.opening_pressure": p, "tube.diameter": d}
+                for p in (1.2e4, 2.4e4) for d in (0.8e-3, 1.3e-3)]
+    for v, b in zip(variants, _run(sim, variants)):
+        assert _compiled(b)
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"]
+        np.testing.assert_allclose(b.get("out", "pressure")[-1], own.get("out", "pressure")[-1],
+                                   rtol=1e-7)
+
+
+def test_a_run_the_loop_hands_back_is_run_alone():
+    """max_steps = 12: the wide tubes' runs need more steps, their loops stop
+    at the budget and they run alone, where they fail saying so; the narrow
+    ones complete in the batch."""
+    sim = sf.Simulation(filling_tank(), duration=0.1, max_steps=12)
+    variants = [{"tube.diameter": d} for d in (0.5e-3, 2e-3, 0.6e-3, 1.8e-3)]
+    out = _run(sim, variants)
+    assert [b.status for b in out] == ["success", "failed", "success", "failed"]
+    assert _compiled(out[0]) and _compiled(out[2])
+    assert not out[1].stats.get("batched") and "max_steps" in out[1].message
+
+
+def test_recorded_components_only():
+    """Simulation(record=...): the batch keeps the tank alone, each variant's
+    outputs read as its own run's."""
+    sim = sf.Simulation(filling_tank(), duration=0.05, record=["tank"])
+    variants = [{"tube.diameter": d} for d in (0.7e-3, 1.5e-3)]
+    out = _run(sim, variants)
+    for v, b in zip(variants, out):
+        assert _compiled(b)
+        own = _alone(sim, v)
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
+                                   rtol=1e-9)
+        with pytest.raises(Exception):
+            b.get("tube", "massflow", "a")
+
+
+def test_sampling_a_batch_is_np_interp_of_each_variant():
+    """batched.sample reads each variant's outputs at given times as
+    np.interp between its own points, bitwise, in a few array operations for
+    all the variants at once (a flow and a state here); NaN past the end
+    of a failed run."""
+    sim = sf.Simulation(filling_tank(), duration=0.05, max_steps=12)
+    variants = [{"tube.diameter": d} for d in (0.5e-3, 0.7e-3, 2e-3)]
+    out = _run(sim, variants)
+    times = np.array([-1.0, 0.0, 1e-3, 0.0123, 0.03, 0.05, 0.07])
+    got = sample(out, ["src.massflow", "tank.mass"], times)
+    for r, values in zip(out, got):
+        for row, (label, name) in zip(values, [("src", "massflow"), ("tank", "mass")]):
+            want = np.interp(times, r.times, r.get(label, name))
+            if not r.success:
+                want = np.where(times <= r.times[-1], want, np.nan)
+            np.testing.assert_array_equal(row, want)
+
+
+@pytest.mark.parametrize("case", ["pump", "adiabatic", "wall hA"])
+def test_flow_sources_and_thermal_scenes_run_in_the_loop(case):
+    """A mass flow source (its start solved without the culprit finder's
+    hooks: a start that does not converge runs alone), adiabatic tanks and
+    tanks with a constant wall h A: each variant's own run's steps."""
+    s = sf.System()
+    s += (sf.MassFlowSource("src", massflow=1e-5) if case == "pump"
+          else sf.PressureSource("src", pressure=sf.Q_(1.3, "bar")))
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-5, **({"hA": 1e-3} if case == "wall hA" else {}))
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    thermal = {"pump": "isothermal", "adiabatic": "adiabatic", "wall hA": "heat_transfer"}[case]
+    sim = sf.Simulation(s, duration=0.2, thermal=thermal)
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1e-3, 2e-3)]
+    for v, b in zip(variants, _run(sim, variants)):
+        assert _compiled(b)
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"]
+        names = ("pressure",) if thermal == "isothermal" else ("pressure", "temperature")
+        for name in names:
+            np.testing.assert_allclose(b.get("tank", name)[-1], own.get("tank", name)[-1],
+                                       rtol=1e-9)
+
+
+def test_scenes_outside_the_loop_go_to_the_vectorized_clocks():
+    """A check valve (a law with kinks, whose crossings the BDF takes in
+    Python) and a wall whose h A a correlation sets at each step (the loop
+    takes no per-step coefficients): not here (softflow.solve.clocks or the
+    shared steps)."""
+    valve = sf.System()
+    valve += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    valve += sf.CheckValve("valve", sf.air, diameter=2e-3, cracking_pressure=5e3)
+    valve += sf.Container("tank", sf.air, 1e-5)
+    valve.connect("src", ("valve", "a"))
+    valve.connect(("valve", "b"), "tank")
+    wall = sf.System()
+    wall += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    wall += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    wall += sf.Container("tank", sf.air, 1e-5, heat_transfer_coefficient=sf.FreeConvection(),
+                         area=2.2e-3)
+    wall.connect("src", "tube")
+    wall.connect("tube", "tank")
+    for system, key, values, thermal in (
+            (valve, "valve.cracking_pressure", (4e3, 6e3), "isothermal"),
+            (wall, "tube.diameter", (1e-3, 2e-3), "heat_transfer")):
+        sim = sf.Simulation(system, duration=0.05, thermal=thermal)
+        batch = build_batch(system, [{key: v} for v in values],
+                            {c.label for c in system.components})
+        with pytest.raises(variants_mod.Unsupported):
+            variants_mod.run(sim, sf.Simulation(batch, duration=0.05, thermal=thermal), 2)
+
+
+def test_actuator_curves_of_their_own_split_the_batch_group():
+    """The Fig. 4 network (a pump into two actuators behind a restrictor of
+    water with its inertia) over restrictor diameter x actuator 2's curve:
+    the batch puts each variant's actuator 2 in a group of its own (its
+    curve), which each variant's run reads as the scene's one group."""
+    from softflow import paper_scenes as ps
+    sim = sf.Simulation(ps.fig4("tube", physics="full"), duration=2.0)
+    variants = [{"R2.diameter": d, "act2.curve": ps.curve_plateau(p)}
+                for d in (2e-3, 3e-3) for p in (17.0, 30.0)]
+    out = _run(sim, variants)
+    ends = set()
+    for v, b in zip(variants, out):
+        assert _compiled(b)
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"]
+        np.testing.assert_allclose(b.get("act2", "volume")[-1], own.get("act2", "volume")[-1],
+                                   rtol=1e-7)
+        ends.add(round(float(b.get("act2", "volume")[-1]), 12))
+    assert len(ends) == 4
+
+
+def test_a_sweep_reads_each_variants_own_interpolant():
+    """sf.sweep at times inside the steps: each variant's values are its own
+    run's interpolant's (Result.at), to round-off; at its points, its points."""
+    sim = sf.Simulation(filling_tank(), duration=0.05)
+    variants = [{"tube.diameter": d} for d in (0.5e-3, 0.9e-3, 2e-3)]
+    times = np.linspace(0.0, 0.05, 41)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        out = sf.sweep(sim, variants, outputs=["tank.pressure", "src.massflow"], times=times,
+                       engine="batched")
+    for v, p, m in zip(variants, out["tank.pressure"], out["src.massflow"]):
+        own = _alone(sim, v)
+        np.testing.assert_allclose(p, own.at(times, "tank", "pressure"), rtol=1e-10)
+        # (the consistent start's flows agree within Newton's tolerance, its
+        # point confirmed on fresh factors here, in the Python start there)
+        np.testing.assert_allclose(m[0], own.at(times, "src", "massflow")[0], rtol=1e-5)
+        np.testing.assert_allclose(m[1:], own.at(times, "src", "massflow")[1:], rtol=1e-7)
