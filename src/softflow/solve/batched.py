@@ -171,6 +171,7 @@ def _sample_batch(results, ks, values, xs, x_cols, ss, s_cols, times):
     right = np.zeros((K, P), dtype=bool)       # at or past the last
     last = np.zeros(K, dtype=np.int64)
     reached = np.ones((K, P), dtype=bool)
+    shared = None           # the places on times every variant shares (one array)
     for j, k in enumerate(ks):
         r = results[k]
         t = r.times
@@ -179,10 +180,10 @@ def _sample_batch(results, ks, values, xs, x_cols, ss, s_cols, times):
             reached[j] = False
             continue
         last[j] = n - 1
-        at = np.searchsorted(t, times, side="right") - 1
-        left[j] = at < 0
-        right[j] = times >= t[-1]
-        lo[j] = np.clip(at, 0, max(n - 2, 0))
+        if shared is None or shared[0] is not t:
+            at = np.searchsorted(t, times, side="right") - 1
+            shared = (t, at < 0, times >= t[-1], np.clip(at, 0, max(n - 2, 0)))
+        left[j], right[j], lo[j] = shared[1:]
         if r.status != "success":
             reached[j] = times <= t[-1] * (1 + 1e-12)
     var = np.arange(K)[:, None]

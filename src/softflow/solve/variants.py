@@ -602,15 +602,19 @@ def _breakpoints(batch_sim, K):
     components'), sorted, with the end where one falls on it: (K, most)
     padded with inf, and each one's number."""
     asm, T = batch_sim.asm, batch_sim.duration
+    from ..network.component import Component
     common = set(float(b) for b in batch_sim.breakpoints)
     own = [set(common) for _ in range(K)]
-    for label in asm.where:
-        g, i = asm.where[label]
-        comp = g.comps[i]
-        until = getattr(comp, "breakpoints_until", None)
-        found = until(T) if until else comp.breakpoints()
-        if len(found):
-            own[_variant_of(label)].update(float(b) for b in found)
+    for g in asm.groups:
+        c0 = g.comps[0]
+        if (getattr(c0, "breakpoints_until", None) is None
+                and type(c0).breakpoints is Component.breakpoints):
+            continue                # (a group of a class that states none)
+        for comp in g.comps:
+            until = getattr(comp, "breakpoints_until", None)
+            found = until(T) if until else comp.breakpoints()
+            if len(found):
+                own[_variant_of(comp.label)].update(float(b) for b in found)
     lists = []
     for breaks in own:
         inside = sorted(b for b in breaks if 0.0 < b < T)
