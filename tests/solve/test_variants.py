@@ -252,3 +252,26 @@ def test_a_sweep_reads_each_variants_own_interpolant():
         # point confirmed on fresh factors here, in the Python start there)
         np.testing.assert_allclose(m[0], own.at(times, "src", "massflow")[0], rtol=1e-5)
         np.testing.assert_allclose(m[1:], own.at(times, "src", "massflow")[1:], rtol=1e-7)
+
+
+def test_a_chain_on_the_loops_banded_lu():
+    """A chain of 12 tube-and-container pairs, whose Jacobian the loop solves
+    as a band: each variant's own run's steps (each start on a dense LU)."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.4, "bar"))
+    last = "src"
+    for i in range(12):
+        s += sf.CircularTube(f"t{i}", sf.air, 0.2, 1e-3)
+        s += sf.Container(f"c{i}", sf.air, 2e-6)
+        s.connect(last, f"t{i}")
+        s.connect(f"t{i}", f"c{i}")
+        last = f"c{i}"
+    sim = sf.Simulation(s, duration=0.05)
+    variants = [{"t0.diameter": d} for d in (0.7e-3, 1e-3, 1.5e-3)]
+    assert variants_mod._Template(sim).steps.band is not None
+    for v, b in zip(variants, _run(sim, variants)):
+        assert _compiled(b)
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"]
+        np.testing.assert_allclose(b.get("c11", "pressure")[-1], own.get("c11", "pressure")[-1],
+                                   rtol=1e-9)

@@ -1524,8 +1524,8 @@ START_FAILED, NO_ROOM = -1, -2
 
 
 @jit
-def variants(j0, j1, given, first, net0, lin, tol, start_tol, rec, dense, events, w_index,
-             G, ERRC, scratch, start_scratch, work, out, pos, meta, totals):
+def variants(j0, j1, given, first, net0, lin, start_lin, tol, start_tol, rec, dense, events,
+             w_index, G, ERRC, scratch, start_scratch, work, out, pos, meta, totals):
     """The variants j0 <= j < j1 of one scene, each its own run of the BDF on
     its own clock: the consistent start solved from its initial values
     (:func:`start_solve`, then solved again from its solution, fresh
@@ -1546,8 +1546,9 @@ def variants(j0, j1, given, first, net0, lin, tol, start_tol, rec, dense, events
     floor and the run's magnitudes; ``net0``: the network's arrays (its
     floats and source values replaced by each variant's); ``lin``, ``tol``,
     ``rec``, ``dense``, ``events``, ``G``, ``ERRC``, ``scratch``
-    as :func:`stretch` takes them (``start_tol`` and ``start_scratch`` for
-    the start's solve), ``w_index`` the watched states; ``work``: the
+    as :func:`stretch` takes them (``start_lin``, ``start_tol`` and
+    ``start_scratch`` for the start's solve: its dense LU, whatever the
+    loop's), ``w_index`` the watched states; ``work``: the
     point, difference table, quadratures and state arrays the runs work in.
 
     Each variant's points (its start's included) go to ``out`` (t, x, S,
@@ -1582,15 +1583,15 @@ def variants(j0, j1, given, first, net0, lin, tol, start_tol, rec, dense, events
         sfst[:] = sfst0
         floor[:] = floor0
         counters[:] = 0
-        code = start_solve(x, S, sist, sfst, floor, counters, net, lin, sources, start_tol,
-                           start_scratch)
+        code = start_solve(x, S, sist, sfst, floor, counters, net, start_lin, sources,
+                           start_tol, start_scratch)
         tries = 0
         while code == SOLVED and tries < 3:
             done_before = counters[ITERATIONS]
             sist[STALE] = 1
             sfst[DT_LO], sfst[DT_HI] = 1.0, -1.0
-            code = start_solve(x, S, sist, sfst, floor, counters, net, lin, sources, start_tol,
-                               start_scratch)
+            code = start_solve(x, S, sist, sfst, floor, counters, net, start_lin, sources,
+                               start_tol, start_scratch)
             tries += 1
             if counters[ITERATIONS] - done_before <= 1:
                 break

@@ -1,4 +1,9 @@
-"""Batched variants on clocks of their own.
+"""Batched variants on clocks of their own, the BDF vectorized over the
+variants: for the batches that the compiled step loop, where each variant
+is its own run (:mod:`softflow.solve.variants`, tried first), does not
+serve (heat-transfer correlations' per-step h A, sources given as Python
+functions, fluids at the table or eos level, variants too large for a
+dense start).
 
 A batched sweep (:mod:`softflow.solve.batched`) solves K variants of one
 scene as one network of K independent sub-networks. With one shared step

@@ -25,8 +25,10 @@ alone (its Result then says why, where it fails).
 
 What this covers (:func:`reason_not` and :class:`_Template`): adaptive
 runs without ``refine`` of scenes whose network the compiled loop serves
-with its dense LU (the compiled residual, constant or waveform sources,
-no heat-transfer correlation's per-step h A) and whose laws have no kinks
+(the compiled residual, constant or waveform sources, no heat-transfer
+correlation's per-step h A; its dense, banded or sparse LU, each start on
+a dense LU: up to :data:`~softflow.solve.settings.DENSE_MAX` unknowns a
+variant) and whose laws have no kinks
 (no check valve); flow sources and thermal scenes included (their starts
 solved without the Python solve's culprit finder and flows-first stage: a
 variant whose start does not converge here runs alone). The variants may
@@ -55,6 +57,7 @@ import numpy as np
 
 from .._laws import law_module
 from .batched import PREFIX, _variant_of
+from .settings import DENSE_MAX
 
 #: Fewest variants split over two threads (fewer run in the calling thread)
 THREAD_MIN = 16
@@ -186,8 +189,11 @@ class _Template:
         integ._watch = VolumeWatch.of(asm, S0, getattr(integ, "atol", None))
         integ.progress = Progress(sim.duration, False)
         steps = compiled_steps(integ)
-        if steps is None or steps.own:
-            raise Unsupported("the compiled loop does not serve the scene with its dense LU")
+        if steps is None:
+            raise Unsupported("the compiled loop does not serve the scene")
+        if asm.n > DENSE_MAX:
+            raise Unsupported(f"variants of more than {DENSE_MAX} unknowns (each start's "
+                              "dense LU)")
         steps.state_in()
         ist, fst = steps.ist.copy(), steps.fst.copy()
         # the culprit finder's rows (the regions of nodes without volume that a
@@ -202,7 +208,7 @@ class _Template:
         self.width = integ._D.shape[1]
         self.qmax = (np.zeros(steps.floor.size) if integ._qmax_run is None
                      else np.array(integ._qmax_run, dtype=float))
-        _, _, _, self.start_tol, sist, sfst, sfloor = start
+        _, _, self.start_lin, self.start_tol, sist, sfst, sfloor = start
         self.first = (ist, fst, sist, sfst, steps.floor.copy(), self.qmax)
         self.atol_s = np.broadcast_to(np.asarray(integ.atol, dtype=float), S0.shape)
         self.net = steps.net
@@ -328,6 +334,7 @@ class _Worker:
         raw = tpl.net[0].copy()
         self.net = (raw,) + tuple(tpl.net[1:])
         self.lin = (raw,) + _copied(steps.lin[1:])
+        self.start_lin = (raw,) + _copied(tpl.start_lin[1:])
         rec = _copied(steps.buffers)
         self.rec = rec + (steps.x_index, steps.s_index)
         self.dense = _copied(steps.dbuf) + (steps.d_cols,)
@@ -367,7 +374,8 @@ class _Worker:
         meta_mine = tuple(np.zeros(picks.size, dtype=np.int64) for _ in meta)
         j, K = 0, picks.size
         while j < K:
-            j = st.variants(j, K, mine, first, self.net, self.lin, tol, start_tol, self.rec,
+            j = st.variants(j, K, mine, first, self.net, self.lin, self.start_lin, tol,
+                            start_tol, self.rec,
                             self.dense, self.events, w_index, G, ERRC, self.scratch,
                             self.start_scratch, self.work, self.out, self.pos, meta_mine,
                             self.totals)
