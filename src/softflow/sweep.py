@@ -39,8 +39,8 @@ Engines
     ``status``, ``message``, ``warnings`` and ``get(label, name)``). Each
     variant meets the tolerance on its own: within the tolerance of, not
     bitwise equal to, its serial run. Where the compiled step loop serves
-    the scene (adaptive, library components, no check valve or per-step
-    heat-transfer correlation: :mod:`softflow.solve.variants`), each
+    the scene (adaptive, library components, no per-step heat-transfer
+    correlation: :mod:`softflow.solve.variants`), each
     variant is its own run in that loop, taking exactly the steps its own
     run takes, the variants over two threads (``stats['clocks'] == 'own'``,
     ``stats['engine'] == 'compiled loop'``); elsewhere, where
@@ -289,11 +289,12 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
         (:meth:`softflow.Result.at`: the adaptive BDF's polynomial of the
         step that covers each time, backward Euler's straight line between
         its steps), as accurate as the steps themselves, for every engine but
-        one: a batched sweep whose variants keep their own clocks
-        (:mod:`softflow.solve.clocks`, from 64 variants) records their steps
-        alone, and reads them linearly between the steps (``stats['clocks']
-        == 'own'``; engine='processes', or 'batched' with fewer variants,
-        reads the polynomials).
+        one: a batched sweep on the vectorized clocks
+        (:mod:`softflow.solve.clocks`: scenes the compiled loop does not
+        take, from 64 variants) records its variants' steps alone, and reads
+        them linearly between the steps (a batch in the compiled loop,
+        ``stats['engine'] == 'compiled loop'``, keeps each variant's
+        polynomials, and a batch on shared steps its own).
     progress : bool, optional
         A tqdm bar over the variants: None shows it where standard error is a
         terminal, True always, False never.

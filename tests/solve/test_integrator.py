@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
-from softflow.solve import culprit
+from softflow.solve import culprit, settings
 
 P0 = sf.pressure_atmospheric
 
@@ -375,8 +375,10 @@ def test_steep_check_valve_start_and_source_drop_are_reached_by_continuation(
     assert np.ptp(tank[after]) < 1.0                       # the valve holds it
     monkeypatch.setattr(Newton, "continuation", lambda self, *args: None)
     monkeypatch.setattr(Newton, "_off_piece", lambda self, x: False)
-    # (and without the junctions' balance, which gets past the drop too: the
-    # test below)
+    # (the Python loop's Newton alone: the compiled loop's checks the pieces
+    # itself; and without the junctions' balance, which gets past the drop
+    # too: the test below)
+    monkeypatch.setattr(settings, "COMPILED_STEPS", False)
     monkeypatch.setattr(culprit.Finder, "_junctions_balanced", lambda self, *args: None)
     failed = sf.Simulation(_check_valve_pulse(threshold, ideal), duration=1.0, **kw).run(
         raise_on_failure=False)
@@ -386,14 +388,17 @@ def test_steep_check_valve_start_and_source_drop_are_reached_by_continuation(
 def test_a_source_drop_in_front_of_a_check_valve_is_reached_from_the_junction_balanced(
         monkeypatch):
     """The pulse's drop at 0.5 s through the 60 kPa valve at rtol 1e-4, with
-    neither continuation nor Newton's check of the valve's pieces: the
-    node between the tube and the valve (no volume, no flow source) solved
+    neither continuation nor Newton's check of the valve's pieces (the
+    Python loop's steps): the node between the tube and the valve (no volume, no flow source) solved
     alone for the pressure that balances its flows at the step's end, the
     source at its new value (Finder._junctions_balanced), and the step
     solved from there; the valve holds the tank as with continuation."""
     from softflow.solve.newton import Newton
     monkeypatch.setattr(Newton, "continuation", lambda self, *args: None)
     monkeypatch.setattr(Newton, "_off_piece", lambda self, x: False)
+    # (the Python loop's Newton alone: the compiled loop checks the pieces
+    # itself)
+    monkeypatch.setattr(settings, "COMPILED_STEPS", False)
     calls = []
     real = culprit.Finder._junctions_balanced
 

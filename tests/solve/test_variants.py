@@ -27,6 +27,20 @@ def _compiled(result):
     return result.stats.get("engine") == "compiled loop"
 
 
+def _as_own_runs(sim, variants, out, label="tank", name="pressure", rtol=1e-9):
+    """Each of ``out`` in the compiled loop, with its own run's accepted steps
+    and its value of ``label``'s ``name`` at the end (to ``rtol``); the end
+    values."""
+    ends = []
+    for v, b in zip(variants, out):
+        assert _compiled(b), b.stats
+        own = _alone(sim, v)
+        assert b.stats["steps"] == own.stats["steps"], v
+        np.testing.assert_allclose(b.get(label, name)[-1], own.get(label, name)[-1], rtol=rtol)
+        ends.append(float(b.get(label, name)[-1]))
+    return ends
+
+
 def test_each_variant_takes_the_steps_of_its_own_run():
     """20 tube diameters 0.5-2 mm (time constants ~250x apart), over two
     threads: every variant takes exactly the accepted and rejected steps of
@@ -74,12 +88,9 @@ def test_a_jump_is_a_point_of_every_variant_and_a_restart():
     sim = sf.Simulation(filling_tank(sf.PressureSource("src", pressure=step, gauge=True)),
                         duration=0.06)
     variants = [{"tube.diameter": d} for d in (0.6e-3, 1e-3, 2e-3)]
-    for v, b in zip(variants, _run(sim, variants)):
-        assert _compiled(b) and np.any(b.times == 0.02)
-        own = _alone(sim, v)
-        assert b.stats["steps"] == own.stats["steps"]
-        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
-                                   rtol=1e-9)
+    out = _run(sim, variants)
+    assert all(np.any(b.times == 0.02) for b in out)
+    _as_own_runs(sim, variants, out)
 
 
 def test_each_variant_follows_its_own_source_signal():
@@ -90,15 +101,7 @@ def test_each_variant_follows_its_own_source_signal():
     sim = sf.Simulation(filling_tank(sf.PressureSource("src", pressure=ramps[0], gauge=True)),
                         duration=0.06)
     variants = [{"src.pressure": w} for w in ramps + sines]
-    out = _run(sim, variants)
-    ends = []
-    for v, b in zip(variants, out):
-        assert _compiled(b)
-        own = _alone(sim, v)
-        assert b.stats["steps"] == own.stats["steps"]
-        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
-                                   rtol=1e-9)
-        ends.append(b.get("tank", "pressure")[-1])
+    ends = _as_own_runs(sim, variants, _run(sim, variants))
     assert len(set(np.round(ends, 3))) == 4
 
 
@@ -108,12 +111,7 @@ def test_snapping_valves_switch_within_each_variants_run():
     sim = sf.Simulation(snapping_valve_scene(), duration=0.2)
     variants = [{"valve.opening_pressure": p, "tube.diameter": d}
                 for p in (1.2e4, 2.4e4) for d in (0.8e-3, 1.3e-3)]
-    for v, b in zip(variants, _run(sim, variants)):
-        assert _compiled(b)
-        own = _alone(sim, v)
-        assert b.stats["steps"] == own.stats["steps"]
-        np.testing.assert_allclose(b.get("out", "pressure")[-1], own.get("out", "pressure")[-1],
-                                   rtol=1e-7)
+    _as_own_runs(sim, variants, _run(sim, variants), "out", rtol=1e-7)
 
 
 def test_a_run_the_loop_hands_back_is_run_alone():
@@ -186,29 +184,56 @@ def test_flow_sources_and_thermal_scenes_run_in_the_loop(case):
                                        rtol=1e-9)
 
 
+def test_check_valves_that_open_and_shut_run_in_the_loop():
+    """Pulses of 1 bar through a check valve into a tank that leaks (the
+    valve opens and shuts at every pulse; the loop takes the steps across
+    its kinks as the BDF takes them): a variant the loop runs through takes
+    its own run's steps; one it hands back (a solve on another piece of the
+    valve's law, a restart probe that needs the BDF's continuation) runs
+    alone: every variant is its own run."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.waveforms.Square(2e5, sf.pressure_atmospheric,
+                                                                2.0))
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    s += sf.CheckValve("cv", sf.air, cracking_pressure=5e3, diameter=2e-3)
+    s += sf.Container("tank", sf.air, volume=1e-4)
+    s += sf.CircularTube("leak", sf.air, length=0.5, diameter=0.3e-3)
+    s += sf.PressureSource("atm", pressure=sf.pressure_atmospheric)
+    s.connect("src", "tube")
+    s.connect("tube", "cv")
+    s.connect(("cv", "b"), "tank", ("leak", "a"))
+    s.connect(("leak", "b"), "atm")
+    sim = sf.Simulation(s, duration=1.0)
+    variants = [{"cv.cracking_pressure": p} for p in (1e3, 2e3, 4e3, 8e3, 1.6e4)]
+    out = _run(sim, variants)
+    compiled = [k for k, b in enumerate(out) if _compiled(b)]
+    assert compiled and len(compiled) < len(out)
+    for k, (v, b) in enumerate(zip(variants, out)):
+        own = _alone(sim, v)
+        if k in compiled:
+            assert b.stats["steps"] == own.stats["steps"]
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1],
+                                   own.get("tank", "pressure")[-1], rtol=1e-7)
+
+
 def test_scenes_outside_the_loop_go_to_the_vectorized_clocks():
-    """A check valve (a law with kinks, whose crossings the BDF takes in
-    Python) and a wall whose h A a correlation sets at each step (the loop
-    takes no per-step coefficients): not here (softflow.solve.clocks or the
-    shared steps)."""
-    valve = sf.System()
-    valve += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    valve += sf.CheckValve("valve", sf.air, diameter=2e-3, cracking_pressure=5e3)
-    valve += sf.Container("tank", sf.air, 1e-5)
-    valve.connect("src", ("valve", "a"))
-    valve.connect(("valve", "b"), "tank")
-    wall = sf.System()
-    wall += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    wall += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    wall += sf.Container("tank", sf.air, 1e-5, heat_transfer_coefficient=sf.FreeConvection(),
-                         area=2.2e-3)
-    wall.connect("src", "tube")
-    wall.connect("tube", "tank")
-    for system, key, values, thermal in (
-            (valve, "valve.cracking_pressure", (4e3, 6e3), "isothermal"),
-            (wall, "tube.diameter", (1e-3, 2e-3), "heat_transfer")):
+    """A wall whose h A a correlation sets at each step (the loop takes no
+    per-step coefficients) and a source given as a Python function: not here
+    (softflow.solve.clocks, or the shared steps)."""
+    def scene(pressure, **wall):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=pressure)
+        s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+        s += sf.Container("tank", sf.air, 1e-5, **wall)
+        s.connect("src", "tube")
+        s.connect("tube", "tank")
+        return s
+    wall = scene(sf.Q_(1.3, "bar"), heat_transfer_coefficient=sf.FreeConvection(),
+                 area=2.2e-3)
+    signal = scene(lambda t: 1.2e5 + 1e4 * min(t, 0.01) / 0.01)
+    for system, thermal in ((wall, "heat_transfer"), (signal, "isothermal")):
         sim = sf.Simulation(system, duration=0.05, thermal=thermal)
-        batch = build_batch(system, [{key: v} for v in values],
+        batch = build_batch(system, [{"tube.diameter": d} for d in (1e-3, 2e-3)],
                             {c.label for c in system.components})
         with pytest.raises(variants_mod.Unsupported):
             variants_mod.run(sim, sf.Simulation(batch, duration=0.05, thermal=thermal), 2)
@@ -223,16 +248,8 @@ def test_actuator_curves_of_their_own_split_the_batch_group():
     sim = sf.Simulation(ps.fig4("tube", physics="full"), duration=2.0)
     variants = [{"R2.diameter": d, "act2.curve": ps.curve_plateau(p)}
                 for d in (2e-3, 3e-3) for p in (17.0, 30.0)]
-    out = _run(sim, variants)
-    ends = set()
-    for v, b in zip(variants, out):
-        assert _compiled(b)
-        own = _alone(sim, v)
-        assert b.stats["steps"] == own.stats["steps"]
-        np.testing.assert_allclose(b.get("act2", "volume")[-1], own.get("act2", "volume")[-1],
-                                   rtol=1e-7)
-        ends.add(round(float(b.get("act2", "volume")[-1]), 12))
-    assert len(ends) == 4
+    ends = _as_own_runs(sim, variants, _run(sim, variants), "act2", "volume", rtol=1e-7)
+    assert len(set(np.round(ends, 12))) == 4
 
 
 def test_a_sweep_reads_each_variants_own_interpolant():
@@ -269,9 +286,18 @@ def test_a_chain_on_the_loops_banded_lu():
     sim = sf.Simulation(s, duration=0.05)
     variants = [{"t0.diameter": d} for d in (0.7e-3, 1e-3, 1.5e-3)]
     assert variants_mod._Template(sim).steps.band is not None
-    for v, b in zip(variants, _run(sim, variants)):
-        assert _compiled(b)
-        own = _alone(sim, v)
-        assert b.stats["steps"] == own.stats["steps"]
-        np.testing.assert_allclose(b.get("c11", "pressure")[-1], own.get("c11", "pressure")[-1],
-                                   rtol=1e-9)
+    _as_own_runs(sim, variants, _run(sim, variants), "c11")
+
+
+def test_the_bar_counts_the_variants_run(monkeypatch, capsys):
+    """progress=True: the bar (after DELAY s, here at once) moves with the
+    share of the variants run, each thread's calls a few dozen variants."""
+    from softflow.solve import progress
+    monkeypatch.setattr(progress, "DELAY", 0.0)
+    monkeypatch.setattr(progress, "CHECK_INTERVAL", 1e-4)
+    monkeypatch.setattr(variants_mod, "CHUNK", 2)
+    sim = sf.Simulation(filling_tank(), duration=0.2)
+    variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 40)]
+    out = _run(sim, variants, progress=True)
+    assert all(_compiled(b) for b in out)
+    assert "softflow" in capsys.readouterr().err

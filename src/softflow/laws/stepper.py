@@ -851,8 +851,9 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
             p_idx, T_idx, work, none, stats, nrtol):
     """Newton's chord stages (:func:`_solve`'s first part; backward Euler's
     whole solve in the loop): SOLVED with the solution in work[0], REFUSED
-    (a pressure <= 0), HAND (another piece of a piecewise law, or the
-    fresh chord's HAND), or the fresh chord's PLAIN or CONTRACTING."""
+    (a pressure <= 0), HAND (the fresh chord's, or a second fresh chord's
+    from a solution on another piece of a piecewise law that failed), or
+    the fresh chord's PLAIN or CONTRACTING."""
     x, F, step = work[0], work[1], work[2]
     _newton_scale(x0, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, itol)
     reusable = (ist[STALE] == 0 and ist[AGE] < ist[MAX_AGE]
@@ -867,14 +868,33 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
             if not _positive(x, p_idx):
                 return REFUSED
             # a piecewise law (a check valve) on another piece than the
-            # Jacobian's: the BDF's Newton solves again on its own piece
+            # Jacobian's (Newton.solve): from reused factors, on to the fresh
+            # chord; from fresh ones (a valve that closes within the step,
+            # its Jacobian evaluated open), once more from there on its own
+            # piece's Jacobian, whose result stands (where that fails, the
+            # BDF's Newton takes the step: its damped stage starts from the
+            # predictor, whose factors these are not)
             r_fact, r_now = lin[7], lin[8]
+            off = False
             if r_fact.size:
                 regimes(x, net[4], net[5], net[6], r_now)
                 for i in range(r_now.size):
                     if r_now[i] != r_fact[i]:
-                        ist[STALE] = 1
-                        return HAND
+                        off = True
+            if off:
+                ist[STALE] = 1
+                if stage == 0:
+                    code = PLAIN
+                    continue
+                again = work[4]
+                again[:] = x
+                code = _chord(net, lin, again, psi, t, c, True, ist, fst, itol, T_idx, x, F,
+                              step, work[9], none, stats, work[3])
+                if code != SOLVED:
+                    ist[STALE] = 1
+                    return HAND
+                if not _positive(x, p_idx):
+                    return REFUSED
             ist[AGE] += 1
             return SOLVED
     return code
@@ -1220,11 +1240,14 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             # that may chatter): the BDF's
             if switched and (ist[LOG_SWITCHES] or h <= fst[CHATTER_STEP] * fst[STEP_MIN]):
                 return SWITCH, t
+        # a law's kink (a check valve that shuts or opens) inside the step:
+        # taken as the BDF's _take takes it, below
+        kinked = False
         if kink_at.size:
             kinks(x_new, net[4], net[5], net[6], kink_new)
             for i in range(kink_new.size):
                 if kink_new[i] != kink_at[i]:
-                    return SWITCH, t
+                    kinked = True
         # the error test (BDF._judge)
         for i in range(ns):
             delta[i] = S_new[i] - pred[i]
@@ -1333,11 +1356,16 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         ist[N_REC] = r + 1
         dn = ist[N_DENSE]
         e = r                      # dense entries and points advance together
-        d_t[e], d_h[e], d_k[e], d_row[e] = t_new, h, k, r
-        for i in range(k):
+        # (across a kink the step's polynomial, smooth through the points
+        # before, overshoots it: dense output reads the straight line, D_1)
+        kd = 1 if kinked else k
+        d_t[e], d_h[e], d_k[e], d_row[e] = t_new, h, kd, r
+        for i in range(kd):
             for j in range(d_cols.size):
                 d_D[dn + i, j] = D[1 + i, d_cols[j]]
-        ist[N_DENSE] = dn + k
+        ist[N_DENSE] = dn + kd
+        if kinked:
+            kink_at[:] = kink_new
         ist[PASSED] = 1
         t = t_new
         x[:] = x_new
@@ -1355,6 +1383,15 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
             fst[FAIL_CAP] = fst[H_CAP] = math.inf
             ist[FAIL_HOLD] = ist[CAP_HOLD] = 0
             ist[STALE] = 1
+            continue
+        if kinked:
+            # the history from before a kink extrapolates a smooth trajectory
+            # past it: on at order 1, the order free to rise once k + 1
+            # steps lie past the kink (BDF._take)
+            if k > 1:
+                D[2:, :] = 0.0
+                ist[K] = 1
+            ist[N_EQUAL] = 0
             continue
         ist[N_EQUAL] += 1
         if ist[N_EQUAL] < k + 1:
@@ -1649,11 +1686,11 @@ def variants(j0, j1, given, first, net0, lin, start_lin, tol, start_tol, rec, de
                 d_row_ += k
             row += taken
             ist[N_REC] = ist[N_DENSE] = ist[N_EVENTS] = 0
-            if exit_ != FULL:
-                break
             now = stats[STEPS] + stats[REJECTED]
             ist[BUDGET_LEFT] -= now - used
             used = now
+            if exit_ != FULL:
+                break
         for c in range(stats.size):
             totals[c] += stats[c]
         if not room:

@@ -22,7 +22,7 @@ variants over two threads), wherever that loop serves the scene, whatever
 the number of variants; else, from :data:`OWN_CLOCKS_MIN` variants, the
 BDF vectorized over the variants (:mod:`softflow.solve.clocks`, the
 batch advancing all of them together). Other scenes (user components,
-fixed steps, check valves) share one step sequence
+fixed steps, check valves outside the compiled loop) share one step sequence
 (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
 the error test takes the largest of the sub-networks' own error norms, each
 unknown scaled by its quantity's magnitude in its own sub-network

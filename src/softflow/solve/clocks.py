@@ -63,7 +63,6 @@ import math
 import numpy as np
 
 from ..fluids.base import FluidError
-from .batched import _variant_of
 from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_ESTIMATE, GROW_MIN,
                   MAX_FACTOR, MIN_FACTOR, PEAK_FACTOR, SAFETY, SECANT_TRIES, SWITCH_PAST,
                   _rescale_matrix, newton_limits)
@@ -71,7 +70,8 @@ from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
 from .linalg import make_linear_solver
 from .newton import CRDOWN, Newton, Stats, gauge_offsets
-from .variants import Layout, Unsupported as _Unsupported
+from .variants import Layout, checked
+from .variants import Unsupported as _Unsupported
 
 #: Newton on the batch: chord iterations, at most NEWTON_MAX on fresh factors.
 #: Dense blocks get fresh factors at every pass: one Jacobian evaluation of the
@@ -1128,7 +1128,6 @@ def run(sim, K, progress=None):
     of the variants whose run failed. Raises :class:`Unsupported` where the
     batch cannot run so (:func:`reason_not`)."""
     from .result import Result
-    from .validity import beyond, check_result
     why = reason_not(sim)
     if why is not None:
         raise Unsupported(why)
@@ -1144,15 +1143,6 @@ def run(sim, K, progress=None):
                 linear_solver="dense blocks" if integ.dense else integ.lin.kind,
                 order_steps=integ.order_counts.tolist())
     result = Result(sim.asm, times[:, 0], X, S, stats=info, recorded=sim.record, integrals=Q)
-    inst = integ.lay.inst
-    result.instance_times = lambda g, keep: times[:, inst[id(g)][np.asarray(keep, dtype=np.int64)]]
-    records = check_result(sim.asm, result)
-    result.validity, result.warnings = records, beyond(records)
     failed = dict(integ.failed)
-    if sim.beyond_limits == "error":
-        for w in result.warnings:
-            if w.details.get("fatal"):
-                v = _variant_of(str(w.component))
-                if v is not None:
-                    failed.setdefault(v, w.message)
+    checked(result, sim, integ.lay.inst, times, failed)
     return result, counts, times, (integ.steps, integ.rejected), failed

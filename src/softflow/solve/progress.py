@@ -109,6 +109,12 @@ class Progress:
         if self.steps >= self._next:
             self._look(t)
 
+    def reached(self, t: float) -> None:
+        """The run is at t [s] (a caller that counts no steps: the batched
+        variants' share run, :mod:`softflow.solve.variants`)."""
+        if self.enabled:
+            self._look(t)
+
     def steps_to_look(self) -> int:
         """Accepted steps before the next look at the clock (the compiled
         loop hands back then, so that the bar moves as it would)."""

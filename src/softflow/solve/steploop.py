@@ -23,11 +23,15 @@ carries a flow source: :meth:`CompiledSteps.run` has the finder find those
 nodes at the run's first failure, and the loop try that step again), a
 failure at the smallest step (a fold's jump,
 continuation), forced steps, a mode switch logged in detail or at the
-smallest steps (where it may chatter), steps across a law's kink (a check
-valve that shuts or opens), solutions on another piece of a piecewise law
-than the Jacobian's, emptied volumes, restarts whose probes fail), is the
-stepper's own in Python, from the state the loop leaves. The loop takes
-restarts, steps to breakpoints and the end itself, Newton's full stages
+smallest steps (where it may chatter), a second fresh chord that fails
+after a solution on another piece of a piecewise law than the Jacobian's,
+emptied volumes, restarts whose probes fail), is the stepper's own in
+Python, from the state the loop leaves. The loop takes restarts, steps to
+breakpoints and the end itself, steps across a law's kink (a check valve
+that shuts or opens: on at order 1, the step read as a straight line, as
+BDF._take takes it), solutions on another piece than the Jacobian's (the
+fresh chord after reused factors, once more from there after fresh ones,
+as Newton.solve does), Newton's full stages
 (undamped after slow chord iterations, damped near the smallest step and in
 restart probes) and the rejection of a step whose solve fails otherwise
 (a quarter of the step, as BDF._newton_failed). Backward Euler's steps

@@ -19,7 +19,8 @@ method, tolerances and controller, on the same equations.
 
 A variant whose run the loop hands back (a failed solve the BDF's Newton
 or the culprit finder would look into, a step forced at the smallest
-step, a mode switch, a kink, an emptied volume, the step budget) or whose
+step, a mode switch at the smallest steps, an emptied volume, the step
+budget) or whose
 start does not converge is reported failed, and the batched engine runs it
 alone (its Result then says why, where it fails).
 
@@ -28,8 +29,7 @@ runs without ``refine`` of scenes whose network the compiled loop serves
 (the compiled residual, constant or waveform sources, no heat-transfer
 correlation's per-step h A; its dense, banded or sparse LU, each start on
 a dense LU: up to :data:`~softflow.solve.settings.DENSE_MAX` unknowns a
-variant) and whose laws have no kinks
-(no check valve); flow sources and thermal scenes included (their starts
+variant); check valves, flow sources and thermal scenes included (their starts
 solved without the Python solve's culprit finder and flows-first stage: a
 variant whose start does not converge here runs alone). The variants may
 differ in any run-time parameter whose network floats keep their sizes
@@ -39,19 +39,21 @@ variant (:func:`_gather_index`). Other scenes go to
 :mod:`softflow.solve.clocks` or the shared step sequence.
 
 Cost (1 000 variants of the source-tube-tank scene, ``benchmarks/bench_sweep.py``):
-~65 us of CPU a variant in the loop (start and ~15 steps), ~35 ms of wall
+~65 us of CPU a variant in the loop (start and ~15 steps), ~36 ms of wall
 time on this project's two cores; the sweep around it (checking the
 variants, building and compiling the batch network, its validity checks,
-the results) about as much again.
+the results) ~100 ms more.
 
 Results: as :func:`softflow.solve.clocks.run` gives them (each variant's
 points padded to the longest, in the batch's layout), so that the batched
-engine reads both alike.
+engine reads both alike, and with the batch's interpolant: each variant's
+own dense output (:class:`_VariantsDense`), which sweeps read at their
+times.
 """
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -59,8 +61,11 @@ from .._laws import law_module
 from .batched import PREFIX, _variant_of
 from .settings import DENSE_MAX
 
-#: Fewest variants split over two threads (fewer run in the calling thread)
+#: Fewest variants split over two threads (fewer run in one)
 THREAD_MIN = 16
+#: Variants a thread runs per call of the compiled loop (between two looks of
+#: the progress bar)
+CHUNK = 64
 #: Record rows first allocated per variant (more are given where a run
 #: needs them: the variants that did not fit are run again)
 ROWS_PER_VARIANT = 64
@@ -163,8 +168,6 @@ def reason_not(sim):
     asm = sim.asm
     if getattr(asm.residual, "network", None) is None:
         return "a component the compiled network does not cover"
-    if asm.has_kinks:
-        return "a law with kinks (a check valve), whose crossings the BDF in Python takes"
     return None
 
 
@@ -356,6 +359,7 @@ class _Worker:
                     np.empty(self.rows, np.int64), np.empty(self.rows, np.int64),
                     np.empty((self.d_rows, self.d_width)))
         self.pos = np.zeros(2, np.int64)
+        self.done = 0           # variants run (the progress bar reads it)
         self.totals = np.zeros(st.STATS_SIZE, np.int64)
 
     def run(self, tpl, picks, given, w_index, meta):
@@ -374,12 +378,14 @@ class _Worker:
         meta_mine = tuple(np.zeros(picks.size, dtype=np.int64) for _ in meta)
         j, K = 0, picks.size
         while j < K:
-            j = st.variants(j, K, mine, first, self.net, self.lin, self.start_lin, tol,
-                            start_tol, self.rec,
-                            self.dense, self.events, w_index, G, ERRC, self.scratch,
-                            self.start_scratch, self.work, self.out, self.pos, meta_mine,
-                            self.totals)
-            if j < K:          # out of rows: twice as many, and on from variant j
+            # (a few dozen variants a call: the progress bar's count moves)
+            end = min(j + CHUNK, K)
+            j = st.variants(j, end, mine, first, self.net, self.lin, self.start_lin, tol,
+                            start_tol, self.rec, self.dense, self.events, w_index, G, ERRC,
+                            self.scratch, self.start_scratch, self.work, self.out, self.pos,
+                            meta_mine, self.totals)
+            self.done = j
+            if j < end:        # out of rows: twice as many, and on from variant j
                 used, d_used = int(self.pos[0]), int(self.pos[1])
                 self.rows *= 2
                 self.d_rows *= 2
@@ -408,13 +414,13 @@ def run(sim, batch_sim, K, progress=None):
     (M, K), accepted and rejected steps per variant, and {variant: reason}
     of the variants whose run failed here (the caller runs those alone).
     Raises :class:`Unsupported` where the batch cannot run so.
-    ``progress`` is accepted for the engines' common signature (these runs
-    take milliseconds: no bar)."""
+    ``progress``: a bar as ``Simulation.run(progress=)`` shows it, whose
+    time is the duration times the share of the variants run."""
     from .integrator import VolumeWatch
     from .newton import Stats
+    from .progress import CHECK_INTERVAL, Progress
     from .result import Result
     from .steploop import _solve_counts_out
-    from .validity import beyond, check_result
     why = reason_not(sim) or reason_not(batch_sim)
     if why is not None:
         raise Unsupported(why)
@@ -435,7 +441,7 @@ def run(sim, batch_sim, K, progress=None):
     U = np.ascontiguousarray(bnet.u[u_idx])
     sources = _sources_of(described, u_idx, K)
     # the watched volumes: each variant's floors from its own initial states
-    w_index, w_floor = tpl.steps.watch
+    w_index = tpl.steps.watch[0]
     if w_index.size:
         batch_atol = lay.s_from_v(np.tile(tpl.atol_s, (K, 1)), np.empty(basm.S0.size))
         bw = VolumeWatch.of(basm, basm.S0, batch_atol)
@@ -456,13 +462,17 @@ def run(sim, batch_sim, K, progress=None):
     owner = np.arange(K) % threads
     picks = [np.flatnonzero(owner == i) for i in range(threads)]
     workers = [_Worker(tpl, picks[i].size) for i in range(threads)]
-    with np.errstate(all="ignore"):
-        if threads == 1:
-            workers[0].run(tpl, picks[0], given, w_index, meta)
-        else:
-            with ThreadPoolExecutor(threads) as pool:
-                list(pool.map(lambda i: workers[i].run(tpl, picks[i], given, w_index, meta),
-                              range(threads)))
+    with np.errstate(all="ignore"), Progress(batch_sim.duration, progress) as bar, \
+            ThreadPoolExecutor(threads) as pool:
+        running = [pool.submit(workers[i].run, tpl, picks[i], given, w_index, meta)
+                   for i in range(threads)]
+        pending = running
+        while pending:
+            pending = wait(running, timeout=CHECK_INTERVAL)[1]
+            # the bar: the share of the variants run, as a share of the duration
+            bar.reached(batch_sim.duration * sum(w.done for w in workers) / K)
+        for r in running:
+            r.result()          # (an error in a thread raised here)
     first, count, code, steps, rejected = meta
     exits = st.EXITS
     failed = {}
@@ -514,9 +524,21 @@ def run(sim, batch_sim, K, progress=None):
                 order_steps=[0] + [int(totals[7 + k]) for k in range(1, sim.max_order + 1)])
     result = Result(basm, times[:, 0], X, S, stats=info, recorded=batch_sim.record,
                     integrals=Q, dense=dense)
-    inst = lay.inst
+    checked(result, batch_sim, lay.inst, times, failed)
+    return result, np.where(ok, count, 0), times, (steps, rejected), failed
+
+
+def checked(result, batch_sim, inst, times, failed):
+    """The validity checks of a batch ``result`` whose variants keep their
+    own ``times`` (M, K) (each group's instances' variants in ``inst``), into
+    ``result.validity`` and ``result.warnings``; where the Simulation stops
+    past a model's own limits (``beyond_limits='error'``), each variant
+    found past one added to ``failed`` (the caller runs it alone, where its
+    result says so). For both own-clock engines (this module's and
+    :mod:`softflow.solve.clocks`)."""
+    from .validity import beyond, check_result
     result.instance_times = lambda g, keep: times[:, inst[id(g)][np.asarray(keep, dtype=np.int64)]]
-    records = check_result(basm, result)
+    records = check_result(batch_sim.asm, result)
     result.validity, result.warnings = records, beyond(records)
     if batch_sim.beyond_limits == "error":
         for w in result.warnings:
@@ -524,7 +546,6 @@ def run(sim, batch_sim, K, progress=None):
                 v = _variant_of(str(w.component))
                 if v is not None:
                     failed.setdefault(v, w.message)
-    return result, np.where(ok, count, 0), times, (steps, rejected), failed
 
 
 class _VariantsDense:
