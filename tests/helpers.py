@@ -205,3 +205,22 @@ def actuator_scene(act, source=2e5, fluid=sf.air):
     s.connect("tube", "src")
     s.connect("tube", act.label)
     return s
+
+
+def check_valve_pulses():
+    """Pulses of 1 bar through a tube and a check valve into a tank that
+    leaks to the atmosphere through a thin tube: the valve opens and shuts
+    at every pulse."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.waveforms.Square(2e5, sf.pressure_atmospheric,
+                                                                2.0))
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
+    s += sf.CheckValve("cv", sf.air, cracking_pressure=5e3, diameter=2e-3)
+    s += sf.Container("tank", sf.air, volume=1e-4)
+    s += sf.CircularTube("leak", sf.air, length=0.5, diameter=0.3e-3)
+    s += sf.PressureSource("atm", pressure=sf.pressure_atmospheric)
+    s.connect("src", "tube")
+    s.connect("tube", "cv")
+    s.connect(("cv", "b"), "tank", ("leak", "a"))
+    s.connect(("leak", "b"), "atm")
+    return s

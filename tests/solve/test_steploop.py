@@ -13,7 +13,7 @@ import softflow as sf
 from softflow import paper_scenes as ps
 from softflow.laws import stepper
 from softflow.solve import bdf, settings, steploop
-from helpers import filling_tank, rc_circuit
+from helpers import check_valve_pulses, filling_tank, rc_circuit
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from scenes import chain  # noqa: E402
@@ -126,31 +126,12 @@ def test_it_does_not_serve_what_it_does_not_cover(monkeypatch):
     assert not taken
 
 
-def _check_valve_pulses():
-    """Pulses of 1 bar through a tube and a check valve into a tank that
-    leaks to the atmosphere through a thin tube: the valve opens and shuts
-    at every pulse."""
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.waveforms.Square(2e5, sf.pressure_atmospheric,
-                                                                2.0))
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
-    s += sf.CheckValve("cv", sf.air, cracking_pressure=5e3, diameter=2e-3)
-    s += sf.Container("tank", sf.air, volume=1e-4)
-    s += sf.CircularTube("leak", sf.air, length=0.5, diameter=0.3e-3)
-    s += sf.PressureSource("atm", pressure=sf.pressure_atmospheric)
-    s.connect("src", "tube")
-    s.connect("tube", "cv")
-    s.connect(("cv", "b"), "tank", ("leak", "a"))
-    s.connect(("leak", "b"), "atm")
-    return s
-
-
 def test_check_valves_in_the_compiled_loop(monkeypatch):
     """A check valve that opens and shuts at every pulse: the compiled loop
     takes the steps between, hands back the steps across its kinks and the
     solves that land on another piece of its law, and the run is the Python
     loop's within the tolerance."""
-    py, comp, taken = _both(_check_valve_pulses, 2.0, monkeypatch)
+    py, comp, taken = _both(check_valve_pulses, 2.0, monkeypatch)
     assert py.success and comp.success
     assert taken >= 0.3 * comp.stats["steps"]
     assert abs(comp.stats["steps"] - py.stats["steps"]) <= 0.05 * py.stats["steps"]

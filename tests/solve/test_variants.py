@@ -1,6 +1,8 @@
 """Batched variants on the compiled loop (softflow.solve.variants): each
 variant's own run of the BDF, in the compiled step loop."""
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,7 +10,10 @@ import pytest
 import softflow as sf
 from softflow.solve import variants as variants_mod
 from softflow.solve.batched import _run_batched, build_batch, sample
-from helpers import filling_tank, snapping_valve_scene
+from helpers import check_valve_pulses, filling_tank, snapping_valve_scene
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from scenes import chain  # noqa: E402
 
 
 def _run(sim, variants, **kw):
@@ -191,19 +196,7 @@ def test_check_valves_that_open_and_shut_run_in_the_loop():
     its own run's steps; one it hands back (a solve on another piece of the
     valve's law, a restart probe that needs the BDF's continuation) runs
     alone: every variant is its own run."""
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.waveforms.Square(2e5, sf.pressure_atmospheric,
-                                                                2.0))
-    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=2e-3)
-    s += sf.CheckValve("cv", sf.air, cracking_pressure=5e3, diameter=2e-3)
-    s += sf.Container("tank", sf.air, volume=1e-4)
-    s += sf.CircularTube("leak", sf.air, length=0.5, diameter=0.3e-3)
-    s += sf.PressureSource("atm", pressure=sf.pressure_atmospheric)
-    s.connect("src", "tube")
-    s.connect("tube", "cv")
-    s.connect(("cv", "b"), "tank", ("leak", "a"))
-    s.connect(("leak", "b"), "atm")
-    sim = sf.Simulation(s, duration=1.0)
+    sim = sf.Simulation(check_valve_pulses(), duration=1.0)
     variants = [{"cv.cracking_pressure": p} for p in (1e3, 2e3, 4e3, 8e3, 1.6e4)]
     out = _run(sim, variants)
     compiled = [k for k, b in enumerate(out) if _compiled(b)]
@@ -274,19 +267,10 @@ def test_a_sweep_reads_each_variants_own_interpolant():
 def test_a_chain_on_the_loops_banded_lu():
     """A chain of 12 tube-and-container pairs, whose Jacobian the loop solves
     as a band: each variant's own run's steps (each start on a dense LU)."""
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.Q_(1.4, "bar"))
-    last = "src"
-    for i in range(12):
-        s += sf.CircularTube(f"t{i}", sf.air, 0.2, 1e-3)
-        s += sf.Container(f"c{i}", sf.air, 2e-6)
-        s.connect(last, f"t{i}")
-        s.connect(f"t{i}", f"c{i}")
-        last = f"c{i}"
-    sim = sf.Simulation(s, duration=0.05)
-    variants = [{"t0.diameter": d} for d in (0.7e-3, 1e-3, 1.5e-3)]
+    sim = sf.Simulation(chain(12), duration=0.05)
+    variants = [{"tube0.diameter": d} for d in (1e-3, 2e-3, 3e-3)]
     assert variants_mod._Template(sim).steps.band is not None
-    _as_own_runs(sim, variants, _run(sim, variants), "c11")
+    _as_own_runs(sim, variants, _run(sim, variants), "cont11")
 
 
 def test_the_bar_counts_the_variants_run(monkeypatch, capsys):
