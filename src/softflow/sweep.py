@@ -665,15 +665,23 @@ def _sample(results: Sequence[Any], outputs: list[str], times: Array) -> list[Ar
     from .solve.result import Result
     batches: dict[int, Any] = {}
     dense: list[Any] = []
+    named = {o.rpartition(".")[0] for o in outputs}
     for r in results:
         if type(r) is VariantResult:
             held = r._result
             # a batch sharing its steps, or its variants each on the compiled
-            # loop (each its own interpolant, softflow.solve.variants)
+            # loop (each its own interpolant, softflow.solve.variants: the
+            # components the outputs name read alone, each variant's)
             if (getattr(held, "_dense", None) is not None
                     and (r._n is None or held.stats.get("engine") == "compiled loop")):
                 if id(held) not in batches:
-                    batches[id(held)] = held._at_times(times)
+                    labels = None
+                    if held.stats.get("engine") == "compiled loop":
+                        prefixes = {v._prefix for v in results if type(v) is VariantResult
+                                    and v._result is held}
+                        labels = [p + n for p in prefixes for n in named
+                                  if p + n in held._where]
+                    batches[id(held)] = held._at_times(times, labels)
                 at = batches[id(held)]
                 twin = object.__new__(VariantResult)
                 twin.__dict__.update(r.__dict__)

@@ -285,3 +285,34 @@ def test_the_bar_counts_the_variants_run(monkeypatch, capsys):
     out = _run(sim, variants, progress=True)
     assert all(_compiled(b) for b in out)
     assert "softflow" in capsys.readouterr().err
+
+
+def test_the_batchs_interpolant_reads_every_column_or_the_asked_ones_alike():
+    """Result.at on the batch (every column, or one component's) and the
+    sweeps' read of the named components give the same numbers."""
+    sim = sf.Simulation(filling_tank(), duration=0.05)
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1.2e-3, 2e-3)]
+    out = _run(sim, variants)
+    held = out[0]._result
+    times = np.linspace(0.0, 0.05, 17)
+    every = held._at_times(times)
+    some = held._at_times(times, ["v1/tank", "v2/tube"])
+    for label, name, term in (("v1/tank", "pressure", None), ("v1/tank", "mass", None),
+                              ("v2/tube", "massflow", "a")):
+        np.testing.assert_array_equal(every.get(label, name, term), some.get(label, name, term))
+    assert np.isnan(some.get("v0/tank", "mass")).all()
+    np.testing.assert_array_equal(held.at(times, "v1/tank", "pressure"),
+                                  every.get("v1/tank", "pressure"))
+
+
+def test_the_interpolant_at_a_variants_own_points_is_those_points():
+    """Times on a variant's step ends (where a time is placed among its own
+    entries, the lifted search made exact): its recorded points."""
+    sim = sf.Simulation(filling_tank(), duration=0.05)
+    variants = [{"tube.diameter": d} for d in (0.6e-3, 1.2e-3, 2e-3)]
+    out = _run(sim, variants)
+    held = out[1]._result
+    times = np.asarray(out[1].times)
+    at = held._at_times(times, ["v1/tank"])
+    np.testing.assert_allclose(at.get("v1/tank", "mass"), out[1].get("tank", "mass"),
+                               rtol=1e-13)

@@ -7,6 +7,7 @@ import csv
 import math
 import os
 from collections.abc import Mapping, Sequence
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any, Literal, Union, overload
 
 import numpy as np
@@ -427,13 +428,18 @@ class Result:
                              "get(), or run the simulation again")
         return dense
 
-    def _at_times(self, times: Array) -> Result:
+    def _at_times(self, times: Array, labels: Iterable[str] | None = None) -> Result:
         """This run at ``times`` (1-D, within [0, the interpolant's end]; a failed
-        run keeps those it reached) as a Result of its own."""
+        run keeps those it reached) as a Result of its own. ``labels``: where
+        given, only those components' columns are read (the rest NaN: a
+        batched sweep's outputs, :func:`softflow.sweep._sample`)."""
         dense = self._interpolant("Result")
         if not self.success:
             times = times[times <= dense.end]
-        X, S, Q = dense.values(times)
+        if labels is None:
+            X, S, Q = dense.values(times)
+        else:
+            X, S, Q = self._columns_at(dense, times, labels)
         out = object.__new__(type(self))
         out.__dict__.update(self.__dict__)
         out.times, out.X, out.S, out._Q = np.asarray(times, dtype=float), X, S, Q
@@ -442,6 +448,31 @@ class Result:
         for own in ("_sens", "instance_times"):      # at the steps only
             out.__dict__.pop(own, None)
         return out
+
+    def _columns_at(self, dense: Any, times: Array,
+                    labels: Iterable[str]) -> tuple[Array, Array, Array | None]:
+        """(X, S, Q) at ``times`` with the columns of the components
+        ``labels`` read from ``dense`` (their interface unknowns and their
+        states, all a component's outputs are made of), NaN elsewhere."""
+        xs: set[int] = set()
+        ss: set[int] = set()
+        for label in labels:
+            g, i = self._where[label]
+            xs.update(c for c in self._xcol[g.col[i]].tolist() if c >= 0)
+            s0 = g.s0 + i * g.ns
+            ss.update(c for c in self._scol[s0:s0 + g.ns].tolist() if c >= 0)
+        cX = np.array(sorted(xs), dtype=np.int64)
+        cS = np.array(sorted(ss), dtype=np.int64)
+        has_q = getattr(dense, "Q", None) is not None or self._Q is not None
+        x, s, q = dense.values(times, (cS, cX, cX if has_q else np.empty(0, np.int64)))
+        X = np.full((times.size, self.X.shape[1]), np.nan)
+        S = np.full((times.size, self.S.shape[1]), np.nan)
+        X[:, cX], S[:, cS] = x, s
+        Q = None
+        if q is not None and q.size:
+            Q = np.full((times.size, self.X.shape[1]), np.nan)
+            Q[:, cX] = q
+        return X, S, Q
 
     # -- columns: one name per recorded variable and derived output ----------------------
     def _names(self, label: str) -> list[tuple[str, str]]:

@@ -550,19 +550,23 @@ def checked(result, batch_sim, inst, times, failed):
 
 class _VariantsDense:
     """The batch's interpolant: each variant's own dense output (its steps'
-    polynomials, :class:`softflow.solve.dense.DenseOutput`, made on first
-    use), read at common times into the batch's layout (a variant run alone
-    elsewhere: NaN). Where every time asked is one of a variant's points,
-    those points are read as they are. What :meth:`Result.at
-    <softflow.solve.result.Result.at>` and the sweeps
-    (:func:`softflow.sweep._sample`) read a batch's variants from."""
+    polynomials), read at common times into the batch's layout (a variant
+    run alone elsewhere: NaN). Each thread's records are one
+    :class:`softflow.solve.dense.DenseOutput` whose entries are its
+    variants' one after another; each variant's times are placed among its
+    own entries, and all are evaluated in one call (the numbers of a
+    DenseOutput of each variant alone: its entries' own arithmetic).
+    Where every time asked is the start or the end, the points are read as
+    they are. What :meth:`Result.at <softflow.solve.result.Result.at>` and
+    the sweeps (:func:`softflow.sweep._sample`) read a batch's variants
+    from."""
 
     def __init__(self, workers, owner, first, count, lay, basm, record, T):
         self._workers, self._owner, self._first, self._count = workers, owner, first, count
         self._lay, self._record = lay, record
         self._n, self._ns = basm.n, basm.S0.size
         self._discrete = basm.s_discrete if basm.has_discrete else None
-        self._outputs = {}
+        self._outputs: dict = {}
         self.end = T
 
     @property
@@ -570,18 +574,18 @@ class _VariantsDense:
         """Memory of the variants' records and differences [bytes]."""
         return sum(a.nbytes for w in self._workers for a in w.out)
 
-    def _variant(self, j):
-        """(t, X, S, Q, DenseOutput) of variant j (template layout)."""
-        got = self._outputs.get(j)
+    def _of(self, i):
+        """The DenseOutput of thread i's records (made on first use)."""
+        got = self._outputs.get(i)
         if got is None:
             from .dense import DenseOutput
-            out = self._workers[self._owner[j]].out
-            a, n = int(self._first[j]), int(self._count[j])
-            t, h, k, off = out[0][a:a + n], out[4][a:a + n], out[5][a:a + n], out[6][a:a + n]
-            diffs = out[7][off[0]:off[-1] + k[-1]]
-            X, S, Q = out[1][a:a + n], out[2][a:a + n], out[3][a:a + n]
-            got = self._outputs[j] = (t, X, S, Q, DenseOutput(
-                t, h, k, np.arange(n), diffs, X, S, Q, self._discrete))
+            w = self._workers[i]
+            out, rows, d_rows = w.out, int(w.pos[0]), int(w.pos[1])
+            got = DenseOutput(out[0][:rows], out[4][:rows], out[5][:rows],
+                              np.arange(rows), out[7][:d_rows], out[1][:rows],
+                              out[2][:rows], out[3][:rows], self._discrete)
+            got.off = out[6][:rows]          # (each entry's first row, as written)
+            self._outputs[i] = got
         return got
 
     def values(self, tau, cols=None, chunk=None):
@@ -592,25 +596,63 @@ class _VariantsDense:
         Xv = np.full((P, K, lay.nx), np.nan)
         Sv = np.full((P, K, lay.ns), np.nan)
         Qv = np.full((P, K, lay.nx), np.nan)
-        ends = np.isin(tau, (0.0, self.end))
         live = np.flatnonzero(self._count > 0)
-        if ends.all():
-            # the start and the end, every variant's first and last points:
-            # gathered for all at once (a sweep of end values)
-            row = np.where(tau[:, None] == 0.0, self._first[live],
-                           self._first[live] + self._count[live] - 1)
-            for i, w in enumerate(self._workers):
-                mine = self._owner[live] == i
-                r, js = row[:, mine], live[mine]
-                Xv[:, js], Sv[:, js], Qv[:, js] = w.out[1][r], w.out[2][r], w.out[3][r]
-            live = live[:0]
-        for j in live:
-            t, X, S, Q, dense = self._variant(int(j))
-            at = np.searchsorted(t, tau)
-            if (at < t.size).all() and (t[np.minimum(at, t.size - 1)] == tau).all():
-                Xv[:, j], Sv[:, j], Qv[:, j] = X[at], S[at], Q[at]
-            else:
-                Xv[:, j], Sv[:, j], Qv[:, j] = dense.values(np.clip(tau, 0.0, t[-1]))
+        first, count = self._first, self._count
+        ends = bool(np.isin(tau, (0.0, self.end)).all())
+        local = None            # the variants' own columns to evaluate (None: all)
+        if cols is not None:
+            cS, cX, cQ = (np.asarray(c, dtype=np.int64) for c in cols)
+            xb = cX if self._record is None else np.asarray(self._record[0])[cX]
+            sb = cS if self._record is None else np.asarray(self._record[1])[cS]
+            qb = cQ if self._record is None else np.asarray(self._record[0])[cQ]
+            local = (np.unique(lay.s_local[sb]), np.unique(lay.x_local[xb]),
+                     np.unique(lay.x_local[qb]))
+        for i, w in enumerate(self._workers):
+            js = live[self._owner[live] == i]
+            if not js.size:
+                continue
+            out = w.out
+            if ends:
+                # the start and the end, every variant's first and last points:
+                # gathered for all at once (a sweep of end values)
+                r = np.where(tau[:, None] == 0.0, first[js], first[js] + count[js] - 1)
+                Xv[:, js], Sv[:, js], Qv[:, js] = out[1][r], out[2][r], out[3][r]
+                continue
+            # each variant's times among its own entries (DenseOutput.entries:
+            # the first entry ending at or after each), for all at once: one
+            # search on the thread's times each lifted by its variant's rank
+            # (rows of a thread are its variants' one after another), then
+            # made exact on the times themselves (the lift's round-off may
+            # move a time near an entry's end past it)
+            f, n = first[js], count[js]
+            t_all = out[0][:int(w.pos[0])]
+            last = f + n - 1
+            tq = np.minimum(np.maximum(tau[None, :], 0.0), t_all[last][:, None])
+            span = 2.0 * (float(np.max(t_all)) + 1.0)
+            rank = np.repeat(np.arange(js.size), n)
+            if rank.size != t_all.size:
+                raise RuntimeError("a thread's records are not its variants' one after another")
+            at = np.searchsorted(rank * span + t_all, (np.arange(js.size)[:, None] * span
+                                                       + tq).ravel(), side="left")
+            at = np.clip(at.reshape(js.size, P), f[:, None], last[:, None])
+            while True:
+                up = (t_all[at] < tq) & (at < last[:, None])
+                if not up.any():
+                    break
+                at += up
+            while True:
+                down = (at > f[:, None]) & (t_all[np.maximum(at - 1, 0)] >= tq)
+                if not down.any():
+                    break
+                at -= down
+            X, S, Q = self._of(i).on(at.ravel(), tq.ravel(), local)
+            parts = [(Xv, X), (Sv, S)] + ([] if Q is None else [(Qv, Q)])
+            for k, (whole, part) in enumerate(parts):
+                part = part.reshape(js.size, P, -1).transpose(1, 0, 2)
+                if local is None:
+                    whole[:, js] = part
+                else:           # (local: states, unknowns, quadratures)
+                    whole[:, js[:, None], local[(1, 0, 2)[k]][None, :]] = part
         X = np.empty((P, self._n))
         X[:, lay.xperm] = Xv.reshape(P, -1)
         S = np.empty((P, self._ns))
