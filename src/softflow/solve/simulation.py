@@ -234,6 +234,13 @@ class Simulation:
         of its range, for model='auto'.
     """
 
+    #: whether the compile checks that the network's equations are not
+    #: structurally singular (Assembly.check_nonsingular); the batched
+    #: engine's network of copies of a scene compiled and checked already
+    #: skips it (softflow.solve.batched: each copy is a run(params=) of that
+    #: scene, which does not check again)
+    _check_regular = True
+
     #: the rtol the validity checks judge a run's limits at (None: the run's
     #: own; sf.assess sets its rtol0 on the runs it makes at 10 rtol0)
     _checks_rtol: float | None = None
@@ -362,8 +369,10 @@ class Simulation:
             for g in self.asm.groups:
                 self._compiled.update(zip([c.label for c in g.comps], g.comps))
             self._applied: dict[str, Any] = {}
-            self.asm.check_nonsingular(self.step if self.step is not None else self.step_max)
-            self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0
+            if self._check_regular:
+                self.asm.check_nonsingular(self.step if self.step is not None
+                                           else self.step_max)
+                self.asm.check_nonsingular(0.0)  # the consistent-initial-value solve at t = 0
         self.linear_solver_kind = linear_solver
         self.record = None if record is None else self._record_indices(record)
         self.result: Result | None = None
