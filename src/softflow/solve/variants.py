@@ -157,7 +157,7 @@ def _places(perm, n_local):
 def reason_not(sim):
     """Why the scene of the Simulation ``sim`` cannot run its variants on the
     compiled loop here, or None (the module's "What this covers"; the loop's
-    own conditions are asked of a stepper made for it, :func:`_template`)."""
+    own conditions are asked of a stepper made for it, :class:`_Template`)."""
     from . import settings
     if not settings.COMPILED_VARIANTS:
         return "settings.COMPILED_VARIANTS is off"
@@ -211,7 +211,7 @@ class _Template:
         self.width = integ._D.shape[1]
         self.qmax = (np.zeros(steps.floor.size) if integ._qmax_run is None
                      else np.array(integ._qmax_run, dtype=float))
-        _, _, self.start_lin, self.start_tol, sist, sfst, sfloor = start
+        _, _, self.start_lin, self.start_tol, sist, sfst, _ = start
         self.first = (ist, fst, sist, sfst, steps.floor.copy(), self.qmax)
         self.atol_s = np.broadcast_to(np.asarray(integ.atol, dtype=float), S0.shape)
         self.net = steps.net
