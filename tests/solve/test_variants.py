@@ -69,10 +69,10 @@ def test_each_variant_takes_the_steps_of_its_own_run():
 def test_threads_and_record_room_leave_the_numbers_as_they_are(monkeypatch):
     """One thread or two, records given room for every step at once or grown
     variant by variant (each variant that did not fit run again): the same
-    points, bitwise."""
+    points, bitwise, and the same work counted."""
     sim = sf.Simulation(filling_tank(), duration=0.05)
     variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 17)]
-    runs = []
+    runs, work = [], []
     for threads_from, rows in ((1, 64), (10 ** 9, 64), (1, 1)):
         monkeypatch.setattr(variants_mod, "THREAD_MIN", threads_from)
         monkeypatch.setattr(variants_mod, "ROWS_PER_VARIANT", rows)
@@ -80,6 +80,11 @@ def test_threads_and_record_room_leave_the_numbers_as_they_are(monkeypatch):
         assert all(_compiled(b) for b in out)
         runs.append([(b.times, b.get("tank", "pressure"), b.get("tube", "massflow", "a"))
                      for b in out])
+        # (the batch's counters: a variant run again for room counted once)
+        work.append({k: v for k, v in out[0]._result.stats.items()
+                     if k in ("steps", "newton_iterations", "residual_evaluations",
+                              "factorizations")})
+    assert work[0] == work[1] == work[2]
     for other in runs[1:]:
         for a, b in zip(runs[0], other):
             for x, y in zip(a, b):

@@ -1632,9 +1632,9 @@ def variants(j0, j1, given, first, net0, lin, start_lin, tol, start_tol, rec, de
             tries += 1
             if counters[ITERATIONS] - done_before <= 1:
                 break
-        for c in range(counters.size):
-            totals[c] += counters[c]
         if code != SOLVED:
+            for c in range(counters.size):
+                totals[c] += counters[c]
             v_code[j] = START_FAILED
             continue
         if start >= cap:
@@ -1691,11 +1691,11 @@ def variants(j0, j1, given, first, net0, lin, start_lin, tol, start_tol, rec, de
             used = now
             if exit_ != FULL:
                 break
-        for c in range(stats.size):
-            totals[c] += stats[c]
-        if not room:
+        if not room:            # (its work is counted where it is run again)
             v_count[j] = NO_ROOM
             return j
+        for c in range(stats.size):
+            totals[c] += stats[c] + counters[c]
         pos[0], pos[1] = row, d_row_
         v_count[j] = row - start
         v_code[j] = exit_
