@@ -68,6 +68,7 @@ from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_EST
                   _rescale_matrix, newton_limits)
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
+from .integrator import breakpoints_within
 from .linalg import make_linear_solver
 from .newton import CRDOWN, Newton, Stats, gauge_offsets
 from .variants import Layout, checked
@@ -263,8 +264,7 @@ class VariantBDF:
         breaks = set(float(b) for b in sim.breakpoints)
         for c in asm.where:
             comp = asm.where[c][0].comps[asm.where[c][1]]
-            until = getattr(comp, "breakpoints_until", None)
-            breaks.update(float(b) for b in (until(self.T) if until else comp.breakpoints()))
+            breaks.update(float(b) for b in breakpoints_within(comp, self.T))
         self.breaks = sorted(b for b in breaks if 0.0 < b < self.T)
         if any(b == self.T for b in breaks):
             self.breaks.append(self.T)

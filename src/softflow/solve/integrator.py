@@ -252,7 +252,7 @@ class Integrator:
                  expected_steps=256):
         self.asm, self.newton, self.stats = asm, newton, stats
         self.T = duration
-        self.breaks = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
+        self.breaks = breaks_inside(breakpoints, duration)
         self._break_set = set(self.breaks)
         # record: (unknown indices, state indices, labels) to keep, or None for all
         x_index, s_index = record[:2] if record is not None else (asm.n, len(asm.S0))
@@ -657,6 +657,20 @@ class Integrator:
                 break
             start = out.x
         return out
+
+
+def breakpoints_within(comp, duration):
+    """The breakpoints [s] of the component ``comp`` for a run of ``duration``:
+    a periodic input's every one up to it (``breakpoints_until``: it has
+    endless ones), else its ``breakpoints()``."""
+    until = getattr(comp, "breakpoints_until", None)
+    return until(duration) if until else comp.breakpoints()
+
+
+def breaks_inside(breakpoints, duration):
+    """The breakpoints a run of ``duration`` stops at: those strictly inside
+    (0, duration), sorted, each once."""
+    return sorted(b for b in set(breakpoints) if 0.0 < b < duration)
 
 
 def _same(a, b, atol):

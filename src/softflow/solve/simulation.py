@@ -17,7 +17,7 @@ from ..units import quantity_unit, to_si
 from .assembly import Assembly
 from .bdf import BDF, MAX_ORDER
 from .culprit import Finder
-from .integrator import ImplicitEuler, StepFailure, StoppedAtStart
+from .integrator import ImplicitEuler, StepFailure, StoppedAtStart, breakpoints_within
 from .progress import Progress
 from .linalg import make_linear_solver
 from .newton import Newton, Stats
@@ -684,9 +684,7 @@ class Simulation:
             newton.set_temperature_range(max(r[0] for r in ranges), min(r[1] for r in ranges))
         breaks = list(self.breakpoints)
         for c in components:
-            # periodic inputs have endless breakpoints: ask for those within the run
-            until = getattr(c, "breakpoints_until", None)
-            breaks.extend(float(b) for b in (until(self.duration) if until else c.breakpoints()))
+            breaks.extend(float(b) for b in breakpoints_within(c, self.duration))
         integ: BDF | ImplicitEuler
         if self.adaptive:
             integ = BDF(asm, newton, stats, duration=self.duration, rtol=self.rtol,

@@ -503,15 +503,7 @@ def run(sim, batch_sim, K, progress=None):
         Qv[:, mine] = w.out[3][r]
     pad = jrow >= counts[None, :]
     times = np.where(pad, times + (jrow - counts[None, :] + 1) * 1e-12 * T, times)
-    X = np.empty((M, basm.n))
-    X[:, lay.xperm] = Xv.reshape(M, -1)
-    S = np.empty((M, basm.S0.size))
-    S[:, lay.sperm] = Sv.reshape(M, -1)
-    Q = np.empty((M, basm.n))
-    Q[:, lay.xperm] = Qv.reshape(M, -1)
-    if batch_sim.record is not None:
-        xs, ss = batch_sim.record[:2]
-        X, S, Q = X[:, xs], S[:, ss], Q[:, xs]
+    X, S, Q = _in_batch(Xv, Sv, Qv, lay, basm.n, basm.S0.size, batch_sim.record)
     dense = _VariantsDense(workers, owner, first, np.where(ok, count, 0), lay, basm,
                            batch_sim.record, T)
     stats = Stats()
@@ -548,6 +540,22 @@ def checked(result, batch_sim, inst, times, failed):
                 v = _variant_of(str(w.component))
                 if v is not None:
                     failed.setdefault(v, w.message)
+
+
+def _in_batch(Xv, Sv, Qv, lay, n, ns, record):
+    """Rows of every variant's unknowns, states and quadratures, variant-major
+    ((rows, K, nx), (rows, K, ns), (rows, K, nx)), as the batch's X, S, Q
+    (n unknowns, ns states; the columns Simulation(record=) keeps, where
+    ``record``)."""
+    rows = Xv.shape[0]
+    X, S, Q = np.empty((rows, n)), np.empty((rows, ns)), np.empty((rows, n))
+    X[:, lay.xperm] = Xv.reshape(rows, -1)
+    S[:, lay.sperm] = Sv.reshape(rows, -1)
+    Q[:, lay.xperm] = Qv.reshape(rows, -1)
+    if record is not None:
+        xs, ss = record[:2]
+        X, S, Q = X[:, xs], S[:, ss], Q[:, xs]
+    return X, S, Q
 
 
 class _VariantsDense:
@@ -655,15 +663,7 @@ class _VariantsDense:
                     whole[:, js] = part
                 else:           # (local: states, unknowns, quadratures)
                     whole[:, js[:, None], local[(1, 0, 2)[k]][None, :]] = part
-        X = np.empty((P, self._n))
-        X[:, lay.xperm] = Xv.reshape(P, -1)
-        S = np.empty((P, self._ns))
-        S[:, lay.sperm] = Sv.reshape(P, -1)
-        Q = np.empty((P, self._n))
-        Q[:, lay.xperm] = Qv.reshape(P, -1)
-        if self._record is not None:
-            xs, ss = self._record[:2]
-            X, S, Q = X[:, xs], S[:, ss], Q[:, xs]
+        X, S, Q = _in_batch(Xv, Sv, Qv, lay, self._n, self._ns, self._record)
         if cols is not None:
             cS, cX, cQ = cols
             return X[:, cX], S[:, cS], Q[:, cQ]
@@ -672,28 +672,24 @@ class _VariantsDense:
 
 def _breakpoints(batch_sim, K):
     """Each variant's breakpoints inside the run (the Simulation's and its own
-    components'), sorted, with the end where one falls on it: (K, most)
-    padded with inf, and each one's number."""
-    asm, T = batch_sim.asm, batch_sim.duration
+    components', :func:`softflow.solve.integrator.breaks_inside`), with the
+    end where one falls on it (its last step then reads its sources' left
+    limit there, as the vectorized clocks do): (K, most) padded with inf,
+    and each one's number."""
     from ..network.component import Component
-    common = set(float(b) for b in batch_sim.breakpoints)
-    own = [set(common) for _ in range(K)]
+    from .integrator import breakpoints_within, breaks_inside
+    asm, T = batch_sim.asm, batch_sim.duration
+    common = [float(b) for b in batch_sim.breakpoints]
+    own = [list(common) for _ in range(K)]
     for g in asm.groups:
         c0 = g.comps[0]
         if (getattr(c0, "breakpoints_until", None) is None
                 and type(c0).breakpoints is Component.breakpoints):
             continue                # (a group of a class that states none)
         for comp in g.comps:
-            until = getattr(comp, "breakpoints_until", None)
-            found = until(T) if until else comp.breakpoints()
-            if len(found):
-                own[_variant_of(comp.label)].update(float(b) for b in found)
-    lists = []
-    for breaks in own:
-        inside = sorted(b for b in breaks if 0.0 < b < T)
-        if any(b == T for b in breaks):
-            inside.append(T)
-        lists.append(inside)
+            own[_variant_of(comp.label)].extend(float(b) for b in
+                                                breakpoints_within(comp, T))
+    lists = [breaks_inside(breaks, T) + ([T] if T in breaks else []) for breaks in own]
     counts = np.array([len(b) for b in lists], dtype=np.int64)
     out = np.full((K, max(int(counts.max()), 1)), np.inf)
     for j, b in enumerate(lists):
