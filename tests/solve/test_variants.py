@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import softflow as sf
+from softflow.solve import settings
 from softflow.solve import variants as variants_mod
 from softflow.solve.batched import _run_batched, build_batch, sample
 from helpers import check_valve_pulses, filling_tank, snapping_valve_scene
@@ -52,7 +53,7 @@ def test_each_variant_takes_the_steps_of_its_own_run():
     its own run and ends where it ends."""
     sim = sf.Simulation(filling_tank(), duration=0.1)
     variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 20)]
-    assert len(variants) >= variants_mod.THREAD_MIN
+    assert len(variants) >= settings.VARIANT_THREADS_MIN
     out = _run(sim, variants)
     for v, b in zip(variants, out):
         assert b.success and _compiled(b), b.stats
@@ -74,8 +75,8 @@ def test_threads_and_record_room_leave_the_numbers_as_they_are(monkeypatch):
     variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 17)]
     runs, work = [], []
     for threads_from, rows in ((1, 64), (10 ** 9, 64), (1, 1)):
-        monkeypatch.setattr(variants_mod, "THREAD_MIN", threads_from)
-        monkeypatch.setattr(variants_mod, "ROWS_PER_VARIANT", rows)
+        monkeypatch.setattr(settings, "VARIANT_THREADS_MIN", threads_from)
+        monkeypatch.setattr(settings, "VARIANT_ROWS", rows)
         out = _run(sim, variants)
         assert all(_compiled(b) for b in out)
         runs.append([(b.times, b.get("tank", "pressure"), b.get("tube", "massflow", "a"))
@@ -284,7 +285,7 @@ def test_the_bar_counts_the_variants_run(monkeypatch, capsys):
     from softflow.solve import progress
     monkeypatch.setattr(progress, "DELAY", 0.0)
     monkeypatch.setattr(progress, "CHECK_INTERVAL", 1e-4)
-    monkeypatch.setattr(variants_mod, "CHUNK", 2)
+    monkeypatch.setattr(settings, "VARIANT_CHUNK", 2)
     sim = sf.Simulation(filling_tank(), duration=0.2)
     variants = [{"tube.diameter": d} for d in np.geomspace(0.5e-3, 2e-3, 40)]
     out = _run(sim, variants, progress=True)

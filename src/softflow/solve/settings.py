@@ -306,6 +306,14 @@ COMPILED_START = True
 #: scene; False: the BDF vectorized over the variants
 #: (:mod:`softflow.solve.clocks`) or the shared step sequence.
 COMPILED_VARIANTS = True
+#: Batched variants in the compiled loop (softflow.solve.variants): the
+#: fewest split over two threads (fewer run in one), the variants a thread
+#: runs per call of the loop (between two looks of the progress bar), and
+#: the record rows first allocated per variant (more are given where a run
+#: needs them: the variants that did not fit are run again)
+VARIANT_THREADS_MIN = 16
+VARIANT_CHUNK = 64
+VARIANT_ROWS = 64
 #: Accepted steps the compiled loop records before it hands them to the
 #: run's recorder (and reports progress); each call allocates nothing.
 COMPILED_RECORD_ROWS = 256

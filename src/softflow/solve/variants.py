@@ -59,16 +59,9 @@ import numpy as np
 
 from .._laws import law_module
 from .batched import PREFIX, _variant_of
+from . import settings
 from .settings import DENSE_MAX
 
-#: Fewest variants split over two threads (fewer run in one)
-THREAD_MIN = 16
-#: Variants a thread runs per call of the compiled loop (between two looks of
-#: the progress bar)
-CHUNK = 64
-#: Record rows first allocated per variant (more are given where a run
-#: needs them: the variants that did not fit are run again)
-ROWS_PER_VARIANT = 64
 
 
 class Unsupported(Exception):
@@ -351,7 +344,7 @@ class _Worker:
                      np.zeros(steps.floor.size), np.zeros(tpl.qmax.size),
                      np.zeros(st.STATS_SIZE, np.int64), np.zeros(st.STATS_SIZE, np.int64),
                      np.zeros(tpl.net[7].size))
-        self.rows = max(ROWS_PER_VARIANT * n_variants, 16)
+        self.rows = max(settings.VARIANT_ROWS * n_variants, 16)
         self.d_rows = 2 * self.rows             # (orders 1-5, mostly 1-2)
         self.d_width = steps.dbuf[4].shape[1]
         self.out = (np.empty(self.rows), np.empty((self.rows, n)), np.empty((self.rows, ns)),
@@ -381,7 +374,7 @@ class _Worker:
         j, K = 0, picks.size
         while j < K:
             # (a few dozen variants a call: the progress bar's count moves)
-            end = min(j + CHUNK, K)
+            end = min(j + settings.VARIANT_CHUNK, K)
             j = st.variants(j, end, mine, first, self.net, self.lin, self.start_lin, tol,
                             start_tol, self.rec, self.dense, self.events, w_index, G, ERRC,
                             self.scratch, self.start_scratch, self.work, self.out, self.pos,
@@ -458,7 +451,7 @@ def run(sim, batch_sim, K, progress=None):
     given = (X0, S0, FPAR, U) + sources + (WFLOOR, breaks, n_breaks)
     meta = (np.zeros(K, np.int64), np.zeros(K, np.int64), np.zeros(K, np.int64),
             np.zeros(K, np.int64), np.zeros(K, np.int64))
-    threads = 2 if K >= THREAD_MIN and (os.cpu_count() or 1) >= 2 else 1
+    threads = 2 if K >= settings.VARIANT_THREADS_MIN and (os.cpu_count() or 1) >= 2 else 1
     # every threads-th variant to each thread (a sweep's neighbours are alike:
     # the halves of 1 000 sorted tube diameters took 5-14 and 14-30 steps)
     owner = np.arange(K) % threads
