@@ -83,24 +83,34 @@ def test_networks_with_flow_sources_or_temperatures_start_in_python(monkeypatch)
 
 
 def test_a_start_the_compiled_solve_does_not_reach_is_the_python_solves(monkeypatch):
-    # the catalogue's 1 nm tube into a 1000 m^3 tank: the compiled solve fails,
-    # the Python solve (its continuation, its scale note) refuses the run in
-    # the words it always did; the compiled attempt's work is counted
+    # a 2 bar pulse through a CheckValve cracking at 70 kPa: Newton's steps
+    # from the initial values land far past the valve's opening band, the
+    # compiled solve (no continuation) fails, and the Python solve reaches
+    # the start by continuation, as it does without the compiled attempt; the
+    # attempt's work is counted (84 residual evaluations, measured)
+    from test_integrator import _check_valve_pulse
     served = _served(monkeypatch)
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=2e5)
-    s += sf.CircularTube("tube", sf.air, length=1e-9, diameter=1e-2)
-    s += sf.Container("tank", sf.air, volume=1e3)
-    s.connect("src", ("tube", "a"))
-    s.connect(("tube", "b"), "tank")
-    errors = []
-    for compiled in (True, False):
-        with pytest.raises(sf.SimulationError) as info:
-            _run(s, compiled, duration=0.01)
-        errors.append(info.value)
+    reached = []
+    real = steploop.start_solver
+
+    def spy(integ, lin0):
+        solve = real(integ, lin0)
+        if solve is None:
+            return None
+
+        def attempt(x0):
+            x = solve(x0)
+            reached.append(x is not None)
+            return x
+        return attempt
+    monkeypatch.setattr(steploop, "start_solver", spy)
+    runs = [_run(_check_valve_pulse(70e3, False), compiled, duration=1.0)
+            for compiled in (True, False)]
     assert served == [True, False]         # (the second: COMPILED_START off)
-    assert str(errors[0]) == str(errors[1])
-    assert "length = 1e-09" in str(errors[0]) and "extreme relative" in str(errors[0])
-    more = (errors[0].result.stats["residual_evaluations"]
-            - errors[1].result.stats["residual_evaluations"])
-    assert 0 < more <= 40
+    assert reached == [False]
+    a, b = runs
+    assert a.stats["steps"] == b.stats["steps"]
+    np.testing.assert_array_equal(a.times, b.times)
+    np.testing.assert_array_equal(a.get("tank", "pressure"), b.get("tank", "pressure"))
+    more = a.stats["residual_evaluations"] - b.stats["residual_evaluations"]
+    assert 0 < more <= 120

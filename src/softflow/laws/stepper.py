@@ -60,8 +60,8 @@ IST_SIZE = 35
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
  MIN_FACTOR, MAX_FACTOR, GROW_MIN, PEAK_FACTOR, PIVOT_RTOL, CRDOWN, NEXT_BREAK,
  FIRST_STEP, FIRST_ESTIMATE, H_CAP, SWITCH_PAST, CHATTER_STEP, FULL_STAGE_STEPS,
- KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL, FLIP_MATCH) = range(37)
-FST_SIZE = 37
+ KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL, FLIP_MATCH, LS_MIN, LS_GROSS, LS_DEEP) = range(40)
+FST_SIZE = 40
 #: slots of ``stats``
 (STEPS, REJECTED, ERROR_FAILS, ITERATIONS, RESIDUALS, JACOBIANS, FACTORIZATIONS) = range(7)
 #: then the accepted steps per order 0..5 (7 + k), then the failed solves,
@@ -700,7 +700,7 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
             return SOLVED
         if clip:
             _clip(x, step, T_idx, fst[T_LO], fst[T_HI])
-        lam = 1.0
+        lam, lam_min, lam_prev, f_prev = 1.0, fst[LS_MIN], 0.0, 0.0
         f1 = math.inf
         while not watch:
             for i in range(n):
@@ -717,10 +717,12 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
                 break
             if not damped:   # the full step neither descends nor contracts
                 return PLAIN
-            lam *= 0.5
-            if lam < 1e-4:
+            nxt, lam_min = backtrack(lam, f0, f1, lam_prev, f_prev, lam_min, fst[LS_GROSS],
+                                     fst[LS_DEEP])
+            lam_prev, f_prev, lam = lam, f1, nxt
+            if lam < lam_min:
                 break
-        if watch or lam < 1e-4:
+        if watch or lam < lam_min:
             if watch == 1 or (not watch and used):
                 return HAND          # the line search failed
             if not watch:
@@ -745,6 +747,27 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
         if refactor and lam < 1.0:        # the Jacobian at the damped iterate
             pending = 2
     return HAND if damped else PLAIN
+
+
+@jit
+def backtrack(lam, f0, f1, lam_prev, f_prev, lam_min, gross, deep):
+    """The damped stage's next step length after a trial ``lam`` whose scaled
+    residual ``f1`` gave no descent from ``f0`` (the trial before it:
+    ``lam_prev``, ``f_prev``; 0 for none), and the smallest length the search
+    may go on to (``lam_min``, where it gives up). Half of ``lam``, except
+    after a gross overshoot (``f1`` above ``gross`` times ``f0``, and falling
+    from the trial before): the residual taken as growing as a power k of
+    the length between the two trials (k held to 1 ... 4), the length where
+    that power law reaches half of ``f0``, at most half of ``lam``, and the
+    search may go on down to ``deep``. Both Newtons' rule
+    (:meth:`softflow.solve.newton.Newton._full` and :func:`_full`; the
+    lengths in :mod:`softflow.solve.settings`, LINE_SEARCH_*): halving alone
+    gives up at its smallest length 1e4 times short of a step that
+    overshoots 1e10 times (a tube of 1 nm from rest)."""
+    if f0 * gross < f1 < math.inf and 0.0 < lam < lam_prev and f1 < f_prev:
+        k = min(max(math.log(f_prev / f1) / math.log(lam_prev / lam), 1.0), 4.0)
+        return min(lam * (0.5 * f0 / f1) ** (1.0 / k), 0.5 * lam), min(lam_min, deep)
+    return 0.5 * lam, lam_min
 
 
 @jit

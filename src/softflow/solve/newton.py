@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..constants import pressure_atmospheric
+from .._laws import law_module
 from ..fluids.base import FluidError
 from .linalg import DOT_MAX, SingularJacobian, all_finite  # noqa: F401 (DOT_MAX: re-exported)
 from .settings import (
@@ -58,11 +59,15 @@ from .settings import (
     CRDOWN,
     FLIP_MATCH,
     FULL_KEEP_CUT,
+    LINE_SEARCH_DEEP,
+    LINE_SEARCH_GROSS,
+    LINE_SEARCH_MIN,
     SMALL,
     TIGHT_KEEP_CUT,
     TIGHT_RTOL,
     WATCHDOG,
 )
+
 
 
 def gauge_offsets(quantities, offset=pressure_atmospheric):
@@ -852,12 +857,12 @@ class Newton:
                 return Outcome(True, x + dx, k + 1)
             if self._T_idx.size:
                 dx = self._clip_temperature(x, dx)
-            lam = 1.0
+            lam, lam_min, trial = 1.0, LINE_SEARCH_MIN, (0.0, 0.0)
             while not watch:
                 xn = x + lam * dx
                 if positive and not self._positive(xn):
                     lam *= 0.5
-                    if lam < 1e-4:
+                    if lam < lam_min:
                         break
                     continue
                 # the full step is usually taken: evaluate its Jacobian with it
@@ -870,10 +875,15 @@ class Newton:
                 if undamped:        # the full step neither descends nor contracts
                     return Outcome(False, x, k + 1, "full Newton would need damping",
                                    self._worst_row(F))
-                lam *= 0.5
-                if lam < 1e-4:
+                # halved, or from the growth of a gross overshoot
+                # (settings.LINE_SEARCH_GROSS; the compiled loop's rule)
+                nxt, lam_min = law_module("stepper").backtrack(
+                    lam, float(f0), float(f1), trial[0], trial[1], lam_min,
+                    LINE_SEARCH_GROSS, LINE_SEARCH_DEEP)
+                trial, lam = (lam, float(f1)), nxt
+                if lam < lam_min:
                     break
-            if watch or lam < 1e-4:
+            if watch or lam < lam_min:
                 if watch == 1 or (not watch and used) or positive:
                     return Outcome(False, x_ref if watch else x, k + 1, "line search failed: no "
                                    "decrease of the residual along the Newton direction",

@@ -221,6 +221,18 @@ WATCHDOG = 6
 #: (tests/fons, thresholds 10 and 30 kPa) then took another path through the
 #: band and failed
 FULL_KEEP_CUT, TIGHT_KEEP_CUT, TIGHT_RTOL = 0.1, 0.01, 1e-10
+#: the damped stage's line search halves its step length down to LINE_SEARCH_MIN
+#: (then the watchdog's undamped steps, or the solve fails); where a trial's
+#: scaled residual is more than LINE_SEARCH_GROSS times the starting one
+#: (a gross overshoot: a tube so short that its zero-flow slope, its laminar
+#: friction alone, is ~1e-13 of the law's slope at the flow it carries, sends a
+#: first Newton step from rest 3e10 times past that flow) the next length comes
+#: from the residual's growth between the last two trials, as a power law, and
+#: may go down to LINE_SEARCH_DEEP (:func:`softflow.laws.stepper.backtrack`,
+#: both Newtons). Measured: a 1 nm x 1 cm air tube from a 1.5 bar source into a
+#: tank, refused at t = 0 after 289 residual evaluations with halving alone,
+#: runs (the law's entry-limited flow, 0.0243 kg/s, to 1e-6)
+LINE_SEARCH_MIN, LINE_SEARCH_GROSS, LINE_SEARCH_DEEP = 1e-4, 1e6, 1e-15
 #: :meth:`softflow.solve.newton.Newton.continuation`: its first step in lam,
 #: the smallest, and the most Newton solves it makes (a bound on the cost of a
 #: run that fails anyway: the tests/fons 2 bar pulse through a check valve,

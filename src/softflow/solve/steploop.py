@@ -433,6 +433,8 @@ def _newton_settings(st, ist, fst, newton, n, atol_s):
                                                 newton_mod.TIGHT_KEEP_CUT)
     fst[st.TIGHT_RTOL] = newton_mod.TIGHT_RTOL
     fst[st.FLIP_MATCH] = newton_mod.FLIP_MATCH
+    fst[st.LS_MIN], fst[st.LS_GROSS], fst[st.LS_DEEP] = (
+        newton_mod.LINE_SEARCH_MIN, newton_mod.LINE_SEARCH_GROSS, newton_mod.LINE_SEARCH_DEEP)
     ist[st.WATCHDOG] = newton_mod.WATCHDOG
 
 
