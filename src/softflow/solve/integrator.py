@@ -531,6 +531,9 @@ class Integrator:
         eta = newton.eta
         newton.invalidate()
         self.rec.add(0.0, x, asm.S0.copy())
+        # the consistent start is the run's first accepted point: a failure
+        # on its first step counts its work from here
+        self.stats.residuals_at_last_step = self.stats.residual_evaluations
         if self.sens is not None:
             self.sens_S = self.sens.initial(x, asm.S0)[1]
         if self.stop_at_start is None:

@@ -90,8 +90,9 @@ class Stats:
     factorizations: int = 0
     newton_failures: int = 0
     error_test_failures: int = 0
-    #: residual_evaluations when the last step was accepted (0 before the
-    #: first): a failed run's work after it is the difference
+    #: residual_evaluations when the last point was accepted (the
+    #: consistent start's, then each step's; 0 where the start failed): a
+    #: failed run's work after it is the difference
     residuals_at_last_step: int = 0
 
     def as_dict(self):

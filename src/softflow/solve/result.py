@@ -54,9 +54,10 @@ class Result:
     stats : dict
         Counters: steps, rejected_steps, newton_iterations, residual_evaluations,
         jacobian_evaluations, factorizations, ...; ``residuals_at_last_step``:
-        the residual evaluations made when the last step was accepted (a
-        failed run's work after its last step is ``residual_evaluations``
-        minus this).
+        the residual evaluations made when the last point was accepted (the
+        consistent start's at t = 0, then each step's; 0 where the start
+        failed): a failed run's work after its last accepted point is
+        ``residual_evaluations`` minus this.
     warnings : list of ValidityRecord
         What the run's validity checks found (:mod:`softflow.solve.validity`): each
         with ``component``, ``check``, ``measured``, ``limit``, ``unit``,

@@ -53,6 +53,13 @@ MARCH = 2.0
 #: the most pressures the bracketing search tries (from 1 atm to the cap
 #: or the floor: 14 or 17; more near the edge of a fluid's range)
 MARCH_TRIALS = 200
+#: where a region's node at the edge of its fluid's pressure range cannot be
+#: solved for (another node of the region lies past it), the diagnosis of
+#: :func:`softflow.solve.sourcenodes._reach` tries these fractions of the
+#: edge's pressure inside it, nearest first, before marching from the start
+#: (a pump into two water nodes behind a check valve, refused at t = 0: the
+#: march and its narrowing towards the edge took 125 residual evaluations)
+EDGE_BACKOFF = (1e-3, 1e-2, 0.1)
 #: Newton iterations of one trial pressure's solve for the other unknowns,
 #: and the relative update (besides Newton's atol) it stops at
 INNER_ITERATIONS = 30
