@@ -21,6 +21,7 @@ from result.stats), never timed.
 from __future__ import annotations
 
 import math
+import re
 import warnings
 
 import numpy as np
@@ -708,3 +709,61 @@ def test_a_junction_behind_a_source_jump_is_solved_from_its_balance(monkeypatch)
     monkeypatch.setattr(culprit.Finder, "_junctions_balanced", lambda self, *args: None)
     err = _error(_tesla_network(), duration=0.02, step=2e-3)
     assert err.time == pytest.approx(0.00986973, rel=1e-5)
+
+
+def test_a_pump_drawing_through_a_tube_that_chokes_stops_where_the_supply_runs_out():
+    # (a random air network, seed 1 #50): a mass flow source draws 4.2 mg/s at
+    # a node without volume through a 13 mm x 0.2 mm tube from a 0.1 mL
+    # container, which empties; the tube's choked flow falls with the
+    # container's pressure, and once it falls below the draw the node has no
+    # state. Each step short enough to converge ended nearer that time, in
+    # slivers of 2e-10 s (543 residual evaluations after the last of them);
+    # the finder now sees that the point's supply runs out within the step
+    # (its balance at 1 Pa, at the point and at the stepper's prediction for
+    # the step's end, changes sign within 1 % of the step) and stops the run
+    # at the point, naming the time it runs out. (Adaptive, the BDF's steps
+    # follow the node to its limit: stopped at once at the default rtol;
+    # at rtol 1e-6 its last failed step's continuation still takes ~1 000.)
+    import fluids.compressible as fc
+    s = sf.System()
+    s += sf.MassFlowSource("src0", W.Ramp(t0=0.0153253, t1=0.0230047, v0=4.56338e-07,
+                                           v1=-4.21428e-06))
+    s += sf.Container("v1", sf.air, volume=1e-7, initial_pressure=163292.518)
+    s += sf.CircularTube("e0", sf.air, length=0.0132113, diameter=2e-4)
+    s.connect("src0", ("e0", "a"))
+    s.connect("v1", ("e0", "b"))
+    err = _error(s, duration=0.05, step=0.005)
+    msg = str(err)
+    assert err.component == "src0"
+    assert "MassFlowSource 'src0' draws 4.214e-06 kg/s from node(src0.a, e0.a)" in msg, msg
+    assert "more than the components there supply at any pressure down to 1 Pa" in msg
+    ends = float(re.search(r"they supply it until t = ([0-9.e+-]+) s", msg).group(1))
+    res = err.result
+    last, step = res.times[-1], err.time - res.times[-1]
+    assert 0.0 <= ends - last <= 0.01 * step           # (settings.EXHAUSTED_WITHIN)
+    stats = res.stats
+    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50
+    # independent: at that time the tube's choked flow from the container's
+    # pressure p0 is the draw: fluids' isothermal_gas at its critical outlet
+    # pressure, fed at the inlet pressure p1 an isothermal entry from rest
+    # leaves (Bernoulli: z e^-z = (G c / p0)^2, p1 = p0 e^(-z/2), z = M1^2),
+    # solved for the flow that passes both
+    from scipy.optimize import brentq
+    # (the container's pressure when it runs out: its mass drawn on from the
+    # last point, an ideal gas's pressure in proportion)
+    mass = res.get("v1", "mass")[-1]
+    p0 = res.get("v1", "pressure")[-1] * (mass - 4.21428e-06 * (ends - last)) / mass
+    mu, D, L, draw = sf.air.viscosity(p0), 2e-4, 0.0132113, 4.21428e-06
+    c2 = p0 / sf.air.density(p0)
+    area = math.pi / 4 * D ** 2
+    fd = 64.0 / (4.0 * draw / (math.pi * D * mu))        # laminar, at the draw's Re
+
+    def choked_minus(m):
+        a = (m / area) ** 2 * c2 / p0 ** 2
+        z = brentq(lambda z: z * math.exp(-z) - a, 0.0, 1.0)
+        p1 = p0 * math.exp(-z / 2)
+        p2 = fc.P_isothermal_critical_flow(p1, fd, D, L)
+        return fc.isothermal_gas(p1 / c2, fd, P1=p1, P2=p2, L=L, D=D) - m
+    entry_limit = area * p0 / math.sqrt(c2) * math.exp(-0.5)     # z e^-z at most 1/e
+    choked = brentq(choked_minus, 1e-3 * entry_limit, 0.99 * entry_limit)
+    assert choked == pytest.approx(draw, rel=1e-3)

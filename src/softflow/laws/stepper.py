@@ -717,8 +717,9 @@ def _full(net, lin, psi, t, c, ist, fst, itol, T_idx, work, none, stats, natol, 
                 break
             if not damped:   # the full step neither descends nor contracts
                 return PLAIN
-            nxt, lam_min = backtrack(lam, f0, f1, lam_prev, f_prev, lam_min, fst[LS_GROSS],
-                                     fst[LS_DEEP])
+            # (a gross overshoot's length only at the consistent start, c = 0)
+            nxt, lam_min = backtrack(lam, f0, f1, lam_prev, f_prev, lam_min,
+                                     fst[LS_GROSS] if c == 0.0 else math.inf, fst[LS_DEEP])
             lam_prev, f_prev, lam = lam, f1, nxt
             if lam < lam_min:
                 break
@@ -756,7 +757,13 @@ def backtrack(lam, f0, f1, lam_prev, f_prev, lam_min, gross, deep):
     ``lam_prev``, ``f_prev``; 0 for none), and the smallest length the search
     may go on to (``lam_min``, where it gives up). Half of ``lam``, except
     after a gross overshoot (``f1`` above ``gross`` times ``f0``, and falling
-    from the trial before): the residual taken as growing as a power k of
+    from the trial before; both Newtons pass an infinite ``gross`` but at
+    the consistent start, where flows start from rest and a law's slope
+    there may be ~1e-13 of its slope at the flow it carries: within a run, a
+    solve that fails near a law's singular point, such as a node at a
+    tube's choked flow, went on taking ever shorter steps that barely
+    lowered the residual, ~10x the failure's work): the residual taken as
+    growing as a power k of
     the length between the two trials (k held to 1 ... 4), the length where
     that power law reaches half of ``f0``, at most half of ``lam``, and the
     search may go on down to ``deep``. Both Newtons' rule

@@ -81,6 +81,7 @@ from ..fluids.base import FluidError
 from . import sourcenodes
 from .newton import Outcome
 from .settings import (
+    EXHAUSTED_WITHIN,
     FAR_BELOW,
     MODE_NAMES,
     MODE_SHARE,
@@ -155,6 +156,7 @@ class Finder:
         self._fails = (None, 0)   # (x of the point, failed solves from it) (hopeless)
         self._imposes = None      # whether a component may impose a flow (_may_impose_flow)
         self._junction_nodes = None  # the nodes without volume or flow source (retry)
+        self._runs_out = None     # the time a node's supply runs out (unbalanced)
 
     # -- the last accepted point ----------------------------------------------------
     def point(self):
@@ -227,7 +229,7 @@ class Finder:
         return False
 
     # -- what no step gets past -------------------------------------------------------
-    def find(self, t_new, x=None, S=None, out=None, every=False):
+    def find(self, t_new, x=None, S=None, out=None, every=False, ahead=None):
         """The :class:`Finding` that no step from the last accepted point (or
         from the point (x, S) given: the consistent start's) gets past at time
         t_new, or None: a pressure an input sets outside its fluid's range
@@ -236,7 +238,9 @@ class Finder:
         solve is given), else a flow source that no pressure balances
         (:meth:`unbalanced`; the nodes whose region holds the failed solve's
         worst equation or unknown, all of them where it names neither or
-        where no solve is given). Cached for one (point, t_new)."""
+        where no solve is given). ``ahead``: the failed solve's start (the
+        stepper's prediction of the unknowns at t_new), for a supply that
+        runs out (:meth:`_running_out`). Cached for one (point, t_new)."""
         if x is None:
             at = self.point()
             if at is None:
@@ -268,9 +272,9 @@ class Finder:
             if t_new > t and ranged:
                 found = self._inputs_out_of_range(x, S, t_new, held)
             if found is None and (asked or t_new == t):
-                nodes = self.unbalanced(t, t_new, x, S, asked)
+                nodes = self.unbalanced(t, t_new, x, S, asked, ahead)
                 if nodes:
-                    found = self._unbalanced_finding(nodes[0], t_new)
+                    found = self._unbalanced_finding(nodes[0], t_new, self._runs_out)
         except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
             found = None
         self._cache = (x, t_new, found, ranged, asked, held)
@@ -464,7 +468,7 @@ class Finder:
         (``every``: all the nodes' regions asked, not only those the failed
         solve names: :meth:`before_full`)."""
         found = (self.find(t, x0, S, out) if dt == 0.0
-                 else self.find(t, out=out, every=every))
+                 else self.find(t, out=out, every=every, ahead=x0))
         if found is not None:
             self._hit = (self._cache[0], found)
         return found is not None
@@ -495,13 +499,18 @@ class Finder:
         why = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge)
         return Outcome(False, x.copy(), 0, why, loc.source_rows[0], unknown=loc.p)
 
-    def unbalanced(self, t, t_new, x, S, asked=None):
+    def unbalanced(self, t, t_new, x, S, asked=None, ahead=None):
         """The :class:`~softflow.solve.sourcenodes.Unbalanced` nodes at time
         t_new from the point (x, S) at t (of :meth:`_locals`, those whose
         indices ``asked`` holds, or all), where both that point and that
         point moved on by its rates to t_new fail to balance them (module
-        docstring); [] where none."""
+        docstring); [] where none. With ``ahead`` (the start of a failed
+        solve that went to a pressure <= 0: the stepper's prediction at
+        t_new), also those that balance at the point but not moved on, where
+        the supply runs out within EXHAUSTED_WITHIN of the step
+        (:meth:`_running_out`; the time it does in ``_runs_out``)."""
         asm, newton = self.asm, self.newton
+        self._runs_out = None
         if t_new == t:
             # the consistent start: its own nodes (each alone), then their
             # regions (two sources drawing from nodes joined by tubes that
@@ -530,6 +539,36 @@ class Finder:
             again = {u.local.node for u in sourcenodes.unbalanced(
                 asm, x, S_on, t_new, newton.atol, newton.stats, [u.local for u in found])}
             found = [u for u in found if u.local.node in again]
+        elif ahead is not None and t_new > t:
+            found = self._running_out(t, t_new, x, S, locals_, ahead)
+        return found
+
+    def _running_out(self, t, t_new, x, S, locals_, ahead):
+        """The nodes of ``locals_``, balanced at the point (x, S) at t, that
+        the point moved on to t_new leaves unbalanced (its states by their
+        rates, the unknowns outside the nodes' regions as the stepper
+        predicts them: ``ahead``, the pressures of the volumes that supply
+        them), where their balance at the limit it reaches
+        (:func:`sourcenodes.balance_at` there, at both states) changes sign
+        within EXHAUSTED_WITHIN of the step, taken as linear in time: the
+        supply runs out at the point
+        (a pump drawing through a tube choked from a container that
+        empties: each step short enough to converge ends nearer the time
+        the draw exceeds the tube's sonic flow, and no step passes it). The
+        time it runs out in ``_runs_out``."""
+        asm, newton = self.asm, self.newton
+        atol, stats = newton.atol, newton.stats
+        S_on = np.asarray(asm.update_states(x, S, t_new - t), dtype=float)
+        found = []
+        for u in sourcenodes.unbalanced(asm, ahead, S_on, t_new, atol, stats, locals_):
+            g_on = sourcenodes.balance_at(asm, u.local, ahead, S_on, t_new, u.p, atol, stats)
+            g_at = sourcenodes.balance_at(asm, u.local, x, S, t_new, u.p, atol, stats)
+            if g_on is None or g_at is None or (g_at < 0.0) == (g_on < 0.0):
+                continue
+            share = g_at / (g_at - g_on)
+            if share <= EXHAUSTED_WITHIN:
+                found.append(u)
+                self._runs_out = t + share * (t_new - t)
         return found
 
     def _locals(self, x, S, t, start=False):
@@ -734,7 +773,7 @@ class Finder:
                 "volume that small or a coupling that fast makes every step that short "
                 "(make it larger, or leave it out)")
 
-    def _unbalanced_finding(self, u, t):
+    def _unbalanced_finding(self, u, t, runs_out=None):
         asm, loc = self.asm, u.local
         node = asm.nodes[loc.node].name
         behind = [asm.nodes[j].name for j in (loc.inside or ()) if j != loc.node]
@@ -768,9 +807,13 @@ class Finder:
                     f"{t:.6g} s: more than the components there pass at any pressure up to "
                     f"{at_p}{where} (they pass {total:.4g} kg/s there")
             tail = "outlets that pass the flow"
-        msg = (head + (": " + ", ".join(parts) if parts else "") + "); the node has no "
-               "state from there on (closed, at rest, dead ends, or a gas's flow at its sonic "
-               f"limit): give the node a volume (a Container), or {tail}")
+        # (balanced at the last point: what supplies the node runs out)
+        ran_out = ("" if runs_out is None else
+                   f"; they {'supply' if draw else 'pass'} it until t = {runs_out:.6g} s, as "
+                   "the states behind them change")
+        msg = (head + (": " + ", ".join(parts) if parts else "") + ")" + ran_out
+               + "; the node has no state from there on (closed, at rest, dead ends, or a "
+               f"gas's flow at its sonic limit): give the node a volume (a Container), or {tail}")
         return Finding(msg, loc.sources[0].label, "unbalanced")
 
     def _switched(self, comp):

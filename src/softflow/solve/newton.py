@@ -876,11 +876,12 @@ class Newton:
                 if undamped:        # the full step neither descends nor contracts
                     return Outcome(False, x, k + 1, "full Newton would need damping",
                                    self._worst_row(F))
-                # halved, or from the growth of a gross overshoot
-                # (settings.LINE_SEARCH_GROSS; the compiled loop's rule)
+                # halved, or from the growth of a gross overshoot at the
+                # consistent start (settings.LINE_SEARCH_GROSS; the compiled
+                # loop's rule)
                 nxt, lam_min = law_module("stepper").backtrack(
                     lam, float(f0), float(f1), trial[0], trial[1], lam_min,
-                    LINE_SEARCH_GROSS, LINE_SEARCH_DEEP)
+                    LINE_SEARCH_GROSS if dt == 0.0 else math.inf, LINE_SEARCH_DEEP)
                 trial, lam = (lam, float(f1)), nxt
                 if lam < lam_min:
                     break

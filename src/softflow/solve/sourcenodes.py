@@ -815,6 +815,14 @@ def _reach(bal, p0):
     return None if found is None else (("root", None) if found[0] == "root" else found)
 
 
+def balance_at(asm, loc, x, S, t, p, atol, stats):
+    """The mass balance of node ``loc`` (:class:`_Balance`: the flows into
+    it, the other unknowns of its region solved for) at pressure ``p`` and
+    the state (x, S) at time t; None where p cannot be solved for."""
+    at = _Balance(asm, loc, x, S, atol, stats, t)(p)
+    return None if at is None else at[0]
+
+
 def unbalanced(asm, x, S, t, atol, stats, locals_=None):
     """The nodes without volume that carry a flow source and that no pressure
     between PRESSURE_FLOOR and PRESSURE_CAP balances at the state (x, S) at
