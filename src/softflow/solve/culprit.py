@@ -26,8 +26,13 @@ stands at (the last accepted point) what no step could get past:
   the node still fails, that point's moved on by its rates to the step's end
   (a volume that fills within the step): both must fail, so that a neighbour
   that would supply the flow by the step's end does not stop a run that can
-  go on. A region with an inertial tube inside (its flow held at dt = 0,
-  free within a step) is not asked.
+  go on. A node that balances at the point but not at the stepper's
+  prediction for the step's end, where its balance at its limit changes
+  sign within EXHAUSTED_WITHIN (1 %) of the step, stops the run at the
+  point too: its supply runs out there (a pump drawing through a tube whose
+  choked flow falls as the container behind it empties), and the steps
+  that converge only crawl towards that time. A region with an inertial
+  tube inside (its flow held at dt = 0, free within a step) is not asked.
 
 Either found at a step's first failed solve (:meth:`Finder.hopeless`), the
 run stops there: the shorter steps and the continuation that would follow
@@ -515,8 +520,9 @@ class Finder:
             # the consistent start: its own nodes (each alone), then their
             # regions (two sources drawing from nodes joined by tubes that
             # only the other supplies: each alone balances, together not)
+            # (the first found refuses the start: the others are not asked)
             found = sourcenodes.unbalanced(asm, x, S, t, newton.atol, newton.stats,
-                                           self._locals(x, S, t, start=True))
+                                           self._locals(x, S, t, start=True), first=True)
             if found:
                 self._start_refused = (x, found[0])
             else:
@@ -524,7 +530,7 @@ class Finder:
                 regions = [loc for loc in self._local_nodes if len(loc.inside) > 1]
                 if regions:
                     found = sourcenodes.unbalanced(asm, x, S, t, newton.atol, newton.stats,
-                                                   regions)
+                                                   regions, first=True)
             return found
         locals_ = self._locals(x, S, t)
         if asked is not None:
@@ -534,11 +540,22 @@ class Finder:
         found = sourcenodes.unbalanced(asm, x, S, t_new, newton.atol, newton.stats, locals_)
         if found and t_new > t:
             # the neighbours as the step would move them: the states at t_new
-            # by the rates at the point (forward Euler)
+            # by the rates at the point (forward Euler); each node's balance
+            # there at the state's pressure and at the limit found (solved
+            # from the point's solution there), both on the unbalanced side
             S_on = np.asarray(asm.update_states(x, S, t_new - t), dtype=float)
-            again = {u.local.node for u in sourcenodes.unbalanced(
-                asm, x, S_on, t_new, newton.atol, newton.stats, [u.local for u in found])}
-            found = [u for u in found if u.local.node in again]
+            atol, stats = newton.atol, newton.stats
+            kept = []
+            for u in found:
+                loc = u.local
+                g0 = sourcenodes.balance_at(asm, loc, x, S_on, t_new, float(x[loc.p]), atol,
+                                            stats)
+                g1 = (None if g0 is None else sourcenodes.balance_at(
+                    asm, loc, x, S_on, t_new, u.p, atol, stats, start=u.at))
+                if g1 is not None and ((g0 < 0.0 and g1 < 0.0) if u.kind == "above"
+                                       else (g0 > 0.0 and g1 > 0.0)):
+                    kept.append(u)
+            found = kept
         elif ahead is not None and t_new > t:
             found = self._running_out(t, t_new, x, S, locals_, ahead)
         return found
@@ -561,8 +578,9 @@ class Finder:
         S_on = np.asarray(asm.update_states(x, S, t_new - t), dtype=float)
         found = []
         for u in sourcenodes.unbalanced(asm, ahead, S_on, t_new, atol, stats, locals_):
-            g_on = sourcenodes.balance_at(asm, u.local, ahead, S_on, t_new, u.p, atol, stats)
-            g_at = sourcenodes.balance_at(asm, u.local, x, S, t_new, u.p, atol, stats)
+            g_on = u.g
+            g_at = sourcenodes.balance_at(asm, u.local, x, S, t_new, u.p, atol, stats,
+                                          start=u.at)
             if g_on is None or g_at is None or (g_at < 0.0) == (g_on < 0.0):
                 continue
             share = g_at / (g_at - g_on)

@@ -502,10 +502,13 @@ class _Balance:
             return None, None
         return F, _Jacobian(self.asm)
 
+    #: g at the last pressure solved for (:meth:`__call__`)
+    g = None
+
     def __call__(self, p):
-        """(g(p), dg/dp), with self.x the point solved for at p; None where
-        the solve fails (a fluid's range left, a singular block, no
-        convergence)."""
+        """(g(p), dg/dp), with self.x the point solved for at p (and self.g
+        its g); None where the solve fails (a fluid's range left, a singular
+        block, no convergence)."""
         loc = self.local
         self.range_error = None
         x = self.x.copy()
@@ -531,7 +534,8 @@ class _Balance:
                 dp = np.linalg.solve(A, _block(J, rows, [loc.p])[:, 0])
                 x[cols] += du
                 self.x = x
-                return float(F[loc.row] + j_row[:-1] @ du), float(j_row[-1] - j_row[:-1] @ dp)
+                self.g = float(F[loc.row] + j_row[:-1] @ du)
+                return self.g, float(j_row[-1] - j_row[:-1] @ dp)
             if pos.size:
                 v = x[cols[pos]]
                 du[pos] = np.minimum(np.maximum(du[pos], -0.5 * v), v)
@@ -753,13 +757,18 @@ class Unbalanced:
     draws more than they supply at any pressure down to ``p``); ``flows``: the
     flow of each of :attr:`Local.members` into the node [kg/s] at ``p`` (where
     solved there, else at the state's pressure); ``edge``: the FluidError past
-    p where a fluid's range ends there, else None."""
+    p where a fluid's range ends there, else None; ``g``: the balance there
+    (negative: the source pushes more than they pass; positive: it draws
+    more than they supply), ``at``: the unknowns solved for there (a start
+    for the balance asked again at p, :func:`balance_at`)."""
 
     local: Local
     kind: str
     p: float
     flows: list
     edge: object = None
+    g: float = math.nan
+    at: object = None
 
 
 def _edge_between(err, a, b):
@@ -815,15 +824,22 @@ def _reach(bal, p0):
     return None if found is None else (("root", None) if found[0] == "root" else found)
 
 
-def balance_at(asm, loc, x, S, t, p, atol, stats):
+def balance_at(asm, loc, x, S, t, p, atol, stats, start=None):
     """The mass balance of node ``loc`` (:class:`_Balance`: the flows into
     it, the other unknowns of its region solved for) at pressure ``p`` and
-    the state (x, S) at time t; None where p cannot be solved for."""
-    at = _Balance(asm, loc, x, S, atol, stats, t)(p)
+    the state (x, S) at time t; None where p cannot be solved for.
+    ``start``: unknowns whose region's values the solve starts from (an
+    :class:`Unbalanced`'s ``at``, solved at p for another state: 2-3
+    iterations where from x's a jump to 1 GPa took ~24)."""
+    bal = _Balance(asm, loc, x, S, atol, stats, t)
+    if start is not None:
+        bal.x[bal.cols] = start[bal.cols]
+        bal.x[loc.p] = start[loc.p]          # (the shift to p from there)
+    at = bal(p)
     return None if at is None else at[0]
 
 
-def unbalanced(asm, x, S, t, atol, stats, locals_=None):
+def unbalanced(asm, x, S, t, atol, stats, locals_=None, first=False):
     """The nodes without volume that carry a flow source and that no pressure
     between PRESSURE_FLOOR and PRESSURE_CAP balances at the state (x, S) at
     time t, as :class:`Unbalanced` s (the other nodes' pressures held, as a
@@ -832,7 +848,8 @@ def unbalanced(asm, x, S, t, atol, stats, locals_=None):
     step that cannot be taken (:mod:`softflow.solve.culprit`): what the
     consistent start refuses at t = 0 (:func:`balanced_start`), met later,
     when a valve closes or a source's signal changes. ``atol``, ``stats``: as
-    :func:`balanced_start`'s."""
+    :func:`balanced_start`'s; ``first``: the first found only (the rest not
+    asked)."""
     if locals_ is None:
         locals_ = local_nodes(asm, x, S, t, region=True)
     found = []
@@ -843,7 +860,9 @@ def unbalanced(asm, x, S, t, atol, stats, locals_=None):
             continue
         kind, p = reached
         flows = [float(bal.x[c].sum()) for _, c in loc.members]
-        found.append(Unbalanced(loc, kind, p, flows, bal.range_error))
+        found.append(Unbalanced(loc, kind, p, flows, bal.range_error, bal.g, bal.x.copy()))
+        if first:
+            break
     return found
 
 
