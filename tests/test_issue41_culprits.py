@@ -767,3 +767,28 @@ def test_a_pump_drawing_through_a_tube_that_chokes_stops_where_the_supply_runs_o
     entry_limit = area * p0 / math.sqrt(c2) * math.exp(-0.5)     # z e^-z at most 1/e
     choked = brentq(choked_minus, 1e-3 * entry_limit, 0.99 * entry_limit)
     assert choked == pytest.approx(draw, rel=1e-3)
+
+
+def test_a_source_held_below_a_table_stops_its_damped_stage_at_the_edge():
+    # (a random water network, seed 37 #31): a pressure source steps from 2.5
+    # bar to 41 kPa, below table water's 50 kPa, into a loop of an inertial
+    # tube and a Tesla valve. Every full Newton step of the damped stage aims
+    # at 41 kPa and its line search only closed in on the table's edge, down
+    # to 0.35 Pa from it (67 residual evaluations in the stage); three full
+    # steps in a row past the same edge end the stage (settings.RANGE_AIMS),
+    # and the finder names the source
+    water = sf.water.with_level("table")
+    s = sf.System()
+    s += sf.PressureSource("src0", W.Step(time=7.5e-10, before=251962.0, after=41040.0))
+    s += sf.CircularTube("e0", water, length=1.30783, diameter=2.20356e-3,
+                         friction="laminar", inertance=True)
+    s += sf.TeslaValve("e1", water, length=0.005, diameter=2.22772e-4, diodicity=4.31875)
+    s.connect("src0", ("e0", "a"), ("e1", "a"))
+    s.connect(("e0", "b"), ("e1", "b"))
+    err = _error(s, duration=0.05, step=0.005)
+    assert err.component == "src0"
+    assert ("PressureSource 'src0' sets node(src0.a, e0.a, e1.a) pressure to 41040 Pa at "
+            "t = 0.005 s") in str(err)
+    assert "outside the table range 50000 ... 2e+07 Pa" in str(err)
+    stats = err.result.stats
+    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50

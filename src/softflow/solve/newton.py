@@ -62,6 +62,7 @@ from .settings import (
     LINE_SEARCH_DEEP,
     LINE_SEARCH_GROSS,
     LINE_SEARCH_MIN,
+    RANGE_AIMS,
     SMALL,
     TIGHT_KEEP_CUT,
     TIGHT_RTOL,
@@ -831,6 +832,7 @@ class Newton:
         refactor = True
         watch, f_ref, x_ref, F_ref, used = 0, np.inf, x, F, False
         limit = self.max_iter if undamped else self.max_iter * 2
+        edge, aims = None, 0       # the fluid's edge the full steps aim past, how often
         for k in range(limit):
             if refactor:
                 try:
@@ -867,7 +869,21 @@ class Newton:
                         break
                     continue
                 # the full step is usually taken: evaluate its Jacobian with it
-                Fn = self._eval(xn, S, t, dt, jac=lam == 1.0)
+                if lam == 1.0:
+                    before, self.fluid_error = self.fluid_error, None
+                    Fn = self._eval(xn, S, t, dt, jac=True)
+                    hit, self.fluid_error = self.fluid_error, self.fluid_error or before
+                    # the full steps aiming past one edge of a fluid's range,
+                    # RANGE_AIMS iterations in a row: the root lies past it
+                    at = (None if hit is None or hit.limit is None
+                          else (hit.quantity, hit.limit))
+                    aims = aims + 1 if at is not None and at == edge else int(at is not None)
+                    edge = at
+                    if aims >= RANGE_AIMS and not undamped:
+                        return Outcome(False, x, k + 1, self._not_finite(
+                            "residual not finite along the Newton step"), None)
+                else:
+                    Fn = self._eval(xn, S, t, dt, jac=False)
                 f1 = np.linalg.norm(Fn * rs) if all_finite(Fn) else np.inf
                 if f1 <= (1 - 1e-4 * lam) * f0 or not refactor:
                     break          # descent, or stale factors: refactor at x first (below)
