@@ -792,3 +792,42 @@ def test_a_source_held_below_a_table_stops_its_damped_stage_at_the_edge():
     assert "outside the table range 50000 ... 2e+07 Pa" in str(err)
     stats = err.result.stats
     assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50
+
+
+def test_a_start_that_an_input_outside_its_fluid_refuses_names_the_input():
+    # a pressure source set at 40 kPa, below table water's 50 kPa, at a node
+    # where a volume flow source evaluates the water's density: the start's
+    # solve fails on the fluid's range. The consistent start asks the inputs
+    # too (as a step does) and names the source at once; before, its damped
+    # stage and continuation ran first and the message named the pump, whose
+    # density failed (398 residual evaluations; random water networks with
+    # such a source: 400-1 400)
+    water = sf.water.with_level("table")
+    s = sf.System()
+    s += sf.PressureSource("src", 4e4)
+    s += sf.VolumeFlowSource("pump", 1e-8, water)
+    s += sf.CircularTube("tube", water, length=0.5, diameter=5e-4)
+    s += sf.LinearAccumulator("acc", water, volume=1e-6, compliance=1e-11)
+    s.connect("src", ("tube", "a"), "pump")
+    s.connect(("tube", "b"), "acc")
+    err = _error(s, duration=0.01)
+    assert err.component == "src" and err.time == 0.0
+    assert ("PressureSource 'src' sets node(src.a, pump.a, tube.a) pressure to 40000 Pa at "
+            "t = 0 s, where a fluid cannot be evaluated") in str(err)
+    assert err.result.stats["residual_evaluations"] <= 50
+
+
+def test_a_source_below_a_table_that_no_component_evaluates_there_runs_and_warns():
+    # the same source in front of a tube alone: the tube works at its mean
+    # pressure, inside the table, the start converges, and the run goes on
+    # with the fluid-range warning at the source's node (no refusal)
+    water = sf.water.with_level("table")
+    s = sf.System()
+    s += sf.PressureSource("src", 4e4)
+    s += sf.CircularTube("tube", water, length=0.5, diameter=5e-4)
+    s += sf.LinearAccumulator("acc", water, volume=1e-6, compliance=1e-11)
+    s.connect("src", ("tube", "a"))
+    s.connect(("tube", "b"), "acc")
+    with pytest.warns(sf.ModelWarning, match="outside the table's range"):
+        res = sf.Simulation(s, duration=0.01).run()
+    assert res.status == "success"

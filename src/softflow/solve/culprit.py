@@ -11,7 +11,7 @@ stands at (the last accepted point) what no step could get past:
   (:meth:`Finder._inputs_out_of_range`): a pressure source whose value at
   the step's end lies at or below vacuum, or outside a table's range at its
   node (asked after a solve that met a non-finite residual or a pressure
-  <= 0).
+  <= 0; at the consistent start too, where no shorter step can pass it).
 * **A flow source that no pressure balances**
   (:func:`softflow.solve.sourcenodes.unbalanced`): a MassFlowSource or
   VolumeFlowSource at a node without volume fixes the flow the node's other
@@ -264,8 +264,8 @@ class Finder:
                                   and self._fails[0] is x)
         asked = self._concerned(x, S, t, t_new, None if every else out)
         c = self._cache
-        start = t_new == t        # (where no inputs are asked: any reason alike)
-        if c is not None and c[0] is x and (c[3] or not ranged or start) and asked <= c[4] and (
+        start = t_new == t
+        if c is not None and c[0] is x and (c[3] or not ranged) and asked <= c[4] and (
                 c[5] or not held or start) and (
                 c[1] == t_new or (c[2] is None and t < t_new <= c[1])):
             # the same question, or a shorter step from the same point where
@@ -276,6 +276,11 @@ class Finder:
         try:
             if t_new > t and ranged:
                 found = self._inputs_out_of_range(x, S, t_new, held)
+            elif start and ranged:
+                # the consistent start's failed solve: an input that sets a
+                # pressure outside its fluid's range at t = 0 (no shorter
+                # step there to pass it)
+                found = self._inputs_out_of_range(x, S, t_new, held=True)
             if found is None and (asked or t_new == t):
                 nodes = self.unbalanced(t, t_new, x, S, asked, ahead)
                 if nodes:
