@@ -757,20 +757,18 @@ def backtrack(lam, f0, f1, lam_prev, f_prev, lam_min, gross, deep):
     ``lam_prev``, ``f_prev``; 0 for none), and the smallest length the search
     may go on to (``lam_min``, where it gives up). Half of ``lam``, except
     after a gross overshoot (``f1`` above ``gross`` times ``f0``, and falling
-    from the trial before; both Newtons pass an infinite ``gross`` but at
-    the consistent start, where flows start from rest and a law's slope
-    there may be ~1e-13 of its slope at the flow it carries: within a run, a
-    solve that fails near a law's singular point, such as a node at a
-    tube's choked flow, went on taking ever shorter steps that barely
-    lowered the residual, ~10x the failure's work): the residual taken as
-    growing as a power k of
-    the length between the two trials (k held to 1 ... 4), the length where
-    that power law reaches half of ``f0``, at most half of ``lam``, and the
-    search may go on down to ``deep``. Both Newtons' rule
-    (:meth:`softflow.solve.newton.Newton._full` and :func:`_full`; the
-    lengths in :mod:`softflow.solve.settings`, LINE_SEARCH_*): halving alone
-    gives up at its smallest length 1e4 times short of a step that
-    overshoots 1e10 times (a tube of 1 nm from rest)."""
+    from the trial before): the residual taken as growing as a power k of the
+    length between the two trials (k held to 1 ... 4), the length where that
+    power law reaches half of ``f0``, at most half of ``lam``, and the search
+    may go on down to ``deep``. Halving alone gives up at its smallest length
+    1e4 times short of a step that overshoots 1e10 times (a tube of 1 nm from
+    rest, whose laminar slope there is ~1e-13 of the law's slope at the flow
+    it carries). Both Newtons' rule (:meth:`softflow.solve.newton.Newton._full`
+    and :func:`_full`; the lengths in :mod:`softflow.solve.settings`,
+    LINE_SEARCH_*); both pass an infinite ``gross`` but at the consistent
+    start: within a run, a solve failing near a law's singular point (a node
+    at a tube's choked flow) went on with ever shorter steps that barely
+    lowered the residual, ~10x the failure's work."""
     if f0 * gross < f1 < math.inf and 0.0 < lam < lam_prev and f1 < f_prev:
         k = min(max(math.log(f_prev / f1) / math.log(lam_prev / lam), 1.0), 4.0)
         return min(lam * (0.5 * f0 / f1) ** (1.0 / k), 0.5 * lam), min(lam_min, deep)

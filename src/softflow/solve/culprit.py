@@ -514,11 +514,11 @@ class Finder:
         t_new from the point (x, S) at t (of :meth:`_locals`, those whose
         indices ``asked`` holds, or all), where both that point and that
         point moved on by its rates to t_new fail to balance them (module
-        docstring); [] where none. With ``ahead`` (the start of a failed
-        solve that went to a pressure <= 0: the stepper's prediction at
-        t_new), also those that balance at the point but not moved on, where
-        the supply runs out within EXHAUSTED_WITHIN of the step
-        (:meth:`_running_out`; the time it does in ``_runs_out``)."""
+        docstring); [] where none. With ``ahead`` (the start of the failed
+        solve: the stepper's prediction at t_new), also those that balance at
+        the point but not moved on, where the supply runs out within
+        EXHAUSTED_WITHIN of the step (:meth:`_running_out`; the time it does
+        in ``_runs_out``)."""
         asm, newton = self.asm, self.newton
         self._runs_out = None
         if t_new == t:

@@ -70,7 +70,6 @@ from .settings import (
 )
 
 
-
 def gauge_offsets(quantities, offset=pressure_atmospheric):
     """Per unknown, what its magnitude is counted from: ``offset`` (the
     atmosphere) for a pressure, 0 for any other quantity. Newton's scale

@@ -86,8 +86,7 @@ STALL_REPEATS, STALL_RTOL = 4, 1e-3
 #: changes sign within this fraction of the step, linear in time: the
 #: supply runs out there (a pump drawing through a tube choked from a
 #: container that empties; no step gets past it, and the steps crawled
-#: towards it in slivers: 543 residual evaluations after the last step),
-#: asked after a solve that went to a pressure <= 0
+#: towards it in slivers: 543 residual evaluations after the last step)
 #: (:meth:`softflow.solve.culprit.Finder.unbalanced`)
 EXHAUSTED_WITHIN = 0.01
 #: a run stopped at max_steps names its fastest mode where that mode's time
