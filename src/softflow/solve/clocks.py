@@ -68,7 +68,7 @@ from .bdf import (_ERR, _G, CHATTER_STEP, CHATTER_SWITCHES, FAIL_HOLD, FIRST_EST
                   _rescale_matrix, newton_limits)
 from .blocklu import BlockLU, Factors, PlanError
 from .discretize import linearizable
-from .integrator import breakpoints_within
+from .integrator import breakpoints_within, breaks_inside
 from .linalg import make_linear_solver
 from .newton import CRDOWN, Newton, Stats, gauge_offsets
 from .variants import Layout, checked
@@ -265,9 +265,7 @@ class VariantBDF:
         for c in asm.where:
             comp = asm.where[c][0].comps[asm.where[c][1]]
             breaks.update(float(b) for b in breakpoints_within(comp, self.T))
-        self.breaks = sorted(b for b in breaks if 0.0 < b < self.T)
-        if any(b == self.T for b in breaks):
-            self.breaks.append(self.T)
+        self.breaks = breaks_inside(breaks, self.T, end=True)
         # per group: what the kernels need, with each instance's variant
         self._plan = [(g, lay.inst[id(g)]) + tuple(p[1:]) for g, p in
                       zip(asm.groups, asm._plan)]

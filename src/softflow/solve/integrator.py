@@ -670,10 +670,15 @@ def breakpoints_within(comp, duration):
     return until(duration) if until else comp.breakpoints()
 
 
-def breaks_inside(breakpoints, duration):
+def breaks_inside(breakpoints, duration, end=False):
     """The breakpoints a run of ``duration`` stops at: those strictly inside
-    (0, duration), sorted, each once."""
-    return sorted(b for b in set(breakpoints) if 0.0 < b < duration)
+    (0, duration), sorted, each once; with ``end``, then the end itself
+    where one falls on it (the adaptive steppers': its last step then reads
+    the sources' left limit there)."""
+    inside = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
+    if end and any(b == duration for b in breakpoints):
+        inside.append(duration)
+    return inside
 
 
 def _same(a, b, atol):
