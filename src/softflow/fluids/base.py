@@ -44,11 +44,12 @@ class FluidError(ValueError):
     """Bad fluid input: unknown name, a state outside the valid range, a bad table file.
 
     A state outside a fluid's range says which edge it crossed: ``quantity``
-    ('pressure' or 'temperature') and ``limit`` (that edge, in Pa or K); both
-    None otherwise."""
+    ('pressure' or 'temperature'), ``limit`` (that edge, in Pa or K) and
+    ``value`` (the value past it); all None otherwise."""
 
     quantity: str | None = None
     limit: float | None = None
+    value: float | None = None
 
 
 class _FluidConstructor(type):
@@ -237,8 +238,11 @@ def broadcast_state(fluid, p, T):
         T = fluid.temperature
     p, T = np.asarray(p, dtype=float), np.asarray(T, dtype=float)
     scalar = p.ndim == 0 and T.ndim == 0
-    if p.shape != T.shape:      # (broadcast_arrays returns arrays of one shape as they are)
-        p, T = np.broadcast_arrays(p, T)
+    if p.shape != T.shape:
+        # read-only views (broadcast_arrays' are writeable with a warning on
+        # write, and numba, asked whether they are writeable, warns too)
+        shape = np.broadcast_shapes(p.shape, T.shape)
+        p, T = np.broadcast_to(p, shape), np.broadcast_to(T, shape)
     return p, T, scalar
 
 

@@ -115,6 +115,7 @@ def check_state_range(owner: object, p: Array, T: Array, T_range: tuple[float, f
                              f"the {what} range {lo:g} ... {hi:g} {unit}")
             # the edge crossed, for a search that can stop there
             err.quantity, err.limit = name, float(lo if vmin < lo - s_lo else hi)
+            err.value = float(bad)
             raise err
         if not (np.isfinite(vmin) and np.isfinite(vmax)):
             raise FluidError(f"{name_of}: {name} is not finite")
