@@ -651,6 +651,14 @@ class BDF(Integrator):
         self._h *= factor
         self._n_equal = 0
 
+    def _aim(self, h):
+        """The next step no longer than h (one that ends just past a located
+        crossing), from the point just taken; whether that shortens it."""
+        if h < self._h:
+            self._shrink(h / self._h)
+            return True
+        return False
+
     def _judge(self, t, x, S, x_new, S_new, t_new):
         delta, iS, iX, pred = self._delta, self._iS, self._iX, self._pred
         np.subtract(S_new, pred[iS], out=delta[iS])

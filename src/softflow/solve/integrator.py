@@ -298,6 +298,7 @@ class Integrator:
         # tries in a row at locating where a volume empties; whether the last
         # step taken was one (it ended just short of the crossing)
         self._empty_tries, self._approached = 0, False
+        self._aiming = False         # the last step aimed past a crossing (_aim)
         self._cross_at = math.inf    # a located crossing's time (_emptied)
         # the usual steps in the compiled loop, where the stepper has one
         # (BDF: softflow.solve.steploop); each pass it hands back is the
@@ -369,13 +370,22 @@ class Integrator:
                 self._empty_tries = 0
             stats.steps += 1
             stats.residuals_at_last_step = stats.residual_evaluations
+            t_was = t
             x, S, t = take(t, x, S, x_new, psi, c, S_new, t_new)
-            if self._approached:
+            if self._approached or self._aiming:
                 # just short of a located crossing: the next step ends a
-                # little past it (EMPTY_AHEAD), where the watch stops the run
+                # little past it (EMPTY_AHEAD), where the watch stops the run;
+                # where it ended past the crossing's estimate (which lags a
+                # volume that empties ever faster), EMPTY_AHEAD times as long
+                # as the step just taken, and so on while such steps stay
+                # short of it and shorter than the stepper's own (the grid's
+                # next step, instead, failed Newton three times at an
+                # actuator drawn empty: 58 residual evaluations before the
+                # stop)
                 ahead = EMPTY_AHEAD * (self._cross_at - t)
-                if 0.0 < ahead < self._h:
-                    self._shrink(max(ahead, self.step_min) / self._h)
+                if ahead <= 0.0:
+                    ahead = EMPTY_AHEAD * (t - t_was)
+                self._aiming = self._aim(max(ahead, self.step_min))
             tick(t)
             if begin is not None:
                 begin(x, S)
@@ -426,7 +436,14 @@ class Integrator:
             theta = np.where(gone, np.clip(m0 / (m0 - m1), 0.0, 1.0), np.inf)
         j = int(np.argmin(theta))
         th, h = float(theta[j]), self._h
-        if self._approached or h <= self.step_min * 1.0000001:
+        # (or where the state starts the step within its slack of its limit:
+        # at it already, where an estimate of where it crosses that falls
+        # behind the point it starts from gives no step to approach it by:
+        # an actuator drawn empty by a pump, whose crossing each estimate
+        # placed a little further on, took steps past it that failed Newton,
+        # 80 residual evaluations after the point where it stood at its limit)
+        if (self._approached or h <= self.step_min * 1.0000001
+                or m0[j] <= w.slack[j]):
             raise self._emptied_error(j, t, t + th * h, x_new, S_new)
         self.progress.rejected(t_new, h, "emptied")
         self._cross_at = t + th * h          # (linear: where the next step aims)
@@ -804,6 +821,14 @@ class ImplicitEuler(Integrator):
         loop: a volume emptied within it), from the last point."""
         self._h_cut = self._h * factor
         self._extrapolate = False
+
+    def _aim(self, h):
+        """The next step no longer than h (one that ends just past a located
+        crossing), from the point just taken; the grid's next step where
+        that is shorter. Whether h is shorter than the grid's step."""
+        self._h_cut = h
+        self._extrapolate = False
+        return h < self.h0
 
     def _judge(self, t, x, S, x_new, S_new, t_new):
         end = self._end
