@@ -81,6 +81,22 @@ def test_queries_broadcast_and_are_computed_in_float64():
                                                          np.array([1.0, 2.0])))
 
 
+def test_a_state_past_the_table_says_its_edge_and_value_without_other_warnings():
+    """An array of pressures against the fluid's one temperature (broadcast):
+    the FluidError names the edge crossed and the value past it, and nothing
+    else is said on the way (numba, handed broadcast_arrays' views, warned
+    that they would not stay writeable)."""
+    import warnings
+    water = sf.water.with_level("table")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(sf.FluidError, match="pressure 3e\\+07 Pa is outside") as err:
+            water.density(np.array([1e5, 3e7]))
+        assert (err.value.quantity, err.value.limit, err.value.value) == (
+            "pressure", water.p_range[1], 3e7)
+        assert water.density(np.array([1e5, 2e5]), 300.0).shape == (2,)
+
+
 def test_nan_points_give_nan_in_every_part():
     """NaN gives NaN in every part (one query of many: the others keep their
     numbers)."""

@@ -22,6 +22,7 @@ from scipy.sparse import csc_matrix
 from scipy.sparse.csgraph import connected_components, maximum_bipartite_matching
 from scipy.sparse.linalg import splu
 
+from ..constants import pressure_atmospheric
 from ..fluids.base import FluidError
 from ..network.system import NetworkError
 from .compiled import function
@@ -301,7 +302,7 @@ def _fluid_failure(g, err):
     for the bad state (``component``: the label, where the group has one;
     ``components``: the labels of the group)."""
     out = FluidError(f"in {_group_name(g)}: {err}")
-    out.quantity, out.limit = err.quantity, err.limit
+    out.quantity, out.limit, out.value = err.quantity, err.limit, err.value
     out.component = g.comps[0].label if len(g.comps) == 1 else None
     out.components = frozenset(c.label for c in g.comps)
     return out
@@ -1245,11 +1246,31 @@ class Assembly:
             x0[first] = vals[at]
         return x0
 
-    def _initial_unknowns_small(self, compiled):
+    def stated_unknowns(self):
+        """:attr:`x0` with each node's pressure at the first value a component
+        states there other than the 1 atm that tubes, valves and flow sources
+        only guess (a volume's initial pressure, a pressure source's): where
+        the network starts, for the culprit finder's analysis of a start that
+        fails. The initial values themselves keep the first value given
+        (changing them moves converging starts' paths)."""
+        return self._initial_unknowns_small(False, stated=True)
+
+    def _initial_unknowns_small(self, compiled, stated=False):
         """:meth:`_initial_unknowns` of a small network on Python lists: the
         values in the same order (group by group, component by component,
-        variable by variable), the first one given for each unknown kept."""
+        variable by variable), the first one given for each unknown kept
+        (``stated``: :meth:`stated_unknowns`' rule, any size)."""
         first = {}
+        if stated:
+            guess = pressure_atmospheric
+
+            def keep(k, value):
+                # the first value, or the first stated one after 1 atm guesses
+                old = first.get(k)
+                return old is None or (old == guess and value != guess)
+        else:
+            def keep(k, value):
+                return k not in first
         for g, layout in zip(self.groups, self._layouts):
             if layout is not None and not compiled:     # other components (replace)
                 layout = _group_layout(g.comps)
@@ -1259,14 +1280,14 @@ class Assembly:
                     iface = g.iface[i][0] if compiled else c.interface_variables()
                     for (_, v), k in zip(iface, cols[i]):
                         value = v.initial_value
-                        if value is not None and k not in first:
+                        if value is not None and keep(k, value):
                             first[k] = value
                 continue
             slots = layout.values(g.comps)
             for i, at in enumerate(cols):
                 for k, vs in slots:
                     value = vs[i] if isinstance(vs, list) else vs
-                    if value is not None and at[k] not in first:
+                    if value is not None and keep(at[k], value):
                         first[at[k]] = value
         x0 = [0.0] * self.n
         for k, value in first.items():

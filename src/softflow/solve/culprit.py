@@ -162,6 +162,7 @@ class Finder:
         self._imposes = None      # whether a component may impose a flow (_may_impose_flow)
         self._junction_nodes = None  # the nodes without volume or flow source (retry)
         self._runs_out = None     # the time a node's supply runs out (unbalanced)
+        self._stated = None       # the initial values' stated pressures (_as_stated)
 
     # -- the last accepted point ----------------------------------------------------
     def point(self):
@@ -251,8 +252,11 @@ class Finder:
             if at is None:
                 return None
             t, x, S = at
+            key = x
         else:
+            # (the start's cache and findings are kept under the x given)
             t = t_new
+            key, x = x, self._as_stated(x)
         reason = None if out is None else out.reason
         ranged = reason is None or reason.startswith(RANGE_REASONS)
         # inputs held outside a fluid's range since before the point: asked
@@ -265,7 +269,7 @@ class Finder:
         asked = self._concerned(x, S, t, t_new, None if every else out)
         c = self._cache
         start = t_new == t
-        if c is not None and c[0] is x and (c[3] or not ranged) and asked <= c[4] and (
+        if c is not None and c[0] is key and (c[3] or not ranged) and asked <= c[4] and (
                 c[5] or not held or start) and (
                 c[1] == t_new or (c[2] is None and t < t_new <= c[1])):
             # the same question, or a shorter step from the same point where
@@ -287,8 +291,24 @@ class Finder:
                     found = self._unbalanced_finding(nodes[0], t_new, self._runs_out)
         except (FluidError, ComponentError, ArithmeticError, np.linalg.LinAlgError):
             found = None
-        self._cache = (x, t_new, found, ranged, asked, held)
+        self._cache = (key, t_new, found, ranged, asked, held)
         return found
+
+    def _as_stated(self, x):
+        """The consistent start's point to analyse for ``x``: where ``x`` is
+        the initial values, the same with each node's pressure at the value a
+        volume or a pressure source states there
+        (:meth:`Assembly.stated_unknowns`), not at a tube's or a flow source's
+        guess of 1 atm (a pump drawing from a junction behind a check valve
+        from a LinearAccumulator at 80 kPa, asked with the accumulator's node
+        at 1 atm, balanced; its start was refused after 2 660 residual
+        evaluations); else ``x``."""
+        asm = self.asm
+        if x.shape != asm.x0.shape or not np.array_equal(x, asm.x0):
+            return x
+        if self._stated is None:
+            self._stated = asm.stated_unknowns()
+        return self._stated
 
     def _concerned(self, x, S, t, t_new, out):
         """The indices (into :meth:`_locals`) of the nodes whose regions a
@@ -322,11 +342,16 @@ class Finder:
         node without volume that carries a flow source at the pressure that
         balances it (:func:`sourcenodes.rebalanced`), else ``out``. Tried
         once per point, after a solve that ended on a root the run refuses
-        (:data:`RETRY_REASONS`: an absolute pressure <= 0), and not where
-        nothing gets there (:meth:`find`). Newton's solve from the step's
-        predictor follows the slopes there (a check valve at rest: its
-        leakage) to a root below vacuum, where the valve opens 200 Pa below
-        the point's pressure."""
+        (:data:`RETRY_REASONS`: an absolute pressure <= 0) or whose line
+        search failed on a flow source's region (:data:`JUNCTION_REASONS`,
+        its worst equation or unknown there), and not where nothing gets
+        there (:meth:`find`). Newton's solve from the step's predictor
+        follows the slopes there (a check valve at rest: its leakage) to a
+        root below vacuum, where the valve opens 200 Pa below the point's
+        pressure; or it finds no decrease along them (a volume flow source
+        that jumps from 0.01 to 7.5 mL/s into a junction whose way out is a
+        check valve shut without leakage: every shorter step failed alike,
+        1 085 residual evaluations before the run stopped; now it goes on)."""
         at = self.point()
         below = _below_vacuum(out.reason)
         # (not after a fluid's range error: a source past a table, which the
@@ -342,7 +367,10 @@ class Finder:
         try:
             locals_ = self._locals(x, S, t0)
             if locals_:
-                if not below or self.find(t, out=out) is not None:
+                # (after a line search's failure, where it concerns a flow
+                # source's region: its worst equation or unknown there)
+                if ((not below and not self._concerned(x, S, t0, t, out))
+                        or self.find(t, out=out) is not None):
                     return out
                 start = sourcenodes.rebalanced(self.asm, x, S, t, newton.atol, newton.stats,
                                                locals_)
@@ -502,11 +530,11 @@ class Finder:
         (the same search made twice was ~47 residual evaluations of a refused
         start's ~110)."""
         got = self._start_refused
-        if got is None or not np.array_equal(got[0], x):
+        if got is None or not np.array_equal(got[0], self._as_stated(x)):
             return None
         u = got[1]
         loc = u.local
-        why = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge)
+        why = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge, u.flows)
         return Outcome(False, x.copy(), 0, why, loc.source_rows[0], unknown=loc.p)
 
     def unbalanced(self, t, t_new, x, S, asked=None, ahead=None):
@@ -798,8 +826,12 @@ class Finder:
 
     def _unbalanced_finding(self, u, t, runs_out=None):
         asm, loc = self.asm, u.local
-        node = asm.nodes[loc.node].name
-        behind = [asm.nodes[j].name for j in (loc.inside or ()) if j != loc.node]
+        draw = u.kind == "below"
+        names, several, picked = sourcenodes.source_names(loc, u.flows, draw)
+        # (the node of the first source named: the region's others behind it)
+        at = loc.source_nodes[picked[0]]
+        node = asm.nodes[at].name
+        behind = [asm.nodes[j].name for j in (loc.inside or ()) if j != at]
         if behind:
             more = f" and {len(behind) - 3} more" if len(behind) > 3 else ""
             verb = "is" if len(behind) == 1 else "are"
@@ -808,10 +840,11 @@ class Finder:
         else:
             node += ", a node without volume"
         n_src = len(loc.sources)
-        others = list(zip(loc.members[n_src:], u.flows[n_src:]))
-        draw = u.kind == "below"
-        names = ", ".join(c.describe() for c in loc.sources)
-        rate = sum(u.flows[:n_src])
+        # a source the other way is among what passes the flow
+        others = [(loc.members[i], u.flows[i]) for i in range(n_src)
+                  if i not in picked and u.flows[i] != 0.0]
+        others += list(zip(loc.members[n_src:], u.flows[n_src:]))
+        rate = sum(u.flows[i] for i in picked)
         rate_text = f"{abs(rate):.4g} kg/s"
         at_p = f"{u.p:.4g} Pa"
         where = "" if u.edge is None else f", where the fluid's range ends ({u.edge})"
@@ -821,12 +854,12 @@ class Finder:
             parts.append(f"{comp.describe()} {passed:.4g} kg/s{self._switched(comp)}")
         total = sum((-f if draw else f) for _, f in others)
         if draw:
-            head = (f"{names} draws {rate_text} from {node}, at t = "
+            head = (f"{names} {'draw' if several else 'draws'} {rate_text} from {node}, at t = "
                     f"{t:.6g} s: more than the components there supply at any pressure down "
                     f"to {at_p}{where} (they supply {total:.4g} kg/s there")
             tail = "inlets that supply the flow"
         else:
-            head = (f"{names} pushes {rate_text} into {node}, at t = "
+            head = (f"{names} {'push' if several else 'pushes'} {rate_text} into {node}, at t = "
                     f"{t:.6g} s: more than the components there pass at any pressure up to "
                     f"{at_p}{where} (they pass {total:.4g} kg/s there")
             tail = "outlets that pass the flow"
@@ -837,7 +870,7 @@ class Finder:
         msg = (head + (": " + ", ".join(parts) if parts else "") + ")" + ran_out
                + "; the node has no state from there on (closed, at rest, dead ends, or a "
                f"gas's flow at its sonic limit): give the node a volume (a Container), or {tail}")
-        return Finding(msg, loc.sources[0].label, "unbalanced")
+        return Finding(msg, loc.sources[picked[0]].label, "unbalanced")
 
     def _switched(self, comp):
         """' (closed: its state 'open' went 1 -> 0 at t = ...)' for a component
