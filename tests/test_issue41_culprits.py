@@ -715,6 +715,39 @@ def test_a_junction_behind_a_source_jump_is_solved_from_its_balance(monkeypatch)
     assert err.time == pytest.approx(0.00986973, rel=1e-5)
 
 
+@pytest.mark.parametrize("rtol", [1e-3, 1e-5, 1e-6])
+def test_the_choking_pump_stops_where_its_supply_runs_out_at_tight_tolerances(rtol):
+    # the scene below, adaptive: the BDF follows the pump's node towards the
+    # time its supply runs out in ever shorter steps (1e-10 s at t = 0.039 s
+    # at rtol 1e-6), each failing first; the finder stops the run where the
+    # point's balance at 1 Pa lies within Newton's tolerance of the draw, or
+    # where it runs out within EXHAUSTED_RESOLVED (1e-8) of the point's time
+    # (at rtol 1e-5 and 1e-6 the runs stopped ~900 and ~1 000 residual
+    # evaluations after their last step, the message a line search's).
+    # Left: at rtol 1e-7 the last failures name the container's equation,
+    # outside the pump's region, and the run still ends so.
+    s = sf.System()
+    s += sf.MassFlowSource("src0", W.Ramp(t0=0.0153253, t1=0.0230047, v0=4.56338e-07,
+                                           v1=-4.21428e-06))
+    s += sf.Container("v1", sf.air, volume=1e-7, initial_pressure=163292.518)
+    s += sf.CircularTube("e0", sf.air, length=0.0132113, diameter=2e-4)
+    s.connect("src0", ("e0", "a"))
+    s.connect("v1", ("e0", "b"))
+    err = _error(s, duration=0.05, rtol=rtol)
+    msg = str(err)
+    assert err.component == "src0"
+    assert "MassFlowSource 'src0' draws 4.214e-06 kg/s from node(src0.a, e0.a)" in msg, msg
+    # (at rtol 1e-3 a step's end lies past that time: unbalanced there, at once)
+    until = re.search(r"they supply it until t = ([0-9.e+-]+) s", msg)
+    assert (until is None) == (rtol == 1e-3), msg
+    ends = err.time if until is None else float(until.group(1))
+    # (the fixed-step run below names 0.0389163 s; the container's mass, and
+    # with it the time, follows the run's tolerance)
+    assert ends == pytest.approx(0.0389163, rel=1e-4)
+    stats = err.result.stats
+    assert stats["residual_evaluations"] - stats["residuals_at_last_step"] <= 50
+
+
 def test_a_pump_drawing_through_a_tube_that_chokes_stops_where_the_supply_runs_out():
     # (a random air network, seed 1 #50): a mass flow source draws 4.2 mg/s at
     # a node without volume through a 13 mm x 0.2 mm tube from a 0.1 mL

@@ -95,6 +95,13 @@ STALL_REPEATS, STALL_RTOL = 4, 1e-3
 #: towards it in slivers: 543 residual evaluations after the last step)
 #: (:meth:`softflow.solve.culprit.Finder.unbalanced`)
 EXHAUSTED_WITHIN = 0.01
+#: ... or within this fraction of the point's time (the result then ends that
+#: close to where the supply runs out): at a tight rtol (1e-6) the BDF's
+#: steps near it, 1e-10 s at t = 0.039 s, failed as the node's pressure fell
+#: steeply to its limit, each ending nearer it and the sign change at 60-97 %
+#: of the next, until the smallest step's continuation (~1 000 residual
+#: evaluations after the last step)
+EXHAUSTED_RESOLVED = 1e-8
 #: a run stopped at max_steps names its fastest mode where that mode's time
 #: constant lies below this many times the last step (the steps follow it)
 STEP_FOLLOWS = 100.0
