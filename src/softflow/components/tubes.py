@@ -32,8 +32,8 @@ _DOT_MAX = 1000
 def set_tube_geometry(comp, fluid, length, diameter, roughness, Re_laminar, Re_turbulent):
     """Checked SI tube parameters on ``comp`` (shared by tubes and tube-like valves)."""
     comp.fluid = comp._check_fluid(fluid)
-    comp.length = comp._si(length, "m", "length", positive=True)
-    comp.diameter = comp._si(diameter, "m", "diameter", positive=True)
+    comp.length = comp._si(length, "m", "length", positive=True, size=True)
+    comp.diameter = comp._si(diameter, "m", "diameter", positive=True, size=True)
     comp.roughness = comp._si(roughness, "m", "roughness", nonnegative=True)
     comp.Re_laminar = comp._si(Re_laminar, "", "Re_laminar", positive=True)
     comp.Re_turbulent = comp._si(Re_turbulent, "", "Re_turbulent", positive=True)

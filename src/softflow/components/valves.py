@@ -364,7 +364,7 @@ class Orifice(LibraryComponent):
                                  "ISO 6358 model; give C with it, or leave it out")
             if diameter is None:
                 raise ValueError(f"{self.describe()}: diameter [m] is required with {given[0]}")
-            d = self._si(diameter, "m", "diameter", positive=True)
+            d = self._si(diameter, "m", "diameter", positive=True, size=True)
             if K is not None:
                 self.K = self._si(K, "", "K", positive=True)
             else:
@@ -539,7 +539,7 @@ class CheckValve(LibraryComponent):
                  gas_law: str = "nozzle") -> None:
         super().__init__(label)
         self.fluid = self._check_fluid(fluid)
-        self.diameter = self._si(diameter, "m", "diameter", positive=True)
+        self.diameter = self._si(diameter, "m", "diameter", positive=True, size=True)
         self.cracking_pressure = self._si(cracking_pressure, "Pa", "cracking_pressure",
                                           nonnegative=True)
         self.opening_band = self._si(opening_band, "Pa", "opening_band", positive=True)

@@ -841,12 +841,20 @@ def _with_inputs(found, records):
     """The records of the inputs (``found``) first, then those of the solution,
     without a PV-curve record that only repeats an initial volume's: reached on
     the same side, within validity.PV_CURVE_SLACK of the data's range of the
-    initial volume (the run went no further out than where it started)."""
+    initial volume (the run went no further out than where it started), and
+    without those on the flow of a tube whose flow is negligible: the result
+    is that of a closed tube, and its flow, below what the solver resolves,
+    says nothing (a 1 nm x 1 nm tube from 100 bar into a tank was said to
+    choke as isothermal pipe flow at a flow of the wrong sign, -5.5e-13
+    kg/s, the solver's noise)."""
     if not found:
         return records
     start = {r.component: r for r in found if r.check == "initial_volume_range"}
+    closed = {r.component for r in found if r.check == "tube_negligible_flow"}
 
     def repeats(r):
+        if r.component in closed:
+            return True
         s = start.get(r.component)
         if (s is None or r.check != "pv_curve_range"
                 or r.details.get("side") != s.details["side"]):
