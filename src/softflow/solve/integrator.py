@@ -40,7 +40,11 @@ state between the step's ends, as BDF places a mode switch; up to
 limit where the step right after such a located one goes past it again (that
 step ends :data:`EMPTY_AHEAD` times its distance to the estimated crossing
 past its start: a short solve, where the next step of the grid or the
-controller failed Newton near the emptied volume), or the smallest step
+controller failed Newton near the emptied volume; where that step ends short
+of the crossing too, or the estimate falls behind the point, the next is
+EMPTY_AHEAD times as long as the one just taken, and so on while shorter
+than the stepper's own: a volume that empties ever faster), where a step
+starts with the state within its slack of the limit, or the smallest step
 does: the run stops there with
 :class:`softflow.solve.validity.EmptiedError` (Simulation.run: a
 SimulationError naming the component and the time of the crossing, status
