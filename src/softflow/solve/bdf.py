@@ -84,7 +84,7 @@ import math
 import numpy as np
 
 from .dense import DenseRecorder, insert_interior, refine_counts
-from .integrator import Integrator, StepFailure, breaks_inside
+from .integrator import Integrator, StepFailure
 from .newton import Outcome, gauge_offsets
 from .settings import (
     CHATTER_STEP,
@@ -183,9 +183,9 @@ class BDF(Integrator):
         self.first_step = first_step
         # points recorded per step (finish): an int, or None to choose per step
         self.refine = None if refine is None else int(refine)
-        # a jump declared at the end point: the last step sees its left limit too
-        # (else the error test, seeing the new value, would never let it land)
-        self.breaks = breaks_inside(breakpoints, duration, end=True)
+        # (self.breaks, Integrator's, keep a jump declared at the end point: the
+        # last step sees its left limit, else the error test, seeing the new
+        # value, would never let it land)
         self.cont = asm.s_continuous
         self._all_cont = self.cont.size == asm.S0.size
         # a discrete state's weight is inf: its entries leave the norm

@@ -265,7 +265,7 @@ class VariantBDF:
         for c in asm.where:
             comp = asm.where[c][0].comps[asm.where[c][1]]
             breaks.update(float(b) for b in breakpoints_within(comp, self.T))
-        self.breaks = breaks_inside(breaks, self.T, end=True)
+        self.breaks = breaks_inside(breaks, self.T)
         # per group: what the kernels need, with each instance's variant
         self._plan = [(g, lay.inst[id(g)]) + tuple(p[1:]) for g, p in
                       zip(asm.groups, asm._plan)]

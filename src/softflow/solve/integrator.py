@@ -256,6 +256,8 @@ class Integrator:
                  expected_steps=256):
         self.asm, self.newton, self.stats = asm, newton, stats
         self.T = duration
+        # (one that falls on the end kept: the last step sees its left limit,
+        # as a step that ends on any breakpoint does)
         self.breaks = breaks_inside(breakpoints, duration)
         self._break_set = set(self.breaks)
         # record: (unknown indices, state indices, labels) to keep, or None for all
@@ -691,13 +693,14 @@ def breakpoints_within(comp, duration):
     return until(duration) if until else comp.breakpoints()
 
 
-def breaks_inside(breakpoints, duration, end=False):
+def breaks_inside(breakpoints, duration):
     """The breakpoints a run of ``duration`` stops at: those strictly inside
-    (0, duration), sorted, each once; with ``end``, then the end itself
-    where one falls on it (the adaptive steppers': its last step then reads
-    the sources' left limit there)."""
+    (0, duration), sorted, each once, then the end itself where one falls on
+    it (the last step then reads the sources' left limit there, as a step
+    that ends on any breakpoint does: every stepper, fixed or adaptive,
+    single or batched)."""
     inside = sorted(b for b in set(breakpoints) if 0.0 < b < duration)
-    if end and any(b == duration for b in breakpoints):
+    if any(b == duration for b in breakpoints):
         inside.append(duration)
     return inside
 

@@ -682,7 +682,7 @@ def _breakpoints(batch_sim, K):
         for comp in g.comps:
             own[_variant_of(comp.label)].extend(float(b) for b in
                                                 breakpoints_within(comp, T))
-    lists = [breaks_inside(breaks, T, end=True) for breaks in own]
+    lists = [breaks_inside(breaks, T) for breaks in own]
     counts = np.array([len(b) for b in lists], dtype=np.int64)
     out = np.full((K, max(int(counts.max()), 1)), np.inf)
     for j, b in enumerate(lists):
