@@ -86,7 +86,8 @@ class DenseRecorder:
     """Per accepted step: its end time, step, order, the row of its end point
     among the recorded points, and D_1..D_k of its difference table over the
     recorded columns (module docstring). The differences are kept in one array
-    that grows by doubling (as :class:`softflow.solve.integrator.Recorder`).
+    that grows by doubling, or to the rows expected (as
+    :class:`softflow.solve.integrator.Recorder`).
 
     ``cols``: the columns of the difference table to keep (an index array), or
     None for its first ``width`` columns."""
@@ -123,13 +124,22 @@ class DenseRecorder:
         self.k.append(k)
         self.row.append(row)
 
-    def extend(self, t, h, k, row, diffs):
+    @property
+    def rows(self):
+        """The difference rows recorded so far."""
+        return self._n
+
+    def extend(self, t, h, k, row, diffs, expect=None):
         """Steps at once (the compiled loop's): their end times, steps,
-        orders, rows, and their differences one after the other."""
+        orders, rows, and their differences one after the other.
+        ``expect``: the rows expected in all (as ``Recorder.extend``'s)."""
         n = self._n
         end = n + len(diffs)
         if end > len(self._D):
-            grown = np.empty((max(end, 2 * len(self._D)), self.width))
+            size = max(end, 2 * len(self._D))
+            if expect is not None:
+                size = max(end, min(size, max(int(expect), len(self._D) * 5 // 4)))
+            grown = np.empty((size, self.width))
             grown[:n] = self._D[:n]
             self._D = grown
         self._D[n:end] = diffs

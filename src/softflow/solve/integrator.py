@@ -164,10 +164,18 @@ class VolumeWatch:
 _min = np.minimum.reduce
 
 
+def _grown(a, k, size):
+    """``a`` with room for ``size`` rows, its first k kept."""
+    out = np.empty((size,) + a.shape[1:], dtype=a.dtype)
+    out[:k] = a[:k]
+    return out
+
+
 class Recorder:
-    """Accepted steps, written into preallocated arrays that grow by doubling
-    (no stacking of a list of rows at the end: for large networks that copy
-    alone cost as much as the solve)."""
+    """Accepted steps, written into preallocated arrays that grow by doubling,
+    or to the points expected at the run's pace where the compiled loop says
+    so (:meth:`extend`) (no stacking of a list of rows at the end: for large
+    networks that copy alone cost as much as the solve)."""
 
     def __init__(self, x_index, s_index, capacity=64):
         self.t = []
@@ -198,15 +206,26 @@ class Recorder:
             self._Q[k] = 0.0 if q is None else q
         self.t.append(t)
 
-    def extend(self, t, X, S, Q=None):
+    def extend(self, t, X, S, Q=None, expect=None):
         """Rows of points at once (the compiled loop's steps): X and S already
-        restricted to the recorded columns, Q to the recorded unknowns'."""
+        restricted to the recorded columns, Q to the recorded unknowns'.
+        ``expect``: the points the run is expected to record in all (from its
+        pace so far), the size to grow to where that is more than doubling
+        needs and less than it takes (a 4 000-unknown run's records are
+        hundreds of MB, and each doubling copies them into fresh memory)."""
         k, m = len(self.t), len(t)
-        while k + m > len(self._X):
-            self._X = np.concatenate([self._X, np.empty_like(self._X)])
-            self._S = np.concatenate([self._S, np.empty_like(self._S)])
+        if k + m > len(self._X):
+            size = 2 * len(self._X)
+            while size < k + m:
+                size *= 2
+            if expect is not None:
+                # (by a quarter at least: a pace that quickens is not met by
+                # a copy at every flush)
+                size = max(k + m, min(size, max(int(expect), len(self._X) * 5 // 4)))
+            self._X = _grown(self._X, k, size)
+            self._S = _grown(self._S, k, size)
             if self._Q is not None:
-                self._Q = np.concatenate([self._Q, np.empty_like(self._Q)])
+                self._Q = _grown(self._Q, k, size)
         self._X[k:k + m] = X
         self._S[k:k + m] = S
         if self._Q is not None:

@@ -368,6 +368,11 @@ VARIANT_ROWS = 64
 #: Accepted steps the compiled loop records before it hands them to the
 #: run's recorder (and reports progress); each call allocates nothing.
 COMPILED_RECORD_ROWS = 256
+#: Where the run's records must grow, they grow to the points (and dense
+#: output rows) expected in all at the pace so far, times this margin, where
+#: that is less than doubling: a 2 000-component water network records
+#: ~350 MB of points, and each doubling copied them into fresh memory
+EXPECT_MARGIN = 1.1
 #: Rejected steps and restarts the compiled loop keeps for the progress
 #: reporter (its log) before it hands back (the loop hands back when full).
 COMPILED_EVENT_ROWS = 256

@@ -195,8 +195,12 @@ class _Bound:
         taken = int(self.ist[self.st.N_REC])
         if taken:
             bt, bx, bs, bq = self.buffers
-            self.integ.rec.extend(bt[:taken], bx[:taken], bs[:taken],
-                                  bq[:taken] if Q else None)
+            rec, T = self.integ.rec, self.integ.T
+            # (the points in all at the pace so far, with a margin)
+            expect = (None if not 0.0 < t < T else
+                      settings.EXPECT_MARGIN * (len(rec.t) + taken) * T / t)
+            rec.extend(bt[:taken], bx[:taken], bs[:taken], bq[:taken] if Q else None,
+                       expect)
             self.integ.progress.advance(t, taken)
         return taken
 
@@ -321,8 +325,12 @@ class CompiledSteps(_Bound):
         taken = self._records_out(t)
         if taken:
             dt_, dh, dk, drow, dD = self.dbuf
-            bdf.dense.extend(dt_[:taken], dh[:taken], dk[:taken], drow[:taken] + r0,
-                             dD[:ist[st.N_DENSE]])
+            dense, rows = bdf.dense, int(ist[st.N_DENSE])
+            T = bdf.T
+            expect = (None if not 0.0 < t < T else
+                      settings.EXPECT_MARGIN * (dense.rows + rows) * T / t)
+            dense.extend(dt_[:taken], dh[:taken], dk[:taken], drow[:taken] + r0, dD[:rows],
+                         expect)
             bdf._Q = Q.copy()
         progress = bdf.progress
         for e in range(int(ist[st.N_EVENTS])):
