@@ -184,6 +184,11 @@ class Finder:
         where finding them fails, as :meth:`_concerned` then finds none)."""
         rows[:] = 0
         if self._local_nodes is None:
+            if not self._may_impose_flow():
+                # (no component imposes a flow: no node lacks a balance,
+                # and no region need be found: ~0.1 ms of a small run's
+                # first failed solve)
+                return True
             if point is None:
                 return False
             try:
