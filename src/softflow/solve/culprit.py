@@ -541,7 +541,9 @@ class Finder:
         u = got[1]
         loc = u.local
         why = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge, u.flows)
-        return Outcome(False, x.copy(), 0, why, loc.source_rows[0], unknown=loc.p)
+        # (the worst equation the first source's the message names)
+        first = sourcenodes.source_names(loc, u.flows, u.kind == "below")[2][0]
+        return Outcome(False, x.copy(), 0, why, loc.source_rows[first], unknown=loc.p)
 
     def unbalanced(self, t, t_new, x, S, asked=None, ahead=None):
         """The :class:`~softflow.solve.sourcenodes.Unbalanced` nodes at time
@@ -870,12 +872,14 @@ class Finder:
             parts.append(f"{comp.describe()} {passed:.4g} kg/s{self._switched(comp)}")
         total = sum((-f if draw else f) for _, f in others)
         if draw:
-            head = (f"{names} {'draw' if several else 'draws'} {rate_text} from {node}, at t = "
+            verb = "draw" if several else "draws"
+            head = (f"{names} {verb} {rate_text} from {node}, at t = "
                     f"{t:.6g} s: more than the components there supply at any pressure down "
                     f"to {at_p}{where} (they supply {total:.4g} kg/s there")
             tail = "inlets that supply the flow"
         else:
-            head = (f"{names} {'push' if several else 'pushes'} {rate_text} into {node}, at t = "
+            verb = "push" if several else "pushes"
+            head = (f"{names} {verb} {rate_text} into {node}, at t = "
                     f"{t:.6g} s: more than the components there pass at any pressure up to "
                     f"{at_p}{where} (they pass {total:.4g} kg/s there")
             tail = "outlets that pass the flow"

@@ -681,8 +681,9 @@ def balanced_start(asm, x, S, atol, stats, locals_=None):
             x, moved = bal.x, True
             continue
         flows = [float(bal.x[c].sum()) for _, c in loc.members]
+        first = source_names(loc, flows, kind == "below")[2][0]
         return None, Outcome(False, x, 0, refusal(asm, loc, kind, p, bal.range_error, flows),
-                             loc.source_rows[0], unknown=loc.p)
+                             loc.source_rows[first], unknown=loc.p)
     return (x if moved else None), None
 
 
@@ -699,10 +700,12 @@ def refusal(asm, loc, kind, p, edge, flows=None):
     why = ("(closed, at rest, dead ends, or a gas's flow at its sonic limit); give the "
            "node a volume (a Container), or ")
     if kind == "above":
-        return (f"no consistent start at t = 0: {names} {'push' if several else 'pushes'} more into {node}, a node "
+        verb = "push" if several else "pushes"
+        return (f"no consistent start at t = 0: {names} {verb} more into {node}, a node "
                 f"without volume, than the components there pass at any pressure up to "
                 f"{p:.4g} Pa{where} {why}outlets that pass the flow")
-    return (f"no consistent start at t = 0: {names} {'draw' if several else 'draws'} more from {node}, a node "
+    verb = "draw" if several else "draws"
+    return (f"no consistent start at t = 0: {names} {verb} more from {node}, a node "
             f"without volume, than the components there supply at any pressure down to "
             f"{p:.4g} Pa{where} {why}inlets that supply the flow")
 
