@@ -540,9 +540,8 @@ class Finder:
             return None
         u = got[1]
         loc = u.local
-        why = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge, u.flows)
         # (the worst equation the first source's the message names)
-        first = sourcenodes.source_names(loc, u.flows, u.kind == "below")[2][0]
+        why, first = sourcenodes.refusal(self.asm, loc, u.kind, u.p, u.edge, u.flows)
         return Outcome(False, x.copy(), 0, why, loc.source_rows[first], unknown=loc.p)
 
     def unbalanced(self, t, t_new, x, S, asked=None, ahead=None):

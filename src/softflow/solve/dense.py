@@ -59,7 +59,8 @@ import math
 import numpy as np
 
 from .._laws import law_module
-from .settings import AUTO_REFINE_MAX, AUTO_REFINE_TARGET
+from .settings import (AUTO_REFINE_MAX, AUTO_REFINE_TARGET, EXPECT_GROWTH_MIN,
+                       EXPECT_MARGIN)
 
 #: where the polynomial's second derivative is sampled for refine='auto' (in
 #: steps from the step's end): its ends and middle (p'' is of degree k - 2)
@@ -80,6 +81,26 @@ def _second_derivatives(k):
 
 
 _D2 = [None] + [_second_derivatives(k) for k in range(1, 7)]
+
+
+def expected_rows(done, t, T):
+    """The rows a run's records are expected to hold at its end T, at the
+    pace of the ``done`` rows by time t (EXPECT_MARGIN more); None before
+    the first step or at the end."""
+    return EXPECT_MARGIN * done * T / t if 0.0 < t < T else None
+
+
+def grown_rows(current, needed, expect=None):
+    """The rows records of ``current`` rows grow to where ``needed`` exceed
+    them: doubled (as often as needed), or ``expect`` rows
+    (:func:`expected_rows`) where that is less, but EXPECT_GROWTH_MIN times
+    the current rows at least and never fewer than needed."""
+    size = 2 * current
+    while size < needed:
+        size *= 2
+    if expect is not None:
+        size = min(size, max(int(expect), int(EXPECT_GROWTH_MIN * current)))
+    return max(size, needed)
 
 
 class DenseRecorder:
@@ -132,14 +153,11 @@ class DenseRecorder:
     def extend(self, t, h, k, row, diffs, expect=None):
         """Steps at once (the compiled loop's): their end times, steps,
         orders, rows, and their differences one after the other.
-        ``expect``: the rows expected in all (as ``Recorder.extend``'s)."""
+        ``expect``: the rows expected in all (:func:`grown_rows`)."""
         n = self._n
         end = n + len(diffs)
         if end > len(self._D):
-            size = max(end, 2 * len(self._D))
-            if expect is not None:
-                size = max(end, min(size, max(int(expect), len(self._D) * 5 // 4)))
-            grown = np.empty((size, self.width))
+            grown = np.empty((grown_rows(len(self._D), end, expect), self.width))
             grown[:n] = self._D[:n]
             self._D = grown
         self._D[n:end] = diffs

@@ -65,7 +65,7 @@ import numpy as np
 
 from ..fluids.base import FluidError
 from . import sourcenodes
-from .dense import DenseOutput
+from .dense import DenseOutput, grown_rows
 from .linalg import make_linear_solver
 from .newton import Outcome, StepLimitError
 from .progress import SILENT
@@ -210,18 +210,12 @@ class Recorder:
         """Rows of points at once (the compiled loop's steps): X and S already
         restricted to the recorded columns, Q to the recorded unknowns'.
         ``expect``: the points the run is expected to record in all (from its
-        pace so far), the size to grow to where that is more than doubling
-        needs and less than it takes (a 4 000-unknown run's records are
-        hundreds of MB, and each doubling copies them into fresh memory)."""
+        pace so far: :func:`softflow.solve.dense.grown_rows`; a 4 000-unknown
+        run's records are hundreds of MB, and each doubling copies them into
+        fresh memory)."""
         k, m = len(self.t), len(t)
         if k + m > len(self._X):
-            size = 2 * len(self._X)
-            while size < k + m:
-                size *= 2
-            if expect is not None:
-                # (by a quarter at least: a pace that quickens is not met by
-                # a copy at every flush)
-                size = max(k + m, min(size, max(int(expect), len(self._X) * 5 // 4)))
+            size = grown_rows(len(self._X), k + m, expect)
             self._X = _grown(self._X, k, size)
             self._S = _grown(self._S, k, size)
             if self._Q is not None:

@@ -369,10 +369,12 @@ VARIANT_ROWS = 64
 #: run's recorder (and reports progress); each call allocates nothing.
 COMPILED_RECORD_ROWS = 256
 #: Where the run's records must grow, they grow to the points (and dense
-#: output rows) expected in all at the pace so far, times this margin, where
-#: that is less than doubling: a 2 000-component water network records
-#: ~350 MB of points, and each doubling copied them into fresh memory
-EXPECT_MARGIN = 1.1
+#: output rows) expected in all at the pace so far, times EXPECT_MARGIN,
+#: where that is less than doubling, and by EXPECT_GROWTH_MIN at least (a
+#: pace that quickens is not met by a copy at every hand-over): a 2 000-
+#: component water network records ~350 MB of points, and each doubling
+#: copied them into fresh memory (:func:`softflow.solve.dense.grown_rows`)
+EXPECT_MARGIN, EXPECT_GROWTH_MIN = 1.1, 1.25
 #: Rejected steps and restarts the compiled loop keeps for the progress
 #: reporter (its log) before it hands back (the loop hands back when full).
 COMPILED_EVENT_ROWS = 256

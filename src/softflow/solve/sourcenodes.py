@@ -681,16 +681,16 @@ def balanced_start(asm, x, S, atol, stats, locals_=None):
             x, moved = bal.x, True
             continue
         flows = [float(bal.x[c].sum()) for _, c in loc.members]
-        first = source_names(loc, flows, kind == "below")[2][0]
-        return None, Outcome(False, x, 0, refusal(asm, loc, kind, p, bal.range_error, flows),
-                             loc.source_rows[first], unknown=loc.p)
+        why, first = refusal(asm, loc, kind, p, bal.range_error, flows)
+        return None, Outcome(False, x, 0, why, loc.source_rows[first], unknown=loc.p)
     return (x if moved else None), None
 
 
 def refusal(asm, loc, kind, p, edge, flows=None):
     """The reason a run is refused where node ``loc`` has no balancing
-    pressure up to (``kind`` 'above') or down to ('below') ``p``; ``edge``:
-    the FluidError past p, where a fluid's range ends there; ``flows``: as
+    pressure up to (``kind`` 'above') or down to ('below') ``p``, and the
+    index (into ``loc.sources``) of the first source it names; ``edge``: the
+    FluidError past p, where a fluid's range ends there; ``flows``: as
     :func:`source_names`'."""
     names, several, picked = source_names(loc, flows, kind == "below")
     node = asm.nodes[loc.source_nodes[picked[0]]].name
@@ -703,11 +703,11 @@ def refusal(asm, loc, kind, p, edge, flows=None):
         verb = "push" if several else "pushes"
         return (f"no consistent start at t = 0: {names} {verb} more into {node}, a node "
                 f"without volume, than the components there pass at any pressure up to "
-                f"{p:.4g} Pa{where} {why}outlets that pass the flow")
+                f"{p:.4g} Pa{where} {why}outlets that pass the flow"), picked[0]
     verb = "draw" if several else "draws"
     return (f"no consistent start at t = 0: {names} {verb} more from {node}, a node "
             f"without volume, than the components there supply at any pressure down to "
-            f"{p:.4g} Pa{where} {why}inlets that supply the flow")
+            f"{p:.4g} Pa{where} {why}inlets that supply the flow"), picked[0]
 
 
 def source_names(loc, flows=None, draw=False):

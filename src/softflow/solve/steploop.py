@@ -55,6 +55,7 @@ import numpy as np
 
 from .._laws import law_module
 from . import settings
+from .dense import expected_rows
 
 
 class _Bound:
@@ -195,12 +196,9 @@ class _Bound:
         taken = int(self.ist[self.st.N_REC])
         if taken:
             bt, bx, bs, bq = self.buffers
-            rec, T = self.integ.rec, self.integ.T
-            # (the points in all at the pace so far, with a margin)
-            expect = (None if not 0.0 < t < T else
-                      settings.EXPECT_MARGIN * (len(rec.t) + taken) * T / t)
+            rec = self.integ.rec
             rec.extend(bt[:taken], bx[:taken], bs[:taken], bq[:taken] if Q else None,
-                       expect)
+                       expected_rows(len(rec.t) + taken, t, self.integ.T))
             self.integ.progress.advance(t, taken)
         return taken
 
@@ -326,11 +324,8 @@ class CompiledSteps(_Bound):
         if taken:
             dt_, dh, dk, drow, dD = self.dbuf
             dense, rows = bdf.dense, int(ist[st.N_DENSE])
-            T = bdf.T
-            expect = (None if not 0.0 < t < T else
-                      settings.EXPECT_MARGIN * (dense.rows + rows) * T / t)
             dense.extend(dt_[:taken], dh[:taken], dk[:taken], drow[:taken] + r0, dD[:rows],
-                         expect)
+                         expected_rows(dense.rows + rows, t, bdf.T))
             bdf._Q = Q.copy()
         progress = bdf.progress
         for e in range(int(ist[st.N_EVENTS])):
