@@ -149,9 +149,9 @@ def main():
         if importlib.util.find_spec("softflow.solve.variants") is not None:
             from softflow.solve import settings
 
-            def vectorized():
-                # the same engine with its variants on the vectorized BDF
-                # (softflow.solve.clocks) instead of the compiled loop
+            def shared():
+                # the same engine with its variants on one shared step
+                # sequence per batch instead of the compiled loop
                 settings.COMPILED_VARIANTS = False
                 try:
                     return sf.sweep(sim, variants, engine="batched", **end)
@@ -159,7 +159,7 @@ def main():
                     settings.COMPILED_VARIANTS = True
             ways["batched (compiled loop, 2 threads)"] = (
                 lambda: sf.sweep(sim, variants, engine="batched", **end))
-            ways["batched (vectorized clocks)"] = vectorized
+            ways["batched (shared steps)"] = shared
         else:
             ways["batched"] = lambda: sf.sweep(sim, variants, engine="batched", **end)
     else:

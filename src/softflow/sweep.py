@@ -43,12 +43,10 @@ Engines
     correlation: :mod:`softflow.solve.variants`), each
     variant is its own run in that loop, taking exactly the steps its own
     run takes, the variants over two threads (``stats['clocks'] == 'own'``,
-    ``stats['engine'] == 'compiled loop'``); elsewhere, where
-    :mod:`softflow.solve.clocks` covers the scene (adaptive, library
-    components; from 64 variants), each variant also keeps its own clock on
-    a BDF vectorized over the variants, taking about the steps its own run
-    would take; other scenes share one step sequence (``'shared'``,
-    ``stats['shared_because']`` says why).
+    ``stats['engine'] == 'compiled loop'``); other scenes (user components,
+    fixed steps, ``refine=``, sources given as Python functions, walls whose
+    h A a correlation sets at each step) share one step sequence
+    (``'shared'``, ``stats['shared_because']`` says why).
     Batched beats processes on many variants of a small scene; on variants
     that are themselves large networks, or widely different ones on shared
     steps, processes (or Dask) may be faster. Its bar is the batched run's,
@@ -288,13 +286,10 @@ def sweep(sim: Simulation, params: Mapping[str, Any] | Sequence[Mapping[str, Any
         these times come from its integrator's own interpolant
         (:meth:`softflow.Result.at`: the adaptive BDF's polynomial of the
         step that covers each time, backward Euler's straight line between
-        its steps), as accurate as the steps themselves, for every engine but
-        one: a batched sweep on the vectorized clocks
-        (:mod:`softflow.solve.clocks`: scenes the compiled loop does not
-        take, from 64 variants) records its variants' steps alone, and reads
-        them linearly between the steps (a batch in the compiled loop,
-        ``stats['engine'] == 'compiled loop'``, keeps each variant's
-        polynomials, and a batch on shared steps its own).
+        its steps), as accurate as the steps themselves, for every engine (a
+        batch in the compiled loop, ``stats['engine'] == 'compiled loop'``,
+        keeps each variant's polynomials, and a batch on shared steps its
+        own).
     progress : bool, optional
         A tqdm bar over the variants: None shows it where standard error is a
         terminal, True always, False never.
@@ -659,8 +654,8 @@ def _sample(results: Sequence[Any], outputs: list[str], times: Array) -> list[Ar
     """Each result's ``outputs`` at ``times`` (:func:`softflow.solve.batched.sample`:
     NaN past the end of a run that stopped early), read from the run's own
     interpolant where it has one (:meth:`Result.at`; a batch that shares its
-    steps interpolated once for all its variants), else linearly between its
-    points (variants on the vectorized own clocks)."""
+    steps interpolated once for all its variants, each variant of the
+    compiled loop its own), else linearly between its points."""
     from .solve.batched import VariantResult, sample
     from .solve.result import Result
     batches: dict[int, Any] = {}
@@ -672,8 +667,7 @@ def _sample(results: Sequence[Any], outputs: list[str], times: Array) -> list[Ar
             # a batch sharing its steps, or its variants each on the compiled
             # loop (each its own interpolant, softflow.solve.variants: the
             # components the outputs name read alone, each variant's)
-            if (getattr(held, "_dense", None) is not None
-                    and (r._n is None or held.stats.get("engine") == "compiled loop")):
+            if getattr(held, "_dense", None) is not None:
                 if id(held) not in batches:
                     labels = None
                     if held.stats.get("engine") == "compiled loop":

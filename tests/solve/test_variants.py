@@ -17,10 +17,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from scenes import chain  # noqa: E402
 
 
-def _run(sim, variants, **kw):
+def _run(sim, variants, own_clocks=True, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        return _run_batched(sim, variants, own_clocks=True, **kw)
+        return _run_batched(sim, variants, own_clocks=own_clocks, **kw)
 
 
 def _alone(sim, variant):
@@ -215,27 +215,148 @@ def test_check_valves_that_open_and_shut_run_in_the_loop():
                                    own.get("tank", "pressure")[-1], rtol=1e-7)
 
 
-def test_scenes_outside_the_loop_go_to_the_vectorized_clocks():
+def _tank_scene(pressure, **wall):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=pressure)
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-5, **wall)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    return s
+
+
+@pytest.mark.parametrize("case", ["wall", "signal", "user", "fixed", "refine"])
+def test_scenes_outside_the_loop_share_one_step_sequence(case):
     """A wall whose h A a correlation sets at each step (the loop takes no
-    per-step coefficients) and a source given as a Python function: not here
-    (softflow.solve.clocks, or the shared steps)."""
-    def scene(pressure, **wall):
-        s = sf.System()
-        s += sf.PressureSource("src", pressure=pressure)
-        s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-        s += sf.Container("tank", sf.air, 1e-5, **wall)
-        s.connect("src", "tube")
-        s.connect("tube", "tank")
-        return s
-    wall = scene(sf.Q_(1.3, "bar"), heat_transfer_coefficient=sf.FreeConvection(),
-                 area=2.2e-3)
-    signal = scene(lambda t: 1.2e5 + 1e4 * min(t, 0.01) / 0.01)
-    for system, thermal in ((wall, "heat_transfer"), (signal, "isothermal")):
-        sim = sf.Simulation(system, duration=0.05, thermal=thermal)
-        batch = build_batch(system, [{"tube.diameter": d} for d in (1e-3, 2e-3)],
-                            {c.label for c in system.components})
-        with pytest.raises(variants_mod.Unsupported):
+    per-step coefficients), a source given as a Python function, a user's
+    component, fixed steps and refine=: not in the loop; the batch shares one
+    step sequence, says why, and each variant meets the tolerance of its own
+    run."""
+    from helpers import UserChamber
+    thermal, kw = "isothermal", {}
+    if case == "wall":
+        system = _tank_scene(sf.Q_(1.3, "bar"), heat_transfer_coefficient=sf.FreeConvection(),
+                             area=2.2e-3)
+        thermal, why = "heat_transfer", "does not serve"
+    elif case == "signal":
+        system = _tank_scene(lambda t: 1.2e5 + 1e4 * min(t, 0.01) / 0.01)
+        why = "does not serve"
+    elif case == "user":
+        system = sf.System()
+        system += sf.PressureSource("src", pressure=sf.pressure_atmospheric + 1e4)
+        system += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+        system += UserChamber("tank")
+        system.connect("tube", "src")
+        system.connect("tube", "tank")
+        why = "does not cover"
+    elif case == "fixed":
+        system, kw, why = _tank_scene(sf.Q_(1.3, "bar")), {"step": 1e-3}, "fixed steps"
+    else:
+        system, kw, why = _tank_scene(sf.Q_(1.3, "bar")), {"refine": 2}, "refine"
+    sim = sf.Simulation(system, duration=0.05, thermal=thermal, **kw)
+    variants = [{"tube.diameter": d} for d in (1e-3, 2e-3)]
+    if case in ("wall", "signal"):
+        # the scene passes reason_not; its compiled batch is refused
+        batch = build_batch(system, variants, {c.label for c in system.components})
+        with pytest.raises(variants_mod.Unsupported, match=why):
             variants_mod.run(sim, sf.Simulation(batch, duration=0.05, thermal=thermal), 2)
+    else:
+        assert why in variants_mod.reason_not(sim)
+    out = _run(sim, variants)
+    for v, b in zip(variants, out):
+        assert b.success and b.stats["clocks"] == "shared", b.stats
+        assert why in b.stats["shared_because"]
+        own = _alone(sim, v)
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1], own.get("tank", "pressure")[-1],
+                                   rtol=2 * sim.rtol)
+        if case == "refine":
+            assert len(b.times) == 2 * b.stats["steps"] + 1
+
+
+def test_a_stiff_variant_does_not_set_the_others_steps():
+    """Tubes 0.4-2.5 mm: time constants ~1000x apart. Each variant takes its
+    own run's steps in the loop; the shared sequence takes far more."""
+    sim = sf.Simulation(filling_tank(), duration=0.1)
+    variants = [{"tube.diameter": d} for d in np.geomspace(0.4e-3, 2.5e-3, 10)]
+    out = _run(sim, variants)
+    _as_own_runs(sim, variants, out)
+    for b in out:
+        assert len(b.times) == b.stats["steps"] + 1
+        assert np.all(np.diff(b.times) > 0) and b.times[-1] == pytest.approx(0.1, rel=1e-12)
+    shared = _run(sim, variants, own_clocks=False)
+    assert shared[0].stats["clocks"] == "shared"
+    assert shared[0].stats["steps"] > 1.3 * max(b.stats["steps"] for b in out)
+    assert out[0].stats["steps"] < 0.2 * shared[0].stats["steps"]
+
+
+def test_validity_is_judged_on_each_variant_own_times():
+    """friction='laminar' past Re 2 300 in the wide tubes only: each of those
+    warns at the time its own run finds, naming the user's component (not its
+    copy in the batch, v1/tube); the narrow one does not."""
+    src = sf.PressureSource("src", pressure=sf.Q_(1.1, "bar"))
+    sim = sf.Simulation(filling_tank(src, friction="laminar"), duration=0.05)
+    variants = [{"tube.diameter": d} for d in (0.3e-3, 1.2e-3, 2e-3)]
+    with pytest.warns(sf.ModelWarning, match="Reynolds") as caught:
+        out = _run_batched(sim, variants, own_clocks=True)
+    assert all("CircularTube 'tube'" in str(w.message) for w in caught
+               if "Reynolds" in str(w.message))
+    for v, b in zip(variants, out):
+        assert _compiled(b)
+        serial = _alone(sim, v)
+        mine = [w for w in b.warnings if w.check == "tube_reynolds"]
+        theirs = [w for w in serial.warnings if w.check == "tube_reynolds"]
+        assert len(mine) == len(theirs)
+        for a, w in zip(mine, theirs):
+            assert a.component == "tube" and a.message.startswith("CircularTube 'tube':")
+            assert a.details["time"] in b.times
+            assert a.details["time"] == pytest.approx(w.details["time"], rel=1e-9)
+            assert a.measured == pytest.approx(w.measured, rel=1e-6)
+    assert not [w for w in out[0].warnings if w.check == "tube_reynolds"]
+    assert [w for w in out[2].warnings if w.check == "tube_reynolds"]
+
+
+def test_a_variant_past_choking_fails_on_its_own_and_the_others_go_on():
+    """The mean-density law is refused past the choke: that variant fails with
+    its own run's message, the others complete in the loop."""
+    sim = sf.Simulation(filling_tank(sf.PressureSource("src", pressure=sf.Q_(9, "bar"),
+                                                       gauge=True), compressible="mean_density"),
+                        duration=0.02)
+    variants = [{"src.pressure": p} for p in (sf.Q_(0.2, "bar"), sf.Q_(9, "bar"),
+                                             sf.Q_(0.3, "bar"))]
+    out = _run(sim, variants)
+    alone = _alone(sim, variants[1])
+    assert [r.status for r in out] == ["success", "failed", "success"]
+    assert out[1].message == alone.message and "chokes" in out[1].message
+    assert _compiled(out[0]) and _compiled(out[2])
+
+
+def test_a_variant_whose_mode_chatters_fails_alone_and_says_so():
+    """As BDF: a mass-flow source pushing into a snapping valve with no volume
+    between them chatters; each variant's run fails naming the valve."""
+    from helpers import chattering_valve_scene
+    from softflow.solve import bdf
+    sim = sf.Simulation(chattering_valve_scene(), duration=0.5)
+    out = _run(sim, [{"src.massflow": m} for m in (1e-5, 2e-5)])
+    for r in out:
+        assert r.status == "failed"
+        assert "SnappingValve 'valve' switched its mode at each of the last " \
+               f"{bdf.CHATTER_SWITCHES} steps" in r.message
+
+
+def test_orifice_fills_whose_flows_die_out_end_as_their_own_runs():
+    """64 ISO 6358 fills (flows dying out at the end, an orifice's square-root
+    law at rest): each variant's steps and end pressure are its own run's."""
+    s = sf.System()
+    s += sf.PressureSource("supply", pressure=4e5)
+    s += sf.Orifice("valve", sf.air, C=2e-8, b=0.3)
+    s += sf.Container("tank", sf.air, volume=1e-3)
+    s.connect("supply", "valve")
+    s.connect("valve", "tank")
+    sim = sf.Simulation(s, duration=1.0)
+    variants = [{"valve.C": c} for c in np.geomspace(1e-8, 4e-8, 64)]
+    out = _run(sim, variants)
+    picked = [0, 21, 42, 63]
+    _as_own_runs(sim, [variants[k] for k in picked], [out[k] for k in picked])
 
 
 def test_actuator_curves_of_their_own_split_the_batch_group():

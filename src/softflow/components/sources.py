@@ -118,7 +118,7 @@ class _SourceParams(Params):
     def flat_values(self, t):
         """The values at t as a float when they are all equal (once per distinct
         t), else 1-D (n,)."""
-        if not self._uniform or type(t) is np.ndarray:
+        if not self._uniform:
             return self.values(t)
         if self._varying and t != self._tc:
             self._value = self._base0 + self._varying[0](t)
@@ -129,16 +129,12 @@ class _SourceParams(Params):
         """The values at t for an (n, 1) residual: a float when they are all
         equal, else an (n, 1) column (a source kernel in one subtraction, no
         reshaping: 0.4 us of its 0.8 us, measured)."""
-        if self._uniform and type(t) is not np.ndarray:
+        if self._uniform:
             return self.flat_values(t)
         return self.values(t)[:, None]
 
     def values(self, t):
-        """Signal values at t, computed once per distinct t; t may also be an
-        array (n,) of each source's own time (batched variants on clocks of
-        their own, :mod:`softflow.solve.clocks`)."""
-        if type(t) is np.ndarray:
-            return self.values_at(t)
+        """Signal values at t, computed once per distinct t."""
         if self._varying and t != self._t:
             if self._one_signal:
                 self._values = self._base + self._varying[0](t)
@@ -147,16 +143,6 @@ class _SourceParams(Params):
                 self._values = self._base + vals[self._slot]
             self._t = t
         return self._values
-
-    def values_at(self, t):
-        """Signal values (n,) with source i's at its own time t[i]: a waveform
-        evaluated once on its sources' times, another function once per time."""
-        vals = np.zeros(self.n)
-        for slot, s in enumerate(self._varying, start=1):
-            mine = self._slot == slot
-            ti = t[mine]
-            vals[mine] = (s.func(ti) if s.fast else [s(float(v)) for v in ti])
-        return self._base + vals
 
 
 def _value_jacobian(P, name, dF):

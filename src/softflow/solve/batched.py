@@ -8,21 +8,19 @@ compiled step loop each variant then runs on its own, on its copy's arrays
 taken out of the batch network's; elsewhere the batch runs as one network:
 the kernels evaluate each component class for all variants in one
 vectorized call, and Newton solves the block-diagonal system (one sparse
-factorization, or, on the vectorized clocks, each variant's small dense
-block).
+factorization).
 
 Each variant meets the tolerance on its own, and, where the scene allows,
 keeps its own clock (``result.stats['clocks'] == 'own'``): its own time,
 step, order and error test, so a stiff variant takes small steps without
-making the others take them, and each valve snaps on its own clock. Two
-engines give own clocks: first each variant's own run of the BDF in the
-compiled step loop (:mod:`softflow.solve.variants`, ``stats['engine'] ==
-'compiled loop'``: exactly the steps the variant's own run takes, the
-variants over two threads), wherever that loop serves the scene, whatever
-the number of variants; else, from :data:`OWN_CLOCKS_MIN` variants, the
-BDF vectorized over the variants (:mod:`softflow.solve.clocks`, the
-batch advancing all of them together). Other scenes (user components,
-fixed steps, check valves outside the compiled loop) share one step sequence
+making the others take them, and each valve snaps on its own clock: each
+variant's own run of the BDF in the compiled step loop
+(:mod:`softflow.solve.variants`, ``stats['engine'] == 'compiled loop'``:
+exactly the steps the variant's own run takes, the variants over two
+threads), wherever that loop serves the scene, whatever the number of
+variants. Other scenes (user components, fixed steps, ``refine=``, sources
+given as Python functions, walls whose h A a correlation sets at each
+step) share one step sequence
 (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
 the error test takes the largest of the sub-networks' own error norms, each
 unknown scaled by its quantity's magnitude in its own sub-network
@@ -51,10 +49,8 @@ batches of 250, ~0.6 s in all): the four batch runs ~0.45 s, the checks,
 building and compiling the batches ~0.1 s. The shared step sequences take
 more steps than their variants would alone (340 against 4-57 per variant run
 serially, 173 for the 250 widest tubes whose own runs take 40-57), at
-~1.3 ms a step. On the vectorized clocks the same 1 000 variants run as one batch of
-71 passes (the most attempts any variant makes: its steps, its rejections
-and its restarts), each variant taking about its own run's steps; in the
-compiled loop each variant's run costs ~65 us of CPU, and the checks,
+~1.3 ms a step. In the compiled loop each variant's run costs ~65 us of
+CPU, and the checks,
 building and compiling the batch, the validity checks and the results are
 most of the sweep (module :mod:`softflow.solve.variants`).
 """
@@ -82,8 +78,8 @@ class VariantResult:
 
     def __init__(self, result, prefix, validity=None, times=None, stats=None):
         self._result, self._prefix = result, prefix
-        # on own clocks (softflow.solve.clocks) a variant's points are the first
-        # len(times) rows of the batch's
+        # on own clocks (softflow.solve.variants) a variant's points are the
+        # first len(times) rows of the batch's
         self._n = None if times is None else len(times)
         self.times = result.times if times is None else times
         self.status, self.message = result.status, result.message
@@ -440,17 +436,10 @@ def prepare(sim, variants):
 #: serves variants of similar time scales (1 000 source-tube-tank variants,
 #: 0.5-2 mm tubes: ~540/s as one batch, ~720-820/s in batches of 250).
 BATCH_SIZE = 250
-#: Variants per batch where each keeps its own clock (softflow.solve.clocks):
-#: no shared steps to keep alike, and a larger batch spreads each pass's fixed
-#: cost over more variants (1 000 source-tube-tank variants: one batch ~10 %
-#: faster than four of 250)
+#: Variants per batch where each keeps its own clock (softflow.solve.variants):
+#: no shared steps to keep alike, and one batch network built and compiled
+#: for them all
 OWN_CLOCKS_BATCH_SIZE = 1000
-#: Fewest variants a batch runs on own clocks: each pass of the vectorized
-#: integrator costs ~1-2 ms of NumPy calls whatever the batch's size, which a
-#: small batch's shared steps undercut (source-tube-tank, 0.5-2 mm: 20
-#: variants 0.15 s on own clocks against 0.08 s shared, 250 variants 0.35 s
-#: against 0.53 s)
-OWN_CLOCKS_MIN = 64
 
 
 def _order_key(params):
@@ -466,25 +455,20 @@ def _order_key(params):
 
 
 def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=None,
-                 own_clocks=None):
+                 own_clocks=True):
     """Results (one per variant, in order) of ``sim`` under each variant's
     run-time parameters, solved in batches of ``batch_size`` similar variants
     (module doc). ``prepared``: the variants already checked by
     :func:`prepare` (else they are checked here, all before any runs).
     ``own_clocks``: each variant on its own clock where the compiled loop
-    (:mod:`softflow.solve.variants`) or :mod:`softflow.solve.clocks` covers
-    the scene (True), never (False), or (None) in the compiled loop
-    whatever the number of variants and on :mod:`~softflow.solve.clocks`
-    where there are at least :data:`OWN_CLOCKS_MIN` variants."""
-    from . import clocks
+    (:mod:`softflow.solve.variants`) serves the scene (True), or never
+    (False: one shared step sequence per batch)."""
     from . import variants as compiled
     if prepared is None:
         prepared = prepare(sim, variants)
     variants = prepared.variants
     built = prepared.built
-    if own_clocks is None:
-        own_clocks = True if len(variants) >= OWN_CLOCKS_MIN else "compiled"
-    if own_clocks and (compiled.reason_not(sim) is None or clocks.reason_not(sim) is None):
+    if own_clocks and compiled.reason_not(sim) is None:
         batch_size = max(batch_size, OWN_CLOCKS_BATCH_SIZE)
     order = sorted(range(len(variants)), key=lambda k: _order_key(variants[k]))
     results = [None] * len(variants)
@@ -501,29 +485,23 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
     return results
 
 
-def _on_own_clocks(sim, batch_sim, todo, progress=None, vectorized=True):
+def _on_own_clocks(sim, batch_sim, todo, progress=None):
     """(the batch run with a clock per variant, None), or (None, why not)
     where it keeps the shared step sequence: each variant's run in the
     compiled loop (:mod:`softflow.solve.variants`) where that serves the
-    scene, else, where ``vectorized``, the BDF vectorized over the variants
-    (:mod:`softflow.solve.clocks`)."""
-    from . import clocks, variants
+    scene."""
+    from . import variants
     try:
         return variants.run(sim, batch_sim, len(todo), progress), None
     except variants.Unsupported as err:
-        if not vectorized:
-            return None, (f"{err}; fewer than {OWN_CLOCKS_MIN} variants for the "
-                          "vectorized clocks")
-    try:
-        return clocks.run(batch_sim, len(todo), progress), None
-    except clocks.Unsupported as err:
         return None, str(err)
 
 
 def _run_batch(sim, variants, progress, built=None, own_clocks=True, found=None):
     """Results of one batch (in order), the batch run as one network: each
-    variant on its own clock where :mod:`softflow.solve.clocks` covers the
-    scene, else on one shared step sequence.
+    variant on its own clock where the compiled loop
+    (:mod:`softflow.solve.variants`) serves the scene and ``own_clocks``,
+    else on one shared step sequence.
 
     Where the batch fails on a variant's component, that variant runs on its
     own: if it fails there too, the failure is its own (its Result says why)
@@ -555,9 +533,8 @@ def _run_batch(sim, variants, progress, built=None, own_clocks=True, found=None)
             with warnings.catch_warnings():      # issued once per check (_summarize)
                 warnings.simplefilter("ignore", ModelWarning)
                 batch_sim = _copies_simulation()(batch, **kw)
-                own, why = (_on_own_clocks(sim, batch_sim, todo, progress,
-                                           vectorized=own_clocks is True) if own_clocks else
-                            (None, f"fewer than {OWN_CLOCKS_MIN} variants"))
+                own, why = (_on_own_clocks(sim, batch_sim, todo, progress) if own_clocks
+                            else (None, "own_clocks=False"))
                 if own is not None:
                     res, counts, times, (steps, rejected), failed = own
                 else:

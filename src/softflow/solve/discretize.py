@@ -20,9 +20,7 @@ are F(V, psi + c·r(V), t) = 0 with the Jacobian
 
 made here from the component's analytic pieces. The assembly calls the
 result as ``kernel(V, S, t, dt, jac)`` and ``update(V, S, dt)`` with S = psi
-and dt = c (a float, or a column (n, 1) of each instance's own c and t an
-array (n,) of each instance's own time, where batched variants keep clocks of
-their own: :mod:`softflow.solve.clocks`). Rates may depend on the interface variables V and on the
+and dt = c (floats). Rates may depend on the interface variables V and on the
 discrete modes, not on the continuous states themselves (each state is then
 an explicit function of the step's unknowns, and a linear multistep method
 keeps every linear invariant, such as a closed network's total mass, to
@@ -131,11 +129,8 @@ def step_functions(cls, P):
         else:
             J = np.empty((P.n, n_jac))
             J[:, res_cols] = Jr[:, :n_res]
-        # dt: one step for all, or a column (n, 1) of each instance's own
-        # (batched variants on clocks of their own, softflow.solve.clocks)
-        dtv = dt[:, 0] if isinstance(dt, np.ndarray) else dt
         for col, kj, kr, add in products:
-            term = (dtv * dR[kr]) * Jr[:, kj]
+            term = (dt * dR[kr]) * Jr[:, kj]
             if add:
                 J[:, col] += term
             else:

@@ -20,8 +20,8 @@ The steppers are the controllers of that loop:
   1-5; ``method='euler'`` is its order 1), with its error test, order and
   step selection, restarts and mode-switch location.
 
-(Batched variants on clocks of their own run the BDF's controller vectorized
-over the variants, :mod:`softflow.solve.clocks`.)
+(Batched variants on clocks of their own run this BDF each, in the compiled
+step loop: :mod:`softflow.solve.variants`.)
 
 Chambers and actuators that empty
 ---------------------------------
@@ -288,8 +288,8 @@ class Integrator:
     #: that rejected try and the accepted step), or None. The solves that are
     #: no steps are not counted: the consistent start's, BDF's restart probes
     #: (three at t = 0 and at each breakpoint, switch or fold jump), a fold
-    #: jump's, continuation's. The batched engine (softflow.solve.clocks)
-    #: counts each variant's tries alike
+    #: jump's, continuation's. Batched variants on their own clocks
+    #: (softflow.solve.variants) count each variant's tries alike
     max_steps = None
     #: the run's culprit finder (softflow.solve.culprit.Finder), or None
     culprit = None

@@ -16,8 +16,8 @@ values derived from these (the BDF's coefficients bdf._G, _ERR, _PRED_PSI;
 model_checks.NEAR_MACH, validity.NEAR_FRACTION x MACH_INCOMPRESSIBLE); and
 the constants of modules not yet moved: Simulation's defaults (MAX_STEPS,
 NEWTON_RTOL, NEWTON_FRACTION), the integrator's (RESCUES_IN_A_ROW,
-INITIAL_CONFIRMS), the batched engine's (softflow.solve.clocks, batched), the
-sensitivities', and those of blocklu, condense, progress and validity.
+INITIAL_CONFIRMS), the batched engine's (batched), the sensitivities', and
+those of condense, progress and validity.
 """
 
 # -- A run's times ---------------------------------------------------------------------------
@@ -294,8 +294,7 @@ CONTINUATION_RTOL = 1e-6
 #: accepted points > 100 tolerances 61 -> 4 and 35 -> 5, statuses unchanged,
 #: Newton iterations +2.9 / +3.3 %; nine paper scenes: Newton iterations 6012 ->
 #: 6211, factorizations 1171 -> 1160). The rate the next solve's first update
-#: is judged on (``eta``) stays the measured one. The batched engine's own
-#: Newton (softflow.solve.clocks) damps each variant's rate alike
+#: is judged on (``eta``) stays the measured one
 CRDOWN = 0.3
 #: A chord update within FLIP_MATCH of the reverse of the update before
 #: (|step + previous| <= FLIP_MATCH |step| in the update norm), at a rate of
@@ -354,8 +353,7 @@ COMPILED_STEPS = True
 COMPILED_START = True
 #: Whether a batched sweep's variants run each on its own clock in the
 #: compiled loop (:mod:`softflow.solve.variants`) where that serves the
-#: scene; False: the BDF vectorized over the variants
-#: (:mod:`softflow.solve.clocks`) or the shared step sequence.
+#: scene; False: the shared step sequence (:mod:`softflow.solve.batched`).
 COMPILED_VARIANTS = True
 #: Batched variants in the compiled loop (softflow.solve.variants): the
 #: fewest split over two threads (fewer run in one), the variants a thread

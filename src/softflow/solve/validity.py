@@ -398,7 +398,7 @@ def group_times(g: Any, result: Any, keep: list[int]) -> np.ndarray:
     """Times (points x len(keep)) of the points of group ``g``'s components
     ``keep`` (indices in the group, as :func:`group_values` gives them): the
     result's times for each, or, in a batched run whose variants keep clocks
-    of their own (:mod:`softflow.solve.clocks`), each one's variant's."""
+    of their own (:mod:`softflow.solve.variants`), each one's variant's."""
     own = getattr(result, "instance_times", None)
     if own is not None:
         return np.asarray(own(g, keep))

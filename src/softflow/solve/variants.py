@@ -35,8 +35,8 @@ variant whose start does not converge here runs alone). The variants may
 differ in any run-time parameter whose network floats keep their sizes
 (a tube's diameter, a source's waveform, an actuator's curve of as many
 samples); the batch network may then split a group of the scene by
-variant (:func:`_gather_index`). Other scenes go to
-:mod:`softflow.solve.clocks` or the shared step sequence.
+variant (:func:`_gather_index`). Other scenes share one step sequence
+(:mod:`softflow.solve.batched`).
 
 Cost (1 000 variants of the source-tube-tank scene, ``benchmarks/bench_sweep.py``):
 ~65 us of CPU a variant in the loop (start and ~15 steps), ~36 ms of wall
@@ -44,9 +44,8 @@ time on this project's two cores; the sweep around it (checking the
 variants, building and compiling the batch network, its validity checks,
 the results) ~100 ms more.
 
-Results: as :func:`softflow.solve.clocks.run` gives them (each variant's
-points padded to the longest, in the batch's layout), so that the batched
-engine reads both alike, and with the batch's interpolant: each variant's
+Results: the batch's Result (each variant's points padded to the longest,
+in the batch's layout), with the batch's interpolant: each variant's
 own dense output (:class:`_VariantsDense`), which sweeps read at their
 times.
 """
@@ -402,8 +401,7 @@ def run(sim, batch_sim, K, progress=None):
     """Run the compiled batch ``batch_sim`` of K variants of the scene of
     ``sim``, each on its own clock in the compiled loop (module docstring).
 
-    Returns (result, counts, times, steps, failed) as
-    :func:`softflow.solve.clocks.run` does: the batch's Result (each
+    Returns (result, counts, times, steps, failed): the batch's Result (each
     variant's points padded to the longest, its validity checked on each
     variant's own times), the number of points of each variant, their times
     (M, K), accepted and rejected steps per variant, and {variant: reason}
@@ -521,8 +519,7 @@ def checked(result, batch_sim, inst, times, failed):
     ``result.validity`` and ``result.warnings``; where the Simulation stops
     past a model's own limits (``beyond_limits='error'``), each variant
     found past one added to ``failed`` (the caller runs it alone, where its
-    result says so). For both own-clock engines (this module's and
-    :mod:`softflow.solve.clocks`)."""
+    result says so)."""
     from .validity import beyond, check_result
     result.instance_times = lambda g, keep: times[:, inst[id(g)][np.asarray(keep, dtype=np.int64)]]
     records = check_result(batch_sim.asm, result)
@@ -667,7 +664,7 @@ def _breakpoints(batch_sim, K):
     """Each variant's breakpoints inside the run (the Simulation's and its own
     components', :func:`softflow.solve.integrator.breaks_inside`), with the
     end where one falls on it (its last step then reads its sources' left
-    limit there, as the vectorized clocks do): (K, most) padded with inf,
+    limit there, as a run alone does): (K, most) padded with inf,
     and each one's number."""
     from ..network.component import Component
     from .integrator import breakpoints_within, breaks_inside
