@@ -237,10 +237,10 @@ def test_scenes_outside_the_loop_share_one_step_sequence(case):
     if case == "wall":
         system = _tank_scene(sf.Q_(1.3, "bar"), heat_transfer_coefficient=sf.FreeConvection(),
                              area=2.2e-3)
-        thermal, why = "heat_transfer", "does not serve"
+        thermal, why = "heat_transfer", "Container 'tank' sets coefficients at each step"
     elif case == "signal":
         system = _tank_scene(lambda t: 1.2e5 + 1e4 * min(t, 0.01) / 0.01)
-        why = "does not serve"
+        why = "a Python function"
     elif case == "user":
         system = sf.System()
         system += sf.PressureSource("src", pressure=sf.pressure_atmospheric + 1e4)

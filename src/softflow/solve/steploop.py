@@ -642,27 +642,47 @@ def _served(integ):
     """The compiled network's arrays and sources' description for the run of
     ``integ``, or None where the loop does not serve it (module docstring);
     found once a run (the start's solve and the steps ask alike)."""
-    got = integ.__dict__.get("_served_by_loop", False)
-    if got is False:
+    got = _served_or_why(integ)
+    return None if isinstance(got, str) else got
+
+
+def not_served_because(integ):
+    """Why the compiled loop does not serve the run of ``integ`` (a phrase
+    naming the component or setting), or None where it does."""
+    got = _served_or_why(integ)
+    return got if isinstance(got, str) else None
+
+
+def _served_or_why(integ):
+    got = integ.__dict__.get("_served_by_loop")
+    if got is None:
         got = integ.__dict__["_served_by_loop"] = _find_served(integ)
     return got
 
 
 def _find_served(integ):
-    """:func:`_served`'s answer, found."""
+    """:func:`_served`'s answer, found: (arrays, sources), or why not."""
     if not settings.COMPILED_STEPS:
-        return None
+        return "settings.COMPILED_STEPS is off"
     asm, newton = integ.asm, integ.newton
     net = getattr(asm.residual, "network", None)
-    if (net is None or newton is None or asm.has_begin_step or integ.sens is not None
-            or newton.offset is not None or not asm.n):
-        return None
+    if net is None:
+        return "a component the compiled network does not cover"
+    if asm.has_begin_step:
+        g = next(g for g in asm.groups if g.begin is not None)
+        return (f"{g.comps[0].describe()} sets coefficients at each step (a heat-transfer "
+                "correlation's h A)")
+    if integ.sens is not None:
+        return "sensitivities"
+    if newton is None or newton.offset is not None or not asm.n:
+        return "no Newton solve of the loop's kind"
     if (newton.lin.kind != "dense" and _sparse(asm, newton) is None
             and _banded(asm, newton) is None):
-        return None
+        return f"its linear solver ({newton.lin.kind})"
     sources = net.source_arrays()
     if sources is None:
-        return None
+        return ("a source's signal the compiled loop does not evaluate (a Python function, "
+                "not a softflow waveform)")
     return net.arrays, sources
 
 

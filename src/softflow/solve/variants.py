@@ -171,13 +171,14 @@ class _Template:
     def __init__(self, sim):
         from .integrator import VolumeWatch
         from .progress import Progress
-        from .steploop import _source_rows, compiled_steps, start_setup
+        from .steploop import _source_rows, compiled_steps, not_served_because, start_setup
         st = self.st = law_module("stepper")
         integ, newton, lin, stats, culprit = sim._integrator(record=None)
         asm = self.asm = sim.asm
         start = start_setup(integ, hooks_aside=True)
         if start is None:
-            raise Unsupported("the compiled loop does not serve the scene")
+            raise Unsupported(not_served_because(integ)
+                              or "the compiled loop does not serve the scene")
         x0, S0 = asm.x0.copy(), asm.S0.copy()
         integ.rec.add(0.0, x0, S0)
         integ._setup(x0, S0)
@@ -185,7 +186,8 @@ class _Template:
         integ.progress = Progress(sim.duration, False)
         steps = compiled_steps(integ)
         if steps is None:
-            raise Unsupported("the compiled loop does not serve the scene")
+            raise Unsupported(not_served_because(integ)
+                              or "the compiled loop does not serve the scene")
         if asm.n > DENSE_MAX:
             raise Unsupported(f"variants of more than {DENSE_MAX} unknowns (each start's "
                               "dense LU)")
