@@ -333,16 +333,55 @@ def test_source_values_fill_out_in_place():
     assert np.array_equal(out, _params(cls, sources).values(0.25))
 
 
-def test_a_python_function_leaves_the_group_to_python():
+def _called_back(P, monkeypatch, times=(0.0, 0.05, 0.1, 0.25, 0.9)):
+    """A group with a signal the laws do not state: described with the
+    PYTHON code (called back), its compiled values the group's own at each
+    of ``times``; with settings.COMPILED_USER off, left to Python (None)."""
+    from softflow.solve import settings
+    described = wavecodes.describe(P)
+    assert described is not None and waves.PYTHON in described[2]
+    base, slot, codes, factors, starts, floats = described
+    for t in times:
+        out = np.full(base.size, np.nan)
+        waves.source_values(t, base, slot, codes, factors, starts, floats, out)
+        P.forget()
+        assert np.array_equal(out, P.values(t)), t
+    monkeypatch.setattr(settings, "COMPILED_USER", False)
+    assert wavecodes.describe(P) is None
+    monkeypatch.setattr(settings, "COMPILED_USER", True)
+
+
+def test_a_python_function_is_called_back(monkeypatch):
     P = sf.PressureSource.make_params([
         sf.PressureSource("a", Step(0.1, 1e5, 2e5)),
         sf.PressureSource("b", lambda t: Q_(1 + t, "bar"))])
-    assert wavecodes.describe(P) is None
+    _called_back(P, monkeypatch)
     P = sf.MassFlowSource.make_params([sf.MassFlowSource("m", lambda t: 1e-3 * t)])
-    assert wavecodes.describe(P) is None
+    _called_back(P, monkeypatch)
 
 
-def test_a_waveform_subclass_leaves_the_group_to_python():
+def test_a_python_function_that_raises_gives_nan_and_keeps_the_error():
+    """The compiled values are NaN where the function raised; the error is
+    kept for the Python path (softflow.solve.usercall.RAISED), which raises
+    it naming the source (tests/solve/test_usercall.py)."""
+    from softflow.solve import usercall
+
+    def signal(t):
+        if t > 0.5:
+            raise ValueError("no pressure past 0.5 s")
+        return 1e5
+    P = sf.PressureSource.make_params([sf.PressureSource("a", signal)])
+    base, slot, codes, factors, starts, floats = wavecodes.describe(P)
+    out = np.zeros(1)
+    waves.source_values(0.2, base, slot, codes, factors, starts, floats, out)
+    assert out[0] == 1e5
+    usercall.RAISED.clear()
+    waves.source_values(0.7, base, slot, codes, factors, starts, floats, out)
+    assert np.isnan(out[0])
+    assert "no pressure past 0.5 s" in str(usercall.RAISED[-1])
+
+
+def test_a_waveform_subclass_is_called_back(monkeypatch):
     class Doubled(Step):
         def _scalar(self, t):
             return 2.0 * super()._scalar(t)
@@ -361,15 +400,15 @@ def test_a_waveform_subclass_leaves_the_group_to_python():
               _in_kpa(Plain(10.0, 1.0, offset=100.0))):
         P = sf.PressureSource.make_params([sf.PressureSource("a", w),
                                            sf.PressureSource("b", 1e5)])
-        assert wavecodes.describe(P) is None, w
+        _called_back(P, monkeypatch)
 
 
-def test_a_fons_wave_leaves_the_group_to_python():
+def test_a_fons_wave_is_called_back(monkeypatch):
     from softflow.fons.wave import Custom
 
     w = Custom([[0.0, 1e5], [1.0, 2e5]])
     P = sf.PressureSource.make_params([sf.PressureSource("a", w)])
-    assert wavecodes.describe(P) is None
+    _called_back(P, monkeypatch)
 
 
 def test_parameters_computing_values_otherwise_are_left_to_python():

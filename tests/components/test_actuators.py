@@ -779,13 +779,19 @@ def test_a_step_forced_at_the_smallest_step_restarts_the_method(monkeypatch):
         restarts.append(self._forced_restart)
         return restart(self, *args)
     monkeypatch.setattr(bdf.BDF, "_restart", spy)
-    for seed in (4, 7, 11):
-        restarts.clear()
-        res = run(seed)
-        assert res.success and res.stats["forced_steps"] > 0 and any(restarts)
-        m = res.get("act", "mass")
-        np.testing.assert_allclose(m - m[0], -res.integral("pump", "massflow", "a"),
-                                   rtol=0, atol=1e-9 * m.max())
+    from softflow.solve import settings
+    for compiled in (True, False):
+        # the pump's Python function called back from the compiled loop
+        # (settings.COMPILED_USER), or the scene on the Python BDF, whose
+        # restart the counter-test below turns off
+        monkeypatch.setattr(settings, "COMPILED_USER", compiled)
+        for seed in (4, 7, 11):
+            restarts.clear()
+            res = run(seed)
+            assert res.success and res.stats["forced_steps"] > 0 and any(restarts)
+            m = res.get("act", "mass")
+            np.testing.assert_allclose(m - m[0], -res.integral("pump", "massflow", "a"),
+                                       rtol=0, atol=1e-9 * m.max())
     monkeypatch.setattr(bdf, "FORCED_RESTART", False)
     # (and without the step solved again from the pump's node balanced, which
     # gets these runs through too: softflow.solve.culprit, issue 41)

@@ -229,7 +229,6 @@ def _with(extra, two_port=False):
 
 
 @pytest.mark.parametrize("make, kw", [
-    (lambda: __import__("softflow.demo", fromlist=["paper_system"]).paper_system(), {}),
     (lambda: _with(sf.CheckValve("cv", sf.Fluid("air", level="table"), diameter=1e-3),
                    two_port=True), {}),
     (lambda: chain(2, fluid=sf.Fluid("air", level="table")), {}),
@@ -237,9 +236,10 @@ def _with(extra, two_port=False):
     (lambda: chain(2, compressible="mean_density"), {"thermal": "adiabatic"}),
 ])
 def test_a_network_with_an_uncovered_group_keeps_the_per_group_path(make, kw):
-    """A user component (the paper's actuator), a real fluid (isothermal or
-    thermal), the mean-density law (isothermal or thermal): not (yet) in the
-    compiled loop, so the whole network keeps the per-group path."""
+    """A real fluid (isothermal or thermal), the mean-density law (isothermal
+    or thermal): not (yet) in the compiled loop, so the whole network keeps
+    the per-group path (a user component is called back from it:
+    tests/solve/test_usercall.py)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(make(), duration=0.01, **kw)

@@ -13,6 +13,12 @@ from softflow.solve.linalg import DenseLU
 P0 = sf.pressure_atmospheric
 
 
+@pytest.fixture(autouse=True)
+def _python_loop(monkeypatch):
+    """These scenes' sources are Python functions, which the compiled loop
+    calls back by default; these tests are the Python step loop's."""
+    monkeypatch.setattr("softflow.solve.settings.COMPILED_USER", False)
+
 def _scene(fluid=sf.water, thermal="isothermal", step=2e-3):
     s = sf.System()
     s += sf.PressureSource("src", pressure=lambda t: P0 + (3e4 if t < 0.3 else 1e4))
@@ -55,7 +61,7 @@ def test_small_system_path_matches_the_general_one(monkeypatch, fluid, thermal, 
         assert np.max(np.abs(pa - pb)) <= 1e-6 * np.ptp(pa) + 1e-9 * P0
 
 
-def test_written_out_step_takes_the_usual_steps():
+def test_written_out_step_takes_the_usual_steps(monkeypatch):
     """It must actually serve the run (else the test above compares a path with itself)."""
     sim = _scene()
     calls = []

@@ -110,9 +110,10 @@ def test_the_same_steps_as_the_python_loop_on_a_fill(monkeypatch):
 
 
 def test_it_does_not_serve_what_it_does_not_cover(monkeypatch):
-    """Sensitivities and a source given as a Python function take every
-    step in Python (fixed steps and check valves are served: the tests
-    below)."""
+    """Sensitivities, and a source given as a Python function where
+    settings.COMPILED_USER is off, take every step in Python (fixed steps
+    and check valves are served: the tests below; a Python function is
+    called back from the loop by default)."""
     taken = _spied(monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
@@ -121,8 +122,12 @@ def test_it_does_not_serve_what_it_does_not_cover(monkeypatch):
         assert taken                      # (served: the control case)
         taken.clear()
         sf.Simulation(rc_circuit(), duration=0.2).run(sensitivities=["tube.diameter"])
-        sf.Simulation(rc_circuit(source=lambda t: 1.1e5 + 1e4 * min(t, 0.01) / 0.01),
-                      duration=0.2).run()
+        ramp = rc_circuit(source=lambda t: 1.1e5 + 1e4 * min(t, 0.01) / 0.01)
+        sf.Simulation(ramp, duration=0.2).run()
+        assert taken
+        taken.clear()
+        monkeypatch.setattr(settings, "COMPILED_USER", False)
+        sf.Simulation(ramp, duration=0.2).run()
     assert not taken
 
 

@@ -225,22 +225,19 @@ def _tank_scene(pressure, **wall):
     return s
 
 
-@pytest.mark.parametrize("case", ["wall", "signal", "user", "fixed", "refine"])
+@pytest.mark.parametrize("case", ["wall", "user", "fixed", "refine"])
 def test_scenes_outside_the_loop_share_one_step_sequence(case):
     """A wall whose h A a correlation sets at each step (the loop takes no
-    per-step coefficients), a source given as a Python function, a user's
-    component, fixed steps and refine=: not in the loop; the batch shares one
-    step sequence, says why, and each variant meets the tolerance of its own
-    run."""
+    per-step coefficients), a user's component (called back on the batch
+    network's arrays, not a variant's), fixed steps and refine=: not in the
+    loop; the batch shares one step sequence, says why, and each variant
+    meets the tolerance of its own run."""
     from helpers import UserChamber
     thermal, kw = "isothermal", {}
     if case == "wall":
         system = _tank_scene(sf.Q_(1.3, "bar"), heat_transfer_coefficient=sf.FreeConvection(),
                              area=2.2e-3)
         thermal, why = "heat_transfer", "Container 'tank' sets coefficients at each step"
-    elif case == "signal":
-        system = _tank_scene(lambda t: 1.2e5 + 1e4 * min(t, 0.01) / 0.01)
-        why = "a Python function"
     elif case == "user":
         system = sf.System()
         system += sf.PressureSource("src", pressure=sf.pressure_atmospheric + 1e4)
@@ -248,14 +245,14 @@ def test_scenes_outside_the_loop_share_one_step_sequence(case):
         system += UserChamber("tank")
         system.connect("tube", "src")
         system.connect("tube", "tank")
-        why = "does not cover"
+        why = "a user component"
     elif case == "fixed":
         system, kw, why = _tank_scene(sf.Q_(1.3, "bar")), {"step": 1e-3}, "fixed steps"
     else:
         system, kw, why = _tank_scene(sf.Q_(1.3, "bar")), {"refine": 2}, "refine"
     sim = sf.Simulation(system, duration=0.05, thermal=thermal, **kw)
     variants = [{"tube.diameter": d} for d in (1e-3, 2e-3)]
-    if case in ("wall", "signal"):
+    if case == "wall":
         # the scene passes reason_not; its compiled batch is refused
         batch = build_batch(system, variants, {c.label for c in system.components})
         with pytest.raises(variants_mod.Unsupported, match=why):
@@ -271,6 +268,15 @@ def test_scenes_outside_the_loop_share_one_step_sequence(case):
                                    rtol=2 * sim.rtol)
         if case == "refine":
             assert len(b.times) == 2 * b.stats["steps"] + 1
+
+
+def test_a_source_given_as_a_python_function_runs_in_the_loop():
+    """Its function called back from each variant's run (the threads take
+    the interpreter's lock for it): each variant its own run."""
+    sim = sf.Simulation(_tank_scene(lambda t: 1.2e5 + 1e4 * min(t, 0.01) / 0.01),
+                        duration=0.05)
+    variants = [{"tube.diameter": d} for d in (0.8e-3, 1e-3, 2e-3)]
+    _as_own_runs(sim, variants, _run(sim, variants))
 
 
 def test_a_stiff_variant_does_not_set_the_others_steps():

@@ -115,6 +115,11 @@ class _SourceParams(Params):
         self._tc = None
         self._value = self._base0
 
+    def forget(self):
+        """Drop the values kept for the last time asked (a new run asks anew:
+        a Python signal may read state that changed between runs)."""
+        self._t = self._tc = None
+
     def flat_values(self, t):
         """The values at t as a float when they are all equal (once per distinct
         t), else 1-D (n,)."""

@@ -185,3 +185,76 @@ else:
         def codegen(context, builder, sig, args):
             return _borrow_codegen(context, builder, value, args[0])
         return value(value), codegen
+
+
+#: the arrays a user component's callback receives (x, S, F, raw, Sout), in order
+CALLBACK_ARRAYS = 5
+
+if numba.config.DISABLE_JIT:
+    def call_user(address, key, t, dt, jac, x, S, F, raw, Sout):
+        """The user component's callback ``key`` (pure-Python mode: called
+        directly, see the compiled version)."""
+        from ..solve.usercall import dispatch
+        return dispatch(key, float(t), float(dt), bool(jac), x, S, F, raw, Sout)
+else:
+    @intrinsic
+    def call_user(typingctx, address, key, t, dt, jac, x, S, F, raw, Sout):
+        """Call the C function at ``address`` (int64) as ``int64 f(int64 key,
+        double t, double dt, int64 jac, double *x, double *S, double *F,
+        double *raw, double *Sout, int64 n_sout)``: softflow's one callback
+        into Python (:mod:`softflow.solve.usercall`, a ctypes function that
+        takes the interpreter's lock itself), which evaluates a user
+        component's group in place. The arrays are passed by their data
+        pointers (contiguous float64, as the loop's own are) and Sout by its
+        size too (0: no states wanted). Returns the callback's code (0: done)."""
+        arrays = (x, S, F, raw, Sout)
+        for a in arrays:
+            if not (isinstance(a, types.Array) and a.ndim == 1 and a.dtype == types.float64
+                    and a.layout == "C"):
+                return None
+        sig = types.int64(address, key, t, dt, jac, *arrays)
+
+        def codegen(context, builder, sig, args):
+            from llvmlite import ir
+            i64, f64 = ir.IntType(64), ir.DoubleType()
+            ptr = f64.as_pointer()
+            fnty = ir.FunctionType(i64, [i64, f64, f64, i64] + [ptr] * CALLBACK_ARRAYS + [i64])
+            at = context.cast(builder, args[0], sig.args[0], types.int64)
+            fn = builder.inttoptr(at, fnty.as_pointer())
+            head = [context.cast(builder, args[1], sig.args[1], types.int64),
+                    context.cast(builder, args[2], sig.args[2], types.float64),
+                    context.cast(builder, args[3], sig.args[3], types.float64),
+                    context.cast(builder, args[4], sig.args[4], types.int64)]
+            data, n_sout = [], None
+            for ty, value in zip(sig.args[5:], args[5:]):
+                arr = context.make_array(ty)(context, builder, value)
+                data.append(arr.data)
+                n_sout = arr.nitems
+            return builder.call(fn, head + data + [n_sout])
+        return sig, codegen
+
+
+if numba.config.DISABLE_JIT:
+    def call_signal(address, key, t):
+        """The Python signal ``key`` at t (pure-Python mode: called directly,
+        see the compiled version)."""
+        from ..solve.usercall import signal_value
+        return signal_value(key, float(t))
+else:
+    @intrinsic
+    def call_signal(typingctx, address, key, t):
+        """Call the C function at ``address`` as ``double f(int64 key, double
+        t)``: a source's signal given as a Python function, called back
+        (:mod:`softflow.solve.usercall`); its value [SI], or NaN where it
+        raised."""
+        sig = types.float64(address, key, t)
+
+        def codegen(context, builder, sig, args):
+            from llvmlite import ir
+            i64, f64 = ir.IntType(64), ir.DoubleType()
+            fnty = ir.FunctionType(f64, [i64, f64])
+            at = context.cast(builder, args[0], sig.args[0], types.int64)
+            fn = builder.inttoptr(at, fnty.as_pointer())
+            return builder.call(fn, [context.cast(builder, args[1], sig.args[1], types.int64),
+                                     context.cast(builder, args[2], sig.args[2], types.float64)])
+        return sig, codegen

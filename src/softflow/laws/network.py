@@ -5,7 +5,8 @@ components by integers and floats; this loop evaluates the node rows (the
 sum of the through variables at each node) and then each group by its class
 id, calling the same compiled laws the groups call one at a time
 (:mod:`.tube`, :mod:`.volumes`, :mod:`.valves`; in thermal scenes of an
-ideal gas :mod:`.thermal`), with the step's states X = psi + c·r(V)
+ideal gas :mod:`.thermal`; a user's component through its callback into
+Python, :mod:`softflow.solve.usercall`), with the step's states X = psi + c·r(V)
 formed as :mod:`softflow.solve.discretize` forms them. It replaces a Python
 call and its NumPy glue per group and per evaluation; what it covers is listed
 in :data:`softflow.solve.netcore` (the rest of the library, user components
@@ -50,7 +51,7 @@ import math
 
 import numpy as np
 
-from . import jit
+from . import call_user, jit
 from .fanno import gas_constants
 from .tube import isothermal_drop, tube_drop
 from .orifice import _maximum
@@ -74,6 +75,9 @@ THERMAL_PRESSURE_SOURCE, THERMAL_MASS_FLOW_SOURCE, THERMAL_VOLUME_FLOW_SOURCE = 
 THERMAL_TUBE, THERMAL_TESLA_VALVE, FREE_VOLUME, HELD_VOLUME = 18, 19, 20, 21
 THERMAL_ORIFICE, THERMAL_CHECK_VALVE, THERMAL_SNAPPING_VALVE = 22, 23, 24
 THERMAL_INERTIAL_TUBE = 25
+#: a user's component (one instance), called back in Python (softflow.solve.usercall):
+#: its row's OPTION holds its key, U0 the callback's address
+USER = 26
 
 #: the columns of a row of ``groups``
 GROUP_FIELDS = ("cls", "n", "nv", "col", "s0", "r0", "neq", "j0", "nj", "f0", "option", "u0")
@@ -174,6 +178,10 @@ def residual(x, S, t, dt, jac, F, raw, n_node_rows, trows, tcols, groups, cols, 
             _thermal_snapping_valve(x, S, F, raw, jac, groups[g], cols, fpar, Sout)
         elif cls == THERMAL_INERTIAL_TUBE:
             _thermal_inertial_tube(x, S, dt, F, raw, jac, groups[g], cols, fpar, Sout)
+        elif cls == USER:
+            if call_user(groups[g, U0], groups[g, OPTION], t, dt, jac, x, S, F, raw,
+                         Sout) != 0:
+                return g
     return -1
 
 

@@ -36,13 +36,16 @@ import math
 
 import numpy as np
 
-from . import jit
+from . import call_signal, jit
 from .volumes import bisect_right
 
 #: kind codes of the waveforms (one per class of softflow.curves.waveforms)
 CONSTANT, STEP, RAMP, LINEAR, HELD, TRAPEZOID, SINE, SQUARE = 0, 1, 2, 3, 4, 5, 6, 7
+#: a source's signal given as a Python function, called back
+#: (softflow.solve.usercall): its floats are its key and the callback's address
+PYTHON = 8
 #: how many floats each kind stores (tables: 1 + 2 n, see :func:`size`)
-SIZES = {CONSTANT: 1, STEP: 3, RAMP: 5, TRAPEZOID: 10, SINE: 4, SQUARE: 5}
+SIZES = {CONSTANT: 1, STEP: 3, RAMP: 5, TRAPEZOID: 10, SINE: 4, SQUARE: 5, PYTHON: 2}
 
 
 def size(code: int, n: int = 0) -> int:
@@ -127,8 +130,8 @@ def wave_value(code, floats, at, t):
     """The value (SI of the waveform) at the time t [s] of the waveform of kind
     ``code`` whose floats start at ``floats[at]`` (the module's table): the
     ``_scalar(t)`` of Constant, Step, Ramp, PiecewiseLinear, PiecewiseConstant,
-    Trapezoid, Sine or Square (:mod:`softflow.curves.waveforms`). An unknown
-    code gives nan."""
+    Trapezoid, Sine or Square (:mod:`softflow.curves.waveforms`), or of a
+    Python function called back (:data:`PYTHON`). An unknown code gives nan."""
     if code == CONSTANT:
         return floats[at]
     if code == STEP:
@@ -153,6 +156,8 @@ def wave_value(code, floats, at, t):
         return offset + amplitude * math.sin(omega * t + phase)
     if code == SQUARE:
         return _square(floats, at, t)
+    if code == PYTHON:
+        return call_signal(int(floats[at + 1]), int(floats[at]), t)
     return math.nan
 
 

@@ -26,9 +26,13 @@ wall temperature. A constant h·A is a float of the loop; an h·A that a
 heat-transfer correlation sets at the start of each step (``begin_step``)
 is copied into the loop's floats before each call.
 
-Any other group (user components, callable curves, real fluids at the table
-or eos level, the mean-density gas law in a thermal scene) keeps the whole network on the
-per-group path. A state a law refuses (an actuator's volume beyond a curve
+A user's component (one written with ``evaluate`` / ``update_state`` /
+``auto*``, as the paper's ``Actuator``) is called back in Python from the
+loop (:mod:`softflow.solve.usercall`; ``settings.COMPILED_USER``), unless it
+states switching functions, kinks or pieces. Any other group (library
+subclasses with laws of their own, callable curves, real fluids at the table
+or eos level, the mean-density gas law in a thermal scene) keeps the whole
+network on the per-group path. A state a law refuses (an actuator's volume beyond a curve
 given ``extrapolate='error'``) is evaluated again on the per-group path,
 which raises the law's own error. The values are the per-group path's to
 round-off (tested); time-dependent source values are evaluated by their
@@ -100,8 +104,17 @@ def _covered(g):
                                                       k.TeslaValve)
     ISO_6358_RHO0, ISO_6358_T0 = k.ISO_6358_RHO0, k.ISO_6358_T0
     net = law_module("network")
+    if g.row is not None:
+        # a user's component, called back (softflow.solve.usercall); not one
+        # with switching functions, kinks or pieces (the compiled loops that
+        # give those do not call back)
+        from . import settings
+        if (not settings.COMPILED_USER or g.switching is not None or g.kinks is not None
+                or g.regime is not None or g.begin is not None or g.fold is not None):
+            return None
+        return net.USER, 0, (), None, None
     cls, P = getattr(g, "cls", None), getattr(g, "params", None)
-    if cls is None or P is None or g.row is not None:
+    if cls is None or P is None:
         return None
     if cls is PressureSource or cls is MassFlowSource:
         kind = net.PRESSURE_SOURCE if cls is PressureSource else net.MASS_FLOW_SOURCE
@@ -311,6 +324,10 @@ class CompiledNetwork:
     allocated once. :meth:`switching`, :meth:`kinks` and :meth:`regimes` are
     the assembly's methods that way (new arrays, or None)."""
 
+    #: the evaluators of the user components the loop calls back
+    #: (:mod:`softflow.solve.usercall`), held while the network lives
+    callbacks: list = []
+
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
         laws = law_module("network")
         self.loop = laws.residual
@@ -411,6 +428,7 @@ def compiled_residual(asm, failures):
     net = law_module("network")
     rows, cols, fpar, varying, refresh, sources = [], [], [], [], [], []
     sizes = []      # per group: its shared floats, each instance's floats, whether it has u
+    callbacks: list = []     # the user components' evaluators (softflow.solve.usercall)
     n_u = 0
     u_parts = []
     # each group's row as a list (made one array below), and the running sizes
@@ -441,6 +459,11 @@ def compiled_residual(asm, failures):
             n_f += per.size
         row[net.OPTION] = option
         row[net.U0] = n_u
+        if cls_id == net.USER:
+            from . import usercall
+            evaluator = usercall.Evaluator(g, asm.n, len(asm.S0), asm.raw.size)
+            callbacks.append(evaluator)         # held by the network: see usercall
+            row[net.OPTION], row[net.U0] = usercall.register(evaluator), usercall.ADDRESS
         if values is not None:
             u_parts.append(np.asarray(values.values(0.0), dtype=float).copy())
             sources.append(values)
@@ -464,6 +487,7 @@ def compiled_residual(asm, failures):
                 fpar[at] = P.hA
         varying.append((None, refreshed, None, None))
     network = CompiledNetwork(asm, groups, cols, fpar, u, trows, tcols, varying, sources)
+    network.callbacks = callbacks
     network.float_sizes = np.array(sizes, dtype=np.int64).reshape(-1, 3)
     if varying:
         passed, failure = failures["PASS"], failures["failure"]

@@ -355,6 +355,11 @@ COMPILED_START = True
 #: compiled loop (:mod:`softflow.solve.variants`) where that serves the
 #: scene; False: the shared step sequence (:mod:`softflow.solve.batched`).
 COMPILED_VARIANTS = True
+#: Whether the compiled network loop evaluates a user's component (the paper's
+#: Actuator) by calling it back in Python (softflow.solve.usercall), so that
+#: its scenes run in the compiled loop; False: such a network keeps the
+#: per-group path (and the Python step loop).
+COMPILED_USER = True
 #: Batched variants in the compiled loop (softflow.solve.variants): the
 #: fewest split over two threads (fewer run in one), the variants a thread
 #: runs per call of the loop (between two looks of the progress bar), and

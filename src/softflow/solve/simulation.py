@@ -667,6 +667,12 @@ class Simulation:
         for every unknown and state."""
         asm = self.asm
         record = self.record if record is _RUN_RECORD else record
+        for g in asm.groups:
+            # sources' values kept from the last run's times: a Python signal
+            # may read state that changed since (its values are asked anew)
+            forget = getattr(g.params, "forget", None)
+            if forget is not None:
+                forget()
         components = [g.comps[i] for g, i in asm.where.values()]
         stats = Stats()
         lin = make_linear_solver(asm, self.linear_solver_kind)

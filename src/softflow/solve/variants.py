@@ -158,8 +158,11 @@ def reason_not(sim):
     if sim.refine > 1:
         return "refine= records points inside each step on the one-network BDF only"
     asm = sim.asm
-    if getattr(asm.residual, "network", None) is None:
+    net = getattr(asm.residual, "network", None)
+    if net is None:
         return "a component the compiled network does not cover"
+    if net.callbacks:
+        return "a user component (called back in Python on the network's own arrays)"
     return None
 
 

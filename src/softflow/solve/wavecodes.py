@@ -10,8 +10,10 @@ of exactly one of the classes of :mod:`softflow.curves.waveforms` that
 :mod:`softflow.laws.waves` covers (Constant, Step, Ramp, PiecewiseLinear,
 PiecewiseConstant, Trapezoid, Sine, Square; not a subclass, which may
 override ``_scalar``), scaled to the source's unit; anything else (a Python
-function, a fons wave, a user's Waveform) leaves the group to Python:
-:func:`describe` then returns None.
+function, a fons wave, a user's Waveform) is called back in Python from the
+compiled code (:data:`softflow.laws.waves.PYTHON`, :mod:`softflow.solve.usercall`:
+the signal's own call, its units checked), unless
+``settings.COMPILED_USER`` is off: :func:`describe` then returns None.
 
 The waveform's attributes are read when :func:`describe` is called: a
 waveform edited afterwards needs describing again.
@@ -110,12 +112,16 @@ def describe(params: Any) -> Described | None:
     floats: list[float] = []
     for signal in params._varying:
         found = waveform_of(signal)
-        if found is None:
-            return None
-        w, factor = found
-        described = _floats(w)
+        described = None if found is None else _floats(found[0])
         if described is None:
-            return None
+            from . import settings
+            if not settings.COMPILED_USER:
+                return None
+            # a Python function (or a waveform the laws do not state): called back
+            from .usercall import signal_floats
+            factor, described = 1.0, (law_module("waves").PYTHON, signal_floats(signal))
+        else:
+            factor = found[1]
         code, values = described
         codes.append(code)
         factors.append(factor)

@@ -1,0 +1,169 @@
+"""User components called back from the compiled loop.
+
+The compiled network residual (:func:`softflow.laws.network.residual`)
+evaluates a group of user-written components (the paper's ``Actuator``, any
+``evaluate`` / ``update_state`` / ``auto*`` component) by calling back into
+Python: one C function made once per process with :mod:`ctypes` (it takes
+the interpreter's lock itself, so the loop may run without it), whose address
+the group's row of the loop's arrays carries, and a key per group into
+:data:`_EVALUATORS`. The callback wraps the loop's arrays (passed by their
+data pointers) as NumPy views, calls the group's own kernel, the same one
+the per-group path calls (:mod:`softflow.solve.userkernel`: its residual and
+Jacobian by the component's functions and finite differences), and writes its
+rows, its Jacobian entries and its states at the end of the step in place.
+
+An exception inside the user's code is not raised through the compiled code:
+the callback returns 1 and the loop reports the group as refusing the state,
+whereupon the caller evaluates the network on the per-group path, which
+raises the error naming the component and the time (or, for a fluid's range,
+cuts the step as it does for library components).
+
+Cost (the paper's scene, measured in ``benchmarks/README.md``): a call
+costs a few microseconds beside the kernel's own Python.
+"""
+from __future__ import annotations
+
+import ctypes
+import itertools
+import weakref
+from typing import Any, Callable
+
+import numpy as np
+
+#: key -> the evaluator of one group (a weak reference: the network that made
+#: it owns it; a network gone leaves no entry behind)
+_EVALUATORS: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
+_KEYS = itertools.count(1)
+
+_SIGNATURE = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_int64, ctypes.c_double, ctypes.c_double,
+                              ctypes.c_int64, *([ctypes.c_void_p] * 5), ctypes.c_int64)
+
+
+class Evaluator:
+    """One user component's callback (a group of one, whose kernel the
+    assembly calls with 1-D rows: ``g.row``): its kernel and update, where
+    its unknowns, rows, Jacobian entries and states lie in the network's
+    arrays."""
+
+    def __init__(self, g: Any, n: int, ns: int, n_raw: int) -> None:
+        uk = g.row
+        self.kernel_row, self.update_row = uk.kernel_row, uk.update_row
+        self.col = np.asarray(g.col[0], dtype=np.int64)
+        self.r0, self.r1, self.j0, self.j1 = g.r0, g.r1, g.j0, g.j1
+        self.s0, self.s1 = g.s0, g.s1
+        self.has_states = bool(g.has_states)
+        self.sizes = (n, ns, n, n_raw)
+        # the views made of the loop's arrays, by (address, size): the loop
+        # passes the same few arrays at every call
+        self._views: dict = {}
+
+    def _views_of(self, px: int | None, pS: int | None, pF: int | None, praw: int | None,
+                  pSout: int | None, n_sout: int) -> tuple:
+        """NumPy views of the loop's arrays at those addresses (kept by the
+        addresses: the loop passes the same few arrays at every call)."""
+        where = (px, pS, pF, praw, pSout, n_sout)
+        got = self._views.get(where)
+        if got is None:
+            if len(self._views) > 64:
+                self._views.clear()
+            sizes = self.sizes + (n_sout,)
+            got = self._views[where] = tuple(
+                np.frombuffer((ctypes.c_double * size).from_address(address), dtype=np.float64)
+                if size and address else np.empty(0)
+                for address, size in zip(where[:5], sizes))
+        return got
+
+    def __call__(self, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
+                 F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
+        v, s = x[self.col], S[self.s0:self.s1]
+        Fg, Jg = self.kernel_row(v, s, t, dt, jac)
+        F[self.r0:self.r1] = Fg
+        if jac and self.j1 > self.j0:
+            raw[self.j0:self.j1] = Jg
+        if Sout.size and self.has_states:
+            Sout[self.s0:self.s1] = self.update_row(v, s, dt)
+        return 0
+
+    def from_pointers(self, t: float, dt: float, jac: int, px: int | None, pS: int | None,
+                      pF: int | None, praw: int | None, pSout: int | None, n_sout: int) -> int:
+        return self(t, dt, bool(jac), *self._views_of(px, pS, pF, praw, pSout, n_sout))
+
+
+def register(evaluator: Evaluator) -> int:
+    """A new key for ``evaluator`` (held weakly: keep the evaluator alive
+    while the network that calls it lives)."""
+    key = next(_KEYS)
+    _EVALUATORS[key] = evaluator
+    return key
+
+
+def dispatch(key: int, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
+             F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
+    """The callback with the arrays themselves (pure-Python mode, and tests):
+    0, or 1 where the user's code raised (see the module)."""
+    try:
+        return _EVALUATORS[key](t, dt, jac, x, S, F, raw, Sout)
+    except BaseException:      # raised again by the per-group path
+        return 1
+
+
+def _entry(key: int, t: float, dt: float, jac: int, px: int | None, pS: int | None,
+           pF: int | None, praw: int | None, pSout: int | None, n_sout: int) -> int:
+    try:
+        return _EVALUATORS[key].from_pointers(t, dt, jac, px, pS, pF, praw, pSout, n_sout)
+    except BaseException:      # raised again by the per-group path
+        return 1
+
+
+#: the C function the compiled loop calls, and its address
+CALLBACK: Callable = _SIGNATURE(_entry)
+ADDRESS: int = ctypes.cast(CALLBACK, ctypes.c_void_p).value or 0
+
+
+# -- sources' signals given as Python functions -------------------------------------------
+class Signal:
+    """A source's signal (``softflow.components.sources._Signal``: a Python
+    function of t, its units checked and turned into SI at each call) called
+    back from the compiled source values (:data:`softflow.laws.waves.PYTHON`).
+    Held by the signal itself (:func:`signal_floats`); its key in
+    :data:`_EVALUATORS`. Where the function raises, the value is NaN and the
+    error is kept (:data:`RAISED`) for the Python path, which raises it
+    naming the source."""
+
+    def __init__(self, signal: Any) -> None:
+        self.signal = signal
+        self.key = register(self)
+
+    def value(self, t: float) -> float:
+        try:
+            return float(self.signal(t))
+        except BaseException as err:    # raised again by the Python path
+            RAISED.append(err)
+            return float("nan")
+
+
+#: the errors the signals called back raised since the last look (at most a few kept)
+RAISED: list = []
+
+
+def signal_floats(signal: Any) -> list[float]:
+    """The floats of :data:`softflow.laws.waves.PYTHON` for ``signal``: its
+    key and the callback's address (exact as floats: addresses < 2^53)."""
+    mine = getattr(signal, "_called_back", None)
+    if mine is None:
+        mine = Signal(signal)
+        signal._called_back = mine
+    return [float(mine.key), float(SIGNAL_ADDRESS)]
+
+
+def signal_value(key: int, t: float) -> float:
+    """The signal ``key``'s value at t (NaN where it raised or is gone)."""
+    evaluator = _EVALUATORS.get(key)
+    if len(RAISED) > 8:
+        del RAISED[:-8]
+    return float("nan") if evaluator is None else evaluator.value(t)
+
+
+SIGNAL_CALLBACK: Callable = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_int64,
+                                             ctypes.c_double)(signal_value)
+SIGNAL_ADDRESS: int = ctypes.cast(SIGNAL_CALLBACK, ctypes.c_void_p).value or 0

@@ -1,0 +1,168 @@
+"""User components and Python-function sources called back from the compiled
+loop (softflow.solve.usercall): the same equations, runs and errors as the
+per-group path and the Python step loop, which settings.COMPILED_USER = False
+keeps."""
+import warnings
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.demo import paper_system
+from softflow.solve import settings, steploop, usercall
+from softflow.solve import variants as variants_mod
+from helpers import UserChamber
+
+P0 = sf.pressure_atmospheric
+
+
+def _both(make, monkeypatch, **kw):
+    """(compiled loop with call-backs, Python path) runs of the scene ``make()``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(make(), **kw)
+        assert steploop.not_served_because(sim._integrator()[0]) is None
+        a = sim.run(raise_on_failure=False)
+        monkeypatch.setattr(settings, "COMPILED_USER", False)
+        py = sf.Simulation(make(), **kw)
+        assert py.asm.residual is py.asm.python_residual
+        b = py.run(raise_on_failure=False)
+        monkeypatch.setattr(settings, "COMPILED_USER", True)
+    return a, b
+
+
+def test_the_papers_network_is_the_per_group_residual_to_round_off():
+    """The paper's scene (a Python-function source, a user actuator): the
+    compiled residual's rows and Jacobian entries are the per-group path's
+    at random states, steps and times; the actuator's rows bitwise (the same
+    kernel called back)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
+    asm = sim.asm
+    net = asm.residual.network
+    assert len(net.callbacks) == 1
+    g = next(g for g in asm.groups if g.row is not None)
+    rng = np.random.default_rng(3)
+    for trial in range(20):
+        x = asm.x0 * (1 + 0.1 * rng.standard_normal(asm.n))
+        S = asm.S0 * (1 + 0.05 * rng.standard_normal(asm.S0.size))
+        t, dt = rng.uniform(0, 1), 10 ** rng.uniform(-6, -2)
+        F = asm.residual(x, S, t, dt, True)
+        raw = asm.raw.copy()
+        Fp = asm.python_residual(x, S, t, dt, True)
+        np.testing.assert_allclose(F, Fp, rtol=1e-13, atol=1e-12 * np.abs(Fp).max())
+        np.testing.assert_allclose(raw, asm.raw, rtol=1e-13, atol=1e-300)
+        assert np.array_equal(F[g.r0:g.r1], Fp[g.r0:g.r1]), trial
+        np.testing.assert_array_equal(net.update_states(x, S, dt),
+                                      asm.update_states(x, S, dt))
+
+
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_the_papers_listing_runs_as_in_the_python_loop(monkeypatch, step):
+    """Fixed steps: the same numbers to 1e-10 relative; adaptive: the same
+    steps, within the tolerance."""
+    kw = {"duration": 1.0} if step is None else {"duration": 1.0, "step": step}
+    a, b = _both(lambda: paper_system(inertance=False), monkeypatch, **kw)
+    assert a.success and b.success
+    assert a.stats["steps"] == b.stats["steps"]
+    pa, pb = a.get("actu", "pressure"), b.get("actu", "pressure")
+    rtol = 1e-10 if step is not None else 1e-6
+    np.testing.assert_allclose(pa - P0, pb - P0, rtol=0, atol=rtol * np.ptp(pb))
+    np.testing.assert_allclose(a.get("actu", "mass"), b.get("actu", "mass"), rtol=rtol)
+
+
+def test_a_user_chamber_behind_library_components(monkeypatch):
+    """A stiff user chamber at the end of a water tube, fed by a waveform:
+    the same run in the loop (called back) and in Python."""
+    def make():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=sf.waveforms.Step(0.01, P0 + 1e4, P0 + 3e4))
+        s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+        s += UserChamber("tank")
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        return s
+    a, b = _both(make, monkeypatch, duration=0.05, step=1e-4)
+    np.testing.assert_allclose(a.get("tank", "pressure"), b.get("tank", "pressure"),
+                               rtol=1e-10)
+    a, b = _both(make, monkeypatch, duration=0.05)
+    assert a.stats["steps"] == b.stats["steps"]
+
+
+def _raising(where):
+    """The paper's scene whose actuator's evaluate or source's function
+    raises past 0.3 s."""
+    s = paper_system(inertance=False)
+    if where == "source":
+        s.components[0].signal.func = _raise_past(s.components[0].signal.func)
+    else:
+        actu = s.get("actu")
+        own = actu.evaluate.func
+
+        def evaluate(t, p, mass):
+            if t > 0.3:
+                raise ZeroDivisionError("the user's model broke")
+            return own(t, p, mass)
+        actu.evaluate = actu.auto(evaluate)
+    return s
+
+
+def _raise_past(func):
+    def signal(t):
+        if t > 0.3:
+            raise ValueError("the user's signal broke")
+        return func(t)
+    return signal
+
+
+@pytest.mark.parametrize("where, culprit, said", [
+    ("source", "PressureSource 'source'", "ValueError: the user's signal broke"),
+    ("actuator", "'actu': evaluate raised", "ZeroDivisionError: the user's model broke")])
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_an_error_in_user_code_names_the_component_and_the_time(monkeypatch, where, culprit,
+                                                                said, step):
+    """Raised inside a call-back, the error is the Python path's: the failed
+    result names the component, the time and the error, after about the
+    same work."""
+    kw = {"duration": 1.0} if step is None else {"duration": 1.0, "step": step}
+    a, b = _both(lambda: _raising(where), monkeypatch, **kw)
+    assert a.status == b.status == "failed"
+    assert culprit in a.message and said in a.message
+    assert a.message == b.message
+    assert a.times[-1] == pytest.approx(b.times[-1], rel=1e-12)
+    assert a.stats["residual_evaluations"] <= b.stats["residual_evaluations"] + 5
+
+
+def test_pure_python_dispatch_is_the_callback():
+    """usercall.dispatch (the pure-Python mode's route, NUMBA_DISABLE_JIT=1)
+    writes what the C callback writes; an unknown key or a raising kernel
+    answers 1."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
+    asm = sim.asm
+    net = asm.residual.network
+    g = next(g for g in asm.groups if g.row is not None)
+    key = int(net.groups[asm.groups.index(g), 10])
+    x, S = asm.x0 * 1.01, asm.S0 * 1.02
+    F1, raw1, S1 = np.zeros(asm.n), np.zeros(asm.raw.size), np.zeros(S.size)
+    assert usercall.dispatch(key, 0.1, 1e-3, True, x, S, F1, raw1, S1) == 0
+    F2 = asm.python_residual(x, S, 0.1, 1e-3, True)
+    assert np.array_equal(F1[g.r0:g.r1], F2[g.r0:g.r1])
+    assert np.array_equal(raw1[g.j0:g.j1], asm.raw[g.j0:g.j1])
+    assert np.array_equal(S1[g.s0:g.s1], asm.update_states(x, S, 1e-3)[g.s0:g.s1])
+    assert usercall.dispatch(10 ** 9, 0.1, 1e-3, True, x, S, F1, raw1, S1) == 1
+    assert usercall.dispatch(key, 0.1, 1e-3, True, x[:1], S, F1, raw1, S1) == 1
+
+
+def test_batches_of_user_scenes_share_their_steps():
+    """The batched variants' threads run on each variant's own arrays, which
+    a call-back (on the batch network's) does not know: a user component's
+    scene keeps the shared steps, and says why."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(paper_system(inertance=False), duration=0.2)
+        out = sf.sweep(sim, {"tube.diameter": [1e-3, 1.2e-3]}, engine="batched")
+    assert "user component" in variants_mod.reason_not(sim)
+    assert out.status == ["success", "success"]
