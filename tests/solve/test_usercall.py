@@ -166,3 +166,36 @@ def test_batches_of_user_scenes_share_their_steps():
         out = sf.sweep(sim, {"tube.diameter": [1e-3, 1.2e-3]}, engine="batched")
     assert "user component" in variants_mod.reason_not(sim)
     assert out.status == ["success", "success"]
+
+
+@pytest.mark.parametrize("where", ["source", "actuator"])
+def test_an_interrupt_inside_a_call_back_is_raised_not_swallowed(where):
+    """Ctrl-C (KeyboardInterrupt) inside the user's code stops the run with
+    that interrupt, at fixed steps and adaptive, as in the Python loop."""
+    def make():
+        s = paper_system(inertance=False)
+        if where == "source":
+            func = s.components[0].signal.func
+
+            def signal(t):
+                if t > 0.3:
+                    raise KeyboardInterrupt
+                return func(t)
+            s.components[0].signal.func = signal
+        else:
+            actu = s.get("actu")
+            own = actu.evaluate.func
+
+            def evaluate(t, p, mass):
+                if t > 0.3:
+                    raise KeyboardInterrupt
+                return own(t, p, mass)
+            actu.evaluate = actu.auto(evaluate)
+        return s
+    for kw in ({"step": 1e-3}, {}):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sim = sf.Simulation(make(), duration=1.0, **kw)
+        with pytest.raises(KeyboardInterrupt):
+            sim.run(raise_on_failure=False)
+        assert not usercall.PENDING

@@ -55,6 +55,7 @@ import numpy as np
 
 from .._laws import law_module
 from ..fluids.base import FluidError
+from .usercall import raise_pending
 
 
 #: the names _covered and _covered_thermal compare a group with, imported on
@@ -513,6 +514,7 @@ def compiled_residual(asm, failures):
             F = np.empty(n)
             if loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups,
                     cols, fpar, u, no_states) >= 0:
+                raise_pending()
                 return asm.python_residual(x, S, t, dt, jac)    # raises the law's error
             return F
     else:
@@ -520,6 +522,7 @@ def compiled_residual(asm, failures):
             F = np.empty(n)
             if loop(x, S, float(t), float(dt), bool(jac), F, raw, nr, trows, tcols, groups,
                     cols, fpar, u, no_states) >= 0:
+                raise_pending()
                 return asm.python_residual(x, S, t, dt, jac)    # raises the law's error
             return F
     residual.__doc__ = ("F(x) for states S at the start of the step; with jac, also fills "

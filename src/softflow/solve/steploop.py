@@ -56,6 +56,7 @@ import numpy as np
 from .._laws import law_module
 from . import settings
 from .dense import expected_rows
+from .usercall import PENDING, raise_pending
 
 
 class _Bound:
@@ -278,6 +279,8 @@ class CompiledSteps(_Bound):
                                   self.stats, self.net, self.lin, self.sources, self.tol, rec,
                                   dense, self.events, self.watch, self.breaks, self.G,
                                   self.ERRC, scratch)
+            if PENDING:
+                raise_pending()
             taken += self._flush(t, Q)
             if exit_ in (st.NEWTON, st.RESTART) and ist[st.WANTS_SOURCES]:
                 # a failed solve (a step's, or a restart probe's before its
@@ -474,6 +477,8 @@ class FixedSteps(_Bound):
                                         self.stats, self.net, self.lin, self.sources,
                                         self.tol, rec, self.watch, self.breaks, self.grid,
                                         scratch)
+            if PENDING:
+                raise_pending()
             taken += self._records_out(t, Q=False)
             ist[st.N_REC] = 0
             if exit_ != st.FULL:
@@ -725,6 +730,8 @@ def start_solver(integ, lin0):
         counters[:] = 0
         code = st.start_solve(x, S0, ist, fst, floor, counters, net, lin, sources, tol,
                               st.fixed_scratch(n, ns))
+        if PENDING:
+            raise_pending()
         _solve_counts_out(st, counters, integ.stats)
         if code != st.SOLVED:
             return None

@@ -16,7 +16,9 @@ An exception inside the user's code is not raised through the compiled code:
 the callback returns 1 and the loop reports the group as refusing the state,
 whereupon the caller evaluates the network on the per-group path, which
 raises the error naming the component and the time (or, for a fluid's range,
-cuts the step as it does for library components).
+cuts the step as it does for library components). An interrupt (Ctrl-C's
+KeyboardInterrupt) is kept and raised as soon as the compiled code returns
+(:func:`raise_pending`), the call-backs answering at once until then.
 
 Cost (the paper's scene, measured in ``benchmarks/README.md``): a call
 costs a few microseconds beside the kernel's own Python.
@@ -97,21 +99,45 @@ def register(evaluator: Evaluator) -> int:
     return key
 
 
+#: an interrupt (KeyboardInterrupt, SystemExit: not an Exception) met inside a
+#: call-back, which the caller raises once the compiled code returns
+#: (:func:`raise_pending`); while one waits, call-backs return at once
+PENDING: list = []
+
+
+def raise_pending() -> None:
+    """Raise the interrupt a call-back met, if any (see :data:`PENDING`)."""
+    if PENDING:
+        err = PENDING.pop()
+        PENDING.clear()
+        raise err
+
+
 def dispatch(key: int, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
              F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
     """The callback with the arrays themselves (pure-Python mode, and tests):
     0, or 1 where the user's code raised (see the module)."""
+    if PENDING:
+        return 1
     try:
         return _EVALUATORS[key](t, dt, jac, x, S, F, raw, Sout)
-    except BaseException:      # raised again by the per-group path
+    except Exception:          # raised again by the per-group path
+        return 1
+    except BaseException as err:    # an interrupt: raised once the loop returns
+        PENDING.append(err)
         return 1
 
 
 def _entry(key: int, t: float, dt: float, jac: int, px: int | None, pS: int | None,
            pF: int | None, praw: int | None, pSout: int | None, n_sout: int) -> int:
+    if PENDING:
+        return 1
     try:
         return _EVALUATORS[key].from_pointers(t, dt, jac, px, pS, pF, praw, pSout, n_sout)
-    except BaseException:      # raised again by the per-group path
+    except Exception:          # raised again by the per-group path
+        return 1
+    except BaseException as err:    # an interrupt: raised once the loop returns
+        PENDING.append(err)
         return 1
 
 
@@ -135,10 +161,15 @@ class Signal:
         self.key = register(self)
 
     def value(self, t: float) -> float:
+        if PENDING:
+            return float("nan")
         try:
             return float(self.signal(t))
-        except BaseException as err:    # raised again by the Python path
+        except Exception as err:    # raised again by the Python path
             RAISED.append(err)
+            return float("nan")
+        except BaseException as err:    # an interrupt: raised once the loop returns
+            PENDING.append(err)
             return float("nan")
 
 

@@ -60,6 +60,7 @@ from .._laws import law_module
 from .batched import PREFIX, _variant_of
 from . import settings
 from .settings import DENSE_MAX
+from .usercall import raise_pending
 
 
 
@@ -471,6 +472,7 @@ def run(sim, batch_sim, K, progress=None):
             bar.reached(batch_sim.duration * sum(w.done for w in workers) / K)
         for r in running:
             r.result()          # (an error in a thread raised here)
+    raise_pending()             # an interrupt a Python signal's call-back met
     first, count, code, steps, rejected = meta
     exits = st.EXITS
     failed = {}
