@@ -137,6 +137,25 @@ def bench_paper(repeat, fonsim):
                 c0 = time.process_time()
                 run_sf(None)
                 (cpu_on if on else cpu_off).append(time.process_time() - c0)
+    # user components and Python signals called back from the compiled loop
+    # (settings.COMPILED_USER, issue 38) or every step in Python, in turns (CPU
+    # of run() alone, the Simulation built once per setting)
+    callbacks = None
+    try:
+        from softflow.solve import settings as _settings
+        if hasattr(_settings, "COMPILED_USER"):
+            callbacks = {}
+            for i in range(repeat):
+                for on in ((True, False) if i % 2 == 0 else (False, True)):
+                    _settings.COMPILED_USER = on
+                    for step in (1e-3, None):
+                        sim_cb = run_sf(step)
+                        c0 = time.process_time()
+                        sim_cb.run()
+                        callbacks.setdefault((on, step), []).append(time.process_time() - c0)
+            _settings.COMPILED_USER = True
+    except ImportError:
+        pass
     with LoopSpy() as spy:
         n_ad = run_sf(None).result.stats["steps"]
     st = sim.result.stats
@@ -148,6 +167,13 @@ def bench_paper(repeat, fonsim):
     print(f"  softflow adaptive, CPU, compiled step loop on / off (in turns): "
           f"{m_on * 1e3:.1f} / {m_off * 1e3:.1f} ms ({m_on / m_off:.2f}); the loop took "
           f"{spy.share(n_ad)} of the steps ({spy.exits_text()})")
+    if callbacks:
+        med = statistics.median
+        for step, name in ((1e-3, "fixed 1 ms"), (None, "adaptive")):
+            on, off = med(callbacks[(True, step)]), med(callbacks[(False, step)])
+            print(f"  run() CPU, {name}: user component called back from the compiled loop "
+                  f"{on * 1e3:.2f} ms / every step in Python (COMPILED_USER off) "
+                  f"{off * 1e3:.2f} ms ({on / off:.2f})")
     if fonsim:
         p_sf = sim.result.get("actu", "pressure")
         n = min(len(p_sf), len(ref["p_actu"]))

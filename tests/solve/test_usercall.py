@@ -199,3 +199,33 @@ def test_an_interrupt_inside_a_call_back_is_raised_not_swallowed(where):
         with pytest.raises(KeyboardInterrupt):
             sim.run(raise_on_failure=False)
         assert not usercall.PENDING
+
+
+def test_the_first_compile_says_so(monkeypatch, caplog):
+    """Where the compiled loop is in no cache yet, one INFO line on the
+    'softflow' logger says it compiles now, once; where numba's cache
+    internals are not as expected, nothing is said."""
+    import logging
+    import types
+
+    from softflow.laws import stepper
+
+    def cold(index):
+        cache = types.SimpleNamespace(_cache_path="/somewhere",
+                                      _cache_file=types.SimpleNamespace(_load_index=index))
+        return types.SimpleNamespace(overloads={}, _cache=cache)
+    for name in ("stretch", "fixed_stretch", "start_solve"):
+        monkeypatch.setattr(stepper, name, cold(lambda: {}))
+    with caplog.at_level(logging.INFO, logger="softflow"):
+        steploop._compile_notice()
+    assert any("compiling its step loop for this installation" in r.message
+               and "/somewhere" in r.message for r in caplog.records)
+    caplog.clear()
+
+    def broken():
+        raise AttributeError("numba moved it")
+    for name in ("stretch", "fixed_stretch", "start_solve"):
+        monkeypatch.setattr(stepper, name, cold(broken))
+    with caplog.at_level(logging.INFO, logger="softflow"):
+        steploop._compile_notice()
+    assert not caplog.records

@@ -665,10 +665,43 @@ def _served_or_why(integ):
     return got
 
 
+#: whether this process has looked for the compiled loop in numba's cache
+_CACHE_LOOKED = []
+
+
+def _compile_notice():
+    """Say once, where the compiled loop is not in numba's cache yet (its
+    first use after an installation or an upgrade: a compile of a minute or
+    two), that it is compiled now and kept: one INFO line on the
+    ``'softflow'`` logger, and on standard error where that is a terminal.
+    Reads the cache's index files (numba's own, internal: any surprise there
+    and nothing is said)."""
+    _CACHE_LOOKED.append(True)
+    st = law_module("stepper")
+    try:
+        cold = [f for f in (st.stretch, st.fixed_stretch, st.start_solve)
+                if not f.overloads and not f._cache._cache_file._load_index()]
+    except Exception:          # noqa: BLE001 - numba's internals moved: say nothing
+        return
+    if not cold:
+        return
+    import sys
+
+    from .progress import logger
+    where = cold[0]._cache._cache_path
+    message = ("softflow: compiling its step loop for this installation (once: about "
+               f"1-2 minutes; later runs load it from numba's cache in {where})")
+    logger.info(message)
+    if getattr(sys.stderr, "isatty", lambda: False)():
+        print(message, file=sys.stderr, flush=True)
+
+
 def _find_served(integ):
     """:func:`_served`'s answer, found: (arrays, sources), or why not."""
     if not settings.COMPILED_STEPS:
         return "settings.COMPILED_STEPS is off"
+    if not _CACHE_LOOKED:
+        _compile_notice()
     asm, newton = integ.asm, integ.newton
     net = getattr(asm.residual, "network", None)
     if net is None:
