@@ -229,3 +229,35 @@ def test_the_first_compile_says_so(monkeypatch, caplog):
     with caplog.at_level(logging.INFO, logger="softflow"):
         steploop._compile_notice()
     assert not caplog.records
+
+
+def test_a_copied_scenes_signal_is_its_own():
+    """A deep copy of a System (as a thermal Simulation compiles from) calls
+    back its own signal, and goes on doing so when the original is gone."""
+    import copy
+    import gc
+
+    box = {"p": 1.3e5}
+
+    def make():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=lambda t: box["p"])
+        s += sf.CircularTube("tube", sf.air, 0.3, 1e-3)
+        s += sf.Container("tank", sf.air, 1e-5)
+        s.connect("src", "tube")
+        s.connect("tube", "tank")
+        return s
+    original = make()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        first = sf.Simulation(original, duration=0.02).run()
+        twin = copy.deepcopy(original)
+        twin.components[0].signal.func = lambda t: 1.2e5
+        del original
+        gc.collect()
+        second = sf.Simulation(twin, duration=0.02).run()
+        box["p"] = 1.2e5
+        again = sf.Simulation(make(), duration=0.02).run()
+    assert second.get("tank", "pressure")[-1] == pytest.approx(
+        again.get("tank", "pressure")[-1], rel=1e-9)
+    assert first.get("tank", "pressure")[-1] > second.get("tank", "pressure")[-1] + 500

@@ -150,21 +150,25 @@ ADDRESS: int = ctypes.cast(CALLBACK, ctypes.c_void_p).value or 0
 class Signal:
     """A source's signal (``softflow.components.sources._Signal``: a Python
     function of t, its units checked and turned into SI at each call) called
-    back from the compiled source values (:data:`softflow.laws.waves.PYTHON`).
-    Held by the signal itself (:func:`signal_floats`); its key in
-    :data:`_EVALUATORS`. Where the function raises, the value is NaN and the
-    error is kept (:data:`RAISED`) for the Python path, which raises it
-    naming the source."""
+    back from the compiled source values (:data:`softflow.laws.waves.PYTHON`),
+    by its key in :data:`_EVALUATORS`. Held while the signal lives
+    (:data:`_SIGNALS`), which it refers to weakly (a copied or pickled
+    component's signal gets a key of its own). Where the function raises,
+    the value is NaN and the error is kept (:data:`RAISED`) for the Python
+    path, which raises it naming the source."""
 
     def __init__(self, signal: Any) -> None:
-        self.signal = signal
+        self.signal = weakref.ref(signal)
         self.key = register(self)
 
     def value(self, t: float) -> float:
         if PENDING:
             return float("nan")
+        signal = self.signal()
+        if signal is None:
+            return float("nan")
         try:
-            return float(self.signal(t))
+            return float(signal(t))
         except Exception as err:    # raised again by the Python path
             RAISED.append(err)
             return float("nan")
@@ -175,15 +179,16 @@ class Signal:
 
 #: the errors the signals called back raised since the last look (at most a few kept)
 RAISED: list = []
+#: each signal's call-back, while the signal lives
+_SIGNALS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def signal_floats(signal: Any) -> list[float]:
     """The floats of :data:`softflow.laws.waves.PYTHON` for ``signal``: its
     key and the callback's address (exact as floats: addresses < 2^53)."""
-    mine = getattr(signal, "_called_back", None)
+    mine = _SIGNALS.get(signal)
     if mine is None:
-        mine = Signal(signal)
-        signal._called_back = mine
+        mine = _SIGNALS[signal] = Signal(signal)
     return [float(mine.key), float(SIGNAL_ADDRESS)]
 
 
