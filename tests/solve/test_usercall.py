@@ -261,3 +261,26 @@ def test_a_copied_scenes_signal_is_its_own():
     assert second.get("tank", "pressure")[-1] == pytest.approx(
         again.get("tank", "pressure")[-1], rel=1e-9)
     assert first.get("tank", "pressure")[-1] > second.get("tank", "pressure")[-1] + 500
+
+
+def test_the_c_callback_reads_the_sizes_it_is_given():
+    """The C entry wraps each array at the address and size the loop passes:
+    arrays as the loop's give the per-group path's rows; a row array too
+    short for the component's rows is refused (1), not written past."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
+    asm = sim.asm
+    net = asm.residual.network
+    g = next(g for g in asm.groups if g.row is not None)
+    key = int(net.groups[asm.groups.index(g), 10])
+    x, S = asm.x0 * 1.01, asm.S0 * 1.02
+    F, raw, Sout = np.zeros(asm.n), np.zeros(asm.raw.size), np.zeros(S.size)
+
+    def pairs(*arrays):
+        return [v for a in arrays for v in (a.ctypes.data, a.size)]
+    assert usercall._entry(key, 0.1, 1e-3, 1, *pairs(x, S, F, raw, Sout)) == 0
+    F2 = asm.python_residual(x, S, 0.1, 1e-3, True)
+    assert np.array_equal(F[g.r0:g.r1], F2[g.r0:g.r1])
+    short = np.zeros(g.r0)
+    assert usercall._entry(key, 0.1, 1e-3, 1, *pairs(x, S, short, raw, Sout)) == 1

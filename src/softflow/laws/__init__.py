@@ -200,13 +200,14 @@ else:
     @intrinsic
     def call_user(typingctx, address, key, t, dt, jac, x, S, F, raw, Sout):
         """Call the C function at ``address`` (int64) as ``int64 f(int64 key,
-        double t, double dt, int64 jac, double *x, double *S, double *F,
-        double *raw, double *Sout, int64 n_sout)``: softflow's one callback
-        into Python (:mod:`softflow.solve.usercall`, a ctypes function that
-        takes the interpreter's lock itself), which evaluates a user
-        component's group in place. The arrays are passed by their data
-        pointers (contiguous float64, as the loop's own are) and Sout by its
-        size too (0: no states wanted). Returns the callback's code (0: done)."""
+        double t, double dt, int64 jac, double *x, int64 n_x, double *S,
+        int64 n_S, double *F, int64 n_F, double *raw, int64 n_raw, double
+        *Sout, int64 n_Sout)``: softflow's one callback into Python
+        (:mod:`softflow.solve.usercall`, a ctypes function that takes the
+        interpreter's lock itself), which evaluates a user component's group
+        in place. Each array (contiguous float64, as the loop's own are) is
+        passed by its data pointer and its size (Sout's 0: no states wanted).
+        Returns the callback's code (0: done)."""
         arrays = (x, S, F, raw, Sout)
         for a in arrays:
             if not (isinstance(a, types.Array) and a.ndim == 1 and a.dtype == types.float64
@@ -218,19 +219,18 @@ else:
             from llvmlite import ir
             i64, f64 = ir.IntType(64), ir.DoubleType()
             ptr = f64.as_pointer()
-            fnty = ir.FunctionType(i64, [i64, f64, f64, i64] + [ptr] * CALLBACK_ARRAYS + [i64])
+            fnty = ir.FunctionType(i64, [i64, f64, f64, i64] + [ptr, i64] * CALLBACK_ARRAYS)
             at = context.cast(builder, args[0], sig.args[0], types.int64)
             fn = builder.inttoptr(at, fnty.as_pointer())
             head = [context.cast(builder, args[1], sig.args[1], types.int64),
                     context.cast(builder, args[2], sig.args[2], types.float64),
                     context.cast(builder, args[3], sig.args[3], types.float64),
                     context.cast(builder, args[4], sig.args[4], types.int64)]
-            data, n_sout = [], None
+            data = []
             for ty, value in zip(sig.args[5:], args[5:]):
                 arr = context.make_array(ty)(context, builder, value)
-                data.append(arr.data)
-                n_sout = arr.nitems
-            return builder.call(fn, head + data + [n_sout])
+                data += [arr.data, arr.nitems]
+            return builder.call(fn, head + data)
         return sig, codegen
 
 

@@ -462,7 +462,7 @@ def compiled_residual(asm, failures):
         row[net.U0] = n_u
         if cls_id == net.USER:
             from . import usercall
-            evaluator = usercall.Evaluator(g, asm.n, len(asm.S0), asm.raw.size)
+            evaluator = usercall.Evaluator(g)
             callbacks.append(evaluator)         # held by the network: see usercall
             row[net.OPTION], row[net.U0] = usercall.register(evaluator), usercall.ADDRESS
         if values is not None:

@@ -38,7 +38,7 @@ _EVALUATORS: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
 _KEYS = itertools.count(1)
 
 _SIGNATURE = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_int64, ctypes.c_double, ctypes.c_double,
-                              ctypes.c_int64, *([ctypes.c_void_p] * 5), ctypes.c_int64)
+                              ctypes.c_int64, *([ctypes.c_void_p, ctypes.c_int64] * 5))
 
 
 class Evaluator:
@@ -47,32 +47,36 @@ class Evaluator:
     its unknowns, rows, Jacobian entries and states lie in the network's
     arrays."""
 
-    def __init__(self, g: Any, n: int, ns: int, n_raw: int) -> None:
+    def __init__(self, g: Any) -> None:
         uk = g.row
         self.kernel_row, self.update_row = uk.kernel_row, uk.update_row
         self.col = np.asarray(g.col[0], dtype=np.int64)
         self.r0, self.r1, self.j0, self.j1 = g.r0, g.r1, g.j0, g.j1
         self.s0, self.s1 = g.s0, g.s1
         self.has_states = bool(g.has_states)
-        self.sizes = (n, ns, n, n_raw)
+        # the least size of each array (x, S, F, raw, Sout: where not empty)
+        self.least = (int(self.col.max()) + 1 if self.col.size else 0, g.s1, g.r1, g.j1, g.s1)
         # the views made of the loop's arrays, by (address, size): the loop
         # passes the same few arrays at every call
         self._views: dict = {}
 
-    def _views_of(self, px: int | None, pS: int | None, pF: int | None, praw: int | None,
-                  pSout: int | None, n_sout: int) -> tuple:
-        """NumPy views of the loop's arrays at those addresses (kept by the
-        addresses: the loop passes the same few arrays at every call)."""
-        where = (px, pS, pF, praw, pSout, n_sout)
+    def _views_of(self, where: tuple) -> tuple | None:
+        """NumPy views of the loop's arrays, ``where`` their (address, size)
+        pairs in a row (kept by those: the loop passes the same few arrays
+        at every call), or None where one is too short for this component's
+        places in it (Sout may be empty: no states wanted)."""
         got = self._views.get(where)
         if got is None:
+            sizes = where[1::2]
+            if any(size < least and not (k == 4 and size == 0)
+                   for k, (size, least) in enumerate(zip(sizes, self.least))):
+                return None
             if len(self._views) > 64:
                 self._views.clear()
-            sizes = self.sizes + (n_sout,)
             got = self._views[where] = tuple(
                 np.frombuffer((ctypes.c_double * size).from_address(address), dtype=np.float64)
-                if size and address else np.empty(0)
-                for address, size in zip(where[:5], sizes))
+                if size > 0 and address else np.empty(0)
+                for address, size in zip(where[0::2], where[1::2]))
         return got
 
     def __call__(self, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
@@ -86,9 +90,11 @@ class Evaluator:
             Sout[self.s0:self.s1] = self.update_row(v, s, dt)
         return 0
 
-    def from_pointers(self, t: float, dt: float, jac: int, px: int | None, pS: int | None,
-                      pF: int | None, praw: int | None, pSout: int | None, n_sout: int) -> int:
-        return self(t, dt, bool(jac), *self._views_of(px, pS, pF, praw, pSout, n_sout))
+    def from_pointers(self, t: float, dt: float, jac: int, *where: Any) -> int:
+        """The call with the arrays as (address, size) pairs, in order (1
+        where one is too short)."""
+        views = self._views_of(where)
+        return 1 if views is None else self(t, dt, bool(jac), *views)
 
 
 def register(evaluator: Evaluator) -> int:
@@ -128,12 +134,11 @@ def dispatch(key: int, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndar
         return 1
 
 
-def _entry(key: int, t: float, dt: float, jac: int, px: int | None, pS: int | None,
-           pF: int | None, praw: int | None, pSout: int | None, n_sout: int) -> int:
+def _entry(key: int, t: float, dt: float, jac: int, *where: Any) -> int:
     if PENDING:
         return 1
     try:
-        return _EVALUATORS[key].from_pointers(t, dt, jac, px, pS, pF, praw, pSout, n_sout)
+        return _EVALUATORS[key].from_pointers(t, dt, jac, *where)
     except Exception:          # raised again by the per-group path
         return 1
     except BaseException as err:    # an interrupt: raised once the loop returns
