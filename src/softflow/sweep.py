@@ -43,9 +43,10 @@ Engines
     correlation: :mod:`softflow.solve.variants`), each
     variant is its own run in that loop, taking exactly the steps its own
     run takes, the variants over two threads (``stats['clocks'] == 'own'``,
-    ``stats['engine'] == 'compiled loop'``); other scenes (user components,
-    fixed steps, ``refine=``, sources given as Python functions, walls whose
-    h A a correlation sets at each step) share one step sequence
+    ``stats['engine'] == 'compiled loop'``; sources given as Python functions
+    are called back); other scenes (user components, fixed steps,
+    ``refine=``, walls whose h A a correlation sets at each step) share one
+    step sequence
     (``'shared'``, ``stats['shared_because']`` says why).
     Batched beats processes on many variants of a small scene; on variants
     that are themselves large networks, or widely different ones on shared

@@ -18,9 +18,9 @@ variant's own run of the BDF in the compiled step loop
 (:mod:`softflow.solve.variants`, ``stats['engine'] == 'compiled loop'``:
 exactly the steps the variant's own run takes, the variants over two
 threads), wherever that loop serves the scene, whatever the number of
-variants. Other scenes (user components, fixed steps, ``refine=``, sources
-given as Python functions, walls whose h A a correlation sets at each
-step) share one step sequence
+variants (sources given as Python functions included, called back). Other
+scenes (user components, fixed steps, ``refine=``, walls whose h A a
+correlation sets at each step) share one step sequence
 (``stats['clocks'] == 'shared'``, with ``stats['shared_because']``):
 the error test takes the largest of the sub-networks' own error norms, each
 unknown scaled by its quantity's magnitude in its own sub-network

@@ -10,9 +10,9 @@ Which runs: a network the compiled residual covers
 :data:`softflow.solve.linalg.DENSE_MAX` unknowns; its factors shared with
 the Python Newton's) or by the loop's own banded LU where the Jacobian
 orders as a band (:func:`band_layout`; beyond DENSE_MAX, or narrower than a
-quarter of the matrix: :func:`_banded`), whose sources are
-constants or waveforms of the kinds :mod:`softflow.solve.wavecodes`
-describes, without per-step coefficients (a heat-transfer correlation's
+quarter of the matrix: :func:`_banded`; user components and sources
+given as Python functions called back, :mod:`softflow.solve.usercall`,
+unless ``settings.COMPILED_USER`` is off), without per-step coefficients (a heat-transfer correlation's
 ``begin_step``), sensitivities or independent sub-networks (batched
 variants). Every other run, and every step the loop hands back
 (:data:`softflow.laws.stepper.EXITS`: a failed solve whose reason the

@@ -26,8 +26,8 @@ alone (its Result then says why, where it fails).
 
 What this covers (:func:`reason_not` and :class:`_Template`): adaptive
 runs without ``refine`` of scenes whose network the compiled loop serves
-(the compiled residual, constant or waveform sources, no heat-transfer
-correlation's per-step h A; its dense, banded or sparse LU, each start on
+(the compiled residual, no user component, sources of any kind (a Python
+function called back), no heat-transfer correlation's per-step h A; its dense, banded or sparse LU, each start on
 a dense LU: up to :data:`~softflow.solve.settings.DENSE_MAX` unknowns a
 variant); check valves, flow sources and thermal scenes included (their starts
 solved without the Python solve's culprit finder and flows-first stage: a
