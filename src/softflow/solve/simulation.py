@@ -172,8 +172,9 @@ class Simulation:
         sensitivities (computed at the steps; 'auto' records the steps alone
         there); a batched sweep with one runs its variants on one shared step
         sequence ('auto' keeps their own clocks, which record the steps
-        alone, each variant with its own interpolant). Values at any time, from the same polynomials: ``times=``,
-        :meth:`Result.at`, :meth:`Result.interpolate`.
+        alone, each variant with its own interpolant). Values at any time,
+        from the same polynomials: ``times=``, :meth:`Result.at`,
+        :meth:`Result.interpolate`.
     times : array_like [s] or Quantity, optional
         Times at which the result is recorded, instead of the steps: 1-D,
         finite, sorted (non-decreasing), within [0, duration] (errors name the
