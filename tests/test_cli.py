@@ -84,3 +84,17 @@ def test_figures_run_the_examples_scenes_unless_asked_for_the_papers(tmp_path, p
     model = [w for w in caught if issubclass(w.category, sf.ModelWarning)]
     assert bool(model) == warns, [str(w.message)[:120] for w in model]
     assert (tmp_path / "fig4_C.png").is_file() and (tmp_path / "fig4_D.png").is_file()
+
+
+def test_a_demo_run_that_compiled_first_reports_the_run_and_the_compile(monkeypatch, capsys):
+    """A first run slower than cli.COMPILED_RUN (it compiled the step loop)
+    is run again: the steps' own time is reported, and the first's beside it."""
+    from softflow import cli
+    monkeypatch.setattr(cli, "COMPILED_RUN", -1.0)      # every run counts as a compile
+    assert main(["demo", "--no-plot"]) == 0
+    out = capsys.readouterr().out
+    assert "solved " in out and "the first run took" in out
+    assert "compiled softflow's step loop, once for this installation" in out
+    monkeypatch.setattr(cli, "COMPILED_RUN", 1e9)
+    assert main(["demo", "--no-plot"]) == 0
+    assert "the first run took" not in capsys.readouterr().out
