@@ -90,30 +90,28 @@ def test_a_user_chamber_behind_library_components(monkeypatch):
     assert a.stats["steps"] == b.stats["steps"]
 
 
-def _raising(where):
+def _raising(where, error=None):
     """The paper's scene whose actuator's evaluate or source's function
-    raises past 0.3 s."""
+    raises past 0.3 s (``error``, or the test's own errors)."""
     s = paper_system(inertance=False)
     if where == "source":
-        s.components[0].signal.func = _raise_past(s.components[0].signal.func)
+        func = s.components[0].signal.func
+
+        def signal(t):
+            if t > 0.3:
+                raise error or ValueError("the user's signal broke")
+            return func(t)
+        s.components[0].signal.func = signal
     else:
         actu = s.get("actu")
         own = actu.evaluate.func
 
         def evaluate(t, p, mass):
             if t > 0.3:
-                raise ZeroDivisionError("the user's model broke")
+                raise error or ZeroDivisionError("the user's model broke")
             return own(t, p, mass)
         actu.evaluate = actu.auto(evaluate)
     return s
-
-
-def _raise_past(func):
-    def signal(t):
-        if t > 0.3:
-            raise ValueError("the user's signal broke")
-        return func(t)
-    return signal
 
 
 @pytest.mark.parametrize("where, culprit, said", [
@@ -134,10 +132,9 @@ def test_an_error_in_user_code_names_the_component_and_the_time(monkeypatch, whe
     assert a.stats["residual_evaluations"] <= b.stats["residual_evaluations"] + 5
 
 
-def test_pure_python_dispatch_is_the_callback():
-    """usercall.dispatch (the pure-Python mode's route, NUMBA_DISABLE_JIT=1)
-    writes what the C callback writes; an unknown key or a raising kernel
-    answers 1."""
+def _user_group():
+    """(asm, the actuator's group, its call-back key, x, S) of the paper's
+    scene at a point off its initial values."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
@@ -145,7 +142,14 @@ def test_pure_python_dispatch_is_the_callback():
     net = asm.residual.network
     g = next(g for g in asm.groups if g.row is not None)
     key = int(net.groups[asm.groups.index(g), 10])
-    x, S = asm.x0 * 1.01, asm.S0 * 1.02
+    return asm, g, key, asm.x0 * 1.01, asm.S0 * 1.02
+
+
+def test_pure_python_dispatch_is_the_callback():
+    """usercall.dispatch (the pure-Python mode's route, NUMBA_DISABLE_JIT=1)
+    writes what the C callback writes; an unknown key or a raising kernel
+    answers 1."""
+    asm, g, key, x, S = _user_group()
     F1, raw1, S1 = np.zeros(asm.n), np.zeros(asm.raw.size), np.zeros(S.size)
     assert usercall.dispatch(key, 0.1, 1e-3, True, x, S, F1, raw1, S1) == 0
     F2 = asm.python_residual(x, S, 0.1, 1e-3, True)
@@ -172,30 +176,10 @@ def test_batches_of_user_scenes_share_their_steps():
 def test_an_interrupt_inside_a_call_back_is_raised_not_swallowed(where):
     """Ctrl-C (KeyboardInterrupt) inside the user's code stops the run with
     that interrupt, at fixed steps and adaptive, as in the Python loop."""
-    def make():
-        s = paper_system(inertance=False)
-        if where == "source":
-            func = s.components[0].signal.func
-
-            def signal(t):
-                if t > 0.3:
-                    raise KeyboardInterrupt
-                return func(t)
-            s.components[0].signal.func = signal
-        else:
-            actu = s.get("actu")
-            own = actu.evaluate.func
-
-            def evaluate(t, p, mass):
-                if t > 0.3:
-                    raise KeyboardInterrupt
-                return own(t, p, mass)
-            actu.evaluate = actu.auto(evaluate)
-        return s
     for kw in ({"step": 1e-3}, {}):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", sf.ModelWarning)
-            sim = sf.Simulation(make(), duration=1.0, **kw)
+            sim = sf.Simulation(_raising(where, KeyboardInterrupt), duration=1.0, **kw)
         with pytest.raises(KeyboardInterrupt):
             sim.run(raise_on_failure=False)
         assert not usercall.PENDING
@@ -267,14 +251,7 @@ def test_the_c_callback_reads_the_sizes_it_is_given():
     """The C entry wraps each array at the address and size the loop passes:
     arrays as the loop's give the per-group path's rows; a row array too
     short for the component's rows is refused (1), not written past."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
-    asm = sim.asm
-    net = asm.residual.network
-    g = next(g for g in asm.groups if g.row is not None)
-    key = int(net.groups[asm.groups.index(g), 10])
-    x, S = asm.x0 * 1.01, asm.S0 * 1.02
+    asm, g, key, x, S = _user_group()
     F, raw, Sout = np.zeros(asm.n), np.zeros(asm.raw.size), np.zeros(S.size)
 
     def pairs(*arrays):
