@@ -261,3 +261,72 @@ def test_the_c_callback_reads_the_sizes_it_is_given():
     assert np.array_equal(F[g.r0:g.r1], F2[g.r0:g.r1])
     short = np.zeros(g.r0)
     assert usercall._entry(key, 0.1, 1e-3, 1, *pairs(x, S, short, raw, Sout)) == 1
+
+
+def _walled_tank():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-5, heat_transfer_coefficient=sf.FreeConvection(),
+                      area=2.2e-3)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    return s
+
+
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_a_wall_whose_h_a_a_correlation_sets_at_each_step_runs_in_the_loop(monkeypatch, step):
+    """The correlation's h A, set at each step's start, called back from the
+    compiled loop (usercall.Begin): the Python loop's numbers (fixed steps
+    bitwise-close, adaptive the same steps)."""
+    kw = {"duration": 0.2, "thermal": "heat_transfer"}
+    if step is not None:
+        kw["step"] = step
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        sim = sf.Simulation(_walled_tank(), **kw)
+        assert steploop.not_served_because(sim._integrator()[0]) is None
+        a = sim.run()
+        monkeypatch.setattr(settings, "COMPILED_USER", False)
+        py = sf.Simulation(_walled_tank(), **kw)
+        assert "sets coefficients at each step" in steploop.not_served_because(
+            py._integrator()[0])
+        b = py.run()
+    assert a.stats["steps"] == b.stats["steps"]
+    for name, scale in (("pressure", 1e5), ("temperature", 300.0)):
+        np.testing.assert_allclose(a.get("tank", name), b.get("tank", name), rtol=0,
+                                   atol=1e-12 * scale)
+
+
+def test_an_error_in_the_step_start_coefficients_stops_the_run_as_in_python(monkeypatch):
+    """A correlation that raises once the tank passes 1.2 bar: the run fails
+    with that error, in the loop as in Python."""
+    from softflow.components import thermal
+    cls = next(c for c in vars(thermal).values()
+               if isinstance(c, type) and "begin_step" in vars(c))
+    own = cls.__dict__["begin_step"].__func__
+
+    def begin_step(klass, P, V, S):
+        if V[:, 0].max() > 1.2e5:
+            raise ArithmeticError("the wall correlation broke")
+        return own(klass, P, V, S)
+    monkeypatch.setattr(cls, "begin_step", classmethod(begin_step))
+    outs = []
+    for on in (True, False):
+        monkeypatch.setattr(settings, "COMPILED_USER", on)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sim = sf.Simulation(_walled_tank(), duration=0.2, thermal="heat_transfer")
+            try:
+                outs.append(sim.run(raise_on_failure=False))
+            except ArithmeticError as err:
+                outs.append(err)
+        assert not usercall.PENDING
+    a, b = outs
+    assert type(a) is type(b)
+    if isinstance(a, Exception):
+        assert str(a) == str(b) == "the wall correlation broke"
+    else:
+        assert a.status == b.status == "failed" and a.message == b.message
+        assert "the wall correlation broke" in a.message
+        assert a.times[-1] == pytest.approx(b.times[-1], rel=1e-12)

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from . import borrowed, inline, jit
+from . import borrowed, call_user, inline, jit
 from .network import kinks, regimes, residual, switching
 from .sparselu import row_maxima, sparse_factor, sparse_solve
 from .waves import source_values
@@ -53,8 +53,8 @@ SOLVED, PLAIN, CONTRACTING, HAND, REFUSED, SOURCES = range(6)
  MAX_ORDER, MAX_REUSE, MAX_ITER, MAX_AGE, N_REC, N_DENSE, N_EVENTS, HOLD_STEPS,
  N_DISC, M_ERR, HAS_FLOOR, CLIP, RESTART_DUE, IB, CAP_HOLD, SECANT_TRIES,
  MAX_SECANT, LOG_SWITCHES, UNDAMPED, REJECT_NEWTON, FAILS_HERE, WATCHDOG,
- WANTS_SOURCES, FLOWS_FIRST, PROBE_FAILED) = range(35)
-IST_SIZE = 35
+ WANTS_SOURCES, FLOWS_FIRST, PROBE_FAILED, BEGIN_KEY, BEGIN_AT) = range(37)
+IST_SIZE = 37
 #: slots of the float state ``fst``
 (H, FAIL_CAP, ETA, CRATE, LU_DT, DT_LO, DT_HI, ERR, RTOL, NEWTON_RTOL, FLOOR_FACTOR,
  FIRST_MAX, STEP_MIN, STEP_MAX, DURATION, RATIO_LO, RATIO_HI, T_LO, T_HI, SAFETY,
@@ -525,6 +525,17 @@ def _clip(x, step, T_idx, t_lo, t_hi):
         d = min(max(-step[i], -0.5 * T), T)
         d = min(max(T + d, t_lo), t_hi) - T
         step[i] = -d
+
+
+@inline
+def _begin(net, x, S, t, ist, F, none):
+    """The coefficients a network sets at the start of each step (a
+    heat-transfer correlation's h A), from the point (x, S): the call-back
+    ``ist[BEGIN_KEY]`` at ``ist[BEGIN_AT]`` (:mod:`softflow.solve.usercall`),
+    which writes them into the network's floats. False where it raised (the
+    caller raises that error once the loop returns)."""
+    return call_user(ist[BEGIN_AT], ist[BEGIN_KEY], t, 0.0, False, x, S, F, net[0],
+                     none) == 0
 
 
 @inline
@@ -1166,6 +1177,8 @@ def stretch(t, x, S, D, Q, ist, fst, qmax_run, floor, stats,
         kinks(x, net[4], net[5], net[6], kink_at)
     used = 0           # steps tried, accepted and rejected (Simulation(max_steps=))
     while t < t_stop:
+        if ist[BEGIN_KEY] > 0 and not _begin(net, x, S, t, ist, Fe, none):
+            return NEWTON, t
         if ist[N_REC] >= n_rec_cap or ist[N_DENSE] + kmax > n_dense_cap \
                 or ist[N_EVENTS] + 2 >= n_ev_cap:
             return FULL, t
@@ -1515,6 +1528,8 @@ def fixed_stretch(t, x, S, x_prev, ist, fst, floor, stats, net, lin, sources, to
     itol, work, S_new, Fe, none, x_pred = scratch
     used = 0
     while t < t_stop:
+        if ist[BEGIN_KEY] > 0 and not _begin(net, x, S, t, ist, Fe, none):
+            return NEWTON, t
         if ist[N_REC] >= rec_t.size:
             return FULL, t
         if used >= ist[BUDGET_LEFT]:

@@ -328,6 +328,9 @@ class CompiledNetwork:
     #: the evaluators of the user components the loop calls back
     #: (:mod:`softflow.solve.usercall`), held while the network lives
     callbacks: list = []
+    #: ``refresh()`` copies the h A that heat-transfer correlations set at
+    #: each step's start (``asm.begin_step``) into ``fpar``; None where none
+    refresh = None
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
         laws = law_module("network")
@@ -482,13 +485,15 @@ def compiled_residual(asm, failures):
     loop = net.residual
     no_states = NO_STATES
 
+    refreshed = None
     if refresh:
-        def refreshed(t):
+        def refreshed(t=None):
             for P, at in refresh:
                 fpar[at] = P.hA
         varying.append((None, refreshed, None, None))
     network = CompiledNetwork(asm, groups, cols, fpar, u, trows, tcols, varying, sources)
     network.callbacks = callbacks
+    network.refresh = refreshed
     network.float_sizes = np.array(sizes, dtype=np.int64).reshape(-1, 3)
     if varying:
         passed, failure = failures["PASS"], failures["failure"]

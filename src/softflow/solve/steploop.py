@@ -10,10 +10,11 @@ Which runs: a network the compiled residual covers
 :data:`softflow.solve.linalg.DENSE_MAX` unknowns; its factors shared with
 the Python Newton's) or by the loop's own banded LU where the Jacobian
 orders as a band (:func:`band_layout`; beyond DENSE_MAX, or narrower than a
-quarter of the matrix: :func:`_banded`; user components and sources
-given as Python functions called back, :mod:`softflow.solve.usercall`,
-unless ``settings.COMPILED_USER`` is off), without per-step coefficients (a heat-transfer correlation's
-``begin_step``), sensitivities or independent sub-networks (batched
+quarter of the matrix: :func:`_banded`; user components, sources given
+as Python functions and the h A a heat-transfer correlation sets at each
+step's start (``begin_step``, at the top of each pass of the loop) called
+back, :mod:`softflow.solve.usercall`, unless ``settings.COMPILED_USER`` is
+off), without sensitivities or independent sub-networks (batched
 variants). Every other run, and every step the loop hands back
 (:data:`softflow.laws.stepper.EXITS`: a failed solve whose reason the
 BDF's Newton reports itself (a residual not finite, a law's refusal, a
@@ -117,6 +118,14 @@ class _Bound:
         self.breaks = np.asarray(integ.breaks, dtype=float)
         _newton_settings(st, self.ist, self.fst, newton, asm.n, atol_s)
         self.fst[st.DURATION] = integ.T
+        self.begin = None
+        if asm.has_begin_step:
+            # h A set at each step's start (a heat-transfer correlation),
+            # called back from the loop (softflow.solve.usercall)
+            from . import usercall
+            self.begin = usercall.Begin(asm, asm.residual.network.refresh)
+            self.ist[st.BEGIN_KEY] = usercall.register(self.begin)
+            self.ist[st.BEGIN_AT] = usercall.ADDRESS
 
     def _newton_in(self):
         """Newton's factors, contraction estimates and tolerance floor in."""
@@ -279,9 +288,9 @@ class CompiledSteps(_Bound):
                                   self.stats, self.net, self.lin, self.sources, self.tol, rec,
                                   dense, self.events, self.watch, self.breaks, self.G,
                                   self.ERRC, scratch)
-            if PENDING:
-                raise_pending()
             taken += self._flush(t, Q)
+            if PENDING:       # (the points taken kept: the run's result ends there)
+                raise_pending()
             if exit_ in (st.NEWTON, st.RESTART) and ist[st.WANTS_SOURCES]:
                 # a failed solve (a step's, or a restart probe's before its
                 # damped stage) that only the culprit finder's nodes, not yet
@@ -477,9 +486,9 @@ class FixedSteps(_Bound):
                                         self.stats, self.net, self.lin, self.sources,
                                         self.tol, rec, self.watch, self.breaks, self.grid,
                                         scratch)
-            if PENDING:
-                raise_pending()
             taken += self._records_out(t, Q=False)
+            if PENDING:       # (the points taken kept: the run's result ends there)
+                raise_pending()
             ist[st.N_REC] = 0
             if exit_ != st.FULL:
                 break
@@ -706,7 +715,7 @@ def _find_served(integ):
     net = getattr(asm.residual, "network", None)
     if net is None:
         return "a component the compiled network does not cover"
-    if asm.has_begin_step:
+    if asm.has_begin_step and (not settings.COMPILED_USER or net.refresh is None):
         g = next(g for g in asm.groups if g.begin is not None)
         return (f"{g.comps[0].describe()} sets coefficients at each step (a heat-transfer "
                 "correlation's h A)")

@@ -1,4 +1,5 @@
-"""User components called back from the compiled loop.
+"""User components, Python signals and per-step coefficients called back
+from the compiled loop.
 
 The compiled network residual (:func:`softflow.laws.network.residual`)
 evaluates a group of user-written components (the paper's ``Actuator``, any
@@ -19,6 +20,11 @@ raises the error naming the component and the time (or, for a fluid's range,
 cuts the step as it does for library components). An interrupt (Ctrl-C's
 KeyboardInterrupt) is kept and raised as soon as the compiled code returns
 (:func:`raise_pending`), the call-backs answering at once until then.
+
+A source's signal given as a Python function is called back alike from the
+compiled source values (:class:`Signal`), and the h A that a heat-transfer
+correlation sets at each step's start from the compiled step loop
+(:class:`Begin`).
 
 Cost (the paper's scene, measured in ``benchmarks/README.md``): a call
 costs a few microseconds beside the kernel's own Python.
@@ -95,6 +101,30 @@ class Evaluator:
         where one is too short)."""
         views = self._views_of(where)
         return 1 if views is None else self(t, dt, bool(jac), *views)
+
+
+class Begin(Evaluator):
+    """The coefficients a network sets at the start of each step (a
+    heat-transfer correlation's h A: ``asm.begin_step``), called back from
+    the compiled step loop at each step's start with the point (x, S), and
+    copied into the network's floats (``refresh``). An error raised there is
+    the run's, as where the Python loop calls ``begin_step``: kept
+    (:data:`PENDING`) and raised once the loop returns."""
+
+    def __init__(self, asm: Any, refresh: Callable) -> None:
+        self.begin_step, self.refresh = asm.begin_step, refresh
+        self.least = (asm.n, len(asm.S0), 0, 0, 0)
+        self._views = {}
+
+    def __call__(self, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
+                 F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
+        try:
+            self.begin_step(x, S)
+            self.refresh()
+        except BaseException as err:        # the run's error: raised when the loop returns
+            PENDING.append(err)
+            return 1
+        return 0
 
 
 def register(evaluator: Evaluator) -> int:

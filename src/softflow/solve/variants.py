@@ -164,6 +164,10 @@ def reason_not(sim):
         return "a component the compiled network does not cover"
     if net.callbacks:
         return "a user component (called back in Python on the network's own arrays)"
+    if asm.has_begin_step:
+        g = next(g for g in asm.groups if g.begin is not None)
+        return (f"{g.comps[0].describe()} sets coefficients at each step (a heat-transfer "
+                "correlation's h A), called back on the network's own floats")
     return None
 
 
