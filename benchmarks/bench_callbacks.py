@@ -22,17 +22,7 @@ import numpy as np
 
 import softflow as sf
 from softflow.solve import settings
-
-
-def walled_tank():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5, heat_transfer_coefficient=sf.FreeConvection(),
-                      area=2.2e-3)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    return s
+from scenes import walled_tank
 
 
 def function_source():

@@ -24,3 +24,17 @@ def chain(N, fluid=None, p_source=None, length=0.2, diameter=2e-3, volume=5e-6,
         if i + 1 < N:
             s.connect((f"cont{i}", "a"), (f"tube{i + 1}", "a"))
     return s
+
+
+def walled_tank():
+    """A 1.3 bar source fills a 10 mL tank through 50 cm of 1 mm tube, air;
+    the tank's wall (2.2e-3 m^2) exchanges heat by free convection, whose
+    h A a correlation sets at each step (thermal='heat_transfer')."""
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
+    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
+    s += sf.Container("tank", sf.air, 1e-5, heat_transfer_coefficient=sf.FreeConvection(),
+                      area=2.2e-3)
+    s.connect("src", "tube")
+    s.connect("tube", "tank")
+    return s

@@ -2,7 +2,9 @@
 loop (softflow.solve.usercall): the same equations, runs and errors as the
 per-group path and the Python step loop, which settings.COMPILED_USER = False
 keeps."""
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +14,9 @@ from softflow.demo import paper_system
 from softflow.solve import settings, steploop, usercall
 from softflow.solve import variants as variants_mod
 from helpers import UserChamber
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+from scenes import walled_tank  # noqa: E402
 
 P0 = sf.pressure_atmospheric
 
@@ -263,17 +268,6 @@ def test_the_c_callback_reads_the_sizes_it_is_given():
     assert usercall._entry(key, 0.1, 1e-3, 1, *pairs(x, S, short, raw, Sout)) == 1
 
 
-def _walled_tank():
-    s = sf.System()
-    s += sf.PressureSource("src", pressure=sf.Q_(1.3, "bar"))
-    s += sf.CircularTube("tube", sf.air, 0.5, 1e-3)
-    s += sf.Container("tank", sf.air, 1e-5, heat_transfer_coefficient=sf.FreeConvection(),
-                      area=2.2e-3)
-    s.connect("src", "tube")
-    s.connect("tube", "tank")
-    return s
-
-
 @pytest.mark.parametrize("step", [1e-3, None])
 def test_a_wall_whose_h_a_a_correlation_sets_at_each_step_runs_in_the_loop(monkeypatch, step):
     """The correlation's h A, set at each step's start, called back from the
@@ -284,11 +278,11 @@ def test_a_wall_whose_h_a_a_correlation_sets_at_each_step_runs_in_the_loop(monke
         kw["step"] = step
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(_walled_tank(), **kw)
+        sim = sf.Simulation(walled_tank(), **kw)
         assert steploop.not_served_because(sim._integrator()[0]) is None
         a = sim.run()
         monkeypatch.setattr(settings, "COMPILED_USER", False)
-        py = sf.Simulation(_walled_tank(), **kw)
+        py = sf.Simulation(walled_tank(), **kw)
         assert "sets coefficients at each step" in steploop.not_served_because(
             py._integrator()[0])
         b = py.run()
@@ -316,7 +310,7 @@ def test_an_error_in_the_step_start_coefficients_stops_the_run_as_in_python(monk
         monkeypatch.setattr(settings, "COMPILED_USER", on)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", sf.ModelWarning)
-            sim = sf.Simulation(_walled_tank(), duration=0.2, thermal="heat_transfer")
+            sim = sf.Simulation(walled_tank(), duration=0.2, thermal="heat_transfer")
             try:
                 outs.append(sim.run(raise_on_failure=False))
             except ArithmeticError as err:
