@@ -87,14 +87,14 @@ def test_figures_run_the_examples_scenes_unless_asked_for_the_papers(tmp_path, p
 
 
 def test_a_demo_run_that_compiled_first_reports_the_run_and_the_compile(monkeypatch, capsys):
-    """A first run slower than cli.COMPILED_RUN (it compiled the step loop)
+    """A first run slower than settings.DEMO_COMPILED_RUN (it compiled the step loop)
     is run again: the steps' own time is reported, and the first's beside it."""
-    from softflow import cli
-    monkeypatch.setattr(cli, "COMPILED_RUN", -1.0)      # every run counts as a compile
+    from softflow.solve import settings
+    monkeypatch.setattr(settings, "DEMO_COMPILED_RUN", -1.0)   # every run counts as a compile
     assert main(["demo", "--no-plot"]) == 0
     out = capsys.readouterr().out
     assert "solved " in out and "the first run took" in out
     assert "compiled softflow's step loop, once for this installation" in out
-    monkeypatch.setattr(cli, "COMPILED_RUN", 1e9)
+    monkeypatch.setattr(settings, "DEMO_COMPILED_RUN", 1e9)
     assert main(["demo", "--no-plot"]) == 0
     assert "the first run took" not in capsys.readouterr().out

@@ -33,14 +33,10 @@ def _check_output(name: str, option: str) -> None:
                        f"{'.' + suffix if suffix else '(no suffix)'}; use one of {known}")
 
 
-#: a demo run longer than this [s] compiled the step loop first (the run
-#: itself takes milliseconds): it is run again and both are reported
-COMPILED_RUN = 1.0
-
-
 def _demo(args: argparse.Namespace) -> int:
     import softflow as sf
     from softflow.demo import paper_system, plot
+    from softflow.solve import settings
 
     if not args.no_plot:
         _check_output(args.output, "--output")
@@ -50,7 +46,7 @@ def _demo(args: argparse.Namespace) -> int:
     result = sim.run()
     elapsed = time.perf_counter() - t0
     first = None
-    if elapsed > COMPILED_RUN:
+    if elapsed > settings.DEMO_COMPILED_RUN:
         # the first run after installing compiled the step loop (cached now):
         # the run's own time is the next one's
         first = elapsed

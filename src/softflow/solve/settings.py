@@ -360,6 +360,16 @@ COMPILED_VARIANTS = True
 #: its scenes run in the compiled loop; False: such a network keeps the
 #: per-group path (and the Python step loop).
 COMPILED_USER = True
+#: Views a call-back keeps of the loop's arrays, by their addresses and sizes
+#: (softflow.solve.usercall: the loop passes the same few arrays at every
+#: call); past this many (arrays of earlier runs) they are dropped
+CALLBACK_VIEWS_MAX = 64
+#: The last errors of Python signals called back that usercall.RAISED keeps
+#: (for inspection: the Python path raises each again itself)
+CALLBACK_ERRORS_KEPT = 8
+#: A `softflow demo` run longer than this [s] compiled the step loop first
+#: (the run itself takes milliseconds): it is run again and both are reported
+DEMO_COMPILED_RUN = 1.0
 #: Batched variants in the compiled loop (softflow.solve.variants): the
 #: fewest split over two threads (fewer run in one), the variants a thread
 #: runs per call of the loop (between two looks of the progress bar), and

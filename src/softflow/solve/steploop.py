@@ -705,6 +705,14 @@ def _compile_notice():
         print(message, file=sys.stderr, flush=True)
 
 
+def per_step_coefficients(asm):
+    """The phrase naming the first component that sets coefficients at each
+    step's start (a heat-transfer correlation's h A), or None."""
+    g = next((g for g in asm.groups if g.begin is not None), None)
+    return None if g is None else (f"{g.comps[0].describe()} sets coefficients at each step "
+                                   "(a heat-transfer correlation's h A)")
+
+
 def _find_served(integ):
     """:func:`_served`'s answer, found: (arrays, sources), or why not."""
     if not settings.COMPILED_STEPS:
@@ -716,9 +724,7 @@ def _find_served(integ):
     if net is None:
         return "a component the compiled network does not cover"
     if asm.has_begin_step and (not settings.COMPILED_USER or net.refresh is None):
-        g = next(g for g in asm.groups if g.begin is not None)
-        return (f"{g.comps[0].describe()} sets coefficients at each step (a heat-transfer "
-                "correlation's h A)")
+        return per_step_coefficients(asm)
     if integ.sens is not None:
         return "sensitivities"
     if newton is None or newton.offset is not None or not asm.n:

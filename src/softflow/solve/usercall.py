@@ -38,6 +38,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from . import settings
+
 #: key -> the evaluator of one group (a weak reference: the network that made
 #: it owns it; a network gone leaves no entry behind)
 _EVALUATORS: weakref.WeakValueDictionary = weakref.WeakValueDictionary()
@@ -47,21 +49,14 @@ _SIGNATURE = ctypes.CFUNCTYPE(ctypes.c_int64, ctypes.c_int64, ctypes.c_double, c
                               ctypes.c_int64, *([ctypes.c_void_p, ctypes.c_int64] * 5))
 
 
-class Evaluator:
-    """One user component's callback (a group of one, whose kernel the
-    assembly calls with 1-D rows: ``g.row``): its kernel and update, where
-    its unknowns, rows, Jacobian entries and states lie in the network's
-    arrays."""
+class _Views:
+    """A call-back from the compiled loop that reads its arrays as NumPy
+    views: ``least``, the least size of each array (x, S, F, raw, Sout;
+    Sout may be empty: no states wanted), set by the subclass."""
 
-    def __init__(self, g: Any) -> None:
-        uk = g.row
-        self.kernel_row, self.update_row = uk.kernel_row, uk.update_row
-        self.col = np.asarray(g.col[0], dtype=np.int64)
-        self.r0, self.r1, self.j0, self.j1 = g.r0, g.r1, g.j0, g.j1
-        self.s0, self.s1 = g.s0, g.s1
-        self.has_states = bool(g.has_states)
-        # the least size of each array (x, S, F, raw, Sout: where not empty)
-        self.least = (int(self.col.max()) + 1 if self.col.size else 0, g.s1, g.r1, g.j1, g.s1)
+    least: tuple = (0, 0, 0, 0, 0)
+
+    def __init__(self) -> None:
         # the views made of the loop's arrays, by (address, size): the loop
         # passes the same few arrays at every call
         self._views: dict = {}
@@ -77,13 +72,36 @@ class Evaluator:
             if any(size < least and not (k == 4 and size == 0)
                    for k, (size, least) in enumerate(zip(sizes, self.least))):
                 return None
-            if len(self._views) > 64:
+            if len(self._views) > settings.CALLBACK_VIEWS_MAX:
                 self._views.clear()
             got = self._views[where] = tuple(
                 np.frombuffer((ctypes.c_double * size).from_address(address), dtype=np.float64)
                 if size > 0 and address else np.empty(0)
                 for address, size in zip(where[0::2], where[1::2]))
         return got
+
+    def from_pointers(self, t: float, dt: float, jac: int, *where: Any) -> int:
+        """The call with the arrays as (address, size) pairs, in order (1
+        where one is too short)."""
+        views = self._views_of(where)
+        return 1 if views is None else self(t, dt, bool(jac), *views)
+
+
+class Evaluator(_Views):
+    """One user component's callback (a group of one, whose kernel the
+    assembly calls with 1-D rows: ``g.row``): its kernel and update, where
+    its unknowns, rows, Jacobian entries and states lie in the network's
+    arrays."""
+
+    def __init__(self, g: Any) -> None:
+        super().__init__()
+        uk = g.row
+        self.kernel_row, self.update_row = uk.kernel_row, uk.update_row
+        self.col = np.asarray(g.col[0], dtype=np.int64)
+        self.r0, self.r1, self.j0, self.j1 = g.r0, g.r1, g.j0, g.j1
+        self.s0, self.s1 = g.s0, g.s1
+        self.has_states = bool(g.has_states)
+        self.least = (int(self.col.max()) + 1 if self.col.size else 0, g.s1, g.r1, g.j1, g.s1)
 
     def __call__(self, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
                  F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
@@ -96,14 +114,8 @@ class Evaluator:
             Sout[self.s0:self.s1] = self.update_row(v, s, dt)
         return 0
 
-    def from_pointers(self, t: float, dt: float, jac: int, *where: Any) -> int:
-        """The call with the arrays as (address, size) pairs, in order (1
-        where one is too short)."""
-        views = self._views_of(where)
-        return 1 if views is None else self(t, dt, bool(jac), *views)
 
-
-class Begin(Evaluator):
+class Begin(_Views):
     """The coefficients a network sets at the start of each step (a
     heat-transfer correlation's h A: ``asm.begin_step``), called back from
     the compiled step loop at each step's start with the point (x, S), and
@@ -112,9 +124,9 @@ class Begin(Evaluator):
     (:data:`PENDING`) and raised once the loop returns."""
 
     def __init__(self, asm: Any, refresh: Callable) -> None:
+        super().__init__()
         self.begin_step, self.refresh = asm.begin_step, refresh
         self.least = (asm.n, len(asm.S0), 0, 0, 0)
-        self._views = {}
 
     def __call__(self, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
                  F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
@@ -127,7 +139,7 @@ class Begin(Evaluator):
         return 0
 
 
-def register(evaluator: Evaluator) -> int:
+def register(evaluator: Any) -> int:
     """A new key for ``evaluator`` (held weakly: keep the evaluator alive
     while the network that calls it lives)."""
     key = next(_KEYS)
@@ -136,44 +148,43 @@ def register(evaluator: Evaluator) -> int:
 
 
 #: an interrupt (KeyboardInterrupt, SystemExit: not an Exception) met inside a
-#: call-back, which the caller raises once the compiled code returns
-#: (:func:`raise_pending`); while one waits, call-backs return at once
+#: call-back, or any error of :class:`Begin`'s, which the caller raises once
+#: the compiled code returns (:func:`raise_pending`); while one waits,
+#: call-backs return at once
 PENDING: list = []
 
 
 def raise_pending() -> None:
-    """Raise the interrupt a call-back met, if any (see :data:`PENDING`)."""
+    """Raise the error a call-back kept, if any (see :data:`PENDING`)."""
     if PENDING:
         err = PENDING.pop()
         PENDING.clear()
         raise err
 
 
+def _guarded(key: int, how: str, *args: Any) -> int:
+    """``_EVALUATORS[key].<how>(*args)``: 0, or 1 where the user's code
+    raised (see the module) or a call-back's interrupt waits."""
+    if PENDING:
+        return 1
+    try:
+        return getattr(_EVALUATORS[key], how)(*args)
+    except Exception:          # raised again by the per-group path
+        return 1
+    except BaseException as err:    # an interrupt: raised once the loop returns
+        PENDING.append(err)
+        return 1
+
+
 def dispatch(key: int, t: float, dt: float, jac: bool, x: np.ndarray, S: np.ndarray,
              F: np.ndarray, raw: np.ndarray, Sout: np.ndarray) -> int:
     """The callback with the arrays themselves (pure-Python mode, and tests):
     0, or 1 where the user's code raised (see the module)."""
-    if PENDING:
-        return 1
-    try:
-        return _EVALUATORS[key](t, dt, jac, x, S, F, raw, Sout)
-    except Exception:          # raised again by the per-group path
-        return 1
-    except BaseException as err:    # an interrupt: raised once the loop returns
-        PENDING.append(err)
-        return 1
+    return _guarded(key, "__call__", t, dt, jac, x, S, F, raw, Sout)
 
 
 def _entry(key: int, t: float, dt: float, jac: int, *where: Any) -> int:
-    if PENDING:
-        return 1
-    try:
-        return _EVALUATORS[key].from_pointers(t, dt, jac, *where)
-    except Exception:          # raised again by the per-group path
-        return 1
-    except BaseException as err:    # an interrupt: raised once the loop returns
-        PENDING.append(err)
-        return 1
+    return _guarded(key, "from_pointers", t, dt, jac, *where)
 
 
 #: the C function the compiled loop calls, and its address
@@ -189,8 +200,9 @@ class Signal:
     by its key in :data:`_EVALUATORS`. Held while the signal lives
     (:data:`_SIGNALS`), which it refers to weakly (a copied or pickled
     component's signal gets a key of its own). Where the function raises,
-    the value is NaN and the error is kept (:data:`RAISED`) for the Python
-    path, which raises it naming the source."""
+    the value is NaN and the error is kept (:data:`RAISED`, the last few, for
+    inspection); the Python path, evaluating the signal again, raises it
+    naming the source."""
 
     def __init__(self, signal: Any) -> None:
         self.signal = weakref.ref(signal)
@@ -206,13 +218,14 @@ class Signal:
             return float(signal(t))
         except Exception as err:    # raised again by the Python path
             RAISED.append(err)
+            del RAISED[:-settings.CALLBACK_ERRORS_KEPT]
             return float("nan")
         except BaseException as err:    # an interrupt: raised once the loop returns
             PENDING.append(err)
             return float("nan")
 
 
-#: the errors the signals called back raised since the last look (at most a few kept)
+#: the last errors the signals called back raised (settings.CALLBACK_ERRORS_KEPT)
 RAISED: list = []
 #: each signal's call-back, while the signal lives
 _SIGNALS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -230,8 +243,6 @@ def signal_floats(signal: Any) -> list[float]:
 def signal_value(key: int, t: float) -> float:
     """The signal ``key``'s value at t (NaN where it raised or is gone)."""
     evaluator = _EVALUATORS.get(key)
-    if len(RAISED) > 8:
-        del RAISED[:-8]
     return float("nan") if evaluator is None else evaluator.value(t)
 
 

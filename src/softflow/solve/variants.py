@@ -27,10 +27,11 @@ alone (its Result then says why, where it fails).
 What this covers (:func:`reason_not` and :class:`_Template`): adaptive
 runs without ``refine`` of scenes whose network the compiled loop serves
 (the compiled residual, no user component, sources of any kind (a Python
-function called back), no heat-transfer correlation's per-step h A; its dense, banded or sparse LU, each start on
-a dense LU: up to :data:`~softflow.solve.settings.DENSE_MAX` unknowns a
-variant); check valves, flow sources and thermal scenes included (their starts
-solved without the Python solve's culprit finder and flows-first stage: a
+function called back), no heat-transfer correlation's per-step h A; its
+dense, banded or sparse LU, each start on a dense LU: up to
+:data:`~softflow.solve.settings.DENSE_MAX` unknowns a variant); check
+valves, flow sources and thermal scenes included (their starts solved
+without the Python solve's culprit finder and flows-first stage: a
 variant whose start does not converge here runs alone). The variants may
 differ in any run-time parameter whose network floats keep their sizes
 (a tube's diameter, a source's waveform, an actuator's curve of as many
@@ -165,9 +166,8 @@ def reason_not(sim):
     if net.callbacks:
         return "a user component (called back in Python on the network's own arrays)"
     if asm.has_begin_step:
-        g = next(g for g in asm.groups if g.begin is not None)
-        return (f"{g.comps[0].describe()} sets coefficients at each step (a heat-transfer "
-                "correlation's h A), called back on the network's own floats")
+        from .steploop import per_step_coefficients
+        return f"{per_step_coefficients(asm)}, called back on the network's own floats"
     return None
 
 
