@@ -173,6 +173,51 @@ def test_the_lu_solves_as_lapack():
         np.testing.assert_array_equal(Jd, J)
 
 
+def test_the_lu_keeps_to_the_factors_profile_with_the_same_numbers():
+    """With room for the factors' profile (3 n pivots) the LU skips the exact
+    zeros outside it (a chain's banded Jacobian: most of the work): the
+    factors and solutions are those of the full loops, bit for bit, and the
+    profile of factors made elsewhere (LAPACK's, which the step loop adopts)
+    is the one the factorization found."""
+    from scipy.linalg.lapack import dgetrf
+    rng = np.random.default_rng(11)
+    for trial in range(40):
+        n = int(rng.integers(1, 40))
+        kl, ku = int(rng.integers(0, 6)), int(rng.integers(0, 6))
+        A = np.zeros((n, n))
+        for i in range(n):
+            for j in range(max(0, i - kl), min(n, i + ku + 1)):
+                if rng.random() < 0.7 or i == j:
+                    A[i, j] = rng.normal()
+        if trial % 4 == 0:
+            A += (rng.random((n, n)) < 0.1) * rng.normal(size=(n, n))   # off the band
+        b = rng.normal(size=n)
+        full, piv_full = A.copy(), np.zeros(n, dtype=np.int64)
+        mine, piv = A.copy(), np.zeros(3 * n, dtype=np.int64)
+        stepper.lu_factor(full, piv_full)
+        stepper.lu_factor(mine, piv)
+        np.testing.assert_array_equal(mine, full)
+        np.testing.assert_array_equal(piv[:n], piv_full)
+        assert (piv[n:2 * n] <= np.arange(n)).all() and (piv[2 * n:] > np.arange(n)).all()
+        ir, ic = rng.uniform(0.5, 2.0, n), rng.uniform(0.5, 2.0, n)
+        x_full, x = np.empty(n), np.empty(n)
+        stepper.lu_solve(full, piv_full, ir, ic, b, x_full)
+        stepper.lu_solve(mine, piv, ir, ic, b, x)
+        np.testing.assert_array_equal(x, x_full)
+        if np.linalg.cond(A) < 1e10:
+            np.testing.assert_allclose(x, ic * np.linalg.solve(A, ir * b), rtol=1e-7)
+        got = np.zeros(3 * n, dtype=np.int64)
+        stepper.lu_profile(mine, got)
+        np.testing.assert_array_equal(got[n:], piv[n:])
+        lu, p_lapack, _ = dgetrf(A)
+        np.testing.assert_array_equal(p_lapack, piv[:n])
+        stepper.lu_profile(np.ascontiguousarray(lu), got)
+        np.testing.assert_array_equal(got[n:], piv[n:])
+        # outside the profile every entry of the factors is an exact zero
+        for i in range(n):
+            assert not mine[i, :piv[n + i]].any() and not mine[i, piv[2 * n + i]:].any()
+
+
 def test_the_lu_equilibrates_where_units_make_pivots_small_and_refuses_the_singular():
     # a row 1e-11 against 1: singular by its pivots, not after scaling
     J = np.array([[2e-11, 1e-11], [1.0, -1.0]])

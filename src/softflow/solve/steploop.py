@@ -148,7 +148,8 @@ class _Bound:
             if r_fact.size:
                 r_fact[:] = np.frombuffer(pieces, dtype=np.int8)
             LU[:] = lin.lu[0]
-            piv[:] = lin.lu[1]
+            piv[:LU.shape[0]] = lin.lu[1]
+            self.st.lu_profile(LU, piv)         # (the loop's solves keep to it)
             if lin.scales is None:
                 ir[:] = 1.0
                 ic[:] = 1.0
@@ -190,7 +191,7 @@ class _Bound:
             return
         if ist[st.FACTORED] and not ist[st.STALE]:
             J, LU, piv, ir, ic = self.lin[2:7]
-            newton.lin.adopt(J, LU, piv, ir, ic)
+            newton.lin.adopt(J, LU, piv[:LU.shape[0]], ir, ic)
             if self.lin[7].size:
                 newton._jac_regime = self.lin[7].astype(np.int8).tobytes()
         if ist[st.STALE]:
@@ -364,14 +365,15 @@ class CompiledSteps(_Bound):
 def _lin_tuple(net, asm, flat, shape, lu_shape, info, order, sp_int, sp_float):
     """softflow.laws.stepper's ``lin`` for the network ``net`` (its arrays) of
     ``asm``: the Jacobian's raw entries' places ``flat`` in J of ``shape``,
-    LU of ``lu_shape`` (or the same), the pivots and scales; the pieces of
+    LU of ``lu_shape`` (or the same), the pivots (with a dense LU's profile
+    after them: :func:`softflow.laws.stepper.lu_factor`) and scales; the pieces of
     the Jacobian's laws and at a solution; the kinks' sides at the point and
     at a step's end; the switching functions; the culprit finder's rows; the
     kind (``info``), band ``order`` and sparse arrays."""
     network = asm.residual.network
     n, nr, nk = asm.n, network.n_regimes, network.n_kinks
     return (net[0], np.ascontiguousarray(flat, dtype=np.int64),
-            np.zeros(shape), np.zeros(lu_shape or shape), np.zeros(n, dtype=np.int64),
+            np.zeros(shape), np.zeros(lu_shape or shape), np.zeros(3 * n, dtype=np.int64),
             np.ones(n), np.ones(n), np.zeros(nr, dtype=np.int64),
             np.zeros(nr, dtype=np.int64), np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
             np.zeros(nk if asm.has_kinks else 0, dtype=np.int64),
