@@ -77,14 +77,19 @@ def lu_factor(A, piv):
     """LU of A in place with partial pivoting, as LAPACK's getrf (piv[j]: the
     row swapped with row j, 0-based). Returns the smallest and largest |U_jj|.
     Each row's update stops at the pivot row's last nonzero entry, and where
-    ``piv`` holds 3 n entries its last 2 n receive the factors' profile
-    (:func:`lu_profile`), which :func:`lu_solve` then keeps to: a chain's
-    Jacobian is banded, its factors too (a chain of 8 tubes, 34 unknowns:
-    factor 7.2 -> 2.5 us, solve 1.15 -> 0.45 us). The entries skipped are
-    exact zeros, whose products change no sum (the values are those of the
-    full loops but for the sign of a zero, and a NaN or inf in the right-hand
-    side no longer spreads to rows that do not depend on it)."""
+    ``piv`` holds 3 n entries its last 2 n receive the factors' profile, as
+    :func:`lu_profile` reads it, found on the way; :func:`lu_solve` then
+    keeps to it. The entries skipped are exact zeros, whose products change
+    no sum: the factors and solutions are those of the full loops (but for
+    the sign of a zero, and a NaN or inf in a right-hand side no longer
+    spreads to rows that do not depend on it). A chain of 8 tubes' Jacobian
+    (34 unknowns, 82 nonzeros): factor 2.99 -> 2.66 us, solve 1.15 -> 0.77 us
+    against the full loops before (benchmarks/bench_loop_lu.py --profile)."""
     n = A.shape[0]
+    profile = piv.size >= 3 * n
+    if profile:
+        for i in range(n):
+            piv[n + i] = -1         # (no entry of L's row yet: they move with their rows)
     d_min, d_max = math.inf, 0.0
     for j in range(n):
         p, amax = j, abs(A[j, j])
@@ -96,6 +101,8 @@ def lu_factor(A, piv):
         if p != j:
             for k in range(n):
                 A[j, k], A[p, k] = A[p, k], A[j, k]
+            if profile:
+                piv[n + j], piv[n + p] = piv[n + p], piv[n + j]
         d = A[j, j]
         ad = abs(d)
         if ad < d_min:
@@ -106,16 +113,23 @@ def lu_factor(A, piv):
             r = 1.0 / d
             for i in range(j + 1, n):
                 A[i, j] *= r
+        # U's row j is final: its last nonzero bounds the updates and the solves
         hi = n
         while hi > j + 1 and A[j, hi - 1] == 0.0:
             hi -= 1
+        if profile:
+            piv[2 * n + j] = hi
         for i in range(j + 1, n):
             m = A[i, j]
             if m != 0.0:
+                if profile and piv[n + i] < 0:
+                    piv[n + i] = j          # L's row i: its first nonzero
                 for k in range(j + 1, hi):
                     A[i, k] -= m * A[j, k]
-    if piv.size >= 3 * n:
-        lu_profile(A, piv)
+    if profile:
+        for i in range(n):
+            if piv[n + i] < 0:
+                piv[n + i] = i
     return d_min, d_max
 
 
