@@ -173,12 +173,30 @@ def test_the_lu_solves_as_lapack():
         np.testing.assert_array_equal(Jd, J)
 
 
+def _full_lu(A):
+    """The LU of ``lu_factor`` without skipping anything: partial pivoting,
+    each multiplier times the whole pivot row past the diagonal (one product
+    and one difference an entry, as the compiled loops compute them)."""
+    A = A.copy()
+    n = A.shape[0]
+    piv = np.zeros(n, dtype=np.int64)
+    for j in range(n):
+        p = j + int(np.argmax(np.abs(A[j:, j])))
+        piv[j] = p
+        A[[j, p]] = A[[p, j]]
+        if A[j, j] != 0.0:
+            A[j + 1:, j] *= 1.0 / A[j, j]
+        A[j + 1:, j + 1:] -= np.multiply.outer(A[j + 1:, j], A[j, j + 1:])
+    return A, piv
+
+
 def test_the_lu_keeps_to_the_factors_profile_with_the_same_numbers():
-    """With room for the factors' profile (3 n pivots) the LU skips the exact
-    zeros outside it (a chain's banded Jacobian: most of the work): the
-    factors and solutions are those of the full loops, bit for bit, and the
-    profile of factors made elsewhere (LAPACK's, which the step loop adopts)
-    is the one the factorization found."""
+    """The LU skips the exact zeros past each pivot row's last nonzero, and
+    with room for the factors' profile (3 n pivots) its solves keep to it (a
+    chain's banded Jacobian: most of the work): the factors and solutions
+    are those of the full loops, bit for bit, and the profile of factors
+    made elsewhere (LAPACK's, which the step loop adopts) is the one the
+    factorization found."""
     from scipy.linalg.lapack import dgetrf
     rng = np.random.default_rng(11)
     for trial in range(40):
@@ -192,12 +210,14 @@ def test_the_lu_keeps_to_the_factors_profile_with_the_same_numbers():
         if trial % 4 == 0:
             A += (rng.random((n, n)) < 0.1) * rng.normal(size=(n, n))   # off the band
         b = rng.normal(size=n)
-        full, piv_full = A.copy(), np.zeros(n, dtype=np.int64)
+        full, piv_full = _full_lu(A)
         mine, piv = A.copy(), np.zeros(3 * n, dtype=np.int64)
-        stepper.lu_factor(full, piv_full)
         stepper.lu_factor(mine, piv)
         np.testing.assert_array_equal(mine, full)
         np.testing.assert_array_equal(piv[:n], piv_full)
+        plain, piv_plain = A.copy(), np.zeros(n, dtype=np.int64)    # (no room: no profile)
+        stepper.lu_factor(plain, piv_plain)
+        np.testing.assert_array_equal(plain, full)
         assert (piv[n:2 * n] <= np.arange(n)).all() and (piv[2 * n:] > np.arange(n)).all()
         ir, ic = rng.uniform(0.5, 2.0, n), rng.uniform(0.5, 2.0, n)
         x_full, x = np.empty(n), np.empty(n)
