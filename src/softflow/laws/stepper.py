@@ -114,9 +114,7 @@ def lu_factor(A, piv):
             for i in range(j + 1, n):
                 A[i, j] *= r
         # U's row j is final: its last nonzero bounds the updates and the solves
-        hi = n
-        while hi > j + 1 and A[j, hi - 1] == 0.0:
-            hi -= 1
+        hi = _row_end(A, j)
         if profile:
             piv[2 * n + j] = hi
         for i in range(j + 1, n):
@@ -134,6 +132,16 @@ def lu_factor(A, piv):
 
 
 @jit
+def _row_end(A, i):
+    """One past the last nonzero of row i of A right of its diagonal (i + 1
+    where none): U's row i's end in the factors of :func:`lu_factor`."""
+    hi = A.shape[1]
+    while hi > i + 1 and A[i, hi - 1] == 0.0:
+        hi -= 1
+    return hi
+
+
+@jit
 def lu_profile(A, piv):
     """The profile of the factors of :func:`lu_factor` in A into piv[n:3n]:
     piv[n + i] the first nonzero column of L's row i (i where none),
@@ -145,10 +153,7 @@ def lu_profile(A, piv):
         while lo < i and A[i, lo] == 0.0:
             lo += 1
         piv[n + i] = lo
-        hi = n
-        while hi > i + 1 and A[i, hi - 1] == 0.0:
-            hi -= 1
-        piv[2 * n + i] = hi
+        piv[2 * n + i] = _row_end(A, i)
 
 
 #: the smallest normal float: the solves below store smaller values as 0
