@@ -228,3 +228,94 @@ def test_borrowed_views_share_the_data_and_the_type():
     assert a.tolist() == [0.0, 7.0, 2.0, 3.0] and m[0, 1] == -1.0
     assert (total, size, shape) == (12.0 + 0.5 + 5, 4, (2, 3))
     assert len(use.signatures) == 1
+
+
+def test_call_native_calls_a_function_compiled_on_its_own_by_its_address():
+    # laws.call_native / native_address: a compiled callee reached through its
+    # address (the step loop's residual and its banded and sparse LUs): the
+    # arguments (a tuple, nested tuples of arrays and scalars) reach it as a
+    # direct call passes them, writes into arrays are seen, its int64 comes
+    # back, -1 where it raised; the address is found once for a set of types
+    # and the callee is not compiled again; arguments of other types than
+    # the callee's raise instead of reaching it; an array of another layout
+    # than C-contiguous is refused where the caller is compiled
+    import numba
+
+    from softflow.laws import call_native, native_address
+
+    @numba.njit
+    def scaled(pair, s):
+        a, b = pair
+        for i in range(a.size):
+            b[i] = a[i] * s
+        if s < 0.0:
+            raise ValueError("negative")
+        return np.int64(b.sum())
+
+    @numba.njit
+    def caller(at, key, pair, s):
+        return call_native(at, key, (pair, s))
+
+    a, b = np.arange(5.0), np.zeros(5)
+    at, key = native_address(scaled, ((a, b), 2.0))
+    assert at and native_address(scaled, ((np.ones(3), np.ones(3)), 1.0)) == (at, key)
+    assert caller(at, key, (a, b), 2.0) == 20 and b.tolist() == [0.0, 2.0, 4.0, 6.0, 8.0]
+    assert caller(at, key, (a, b), -1.0) == -1          # (the callee raised)
+    assert len(scaled.signatures) == 1                  # compiled once, on its own
+    with pytest.raises(RuntimeError, match="other argument types"):
+        caller(at, key, (a, b), 2)                      # an int where it takes a float
+    b[:] = 0.0
+    with pytest.raises(RuntimeError, match="other argument types"):
+        caller(at, key, (a.astype(np.int64), b), 2.0)
+    assert not b.any()                                  # (not called)
+    with pytest.raises(numba.core.errors.TypingError):
+        caller(at, key, (a[::2], b[::2]), 1.0)
+
+
+def test_the_step_loop_reaches_the_residual_and_far_lus_by_address():
+    # the compiled loops call the network's residual, and the banded and sparse
+    # LUs, through their addresses (compiled on their own: a dense run's first
+    # compile leaves them out); the addresses ride in net[8] and lin[13]; a
+    # dense lin has none, and the three runs take the Python steps' steps, to
+    # the round-off of their linear algebra (measured 2e-10, 2e-10, 4e-9 of
+    # each output's scale)
+    import sys
+    import warnings
+
+    import softflow as sf
+    from softflow.laws import stepper
+    from softflow.solve import settings, steploop
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from scenes import chain
+
+    seen = {}
+    run = steploop.CompiledSteps.run
+
+    def spy(self, *args):
+        seen[int(self.lin[13][stepper.KIND])] = (self.net[8][0], self.lin[13].copy())
+        return run(self, *args)
+
+    results = {}
+    for compiled in (True, False):
+        saved = settings.COMPILED_STEPS
+        settings.COMPILED_STEPS = compiled
+        steploop.CompiledSteps.run = spy
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                for N, kw in ((4, {}), (30, dict(linear_solver="dense")), (40, {})):
+                    res = sf.Simulation(chain(N), duration=0.02, rtol=1e-5, **kw).run()
+                    results[compiled, N] = res.X
+        finally:
+            settings.COMPILED_STEPS = saved
+            steploop.CompiledSteps.run = run
+    assert sorted(seen) == [stepper.DENSE, stepper.BANDED, stepper.SPARSE]
+    for kind, (residual_at, info) in seen.items():
+        assert residual_at != 0
+        far = info[[stepper.FACTOR_AT, stepper.SOLVE_AT, stepper.MAXIMA_AT]]
+        assert (far == 0).all() if kind == stepper.DENSE else (far != 0).all()
+    for N in (4, 30, 40):
+        new, old = results[True, N], results[False, N]
+        assert new.shape == old.shape
+        scale = np.abs(old).max(axis=0)
+        assert (np.abs(new - old) <= 1e-7 * scale).all(), N

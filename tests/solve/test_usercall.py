@@ -210,6 +210,24 @@ def test_the_first_compile_says_so(monkeypatch, caplog):
     assert any("compiling its step loop for this installation" in r.message
                and "/somewhere" in r.message for r in caplog.records)
     caplog.clear()
+    # the banded and sparse LUs, compiled on their own at the first run that
+    # needs one: said there, once a process; a dense run says nothing
+    seen = []
+    monkeypatch.setattr(steploop, "_FAR_LOOKED", [])
+    for name in ("far_factor", "far_solve", "far_row_maxima"):
+        monkeypatch.setattr(stepper, name, cold(lambda: {}))
+    monkeypatch.setattr(stepper, "far_addresses", seen.append)
+    dense, sparse = (None,) * 13 + (np.array([stepper.DENSE]),), (None,) * 13 + (
+        np.array([stepper.SPARSE]),)
+    with caplog.at_level(logging.INFO, logger="softflow"):
+        steploop._far_addresses(stepper, dense)
+        assert not caplog.records
+        steploop._far_addresses(stepper, sparse)
+        steploop._far_addresses(stepper, sparse)
+    assert sum("banded and sparse LUs" in r.message and "/somewhere" in r.message
+               for r in caplog.records) == 1
+    assert seen == [dense, sparse, sparse]
+    caplog.clear()
 
     def broken():
         raise AttributeError("numba moved it")

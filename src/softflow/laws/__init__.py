@@ -108,12 +108,15 @@ _NO_CACHE_WARNED = []
 def inline(function):
     """Compile ``function`` into each compiled caller at numba's IR level
     (``inline='always'``), with :func:`jit`'s semantics, not as a library
-    of its own. For the step loop's parts that call the network's
-    residual: numba links every callee's LLVM module into each caller's and
-    optimizes it again there, so the residual, reached through five layers
-    of callers, was optimized five times over (the first compile after an
-    installation 31 -> 110 s); inlined, only the loops that call it
-    (softflow.laws.stepper) build it in."""
+    of its own. For the step loop's stages (softflow.laws.stepper): numba
+    links every callee's LLVM module into each caller's and optimizes it
+    again there, so the residual, reached through five layers of callers,
+    was optimized five times over (the first compile after an installation
+    31 -> 110 s). The residual is now reached by its address instead
+    (:func:`call_native`), and so are the banded and sparse LUs; each
+    inlined copy is still typed and lowered again in its caller, so the
+    loops keep their copies few (one call of the chord iterations where
+    there were two: the step loop's own compile 74 -> 63 s of CPU)."""
     return numba.njit(inline="always", nogil=True, error_model="numpy")(function)
 
 
@@ -258,3 +261,125 @@ else:
             return builder.call(fn, [context.cast(builder, args[1], sig.args[1], types.int64),
                                      context.cast(builder, args[2], sig.args[2], types.float64)])
         return sig, codegen
+
+
+def _contiguous(ty) -> bool:
+    """Whether every array in ``ty`` (nested in tuples) is C-contiguous: the
+    layout :func:`native_address` compiles a callee for (a caller's
+    array of another layout would reach code that assumes this one)."""
+    if isinstance(ty, types.BaseTuple):
+        return all(_contiguous(t) for t in ty)
+    return not isinstance(ty, types.Array) or ty.layout == "C"
+
+
+def _plain(ty):
+    """``ty`` without literal values (nested in tuples): the type a callee
+    compiled from Python's values takes."""
+    if isinstance(ty, types.BaseTuple):
+        return types.BaseTuple.from_types([_plain(t) for t in ty])
+    return types.unliteral(ty)
+
+
+def types_key(tys) -> int:
+    """A 62-bit key of the numba types ``tys`` (literal values aside): what
+    :func:`call_native` checks, before it calls, against the key of the
+    types the callee was compiled for."""
+    text = repr(tuple(str(_plain(t)) for t in tys))
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:8], "little") >> 2
+
+
+#: pure-Python mode's stand-ins for addresses: {address: function}
+_NATIVE_BY_KEY: dict = {}
+
+if numba.config.DISABLE_JIT:
+    def call_native(address, key, args):
+        """``function(*args)`` for the function :func:`native_address` gave
+        ``address`` (pure-Python mode: see the compiled version)."""
+        return _NATIVE_BY_KEY[int(address)](*args)
+else:
+    @intrinsic
+    def call_native(typingctx, address, key, args):
+        """Call the compiled function whose native entry is at ``address``
+        (int64, from :func:`native_address`) with the tuple ``args``, in
+        numba's own calling convention, as numba calls one compiled function
+        from another, but through the address: the callee is compiled (and
+        cached) on its own, once, and not linked into the caller, so a
+        caller does not compile what it reaches only this way (the step
+        loop's residual, and its banded and sparse LUs, which only the runs
+        that use them compile). The callee must return an int64; ``key``
+        (:func:`native_address`'s) is the :func:`types_key` of the types it
+        was compiled for, and a call whose arguments have other types
+        raises RuntimeError instead of calling it (an address of the wrong
+        callee would read its arguments wrongly). A callee that raised
+        returns -1."""
+        if not isinstance(args, types.BaseTuple) or not _contiguous(args):
+            return None
+        expected = types_key(args.types)
+        sig = types.int64(address, key, args)
+
+        def codegen(context, builder, sig, llargs):
+            from llvmlite import ir
+            from numba.core.callconv import excinfo_t
+            i64 = ir.IntType(64)
+            given = context.cast(builder, llargs[1], sig.args[1], types.int64)
+            with builder.if_then(builder.icmp_signed("!=", given, ir.Constant(i64, expected)),
+                                 likely=False):
+                context.call_conv.return_user_exc(
+                    builder, RuntimeError,
+                    ("softflow: a compiled function reached by its address with other "
+                     "argument types than it was compiled for",))
+            argtys = list(sig.args[2])
+            values = [builder.extract_value(llargs[2], i) for i in range(len(argtys))]
+            call_conv = context.call_conv
+            fnty = call_conv.get_function_type(types.int64, argtys)
+            at = context.cast(builder, llargs[0], sig.args[0], types.int64)
+            fn = builder.inttoptr(at, fnty.as_pointer())
+            retty = call_conv.get_return_type(types.int64).pointee
+            ret = cgutils.alloca_once(builder, retty)
+            builder.store(cgutils.get_null_value(retty), ret)
+            excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t))
+            packed = list(call_conv._get_arg_packer(argtys).as_arguments(builder, values))
+            code = builder.call(fn, [ret, excinfo] + packed)
+            value = context.get_returned_value(builder, types.int64, builder.load(ret))
+            ok = builder.icmp_signed("==", code, ir.Constant(code.type, 0))
+            return builder.select(ok, value, ir.Constant(value.type, -1))
+        return sig, codegen
+
+
+#: compiled addresses and keys by (function, the arguments' fingerprint)
+_ADDRESSES: dict = {}
+
+
+def native_address(function, args) -> tuple:
+    """(address, key) of ``function`` (a :func:`jit` function returning an
+    int64) compiled for the types of ``args`` (loaded from numba's cache, or
+    compiled and cached now), for :func:`call_native`; found once a process
+    for each set of types (the arguments' fingerprint, numba's own C
+    function: ~0.3 us, where their numba types cost ~100 us). Pure-Python
+    mode: a stand-in address that :func:`call_native` looks up, key 0."""
+    if numba.config.DISABLE_JIT:
+        for k, f in _NATIVE_BY_KEY.items():
+            if f is function:
+                return k, 0
+        at = len(_NATIVE_BY_KEY) + 1
+        _NATIVE_BY_KEY[at] = function
+        return at, 0
+    try:
+        from numba._dispatcher import compute_fingerprint
+        known = (function, compute_fingerprint(tuple(args)))
+    except (ImportError, ValueError, TypeError):     # numba's internals moved
+        known = None
+    got = _ADDRESSES.get(known) if known is not None else None
+    if got is None:
+        sig = tuple(numba.typeof(a) for a in args)
+        cres = function.overloads.get(sig)
+        if cres is None:
+            function.compile(sig)
+            cres = function.overloads[sig]
+        at = int(cres.library.get_pointer_to_function(cres.fndesc.mangled_name))
+        if not at:
+            raise RuntimeError(f"numba gave no address for {function.__name__}{sig}")
+        got = (at, types_key(sig))
+        if known is not None:
+            _ADDRESSES[known] = got
+    return got

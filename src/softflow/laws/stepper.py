@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from . import borrowed, call_user, inline, jit
+from . import borrowed, call_native, call_user, inline, jit, native_address
 from .network import kinks, regimes, residual, switching
 from .sparselu import row_maxima, sparse_factor, sparse_solve
 from .waves import source_values
@@ -390,15 +390,33 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
 DENSE, BANDED, SPARSE = 0, 1, 2
 
 
+#: ``lin[13]``'s places: the kind, the band's kl, whether the band's last
+#: factors were equilibrated, and the addresses of :func:`far_factor`,
+#: :func:`far_solve` and :func:`far_row_maxima` compiled for this ``lin``'s
+#: types, each followed by its types' key (:func:`softflow.laws.native_address`;
+#: 0 for a dense ``lin``)
+KIND, KL, EQUILIBRATED, FACTOR_AT, SOLVE_AT, MAXIMA_AT = 0, 1, 2, 3, 5, 7
+LIN_INFO_SIZE = 9
+
+
 @jit
 def lin_factor(lin, pivot_rtol):
     """The Jacobian from the raw entries, factored (:func:`factor`, or
-    :func:`band_factor` where ``lin`` is banded, or
-    :func:`softflow.laws.sparselu.sparse_factor` where sparse: its
-    factors too large for their arrays count as singular, which hands the
-    step to the BDF's own Newton)."""
-    kind = lin[13][0]
-    if kind == SPARSE:
+    :func:`far_factor` where ``lin`` is banded or sparse, called through
+    its address: the loops that call this compile the dense LU alone)."""
+    if lin[13][KIND] != DENSE:
+        return call_native(lin[13][FACTOR_AT], lin[13][FACTOR_AT + 1], (lin, pivot_rtol))
+    return factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6], pivot_rtol)
+
+
+@jit
+def far_factor(lin, pivot_rtol):
+    """:func:`lin_factor` of a banded ``lin`` (:func:`band_factor`) or a
+    sparse one (:func:`softflow.laws.sparselu.sparse_factor`: its factors
+    too large for their arrays count as singular, which hands the step to
+    the BDF's own Newton). Compiled on its own, for the first run with a
+    banded or sparse LU (:func:`softflow.laws.call_native`)."""
+    if lin[13][KIND] == SPARSE:
         if not _assemble(lin[0], lin[1], lin[2]):
             return 1
         si, sx = lin[16], lin[17]
@@ -406,38 +424,52 @@ def lin_factor(lin, pivot_rtol):
                              si[6], sx[1], sx[2], si[7], si[8], si[9], si[10], sx[3], sx[4],
                              lin[5], lin[6], pivot_rtol, sx[6][0], si[11])
         return 0 if code == 0 else 2
-    if kind == BANDED:
-        band = lin[13]
+    band = lin[13]
+    code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
+                       band[KL], pivot_rtol, band[EQUILIBRATED] > 0)
+    if code == 0:
+        band[EQUILIBRATED] = 0 if lin[5][0] == 1.0 and (lin[5] == 1.0).all() else 1
+    elif band[EQUILIBRATED]:            # (once more from the plain factors)
+        band[EQUILIBRATED] = 0
         code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
-                           band[1], pivot_rtol, band[2] > 0)
-        if code == 0:
-            band[2] = 0 if lin[5][0] == 1.0 and (lin[5] == 1.0).all() else 1
-        elif band[2]:            # (once more from the plain factors)
-            band[2] = 0
-            code = band_factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6],
-                               band[1], pivot_rtol, bool(False))
-        return code
-    return factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6], pivot_rtol)
+                           band[KL], pivot_rtol, bool(False))
+    return code
 
 
 @jit
 def lin_solve(lin, b, out):
     """out = J^-1 b on the current factors."""
-    kind = lin[13][0]
-    if kind == SPARSE:
+    if lin[13][KIND] != DENSE:
+        call_native(lin[13][SOLVE_AT], lin[13][SOLVE_AT + 1], (lin, b, out))
+    else:
+        lu_solve(lin[3], lin[4], lin[5], lin[6], b, out)
+
+
+@jit
+def far_solve(lin, b, out):
+    """:func:`lin_solve` on a banded or sparse ``lin``'s factors (compiled
+    on its own, as :func:`far_factor`); returns 0."""
+    if lin[13][KIND] == SPARSE:
         si, sx = lin[16], lin[17]
         sparse_solve(si[2], si[3], si[4], sx[0], si[5], si[6], sx[1], sx[2], si[8], lin[5],
                      lin[6], b, out, sx[5])
-    elif kind == BANDED:
-        order, tmp = lin[14], lin[15]
-        n = b.size
-        for i in range(n):
-            tmp[0, i] = b[order[0, i]]
-        band_solve(lin[3], lin[4], lin[5], lin[6], lin[13][1], tmp[0], tmp[1])
-        for j in range(n):
-            out[order[1, j]] = tmp[1, j]
-    else:
-        lu_solve(lin[3], lin[4], lin[5], lin[6], b, out)
+        return 0
+    order, tmp = lin[14], lin[15]
+    n = b.size
+    for i in range(n):
+        tmp[0, i] = b[order[0, i]]
+    band_solve(lin[3], lin[4], lin[5], lin[6], lin[13][KL], tmp[0], tmp[1])
+    for j in range(n):
+        out[order[1, j]] = tmp[1, j]
+    return 0
+
+
+@jit
+def far_row_maxima(lin, rs):
+    """rs[i] = max_j |J_ij| of a sparse ``lin``'s Jacobian (compiled on its
+    own, as :func:`far_factor`); returns 0."""
+    row_maxima(lin[16][0], lin[16][1], lin[2][0], rs)
+    return 0
 
 
 @jit
@@ -445,9 +477,9 @@ def lin_row_scale(lin, rs):
     """rs[i] = 1 / max_j |J_ij| of the current Jacobian's rows
     (:attr:`DenseLU.row_scale`)."""
     J = lin[2]
-    kind = lin[13][0]
+    kind = lin[13][KIND]
     if kind == SPARSE:
-        row_maxima(lin[16][0], lin[16][1], J[0], rs)
+        call_native(lin[13][MAXIMA_AT], lin[13][MAXIMA_AT + 1], (lin, rs))
         for i in range(rs.size):
             rs[i] = 1.0 / max(rs[i], 1e-300)
         return
@@ -457,6 +489,20 @@ def lin_row_scale(lin, rs):
         for j in range(J.shape[1]):
             m = max(m, abs(J[r, j]))
         rs[i] = 1.0 / max(m, 1e-300)
+
+
+def far_addresses(lin):
+    """Set ``lin``'s addresses of :func:`far_factor`, :func:`far_solve` and
+    :func:`far_row_maxima` where it is banded or sparse (compiled for its
+    types now, the first time: about 20 s once per installation, then from
+    numba's cache)."""
+    info = lin[13]
+    if info[KIND] == DENSE:
+        return
+    b, rs = np.zeros(lin[5].size), np.zeros(lin[5].size)
+    info[FACTOR_AT:FACTOR_AT + 2] = native_address(far_factor, (lin, 0.0))
+    info[SOLVE_AT:SOLVE_AT + 2] = native_address(far_solve, (lin, b, rs))
+    info[MAXIMA_AT:MAXIMA_AT + 2] = native_address(far_row_maxima, (lin, rs))
 
 
 # -- the BDF's arithmetic --------------------------------------------------------------
@@ -595,10 +641,25 @@ def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
     stats[RESIDUALS] += 1
     if jac:
         stats[JACOBIANS] += 1
-    raw, nr, trows, tcols, groups, cols, fpar, u = net
-    # bool(): a constant flag would compile the residual once per literal value
-    return residual(x, S, t, c, bool(jac), F, raw, nr, trows, tcols, groups, cols, fpar, u,
-                    Sout)
+    raw, nr, trows, tcols, groups, cols, fpar, u, at = net
+    # the residual through its address (net[8], :func:`residual_address`):
+    # compiled once, on its own (the Python Newton calls the same), not
+    # again inside each loop that calls it (~1/3 of the first compile)
+    return call_native(at[0], at[1], (x, S, float(t), float(c), bool(jac), F, raw, nr, trows,
+                                      tcols, groups, cols, fpar, u, Sout))
+
+
+def residual_address(arrays):
+    """``net`` for the loops here: the network's ``arrays`` (raw, n_node_rows,
+    trows, tcols, groups, cols, fpar, u: :class:`softflow.solve.netcore.
+    CompiledNetwork`) and, last, an array of the address of
+    :func:`softflow.laws.network.residual` compiled for their types and
+    their key (:func:`softflow.laws.native_address`), which the loops call
+    it by."""
+    probe = np.zeros(0)
+    at = native_address(residual, (probe, probe, 0.0, 0.0, True, probe) + tuple(arrays)
+                        + (probe,))
+    return tuple(arrays) + (np.array(at, dtype=np.int64),)
 
 
 @inline
@@ -949,15 +1010,27 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
     _newton_scale(x0, natol, nrtol, x_off, q_id, floor, ist[HAS_FLOOR] > 0, links, itol)
     reusable = (ist[STALE] == 0 and ist[AGE] < ist[MAX_AGE]
                 and fst[DT_LO] <= c <= fst[DT_HI])
+    # the stages: 0 the reused factors' chord (where they serve), 1 the fresh
+    # chord, 2 the fresh chord once more from a solution on another piece of
+    # a piecewise law (one call of _chord for all three: it is built into
+    # each loop that calls this, and the first compile pays for each copy)
     code = HAND
-    for stage in range(2):
-        if stage == 0 and not reusable:
-            continue
-        code = _chord(net, lin, x0, psi, t, c, stage == 1, ist, fst, itol, T_idx, x, F,
+    stage = 0 if reusable else 1
+    while stage < 3:
+        start = x0 if stage < 2 else work[4]
+        code = _chord(net, lin, start, psi, t, c, stage >= 1, ist, fst, itol, T_idx, x, F,
                       step, work[9], none, stats, work[3])
-        if code == SOLVED:
-            if not _positive(x, p_idx):
-                return REFUSED
+        if code != SOLVED:
+            if stage == 2:
+                ist[STALE] = 1
+                return HAND
+            if stage == 0:
+                stage = 1
+                continue
+            return code
+        if not _positive(x, p_idx):
+            return REFUSED
+        if stage < 2:
             # a piecewise law (a check valve) on another piece than the
             # Jacobian's (Newton.solve): from reused factors, on to the fresh
             # chord; from fresh ones (a valve that closes within the step,
@@ -976,18 +1049,12 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
                 ist[STALE] = 1
                 if stage == 0:
                     code = PLAIN
-                    continue
-                again = work[4]
-                again[:] = x
-                code = _chord(net, lin, again, psi, t, c, True, ist, fst, itol, T_idx, x, F,
-                              step, work[9], none, stats, work[3])
-                if code != SOLVED:
-                    ist[STALE] = 1
-                    return HAND
-                if not _positive(x, p_idx):
-                    return REFUSED
-            ist[AGE] += 1
-            return SOLVED
+                else:
+                    work[4][:] = x
+                stage += 1
+                continue
+        ist[AGE] += 1
+        return SOLVED
     return code
 
 
@@ -1701,7 +1768,7 @@ def variants(j0, j1, given, first, net0, lin, start_lin, tol, start_tol, rec, de
     d_t, d_h, d_k, d_row, d_D, d_cols = dense
     cap, d_cap = out_t.size, out_D.shape[0]
     for j in range(j0, j1):
-        net = (net0[0], net0[1], net0[2], net0[3], net0[4], net0[5], FPAR[j], u)
+        net = (net0[0], net0[1], net0[2], net0[3], net0[4], net0[5], FPAR[j], u, net0[8])
         m = M[j]
         sources = (BASE[j], SLOT[j], CODES[j][:m], FACTORS[j][:m], STARTS[j][:m], FLOATS[j])
         watch = (w_index, WFLOOR[j])

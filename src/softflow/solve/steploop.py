@@ -79,12 +79,13 @@ class _Bound:
         lu_shape = None
         no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
         sp_int, sp_float = (no_int,) * 12, (no_float,) * 7
+        info = np.zeros(st.LIN_INFO_SIZE, dtype=np.int64)
         if band is not None:
-            flat, shape = band.flat, (n, band.width)
-            info, order = np.array([st.BANDED, band.kl, 0], dtype=np.int64), band.order
+            flat, shape, order = band.flat, (n, band.width), band.order
+            info[st.KIND], info[st.KL] = st.BANDED, band.kl
         elif sparse is not None:
             flat, shape, lu_shape = sparse.flat, (1, sparse.Ai.size), (1, 1)
-            info, order = np.array([st.SPARSE, 0, 0], dtype=np.int64), np.zeros((3, n), np.int64)
+            info[st.KIND], order = st.SPARSE, np.zeros((3, n), np.int64)
             room, nnz = sparse.room, sparse.Ai.size
             sp_int = (sparse.Ap, sparse.Ai, sparse.Q, np.zeros(n + 1, dtype=np.int64),
                       np.zeros(room, dtype=np.int64), np.zeros(n + 1, dtype=np.int64),
@@ -95,9 +96,10 @@ class _Bound:
                         np.zeros(nnz), np.zeros(n),
                         np.array([settings.COMPILED_SPARSE_REFACTOR]))
         else:
-            flat, shape = asm.dense_index(), (n, n)
-            info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
+            flat, shape, order = asm.dense_index(), (n, n), np.zeros((3, n), dtype=np.int64)
         self.lin = _lin_tuple(net, asm, flat, shape, lu_shape, info, order, sp_int, sp_float)
+        # (a banded or sparse LU is compiled on its own: its addresses)
+        _far_addresses(st, self.lin)
         self.tol = _tol_tuple(integ, newton, atol_s, x_off, q_sel)
         watch = integ._watch
         self.watch = ((np.zeros(0, dtype=np.int64), np.zeros(0)) if watch is None else
@@ -683,14 +685,37 @@ _CACHE_LOOKED = []
 def _compile_notice():
     """Say once, where the compiled loop is not in numba's cache yet (its
     first use after an installation or an upgrade: a compile of a minute or
-    two), that it is compiled now and kept: one INFO line on the
-    ``'softflow'`` logger, and on standard error where that is a terminal.
-    Reads the cache's index files (numba's own, internal: any surprise there
-    and nothing is said)."""
+    two), that it is compiled now and kept (:func:`_say_if_cold`)."""
     _CACHE_LOOKED.append(True)
     st = law_module("stepper")
+    _say_if_cold((st.stretch, st.fixed_stretch, st.start_solve),
+                 "its step loop", "about 1-2 minutes")
+
+
+#: whether this process has looked for the banded and sparse LUs in numba's cache
+_FAR_LOOKED = []
+
+
+def _far_addresses(st, lin):
+    """:func:`softflow.laws.stepper.far_addresses` for ``lin``, said once a
+    process where its banded and sparse LUs are not in numba's cache yet
+    (compiled on their own, at the first run that needs them)."""
+    if lin[13][st.KIND] != st.DENSE and not _FAR_LOOKED:
+        _FAR_LOOKED.append(True)
+        _say_if_cold((st.far_factor, st.far_solve, st.far_row_maxima),
+                     "the step loop's banded and sparse LUs", "about 20 seconds")
+    st.far_addresses(lin)
+
+
+def _say_if_cold(functions, what, how_long):
+    """Where any of the compiled ``functions`` is neither compiled in this
+    process nor in numba's cache: one INFO line on the ``'softflow'``
+    logger, and on standard error where that is a terminal, that softflow
+    compiles ``what`` now, once (``how_long``), and keeps it. Reads the
+    cache's index files (numba's own, internal: any surprise there and
+    nothing is said)."""
     try:
-        cold = [f for f in (st.stretch, st.fixed_stretch, st.start_solve)
+        cold = [f for f in functions
                 if not f.overloads and not f._cache._cache_file._load_index()]
     except Exception:          # noqa: BLE001 - numba's internals moved: say nothing
         return
@@ -700,8 +725,8 @@ def _compile_notice():
 
     from .progress import logger
     where = cold[0]._cache._cache_path
-    message = ("softflow: compiling its step loop for this installation (once: about "
-               f"1-2 minutes; later runs load it from numba's cache in {where})")
+    message = (f"softflow: compiling {what} for this installation (once: {how_long}; "
+               f"later runs load it from numba's cache in {where})")
     logger.info(message)
     if getattr(sys.stderr, "isatty", lambda: False)():
         print(message, file=sys.stderr, flush=True)
@@ -738,7 +763,7 @@ def _find_served(integ):
     if sources is None:
         return ("a source's signal the compiled loop does not evaluate (a Python function, "
                 "not a softflow waveform)")
-    return net.arrays, sources
+    return law_module("stepper").residual_address(net.arrays), sources
 
 
 def compiled_steps(bdf):
@@ -814,7 +839,7 @@ def start_setup(integ, hooks_aside=False):
     asm = integ.asm
     st = law_module("stepper")
     n = asm.n
-    info, order = np.zeros(3, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
+    info, order = np.zeros(st.LIN_INFO_SIZE, dtype=np.int64), np.zeros((3, n), dtype=np.int64)
     no_int, no_float = np.zeros(0, dtype=np.int64), np.zeros(0)
     lin = _lin_tuple(net, asm, asm.dense_index(), (n, n), None, info, order,
                      (no_int,) * 12, (no_float,) * 7)

@@ -339,6 +339,7 @@ class _Worker:
         raw = tpl.net[0].copy()
         self.net = (raw,) + tuple(tpl.net[1:])
         self.lin = (raw,) + _copied(steps.lin[1:])
+        st.far_addresses(self.lin)      # (for the copies' own types: the template's)
         self.start_lin = (raw,) + _copied(tpl.start_lin[1:])
         rec = _copied(steps.buffers)
         self.rec = rec + (steps.x_index, steps.s_index)
