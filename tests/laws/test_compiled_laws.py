@@ -235,7 +235,7 @@ def test_call_native_calls_a_function_compiled_on_its_own_by_its_address():
     # address (the step loop's residual and its banded and sparse LUs): the
     # arguments (a tuple, nested tuples of arrays and scalars) reach it as a
     # direct call passes them, writes into arrays are seen, its int64 comes
-    # back, -1 where it raised; the address is found once for a set of types
+    # back, an exception it raises reaches Python; the address is found once for a set of types
     # and the callee is not compiled again; arguments of other types than
     # the callee's raise instead of reaching it; an array of another layout
     # than C-contiguous is refused where the caller is compiled
@@ -260,7 +260,8 @@ def test_call_native_calls_a_function_compiled_on_its_own_by_its_address():
     at, key = native_address(scaled, ((a, b), 2.0))
     assert at and native_address(scaled, ((np.ones(3), np.ones(3)), 1.0)) == (at, key)
     assert caller(at, key, (a, b), 2.0) == 20 and b.tolist() == [0.0, 2.0, 4.0, 6.0, 8.0]
-    assert caller(at, key, (a, b), -1.0) == -1          # (the callee raised)
+    with pytest.raises(ValueError, match="negative"):   # the callee's own error
+        caller(at, key, (a, b), -1.0)
     assert len(scaled.signatures) == 1                  # compiled once, on its own
     with pytest.raises(RuntimeError, match="other argument types"):
         caller(at, key, (a, b), 2)                      # an int where it takes a float

@@ -310,8 +310,8 @@ else:
         (:func:`native_address`'s) is the :func:`types_key` of the types it
         was compiled for, and a call whose arguments have other types
         raises RuntimeError instead of calling it (an address of the wrong
-        callee would read its arguments wrongly). A callee that raised
-        returns -1."""
+        callee would read its arguments wrongly). An exception the callee
+        raises reaches the caller's caller as from a direct call."""
         if not isinstance(args, types.BaseTuple) or not _contiguous(args):
             return None
         expected = types_key(args.types)
@@ -340,9 +340,11 @@ else:
             excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t))
             packed = list(call_conv._get_arg_packer(argtys).as_arguments(builder, values))
             code = builder.call(fn, [ret, excinfo] + packed)
-            value = context.get_returned_value(builder, types.int64, builder.load(ret))
-            ok = builder.icmp_signed("==", code, ir.Constant(code.type, 0))
-            return builder.select(ok, value, ir.Constant(value.type, -1))
+            # an exception the callee raised goes on up, as from a direct call
+            status = call_conv._get_return_status(builder, code, builder.load(excinfo))
+            with cgutils.if_unlikely(builder, status.is_error):
+                call_conv.return_status_propagate(builder, status)
+            return context.get_returned_value(builder, types.int64, builder.load(ret))
         return sig, codegen
 
 

@@ -494,8 +494,8 @@ def lin_row_scale(lin, rs):
 def far_addresses(lin):
     """Set ``lin``'s addresses of :func:`far_factor`, :func:`far_solve` and
     :func:`far_row_maxima` where it is banded or sparse (compiled for its
-    types now, the first time: about 20 s once per installation, then from
-    numba's cache)."""
+    types now, the first time: about 15-20 s of CPU once per installation,
+    then from numba's cache)."""
     info = lin[13]
     if info[KIND] == DENSE:
         return
@@ -643,8 +643,8 @@ def _evaluate(net, x, S, t, c, jac, F, Sout, stats):
         stats[JACOBIANS] += 1
     raw, nr, trows, tcols, groups, cols, fpar, u, at = net
     # the residual through its address (net[8], :func:`residual_address`):
-    # compiled once, on its own (the Python Newton calls the same), not
-    # again inside each loop that calls it (~1/3 of the first compile)
+    # compiled once, on its own (the overload the Python Newton calls), not
+    # again inside each loop that calls it
     return call_native(at[0], at[1], (x, S, float(t), float(c), bool(jac), F, raw, nr, trows,
                                       tcols, groups, cols, fpar, u, Sout))
 

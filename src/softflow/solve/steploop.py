@@ -703,7 +703,7 @@ def _far_addresses(st, lin):
     if lin[13][st.KIND] != st.DENSE and not _FAR_LOOKED:
         _FAR_LOOKED.append(True)
         _say_if_cold((st.far_factor, st.far_solve, st.far_row_maxima),
-                     "the step loop's banded and sparse LUs", "about 20 seconds")
+                     "the step loop's banded and sparse LUs", "about 15-20 seconds")
     st.far_addresses(lin)
 
 
