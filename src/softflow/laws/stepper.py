@@ -1058,6 +1058,13 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
     return code
 
 
+#: :func:`_solve` compiled on its own, for the restarts' probes: the step's
+#: solve is built into the loop (inlined: a call passes some 60 arrays' fields,
+#: ~1 us, which each step would pay), the probes' a call (a few a restart), so
+#: that the loop's first compile builds one copy of the solve, not two
+_solve_apart = jit(_solve.py_func)
+
+
 @inline
 def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_id, p_idx,
            T_idx, work, none, stats, sources, Fe, rate, n_disc, atol_s, mode):
@@ -1088,9 +1095,10 @@ def _probe(net, lin, x0, S, t, h, ist, fst, itol, floor, links, natol, x_off, q_
         # does not give: a probe of 5e-9 s on the 63-component water network
         # had states' rates 1e-3 off the BDF's, the first step a predictor
         # Newton could not solve: 77 failed solves in the run, 2 in Python)
-        code = _solve(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol, x_off,
-                      q_id, p_idx, T_idx, work, none, stats,
-                      min(nrtol, 1e-12) if tight == 0 else nrtol, 4 if tight == 0 else mode)
+        code = _solve_apart(net, lin, x0, S, t + h, h, ist, fst, itol, floor, links, natol,
+                            x_off, q_id, p_idx, T_idx, work, none, stats,
+                            min(nrtol, 1e-12) if tight == 0 else nrtol,
+                            4 if tight == 0 else mode)
         if code == SOLVED:
             solved = True
             break
