@@ -1062,7 +1062,7 @@ def _chords(net, lin, x0, psi, t, c, ist, fst, itol, floor, links, natol, x_off,
 #: solve is built into the loop (inlined: a call passes some 60 arrays' fields,
 #: ~1 us, which each step would pay), the probes' a call (a few a restart), so
 #: that the loop's first compile builds one copy of the solve, not two
-_solve_apart = jit(_solve.py_func)
+_solve_apart = jit(getattr(_solve, "py_func", _solve))   # (pure-Python mode: _solve itself)
 
 
 @inline
