@@ -381,7 +381,8 @@ def band_factor(raw, flat, J, LU, piv, ir, ic, kl, pivot_rtol, scaled=False):
 #: scales, the pieces of the Jacobian's laws, the pieces at a solution, the
 #: kinks' sides at the point and at a step's end, switching values, the
 #: rows the culprit finder looks into, the kind (0 dense, 1 banded, 2
-#: sparse; the band's kl; whether its last factors were equilibrated),
+#: sparse; the band's kl; whether its last factors were equilibrated; the
+#: banded and sparse LUs' addresses: KIND ... MAXIMA_AT below),
 #: the band's order (its rows' original rows, its columns' original
 #: unknowns, each original row's band row), two scratch rows, the sparse
 #: LU's integer arrays (Ap, Ai, Q, Lp, Li, Up, Ui, pinv, prow, Ar, iw,
