@@ -152,6 +152,21 @@ def crossing_time(t, y, level, i):
     return t[i - 1] + (level - y[i - 1]) / (y[i] - y[i - 1]) * (t[i] - t[i - 1])
 
 
+def probe_json(source, **env):
+    """The JSON the Python ``source`` prints last, run in a fresh interpreter
+    with the environment variables ``env`` added (its errors shown where it
+    fails)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", source], capture_output=True, text=True,
+                          env={**os.environ, **env}, timeout=600, check=False)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout.splitlines()[-1])
+
+
 def compiled_and_python(expression, env=None):
     """The value of ``expression`` (Python source giving a list of numbers and
     tuples of numbers, with ``softflow.laws``' modules imported as ``laws``,
@@ -159,11 +174,6 @@ def compiled_and_python(expression, env=None):
     interpreter compiled and again with NUMBA_DISABLE_JIT=1: (compiled, python)
     as flat float arrays, after asserting that each process ran in its mode.
     Also returns the compiled process's cache hits of the laws it called."""
-    import json
-    import os
-    import subprocess
-    import sys
-
     probe = (
         "import json\n"
         "import softflow.laws as laws\n"
@@ -175,11 +185,7 @@ def compiled_and_python(expression, env=None):
         "                  'hits': hits}))\n")
 
     def run(**extra):
-        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                              env={**os.environ, **(env or {}), **extra}, timeout=600,
-                              check=False)
-        assert done.returncode == 0, done.stderr
-        return json.loads(done.stdout.splitlines()[-1])
+        return probe_json(probe, **(env or {}), **extra)
 
     compiled, python = run(NUMBA_DISABLE_JIT="0"), run(NUMBA_DISABLE_JIT="1")
     assert compiled["jit"] and not python["jit"]

@@ -11,7 +11,7 @@ import pytest
 from scipy.special import lambertw
 
 import softflow.laws as laws
-from helpers import compiled_and_python
+from helpers import compiled_and_python, probe_json
 from softflow.correlations.gas_pipe import entry_z as entry_z_array
 from softflow.correlations.gas_pipe import isothermal_pipe as isothermal_pipe_array
 from softflow.laws import friction as fl
@@ -326,11 +326,6 @@ def test_the_step_loop_runs_in_pure_python_mode_with_the_compiled_numbers():
     # NUMBA_DISABLE_JIT=1 runs the same step loop uncompiled (the functions
     # reached by address called directly): a dense, a banded and a sparse
     # chain give the compiled run's numbers
-    import json
-    import os
-    import subprocess
-    import sys
-
     bench = Path(__file__).resolve().parents[2] / "benchmarks"
     probe = (
         "import json, sys, warnings\n"
@@ -342,14 +337,8 @@ def test_the_step_loop_runs_in_pure_python_mode_with_the_compiled_numbers():
         "       for N, kw in ((3, {}), (30, dict(linear_solver='dense')), (40, {}))]\n"
         "print(json.dumps({'jit': not sf.laws.numba.config.DISABLE_JIT, 'x': out}))\n")
 
-    def run(flag):
-        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
-                              env={**os.environ, "NUMBA_DISABLE_JIT": flag}, timeout=600,
-                              check=False)
-        assert done.returncode == 0, done.stderr
-        return json.loads(done.stdout.splitlines()[-1])
-
-    compiled, python = run("0"), run("1")
+    compiled = probe_json(probe, NUMBA_DISABLE_JIT="0")
+    python = probe_json(probe, NUMBA_DISABLE_JIT="1")
     assert compiled["jit"] and not python["jit"]
     for a, b in zip(compiled["x"], python["x"]):
         np.testing.assert_allclose(b, a, rtol=1e-9)

@@ -3,8 +3,6 @@ evaluated by the scalar functions equals the array path (Bicubic, Cubic)
 elementwise, bit for bit; the cell lookup's edge rules; the partials against
 central differences; the range checks; a call from other compiled code; and
 the pure-Python mode (NUMBA_DISABLE_JIT=1) giving the same numbers."""
-import json
-import os
 import subprocess
 import sys
 
@@ -14,6 +12,7 @@ import pytest
 
 import softflow as sf
 from softflow.fluids.hermite import Bicubic, UniformAxis
+from helpers import probe_json
 from softflow.laws import tables as tl
 
 # tabulated properties of two shipped tables (a gas's Z, a liquid's density)
@@ -215,11 +214,7 @@ print(json.dumps({'values': out, 'jit': not laws.numba.config.DISABLE_JIT, 'hits
 
 
 def _probe(disable_jit):
-    done = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True,
-                          env={**os.environ, "NUMBA_DISABLE_JIT": disable_jit}, timeout=600,
-                          check=False)
-    assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout.splitlines()[-1])
+    return probe_json(_PROBE, NUMBA_DISABLE_JIT=disable_jit)
 
 
 @pytest.mark.slow
