@@ -396,11 +396,12 @@ def _copy(dst, src):
     """dst[:] = src for arrays of the same size, as a loop: numba's slice
     assignment checks the shapes and builds its error message with them,
     and the compile of that message's code (its string formatting) was
-    ~8 s of the step loop's first compile (stretch 54.9 -> 45.4 s of CPU)."""
+    ~8 s of the step loop's first compile (stretch 54.9 -> 45.4 s of CPU).
+    Sizes that differ raise, as the slice assignment did (a fixed message)."""
+    if dst.size != src.size:
+        raise ValueError("softflow: an array copy between arrays of different sizes")
     for i in range(dst.size):
         dst[i] = src[i]
-
-
 
 
 #: ``lin[13]``'s places: the kind, the band's kl, whether the band's last
@@ -512,10 +513,10 @@ def far_addresses(lin):
     info = lin[13]
     if info[KIND] == DENSE:
         return
-    b, rs = np.zeros(lin[5].size), np.zeros(lin[5].size)
+    probe = np.zeros(0)            # (its type alone: as residual_address's)
     info[FACTOR_AT:FACTOR_AT + 2] = native_address(far_factor, (lin, 0.0))
-    info[SOLVE_AT:SOLVE_AT + 2] = native_address(far_solve, (lin, b, rs))
-    info[MAXIMA_AT:MAXIMA_AT + 2] = native_address(far_row_maxima, (lin, rs))
+    info[SOLVE_AT:SOLVE_AT + 2] = native_address(far_solve, (lin, probe, probe))
+    info[MAXIMA_AT:MAXIMA_AT + 2] = native_address(far_row_maxima, (lin, probe))
 
 
 # -- the BDF's arithmetic --------------------------------------------------------------
