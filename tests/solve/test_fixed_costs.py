@@ -693,3 +693,78 @@ def test_the_collector_is_paused_and_restored_as_it_was():
         assert not gc.isenabled()
     finally:
         gc.enable()
+
+
+def test_numpys_huge_pages_are_off_during_a_run_and_restored_as_they_were(monkeypatch):
+    """settings.HUGE_PAGES = False (the default): NumPy's madvise switch is
+    off while a run integrates and builds its result, and put back as it
+    was (on or off), also where the run raises; runs in threads hold it
+    together and the last to leave restores it; True leaves it alone. The
+    numbers are the same either way."""
+    import threading
+
+    from softflow.solve import settings as solve_settings
+    from softflow.solve import simulation as sim_mod
+    if sim_mod._MADVISE is None:
+        pytest.skip("this NumPy has no madvise switch")
+    state = {"on": True}
+    calls = []
+    seen = []
+
+    def switch(enabled):
+        calls.append(bool(enabled))
+        before, state["on"] = state["on"], bool(enabled)
+        return before
+
+    monkeypatch.setattr(sim_mod, "_MADVISE", switch)
+
+    from softflow.solve.integrator import Integrator
+    integrate = Integrator.run
+
+    def spied(self):
+        seen.append(state["on"])
+        return integrate(self)
+
+    monkeypatch.setattr(Integrator, "run", spied)
+
+    sim = sf.Simulation(ps.fig3(ps.FIG3_CASES[0]), duration=ps.duration(3))
+    a = sim.run()
+    assert seen == [False] and state["on"] and calls[:1] == [False] and calls[-1] is True
+    calls.clear()
+    state["on"] = False          # a process that turned them off itself
+    b = sim.run()
+    assert state["on"] is False and calls and all(c is False for c in calls)
+    np.testing.assert_array_equal(a.X, b.X)
+
+    # an error inside the run: restored
+    state["on"] = True
+    with pytest.raises(RuntimeError, match="inside"):
+        with sim_mod._huge_pages_off():
+            assert state["on"] is False
+            raise RuntimeError("inside")
+    assert state["on"] is True
+
+    # two holders in threads: off until the last leaves
+    inside, leave = threading.Barrier(3), threading.Event()
+
+    def hold():
+        with sim_mod._huge_pages_off():
+            inside.wait()
+            leave.wait()
+
+    threads = [threading.Thread(target=hold) for _ in range(2)]
+    for th in threads:
+        th.start()
+    inside.wait()
+    assert state["on"] is False
+    leave.set()
+    for th in threads:
+        th.join()
+    assert state["on"] is True and sim_mod._huge_pages_off._holders == 0
+
+    # HUGE_PAGES = True: left alone
+    monkeypatch.setattr(solve_settings, "HUGE_PAGES", True)
+    calls.clear()
+    c = sim.run()
+    assert calls == [] and state["on"] is True
+    np.testing.assert_array_equal(a.X, c.X)

@@ -388,6 +388,16 @@ COMPILED_RECORD_ROWS = 256
 #: component water network records ~350 MB of points, and each doubling
 #: copied them into fresh memory (:func:`softflow.solve.dense.grown_rows`)
 EXPECT_MARGIN, EXPECT_GROWTH_MIN = 1.1, 1.25
+#: Whether a run's arrays may ask Linux for transparent huge pages (NumPy's
+#: ``madvise(MADV_HUGEPAGE)`` on arrays of 4 MB and more, its default). False:
+#: NumPy's switch is off while a run integrates and assembles its result
+#: (:class:`softflow.solve.simulation._huge_pages_off`), and restored after:
+#: where the kernel compacts memory to find a huge page at the first touch
+#: (transparent_hugepage/defrag = madvise, a common default), the runs that
+#: record hundreds of MB spent a fifth of their time there (the 2 000-
+#: component water network of benchmarks/bench_water_network.py: 12.4 s CPU
+#: with huge pages, 3.4 s of it system time, against 10.2 s without them).
+HUGE_PAGES = False
 #: Rejected steps and restarts the compiled loop keeps for the progress
 #: reporter (its log) before it hands back (the loop hands back when full).
 COMPILED_EVENT_ROWS = 256

@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import copy
 import gc
+import importlib
 import math
 import operator
+import threading
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
@@ -28,6 +30,7 @@ from .result import Result
 from .input_checks import initial_volumes, negligible_tubes
 from .validity import (PV_CURVE_SLACK, ComponentError, beyond, can_refuse,
                        check_result, checks_version, issue)
+from . import settings
 from .settings import ROUND_OFF, MAX_REFINE
 from .thermal import check_model, configure_like, configure_thermal
 
@@ -571,7 +574,7 @@ class Simulation:
             integ.stop_at_start = lambda: self._fatal_at_start(integ.rec)  # type: ignore[assignment]
         error = None
         try:
-            with np.errstate(all="ignore"), integ.progress:
+            with np.errstate(all="ignore"), integ.progress, _huge_pages_off():
                 integ.run()
         except StoppedAtStart:
             pass      # the checks below refuse the run from t = 0, with their message
@@ -596,19 +599,20 @@ class Simulation:
             else:
                 error.__cause__ = err.__cause__ if isinstance(err, ComponentError) else err
         self._start = None if integ.consistent is None else (start_key, integ.consistent)
-        t, X, S = integ.rec.arrays()
-        integrals = integ.rec.integrals()
-        dense = None
-        if not len(t):     # failed at t = 0: the initial values as a 1-point result
-            xs, ss = ((slice(None), slice(None)) if self.record is None
-                      else self.record[:2])
-            t, X, S = np.zeros(1), asm.x0[xs][None, :], asm.S0[ss][None, :]
-            integrals = None if integrals is None else np.zeros_like(X)
-            dense = DenseOutput.linear_between(t, X, S, None)
-        else:
-            # the points inside the steps (refine) and the interpolant between
-            # them (softflow.solve.dense)
-            t, X, S, integrals, dense = integ.finish(t, X, S, integrals)
+        with _huge_pages_off():
+            t, X, S = integ.rec.arrays()
+            integrals = integ.rec.integrals()
+            dense = None
+            if not len(t):     # failed at t = 0: the initial values as a 1-point result
+                xs, ss = ((slice(None), slice(None)) if self.record is None
+                          else self.record[:2])
+                t, X, S = np.zeros(1), asm.x0[xs][None, :], asm.S0[ss][None, :]
+                integrals = None if integrals is None else np.zeros_like(X)
+                dense = DenseOutput.linear_between(t, X, S, None)
+            else:
+                # the points inside the steps (refine) and the interpolant
+                # between them (softflow.solve.dense)
+                t, X, S, integrals, dense = integ.finish(t, X, S, integrals)
         info = stats.as_dict()
         info["forced_steps"] = integ.forced_steps
         info["linear_solver"] = lin.kind
@@ -805,6 +809,57 @@ def _temperature_edge(out, newton):
     return (f"; {names} at the edge of the temperature range the scene's fluids cover "
             f"({lo:.6g} ... {hi:.6g} K): the solution may lie beyond it (the 'eos' "
             "level covers a wider range)")
+
+
+def _madvise_switch():
+    """NumPy's switch of ``madvise(MADV_HUGEPAGE)`` on its large arrays
+    (``_set_madvise_hugepage``: ``numpy._core`` from NumPy 2, ``numpy.core``
+    before; documented with ``NUMPY_MADVISE_HUGEPAGE``), or None where this
+    NumPy has none."""
+    for name in ("numpy._core.multiarray", "numpy.core.multiarray"):
+        try:
+            module = importlib.import_module(name)
+        except ImportError:
+            continue
+        switch = getattr(module, "_set_madvise_hugepage", None)
+        if switch is not None:
+            return switch
+    return None
+
+
+_MADVISE = _madvise_switch()
+
+
+class _huge_pages_off:
+    """NumPy's transparent huge pages off while a run integrates and builds
+    its result, unless :data:`settings.HUGE_PAGES <softflow.solve.settings.HUGE_PAGES>`
+    allows them: the switch is process-wide, so it is restored as it was
+    when the last of the runs that hold it (threads) leaves, also on errors.
+    Only where the memory comes from changes, never a number."""
+
+    __slots__ = ("held",)
+    _lock = threading.Lock()
+    _holders = 0
+    _saved = True
+
+    def __enter__(self):
+        self.held = _MADVISE is not None and not settings.HUGE_PAGES
+        if self.held:
+            cls = _huge_pages_off
+            with cls._lock:
+                if cls._holders == 0:
+                    cls._saved = _MADVISE(False)
+                cls._holders += 1
+        return None
+
+    def __exit__(self, *exc):
+        if self.held:
+            cls = _huge_pages_off
+            with cls._lock:
+                cls._holders -= 1
+                if cls._holders == 0:
+                    _MADVISE(cls._saved)
+        return False
 
 
 class _collector_paused:
