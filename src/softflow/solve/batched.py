@@ -464,6 +464,7 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
     (:mod:`softflow.solve.variants`) serves the scene (True), or never
     (False: one shared step sequence per batch)."""
     from . import variants as compiled
+    from .simulation import _huge_pages_off
     if prepared is None:
         prepared = prepare(sim, variants)
     variants = prepared.variants
@@ -477,8 +478,10 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
         chunk = order[start:start + batch_size]
         own = None if built is None else [built[k] for k in chunk]
         mine: list = []
-        for k, res in zip(chunk, _run_batch(sim, [variants[k] for k in chunk], progress, own,
-                                            own_clocks=own_clocks, found=mine)):
+        with _huge_pages_off():     # (a batch's records: settings.HUGE_PAGES)
+            done = _run_batch(sim, [variants[k] for k in chunk], progress, own,
+                              own_clocks=own_clocks, found=mine)
+        for k, res in zip(chunk, done):
             results[k] = res
         found += [(chunk[j], w) for j, w in mine]
     _summarize(found, len(variants))
