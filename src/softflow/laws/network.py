@@ -58,8 +58,8 @@ from .orifice import _maximum
 from .valves import (check_valve_flow, friction_term, mean_density, orifice_flow,
                      orifice_upstream, restrictor_row, tesla_drop)
 from .valves import density as valve_density
-from .volumes import (compliant_mass, curve_law, curve_point, density, on_inflation, refused,
-                      rigid_mass, scaled_curve)
+from .volumes import (compliant_mass, curve_law, curve_point_flat, density, on_inflation,
+                      refused, rigid_mass, scaled_curve)
 from .thermal import (adiabatic_tesla_rows, adiabatic_tube_rows, check_valve_rows,
                       energy_entries, free_rows, held_rows, ideal_density, loop_offset,
                       loop_wall, orifice_rows, snapping_rows, source_energy, upwind_energy,
@@ -207,6 +207,16 @@ def _curve(fpar, at):
 
 
 @jit
+def _flat_curve(fpar, at):
+    """:func:`_curve`'s knots and table, the table's rows flat
+    (:func:`.volumes.curve_point_flat`), and the offset past it."""
+    nk, nr = int(fpar[at]), int(fpar[at + 1])
+    k0 = at + 2
+    t0 = k0 + nk
+    return fpar[k0:t0], fpar[t0:t0 + 5 * nr], t0 + 5 * nr
+
+
+@jit
 def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     """A group of actuators on one compiled PV curve
     (:func:`.volumes.actuator_residual`), state: the mass; floats: the fluid's
@@ -215,7 +225,7 @@ def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     curve that refuses it."""
     n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
     c, p_atm, scaled, mode = fpar[f0], fpar[f0 + 1], fpar[f0 + 2] > 0.5, int(fpar[f0 + 3])
-    knots, table, end = _curve(fpar, f0 + 4)
+    knots, table, end = _flat_curve(fpar, f0 + 4)
     for i in range(n):
         p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
         rho, rho_p = density(kind, c, p)
@@ -225,7 +235,7 @@ def _actuator(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
         vol = m / rho
         if refused(mode, knots, vol):
             return False
-        pc, dpc = curve_point(knots, table, vol)
+        pc, dpc = curve_point_flat(knots, table, vol)
         if scaled:
             pc, dpc = scaled_curve(pc, dpc, fpar[end + i], p_atm)
         _wall_law(F, raw, jac, gr, i, p, rho, rho_p, vol, pc, dpc, dt)
@@ -241,8 +251,8 @@ def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
     read (:meth:`softflow.curves.HysteresisLoop.next_inflating`)."""
     n, c0, s0, f0, kind = gr[N], gr[COL], gr[S0], gr[F0], gr[OPTION]
     c, v_hi, v_lo = fpar[f0], fpar[f0 + 1], fpar[f0 + 2]
-    knots_up, table_up, end = _curve(fpar, f0 + 3)
-    knots_down, table_down, _ = _curve(fpar, end)
+    knots_up, table_up, end = _flat_curve(fpar, f0 + 3)
+    knots_down, table_down, _ = _flat_curve(fpar, end)
     for i in range(n):
         p, mf = x[cols[c0 + 2 * i]], x[cols[c0 + 2 * i + 1]]
         rho, rho_p = density(kind, c, p)
@@ -253,9 +263,9 @@ def _hysteretic(x, S, dt, F, raw, jac, gr, cols, fpar, Sout):
             Sout[s0 + 2 * i] = m
             Sout[s0 + 2 * i + 1] = 1.0 if up else 0.0
         if up:
-            pc, dpc = curve_point(knots_up, table_up, vol)
+            pc, dpc = curve_point_flat(knots_up, table_up, vol)
         else:
-            pc, dpc = curve_point(knots_down, table_down, vol)
+            pc, dpc = curve_point_flat(knots_down, table_down, vol)
         _wall_law(F, raw, jac, gr, i, p, rho, rho_p, vol, pc, dpc, dt)
 
 

@@ -57,9 +57,24 @@ def piece(knots, x):
 def curve_point(knots, table, x):
     """The curve's pressure and dp/dV at the volume x: (p, dp)."""
     row = piece(knots, x)
-    x = x - table[row, 0]
-    c1, c2, c3 = table[row, 2], table[row, 3], table[row, 4]
-    return table[row, 1] + x * (c1 + x * (c2 + x * c3)), c1 + x * (2.0 * c2 + 3.0 * x * c3)
+    return _cubic(x - table[row, 0], table[row, 1], table[row, 2], table[row, 3],
+                  table[row, 4])
+
+
+@jit
+def curve_point_flat(knots, flat, x):
+    """:func:`curve_point` on the table's rows stored one after the other, 5
+    floats a row (a network's parameter array holds them so: no 2-D view to
+    make at each residual)."""
+    j = 5 * piece(knots, x)
+    return _cubic(x - flat[j], flat[j + 1], flat[j + 2], flat[j + 3], flat[j + 4])
+
+
+@jit
+def _cubic(u, p0, c1, c2, c3):
+    """A piece of the curve at u past its start (p0 there, slopes c1, c2, c3):
+    (p, dp/dV)."""
+    return p0 + u * (c1 + u * (c2 + u * c3)), c1 + u * (2.0 * c2 + 3.0 * u * c3)
 
 
 @jit
