@@ -413,11 +413,13 @@ KIND, KL, EQUILIBRATED, FACTOR_AT, SOLVE_AT, MAXIMA_AT = 0, 1, 2, 3, 5, 7
 LIN_INFO_SIZE = 9
 
 
-@jit
+@inline
 def lin_factor(lin, pivot_rtol):
     """The Jacobian from the raw entries, factored (:func:`factor`, or
     :func:`far_factor` where ``lin`` is banded or sparse, called through
-    its address: the loops that call this compile the dense LU alone)."""
+    its address: the loops that call this compile the dense LU alone).
+    Inlined, as :func:`lin_solve`: a call that passes ``lin`` (eighteen
+    arrays and tuples, some 150 machine words) costs ~100 ns."""
     if lin[13][KIND] != DENSE:
         return call_native(lin[13][FACTOR_AT], lin[13][FACTOR_AT + 1], (lin, pivot_rtol))
     return factor(lin[0], lin[1], lin[2], lin[3], lin[4], lin[5], lin[6], pivot_rtol)
@@ -450,9 +452,9 @@ def far_factor(lin, pivot_rtol):
     return code
 
 
-@jit
+@inline
 def lin_solve(lin, b, out):
-    """out = J^-1 b on the current factors."""
+    """out = J^-1 b on the current factors (inlined: see :func:`lin_factor`)."""
     if lin[13][KIND] != DENSE:
         call_native(lin[13][SOLVE_AT], lin[13][SOLVE_AT + 1], (lin, b, out))
     else:
