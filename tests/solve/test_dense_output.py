@@ -423,3 +423,52 @@ def test_the_compiled_terms_are_the_numpy_sum():
                                          np.empty(0, dtype=np.int64) if picked is None
                                          else picked, got)
         np.testing.assert_array_equal(got, want)
+
+
+def test_refine_counts_are_the_least_r_within_the_target():
+    """dense.refine_counts (one compiled pass, softflow.laws.output) against
+    the rule written out here in NumPy: for each step of order k >= 2, p''
+    = sum_{j=2..k} D_j phi_j'' at the step's ends and middle (phi_j(s) =
+    prod_{m<j} (s + m) / j!, differentiated by numpy.polynomial), weighted by
+    1 / weights, and r the least in 1..most with (1/r)^2 / 8 max |p''| <=
+    target; a NaN in p'' reads as 0, an inf weight leaves its column out."""
+    from numpy.polynomial import polynomial as P
+
+    from softflow.solve import dense as dense_mod
+    rng = np.random.default_rng(5)
+    n_entries, m = 60, 5
+    k = rng.integers(0, 6, size=n_entries).astype(np.int64)
+    rows = int(k.sum())
+    diffs = rng.normal(size=(rows, m + 2)) * 10.0 ** rng.integers(-3, 3, size=(rows, m + 2))
+    diffs[3, 1] = np.nan                        # a NaN in one entry's differences
+    weights = 10.0 ** rng.uniform(-2, 1, size=m)
+    weights[2] = np.inf                        # a column left out
+    X = np.zeros((n_entries, m))
+    dense = dense_mod.DenseOutput(np.arange(1.0, n_entries + 1), np.ones(n_entries), k,
+                                  np.arange(n_entries, dtype=np.int64), diffs,
+                                  X[:, :0], X, None, None)
+    most, target = 16, 0.5
+    got = dense_mod.refine_counts(dense, weights, most=most, target=target)
+
+    def phi2(j, s):
+        coefs = np.array([1.0])
+        for q in range(j):
+            coefs = P.polymul(coefs, [float(q), 1.0])
+        return P.polyval(s, P.polyder(coefs / math.factorial(j), 2))
+
+    off = np.concatenate([[0], np.cumsum(k)[:-1]])
+    for i in range(n_entries):
+        if k[i] < 2:
+            assert got[i] == 1
+            continue
+        peak = 0.0
+        for s in (-1.0, -0.5, 0.0):
+            d2 = sum(phi2(j, s) * diffs[off[i] + j - 1, :m] for j in range(2, k[i] + 1))
+            with np.errstate(invalid="ignore"):
+                v = np.abs(d2) / weights
+            peak = np.nan if np.isnan(v).any() or np.isnan(peak) else max(peak, v.max())
+        peak = 0.0 if np.isnan(peak) else peak
+        want = next(r for r in range(1, most + 1)
+                    if r == most or peak / (8.0 * r * r) <= target)
+        assert got[i] == want, (i, k[i], peak, got[i], want)
+    assert (got > 1).any() and (got == 1).sum() > (k < 2).sum()

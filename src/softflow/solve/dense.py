@@ -81,6 +81,8 @@ def _second_derivatives(k):
 
 
 _D2 = [None] + [_second_derivatives(k) for k in range(1, 7)]
+#: phi_2''..phi_k'' at the samples, contiguous (refine_counts' compiled pass)
+_D2C = [None] + [np.ascontiguousarray(d[:, 1:]) for d in _D2[1:]]
 
 
 def expected_rows(done, t, T):
@@ -376,25 +378,12 @@ def refine_counts(dense, weights, most=AUTO_REFINE_MAX, target=AUTO_REFINE_TARGE
     kmax = int(k.max(initial=0))
     if dense.linear or kmax < 2:
         return r
-    m = weights.size
-    inv = 1.0 / weights
-    C = _D2[kmax][:, 1:]                           # phi_2''..phi_kmax'' at the samples
-    j = np.arange(2, kmax + 1)
-    sel = np.flatnonzero(k >= 2)
-    size = max(1, 1_000_000 // max(m * kmax, 1))
-    last = max(len(dense.diffs) - 1, 0)
-    for a in range(0, sel.size, size):
-        ids = sel[a:a + size]
-        rows = np.minimum(dense.off[ids][:, None] + (j - 1), last)      # D_2..D_kmax
-        D = dense.diffs[rows, :m]
-        D[j[None, :] > k[ids][:, None]] = 0.0       # above the entry's own order
-        d2 = np.matmul(C, D)                        # (n, 3, m)
-        np.abs(d2, out=d2)
-        d2 *= inv
-        peak = d2.reshape(ids.size, -1).max(axis=1)
-        peak[np.isnan(peak)] = 0.0      # (>= 0 or NaN: np.nan_to_num's answer, cheaper)
-        need = np.ceil(np.sqrt(np.minimum(peak, 8.0 * target * most ** 2) / (8.0 * target)))
-        r[ids] = np.clip(need, 1, most).astype(np.int64)
+    with np.errstate(divide="ignore"):
+        inv = 1.0 / np.asarray(weights, dtype=float)
+    law_module("output").refine_counts(
+        np.ascontiguousarray(k, dtype=np.int64), np.ascontiguousarray(dense.off, dtype=np.int64),
+        np.ascontiguousarray(dense.diffs), int(weights.size), np.ascontiguousarray(inv),
+        _D2C[kmax], int(most), float(target), r)
     return r
 
 
