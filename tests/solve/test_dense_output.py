@@ -472,3 +472,46 @@ def test_refine_counts_are_the_least_r_within_the_target():
                     if r == most or peak / (8.0 * r * r) <= target)
         assert got[i] == want, (i, k[i], peak, got[i], want)
     assert (got > 1).any() and (got == 1).sum() > (k < 2).sum()
+
+
+@pytest.mark.parametrize("linear", [False, True])
+def test_interior_points_are_the_interpolant_on_bitwise(linear):
+    """dense.insert_interior (one compiled pass, softflow.laws.output.interior)
+    places counts[i] - 1 points evenly inside each step before its end point,
+    each the value DenseOutput.on (the NumPy evaluation that Result.at and
+    Result.interpolate use) gives there, bit for bit (discrete states at the
+    step's start), and keeps every recorded point; the new interpolant reads
+    the same at the inserted times."""
+    from softflow.solve import dense as dense_mod
+    rng = np.random.default_rng(11)
+    n_entries, nS, nX = 40, 3, 4
+    k = rng.integers(1, 6, size=n_entries).astype(np.int64)
+    k[[0, 7]] = 0                               # points of their own
+    h = rng.uniform(0.5, 2.0, size=n_entries)
+    h[k == 0] = 0.0
+    t_end = np.cumsum(h) + 1.0
+    rows = int(k.sum())
+    diffs = rng.normal(size=(rows, nS + 2 * nX))
+    X, S, Q = (rng.normal(size=(n_entries, c)) for c in (nX, nS, nX))
+    S[:, 1] = rng.integers(0, 2, size=n_entries)        # a discrete state
+    discrete = np.array([False, True, False])
+    dense = dense_mod.DenseOutput(t_end, h, k, np.arange(n_entries, dtype=np.int64), diffs,
+                                  X, S, Q, discrete, linear=linear)
+    counts = rng.integers(1, 5, size=n_entries).astype(np.int64)
+    t2, X2, S2, Q2, dense2 = dense_mod.insert_interior(dense, counts, t_end, X, S, Q)
+    extra = np.where(k > 0, counts - 1, 0)
+    assert len(t2) == n_entries + extra.sum()
+    at = 0
+    for i in range(n_entries):
+        for m in range(1, extra[i] + 1):
+            tau = t_end[i] - h[i] + h[i] * m / counts[i]
+            want = dense.on(np.array([i]), np.array([tau]))
+            assert t2[at] == tau
+            for got, ref in zip((X2[at], S2[at], Q2[at]), want):
+                np.testing.assert_array_equal(got.view(np.int64), ref[0].view(np.int64))
+            at += 1
+        assert t2[at] == t_end[i] and (X2[at] == X[i]).all() and (S2[at] == S[i]).all()
+        assert (Q2[at] == Q[i]).all() and dense2.row[i] == at
+        at += 1
+    _, _, _, none, _ = dense_mod.insert_interior(dense, counts, t_end, X, S, None)
+    assert none is None

@@ -81,3 +81,107 @@ def refine_counts(k, off, diffs, m, inv, C, most, target, r):
                 break
         need = math.ceil(math.sqrt(min(peak, cap) / (8.0 * target)))
         r[i] = min(max(need, 1), most)
+
+
+@jit
+def interior(t_end, h, k, row, off, diffs, linear, discrete, extra, counts, t, X, S, Q,
+             t_out, X_out, S_out, Q_out):
+    """The recorded points t, X, S, Q (Q may have no columns) with extra[i]
+    points inserted evenly inside each step i before its end point, into
+    t_out, X_out, S_out, Q_out (rows: the old ones and the inserted, in
+    order): :func:`softflow.solve.dense.insert_interior`'s arrays in one
+    pass, each inserted value the arithmetic of
+    :meth:`~softflow.solve.dense.DenseOutput.on` on the same entries
+    (bitwise: the polynomial's coefficients as its cumulative product,
+    every term up to the largest order among the stepped entries, each
+    sum in order; ``linear``: backward Euler's line from the point before;
+    discrete states, ``discrete`` their columns of S, at their values at
+    the step's start)."""
+    nS, nX, nQ = S.shape[1], X.shape[1], Q.shape[1]
+    last = max(diffs.shape[0] - 1, 0)
+    kmax = 0
+    for i in range(k.size):
+        if extra[i] > 0 and k[i] > kmax:
+            kmax = k[i]
+    C = np.zeros(max(kmax, 1))
+    d = np.empty(diffs.shape[1])
+    q = 0           # the next old row to copy
+    out = 0
+    for i in range(k.size):
+        if extra[i] <= 0:
+            continue
+        while q < row[i]:
+            _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, out)
+            q += 1
+            out += 1
+        ki, hi, te, r = k[i], h[i], t_end[i], row[i]
+        for m in range(1, extra[i] + 1):
+            tau = te - hi + hi * float(m) / float(counts[i])
+            s = 0.0
+            if ki > 0:
+                s = (tau - te) / (hi if hi > 0.0 else 1.0)
+            if s < -1.0:
+                s = -1.0
+            elif s > 0.0:
+                s = 0.0
+            t_out[out] = tau
+            Xo, So = X_out[out], S_out[out]
+            for c in range(nX):
+                Xo[c] = X[r, c]
+            for c in range(nS):
+                So[c] = S[r, c]
+            if nQ:
+                for c in range(nQ):
+                    Q_out[out, c] = Q[r, c]
+            if kmax:
+                if linear:
+                    p = max(r - 1, 0)
+                    for c in range(nX):
+                        Xo[c] += s * (X[r, c] - X[p, c])
+                    for c in range(nS):
+                        So[c] += s * (S[r, c] - S[p, c])
+                    for c in range(nQ):
+                        Q_out[out, c] += s * (Q[r, c] - Q[p, c])
+                else:
+                    coef = 1.0
+                    for j in range(1, kmax + 1):
+                        coef = coef * ((s + (j - 1)) / j)
+                        C[j - 1] = coef if j <= ki else 0.0
+                    for j in range(kmax):
+                        D = diffs[min(off[i] + j, last)]
+                        cj = C[j]
+                        if j == 0:
+                            for c in range(d.size):
+                                d[c] = cj * D[c]
+                        else:
+                            for c in range(d.size):
+                                d[c] = d[c] + cj * D[c]
+                    for c in range(nS):
+                        So[c] += d[c]
+                    for c in range(nX):
+                        Xo[c] += d[nS + c]
+                    for c in range(nQ):
+                        Q_out[out, c] += d[nS + nX + c]
+            if discrete.size and ki > 0 and -1.0 < s < 0.0:
+                start = row[i - 1] if i > 0 else row[k.size - 1]
+                for c in discrete:
+                    So[c] = S[start, c]
+            out += 1
+    while q < t.size:
+        _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, out)
+        q += 1
+        out += 1
+
+
+@jit
+def _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, out):
+    """Row q of the old points into row ``out`` of the new (element by
+    element: no slice assignment, whose shape-checked error message is
+    seconds of a first compile)."""
+    t_out[out] = t[q]
+    for c in range(X.shape[1]):
+        X_out[out, c] = X[q, c]
+    for c in range(S.shape[1]):
+        S_out[out, c] = S[q, c]
+    for c in range(Q.shape[1]):
+        Q_out[out, c] = Q[q, c]

@@ -387,6 +387,11 @@ def refine_counts(dense, weights, most=AUTO_REFINE_MAX, target=AUTO_REFINE_TARGE
     return r
 
 
+def _contiguous(a):
+    """``a`` as a C-contiguous float array (itself where it is one)."""
+    return np.ascontiguousarray(a, dtype=float)
+
+
 def insert_interior(dense, counts, t, X, S, Q):
     """The points t, X, S, Q (Q may be None) with counts[i] - 1 points inserted
     evenly inside each step of ``dense`` before its end point, on that step's
@@ -397,26 +402,16 @@ def insert_interior(dense, counts, t, X, S, Q):
     total = int(extra.sum())
     if not total:
         return t, X, S, Q, dense
-    which = np.repeat(np.arange(extra.size), extra)
-    first = np.cumsum(extra) - extra
-    m = np.arange(total) - first[which] + 1                 # 1 .. r - 1 within its step
-    r = counts[which]
-    t_end, h = dense.t_end[which], dense.h[which]
-    tau = t_end - h + h * m / r
-    Xi, Si, Qi = dense.on(which, tau)
-    # each before its step's end point (rows increase with the entries): the
-    # k-th inserted lands at its end point's row + k
-    ins = dense.row[which] + np.arange(total)
-    keep = np.ones(len(t) + total, dtype=bool)
-    keep[ins] = False
-
-    def merged(old, new):
-        out = np.empty((keep.size,) + old.shape[1:])
-        out[ins] = new
-        out[keep] = old
-        return out
-    t, X, S = merged(np.asarray(t, dtype=float), tau), merged(X, Xi), merged(S, Si)
-    Q = None if Q is None else merged(Q, Qi)
+    rows = len(t) + total
+    t_new, Q_new = np.empty(rows), np.empty((rows, 0 if Q is None else Q.shape[1]))
+    X_new, S_new = np.empty((rows, X.shape[1])), np.empty((rows, S.shape[1]))
+    ints = [np.ascontiguousarray(a, dtype=np.int64)
+            for a in (dense.k, dense.row, dense.off, dense.discrete, extra, counts)]
+    law_module("output").interior(
+        _contiguous(dense.t_end), _contiguous(dense.h), *ints[:3], _contiguous(dense.diffs),
+        bool(dense.linear), *ints[3:], _contiguous(t), _contiguous(X), _contiguous(S),
+        np.empty((len(t), 0)) if Q is None else _contiguous(Q), t_new, X_new, S_new, Q_new)
+    t, X, S, Q = t_new, X_new, S_new, (None if Q is None else Q_new)
     return t, X, S, Q, dense.shifted(np.cumsum(extra), X, S, Q)
 
 
