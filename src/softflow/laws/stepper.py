@@ -553,7 +553,7 @@ def _rescale(D, k, factor):
             D[i, c] = s
 
 
-@jit
+@inline
 def _weights(S_a, S_b, x, atol_s, atol_x, x_off, q_id, qmax_run, rtol, w):
     """The error weights (states, then unknowns) into w, the run's largest
     magnitude of each quantity raised to x's (:meth:`BDF._weights`)."""
@@ -575,7 +575,7 @@ def _weights(S_a, S_b, x, atol_s, atol_x, x_off, q_id, qmax_run, rtol, w):
         w[ns + i] = atol_x[i] + rtol * qmax[q_id[i]]
 
 
-@jit
+@inline
 def _enorm(v, w, m, n_disc, peak_factor):
     """The weighted RMS of v[:m] / w[:m] over its continuous entries, or its
     largest weighted entry over ``peak_factor`` where that is larger."""
@@ -591,7 +591,7 @@ def _enorm(v, w, m, n_disc, peak_factor):
     return max(math.sqrt(acc / size), peak / peak_factor)
 
 
-@jit
+@inline
 def _newton_scale(x0, natol, nrtol, x_off, q_id, floor, has_floor, links, itol):
     """Newton's reciprocal tolerances for a solve from x0 (:meth:`Newton._set_scale`)."""
     nq = floor.size
