@@ -34,12 +34,7 @@ def dense_terms(C, rows, diffs, dcols, out):
             coef = C[m, j]
             D = diffs[rows[m, j]]
             if every:
-                if j == 0:
-                    for c in range(o.size):
-                        o[c] = coef * D[c]
-                else:
-                    for c in range(o.size):
-                        o[c] = o[c] + coef * D[c]
+                _term(o, coef, D, j == 0)
             else:
                 if j == 0:
                     for c in range(o.size):
@@ -47,6 +42,18 @@ def dense_terms(C, rows, diffs, dcols, out):
                 else:
                     for c in range(o.size):
                         o[c] = o[c] + coef * D[dcols[c]]
+
+
+@jit
+def _term(o, coef, D, first):
+    """o = coef D where ``first``, else o + coef D, entry by entry (each
+    sum in the order of its terms)."""
+    if first:
+        for c in range(o.size):
+            o[c] = coef * D[c]
+    else:
+        for c in range(o.size):
+            o[c] = o[c] + coef * D[c]
 
 
 @jit
@@ -156,14 +163,7 @@ def interior(t_end, h, k, row, off, diffs, linear, discrete, extra, counts, t, X
                         coef = coef * ((s + (j - 1)) / j)
                         C[j - 1] = coef if j <= ki else 0.0
                     for j in range(kmax):
-                        D = diffs[min(off[i] + j, last)]
-                        cj = C[j]
-                        if j == 0:
-                            for c in range(d.size):
-                                d[c] = cj * D[c]
-                        else:
-                            for c in range(d.size):
-                                d[c] = d[c] + cj * D[c]
+                        _term(d, C[j], diffs[min(off[i] + j, last)], j == 0)
                     for c in range(nS):
                         So[c] += d[c]
                     for c in range(nX):
