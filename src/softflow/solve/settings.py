@@ -396,7 +396,7 @@ EXPECT_MARGIN, EXPECT_GROWTH_MIN = 1.1, 1.25
 #: (transparent_hugepage/defrag = madvise, a common default), the runs that
 #: record hundreds of MB spent a fifth of their time there (the 2 000-
 #: component water network of benchmarks/bench_water_network.py: 12.4 s CPU
-#: with huge pages, 3.4 s of it system time, against 10.2 s without them).
+#: with huge pages, 3.4 s of it system time, against 10.0 s without them).
 HUGE_PAGES = False
 #: Rejected steps and restarts the compiled loop keeps for the progress
 #: reporter (its log) before it hands back (the loop hands back when full).
