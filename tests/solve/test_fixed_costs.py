@@ -745,21 +745,24 @@ def test_numpys_huge_pages_are_off_during_a_run_and_restored_as_they_were(monkey
     assert state["on"] is True
 
     # two holders in threads: off until the last leaves
-    inside, leave = threading.Barrier(3), threading.Event()
+    inside = threading.Barrier(3)
+    leave = [threading.Event(), threading.Event()]
 
-    def hold():
+    def hold(i):
         with sim_mod._huge_pages_off():
             inside.wait()
-            leave.wait()
+            leave[i].wait()
 
-    threads = [threading.Thread(target=hold) for _ in range(2)]
+    threads = [threading.Thread(target=hold, args=(i,)) for i in range(2)]
     for th in threads:
         th.start()
     inside.wait()
     assert state["on"] is False
-    leave.set()
-    for th in threads:
-        th.join()
+    leave[0].set()
+    threads[0].join()
+    assert state["on"] is False          # the other still holds it
+    leave[1].set()
+    threads[1].join()
     assert state["on"] is True and sim_mod._huge_pages_off._holders == 0
 
     # HUGE_PAGES = True: left alone
