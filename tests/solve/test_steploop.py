@@ -688,3 +688,44 @@ def test_restart_probes_solve_as_the_bdfs(monkeypatch):
                 "order_steps"):
         assert comp.stats[key] == py.stats[key], key
     np.testing.assert_allclose(comp.times, py.times, rtol=1e-9, atol=0)
+
+
+def test_record_buffers_hold_a_small_runs_steps_and_hand_over_when_full(monkeypatch):
+    """The loop's record buffers take as many rows as
+    settings.COMPILED_RECORD_BYTES hold, between COMPILED_RECORD_ROWS and
+    COMPILED_RECORD_ROWS_MAX: fig5:air's 385 steps in one call of the loop
+    (two before); buffers of 8 rows hand over every 8 steps, adaptive and at
+    fixed steps, with the same numbers."""
+    assert steploop.record_rows(1) == settings.COMPILED_RECORD_ROWS_MAX
+    assert steploop.record_rows(10 ** 9) == settings.COMPILED_RECORD_ROWS
+    assert (settings.COMPILED_RECORD_ROWS < steploop.record_rows(500)
+            < settings.COMPILED_RECORD_ROWS_MAX)
+    calls = []
+    st = steploop.law_module("stepper")
+    for name in ("stretch", "fixed_stretch"):
+        original = getattr(st, name)
+
+        def counted(*args, _original=original, _name=name):
+            calls.append(_name)
+            return _original(*args)
+        monkeypatch.setattr(st, name, counted)
+
+    def run(**kw):
+        calls.clear()
+        r = sf.Simulation(ps.fig5(sf.air), duration=ps.duration(5), beyond_limits="warn",
+                          **kw).run()
+        return r, list(calls)
+
+    adaptive, big = run()
+    fixed, big_fixed = run(step=1e-3)
+    assert adaptive.stats["steps"] > 300 and big.count("stretch") <= 2
+    monkeypatch.setattr(settings, "COMPILED_RECORD_ROWS", 8)
+    monkeypatch.setattr(settings, "COMPILED_RECORD_ROWS_MAX", 8)
+    adaptive8, small = run()
+    fixed8, small_fixed = run(step=1e-3)
+    assert small.count("stretch") >= adaptive.stats["steps"] // 8
+    assert small_fixed.count("fixed_stretch") >= len(fixed.times) // 8 > 0
+    for a, b in ((adaptive, adaptive8), (fixed, fixed8)):
+        np.testing.assert_array_equal(a.times, b.times)
+        np.testing.assert_array_equal(a.X, b.X)
+        np.testing.assert_array_equal(a.S, b.S)

@@ -379,8 +379,15 @@ VARIANT_THREADS_MIN = 16
 VARIANT_CHUNK = 64
 VARIANT_ROWS = 64
 #: Accepted steps the compiled loop records before it hands them to the
-#: run's recorder (and reports progress); each call allocates nothing.
+#: run's recorder (its progress reports do not wait for that); each call
+#: allocates nothing. As many as COMPILED_RECORD_BYTES hold (the step's
+#: point, integrals and dense-output differences), at least
+#: COMPILED_RECORD_ROWS and at most COMPILED_RECORD_ROWS_MAX
+#: (softflow.solve.steploop.record_rows): fig5:air's 385 steps were two
+#: calls and two hand-overs, ~0.1 ms of its ~5 ms, and are one now.
 COMPILED_RECORD_ROWS = 256
+COMPILED_RECORD_ROWS_MAX = 1024
+COMPILED_RECORD_BYTES = 2_000_000
 #: Where the run's records must grow, they grow to the points (and dense
 #: output rows) expected in all at the pace so far, times EXPECT_MARGIN,
 #: where that is less than doubling, and by EXPECT_GROWTH_MIN at least (a

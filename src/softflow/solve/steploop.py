@@ -110,7 +110,8 @@ class _Bound:
                         else np.asarray(rec.x_index, dtype=np.int64))
         self.s_index = (np.arange(ns, dtype=np.int64) if rec._s_all
                         else np.asarray(rec.s_index, dtype=np.int64))
-        cap = self.cap = settings.COMPILED_RECORD_ROWS
+        cap = self.cap = record_rows(1 + self.x_index.size + self.s_index.size + nq
+                                     + self._dense_floats(integ))
         self.buffers = (np.empty(cap), np.empty((cap, self.x_index.size)),
                         np.empty((cap, self.s_index.size)), np.empty((cap, nq)))
         self.ist = np.zeros(st.IST_SIZE, dtype=np.int64)
@@ -128,6 +129,11 @@ class _Bound:
             self.begin = usercall.Begin(asm, asm.residual.network.refresh)
             self.ist[st.BEGIN_KEY] = usercall.register(self.begin)
             self.ist[st.BEGIN_AT] = usercall.ADDRESS
+
+    def _dense_floats(self, integ):
+        """The dense output's floats a recorded step takes in the loop's
+        buffers (none at fixed steps)."""
+        return 0
 
     def _newton_in(self):
         """Newton's factors, contraction estimates and tolerance floor in."""
@@ -219,6 +225,11 @@ class _Bound:
 class CompiledSteps(_Bound):
     """The compiled loop bound to one BDF run: the arrays it works in, made
     once, and the copies of the BDF's and Newton's state in and out."""
+
+    def _dense_floats(self, bdf):
+        """Up to the largest order's rows of the step's differences."""
+        dense = bdf.dense
+        return bdf.max_order * (dense.width if dense.cols is None else dense.cols.size)
 
     def __init__(self, bdf, net, sources):
         n = bdf.asm.n
@@ -362,6 +373,18 @@ class CompiledSteps(_Bound):
         since its last step taken, or the start (0 without a culprit
         finder)."""
         return int(self.ist[self.st.FAILS_HERE]) if self.bdf.culprit is not None else 0
+
+
+def record_rows(floats_per_row):
+    """The rows of the loop's record buffers: as many as
+    :data:`~softflow.solve.settings.COMPILED_RECORD_BYTES` hold at
+    ``floats_per_row`` floats a row, between
+    :data:`~softflow.solve.settings.COMPILED_RECORD_ROWS` and
+    :data:`~softflow.solve.settings.COMPILED_RECORD_ROWS_MAX`: a small
+    network's run of a few hundred steps in one call of the loop, a large
+    network's buffers no larger than before."""
+    fit = settings.COMPILED_RECORD_BYTES // (8 * max(int(floats_per_row), 1))
+    return int(max(settings.COMPILED_RECORD_ROWS, min(fit, settings.COMPILED_RECORD_ROWS_MAX)))
 
 
 def _lin_tuple(net, asm, flat, shape, lu_shape, info, order, sp_int, sp_float):
