@@ -383,8 +383,8 @@ VARIANT_ROWS = 64
 #: allocates nothing. As many as COMPILED_RECORD_BYTES hold (the step's
 #: point, integrals and dense-output differences), at least
 #: COMPILED_RECORD_ROWS and at most COMPILED_RECORD_ROWS_MAX
-#: (softflow.solve.steploop.record_rows): fig5:air's 385 steps were two
-#: calls and two hand-overs, ~0.1 ms of its ~5 ms, and are one now.
+#: (softflow.solve.steploop.record_rows): fig5:air's 385 steps took three
+#: calls of the loop (its 256-row buffers full once) and take two now.
 COMPILED_RECORD_ROWS = 256
 COMPILED_RECORD_ROWS_MAX = 1024
 COMPILED_RECORD_BYTES = 2_000_000
