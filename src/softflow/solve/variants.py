@@ -339,7 +339,8 @@ class _Worker:
         raw = tpl.net[0].copy()
         self.net = (raw,) + tuple(tpl.net[1:])
         self.lin = (raw,) + _copied(steps.lin[1:])
-        st.far_addresses(self.lin)      # (for the copies' own types: the template's)
+        # (its info, lin[13], copied with the template's banded or sparse LUs'
+        # addresses: the copies have the template's types, which each call checks)
         self.start_lin = (raw,) + _copied(tpl.start_lin[1:])
         rec = _copied(steps.buffers)
         self.rec = rec + (steps.x_index, steps.s_index)
