@@ -22,9 +22,10 @@ x_e = B^-1 b_e - B^-1 A_er x_r, two sparse products with fixed patterns.
 
 The blocks of the library components are triangular up to a permutation
 (a flow element: the flow law gives mf_a, the mass balance mf_b, the energy
-law E_a, the energy balance E_b), so B^-1 [I | A_er] is a substitution
-vectorized over each component class; other blocks (user components) go
-through LAPACK, batched.
+law E_a, the energy balance E_b), so B^-1 [I | A_er] is a substitution, the
+blocks of a factorization in one compiled pass
+(:func:`softflow.laws.condense.invert_blocks`); other blocks (user
+components) go through LAPACK, batched over a class's instances.
 
 Where a block is singular or nearly so (volumes at dt = 0, the consistent
 initial values), its group stays in the node system for that factorization;
@@ -36,6 +37,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csc_matrix, csr_matrix
 
+from .._laws import law_module
 from .linalg import SingularJacobian, SparseLU
 from .supernodes import ColumnLU
 
@@ -163,31 +165,12 @@ class _Block:
                     elif c != a:
                         self.nz[a] |= self.nz[c]
 
-    def invert(self, J, X):
-        """X[:] = B^-1 [I | A_er] from the group's raw Jacobian values J (n, npat);
-        False where a block is (nearly) singular."""
-        if self.order is None:
-            return self._invert_dense(J, X)
-        k = self.k
-        for e, a in self.order:
-            acc = np.zeros((self.g.n, k + self.m))
-            acc[:, e] = 1.0
-            piv = None
-            big = 0.0
-            for p, c in self.rows[e]:
-                if c == a:
-                    piv = J[:, p]
-                elif c >= k:
-                    acc[:, c] += J[:, p]
-                else:
-                    acc -= J[:, p, None] * X[:, c, :]
-                    big = np.maximum(big, np.abs(J[:, p]))
-            if not (np.abs(piv) > PIVOT_MIN * big).all():
-                return False
-            np.divide(acc, piv[:, None], out=X[:, a, :])
-        return True
-
-    def _invert_dense(self, J, X):
+    def invert_dense(self, J, X):
+        """X[:] = B^-1 [I | A_er] from the group's raw Jacobian values J (n, npat)
+        by LAPACK, batched over the instances, for a block that is not
+        triangular up to a permutation (``order`` None: the triangular ones
+        are :func:`softflow.laws.condense.invert_blocks`'); False where a
+        block is (nearly) singular."""
         n, k, m = self.g.n, self.k, self.m
         M = np.zeros((n, k, 2 * k + m))
         for e in range(k):
@@ -267,6 +250,7 @@ class CondensationPlan:
             row_elim[g.r0:g.r1] = True
         if not self.blocks:
             return
+        self._substitution_arrays()
         red_rows = np.flatnonzero(~row_elim)
         red_cols = np.flatnonzero(~col_elim)
         self.nr = nr = len(red_rows)
@@ -341,17 +325,58 @@ class CondensationPlan:
         several = asm.n_across > asm.n_nodes
         self.lu = ColumnLU(columnwise=None if several else False)
 
-    def _invert(self, b, raw):
-        """Block b's X = B^-1 [I | A_er] into the values; False where singular."""
+    def _substitution_arrays(self):
+        """The triangular blocks' structure as the arrays of
+        :func:`softflow.laws.condense.invert_blocks` (``_table``: per block;
+        ``_order``: per pivot; ``_cells``: per entry of a pivot's equation),
+        and the blocks LAPACK inverts (``_dense``: their positions)."""
+        table = np.zeros((len(self.blocks), 8), dtype=np.int64)
+        order, cells, dense = [], [], []
+        for j, b in enumerate(self.blocks):
+            if b.order is None:
+                dense.append(j)
+                continue
+            o0 = len(order)
+            for e, a in b.order:
+                r0 = len(cells)
+                cells.extend(b.rows[e])
+                order.append((e, a, r0, len(cells)))
+            table[j] = (b.g.j0, b.g.n, len(b.g.pattern), b.xoff, b.k, b.m, o0, len(order))
+        self._table = table
+        self._order = np.array(order, dtype=np.int64).reshape(-1, 4)
+        self._cells = np.array(cells, dtype=np.int64).reshape(-1, 2)
+        self._dense = dense
+        self._triangular = np.array([j for j, b in enumerate(self.blocks) if b.order is not None],
+                                    dtype=np.int64)
+
+    def _invert_dense(self, j, raw):
+        """Block j's X = B^-1 [I | A_er] into the values by LAPACK; False
+        where singular."""
+        b = self.blocks[j]
         g = b.g
         J = raw[g.j0:g.j1].reshape(g.n, len(g.pattern))
         X = self.values[b.xoff:b.xoff + b.xsize].reshape(g.n, b.k, b.k + b.m)
-        return b.invert(J, X)
+        return b.invert_dense(J, X)
+
+    def _inverted(self, raw, which, until_regular=False):
+        """Whether each block of ``which`` (positions in ``blocks``, the
+        triangular ones) is regular, its X = B^-1 [I | A_er] into the values
+        (one compiled call; ``until_regular``: up to the first regular one,
+        the others False)."""
+        ok = np.zeros(which.size, dtype=np.bool_)
+        law_module("condense").invert_blocks(raw, self.values, self._table, self._order,
+                                             self._cells, which, PIVOT_MIN, until_regular,
+                                             ok)
+        return ok
 
     def all_singular(self, raw, groups):
         """Whether every block of ``groups`` (indices in asm.groups, all
         condensed in this plan) is (nearly) singular in ``raw``."""
-        return not any(self._invert(b, raw) for b in self.blocks if b.index in groups)
+        asked = [j for j, b in enumerate(self.blocks) if b.index in groups]
+        triangular = np.array([j for j in asked if j not in self._dense], dtype=np.int64)
+        if self._inverted(raw, triangular, until_regular=True).any():
+            return False
+        return not any(self._invert_dense(j, raw) for j in asked if j in self._dense)
 
     def factor(self, raw):
         """Condense and factor. Returns None on success, else the indices (in
@@ -359,7 +384,10 @@ class CondensationPlan:
         where S is singular."""
         values = self.values
         values[len(values) - 1 - len(raw):-1] = raw
-        singular = {b.index for b in self.blocks if not self._invert(b, raw)}
+        blocks = self.blocks
+        ok = self._inverted(raw, self._triangular)
+        singular = {blocks[j].index for j in self._triangular[~ok].tolist()}
+        singular.update(blocks[j].index for j in self._dense if not self._invert_dense(j, raw))
         if singular:
             return frozenset(singular)
         self.S.fill(values)
