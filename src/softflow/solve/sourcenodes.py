@@ -139,7 +139,7 @@ class _Jacobian:
     else its CSR arrays, gathered row by row (the values of
     ``jacobian_csc().tocsr()[rows][:, cols].toarray()``, without SciPy's
     sparse indexing: ~50 us a block, the most of this module's cost on a
-    small network)."""
+    small network; the CSR arrays from :meth:`Assembly.jacobian_csr`)."""
 
     def __init__(self, asm):
         n = self.n = asm.n
@@ -147,9 +147,7 @@ class _Jacobian:
             self.dense = asm.dense_jacobian()
             return
         self.dense = None
-        J = self.csr = asm.jacobian_csc().tocsr()
-        self.indptr = J.indptr.astype(np.int64)
-        self.indices, self.data = J.indices, J.data
+        self.indptr, self.indices, self.data = asm.jacobian_csr()
         self.pos = np.full(n, -1, dtype=np.int64)
 
     def block(self, rows, cols):
@@ -160,7 +158,9 @@ class _Jacobian:
             # np.ix_'s block, without its per-call checks (a third of a small block's cost)
             return self.dense[rows[:, None], cols]
         if np.unique(cols).size != cols.size:        # a column asked twice
-            return self.csr[rows][:, cols].toarray()
+            from scipy.sparse import csr_matrix
+            csr = csr_matrix((self.data, self.indices, self.indptr), shape=(self.n, self.n))
+            return csr[rows][:, cols].toarray()
         pos = self.pos
         pos[cols] = np.arange(cols.size)
         try:
