@@ -690,11 +690,14 @@ def _vapour_pressure(fluid):
 
 
 def _node_pressures(result, nodes):
-    """(the recorded ones of ``nodes``, their pressures over the run: times x
-    nodes); none recorded: an empty array of nodes."""
+    """(the recorded ones of ``nodes``, their columns in ``result.X``); none
+    recorded: an empty array of nodes. The checks reduce X's columns whole and
+    pick theirs from the reductions, without gathering the nodes' columns into
+    a new array (a 2 000-component water network's 995 nodes of 4 020 columns
+    over 5 036 points: 0.126 s gathered, ~0.01 s reduced)."""
     cols = result._xcol[nodes]
     recorded = cols >= 0
-    return nodes[recorded], result.X[:, cols[recorded]]
+    return nodes[recorded], cols[recorded]
 
 
 def _component_at_node(asm, result, owners, node):
@@ -713,10 +716,11 @@ def cavitation(asm, result):
     lowest pressure of each liquid against its vapour pressure (module doc)."""
     out = []
     for fluid, nodes, owners in _liquid_nodes(asm).values():
-        nodes, P = _node_pressures(result, nodes)
+        nodes, cols = _node_pressures(result, nodes)
         if not nodes.size:
             continue
-        low = np.fmin.reduce(P, axis=0)        # per node, NaN left out
+        X = result.X
+        low = np.fmin.reduce(X, axis=0)[cols]  # per node, NaN left out
         low[np.isnan(low)] = np.inf            # (a node without a number at all)
         j = int(np.argmin(low))
         p_min = float(low[j])
@@ -726,7 +730,7 @@ def cavitation(asm, result):
         fraction = p_vap / p_min
         if not grade(fraction):
             continue
-        k = int(np.nanargmin(P[:, j]))
+        k = int(np.nanargmin(X[:, cols[j]]))
         comp, times, where = _component_at_node(asm, result, owners, int(nodes[j]))
         t = float(times[k])
         T = float(fluid.temperature)
@@ -772,13 +776,14 @@ def fluid_range(asm, result):
     the pressure over the end (above it); only past 1."""
     out = []
     for fluid, nodes, owners in _liquid_nodes(asm, keep=_raising_table).values():
-        nodes, P = _node_pressures(result, nodes)
+        nodes, cols = _node_pressures(result, nodes)
         if not nodes.size:
             continue
         lo, hi = (float(v) for v in fluid.p_range)
+        X = result.X
         with np.errstate(all="ignore"):
-            low = np.fmin.reduce(P, axis=0)
-            high = np.fmax.reduce(P, axis=0)
+            low = np.fmin.reduce(X, axis=0)[cols]
+            high = np.fmax.reduce(X, axis=0)[cols]
             far = np.fmax(np.where(low > 0.0, lo / low, np.inf), high / hi)
         far[np.isnan(far)] = 0.0
         j = int(np.argmax(far))
@@ -788,11 +793,12 @@ def fluid_range(asm, result):
         if not fraction > 1.0 + _rtol(result):
             continue
         below = lo / low[j] >= high[j] / hi if low[j] > 0.0 else True
-        k = int(np.nanargmin(P[:, j]) if below else np.nanargmax(P[:, j]))
-        p = float(P[k, j])
+        P = X[:, cols[j]]
+        k = int(np.nanargmin(P) if below else np.nanargmax(P))
+        p = float(P[k])
         comp, times, where = _component_at_node(asm, result, owners, int(nodes[j]))
         t = float(times[k])
-        outside = (P[:, j] < lo) if below else (P[:, j] > hi)
+        outside = (P < lo) if below else (P > hi)
         t_first = float(times[int(np.argmax(outside))])
         edge = lo if below else hi
         out.append(_record(
