@@ -113,6 +113,12 @@ def test_condensed_solve_matches_sparse_lu(thermal):
     np.testing.assert_array_equal(cond.row_scale, full.row_scale)
 
 
+def _sparse_solution(asm, b):
+    full = SparseLU(asm)
+    full.factor()
+    return full.solve(b)
+
+
 def test_volumes_at_dt_zero_stay_in_the_node_system():
     asm = _assembly("adiabatic")
     asm.residual(asm.x0, asm.S0, 0.0, 0.0, jac=True)   # consistent initial values
@@ -120,6 +126,8 @@ def test_volumes_at_dt_zero_stay_in_the_node_system():
     cond.factor()
     full.factor()
     assert cond.mode == "condensed" and cond.active is not cond.plan
+    # the plan without exclusions was only tested: its matrices are not built
+    assert cond.plan._pending is not None and cond.active._pending is None
     kept = {type(b.g.comps[0]).__name__ for b in cond.active.blocks}
     assert kept and not kept & {"ThermalContainer", "ThermalLinearAccumulator", "ThermalActuator"}
     b = np.random.default_rng(0).standard_normal(asm.n)
@@ -128,8 +136,10 @@ def test_volumes_at_dt_zero_stay_in_the_node_system():
     # the next factorization with dt > 0 condenses everything again, from the cache
     asm.residual(asm.x0, asm.S0, 0.0, 1e-3, jac=True)
     cond.factor()
-    assert cond.active is cond.plan
+    assert cond.active is cond.plan and cond.plan._pending is None
     assert len(asm.solver_cache["condensation"]) == 2
+    np.testing.assert_allclose(cond.solve(b), _sparse_solution(asm, b), rtol=1e-6,
+                               atol=1e-9 * np.abs(xf).max())
 
 
 def test_singular_and_nonfinite_jacobians_raise_as_before():
@@ -229,8 +239,7 @@ def test_compiled_block_inverses_against_lapack(dt):
     """Each triangular block's X = B^-1 [I | A_er] from the compiled pass
     (softflow.laws.condense.invert_blocks, one call for all blocks) against
     numpy.linalg.solve of the block built from its pattern; at dt = 0 the
-    volumes' blocks (singular there) are flagged, and only those; asked
-    until the first regular block, the pass stops there."""
+    volumes' blocks (singular there) are flagged, and only those."""
     asm = _assembly("adiabatic")
     rng = np.random.default_rng(7)
     x = asm.x0.copy()
@@ -261,7 +270,3 @@ def test_compiled_block_inverses_against_lapack(dt):
             np.testing.assert_allclose(X[i], ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
             checked += 1
     assert checked >= len(plan.blocks) - 3
-    # until the first regular block: those before it singular, the rest not done
-    first = int(np.argmax(ok))
-    got = plan._inverted(raw, plan._triangular, until_regular=True)
-    assert got.tolist() == [False] * first + [True] + [False] * (len(ok) - first - 1)

@@ -21,7 +21,7 @@ E, A, R0, R1 = range(4)
 
 
 @jit
-def invert_blocks(raw, values, blocks, order, cells, which, pivot_min, until_regular, ok):
+def invert_blocks(raw, values, blocks, order, cells, which, pivot_min, ok):
     """X = B^-1 [I | A_er] of the blocks ``which`` (rows of ``blocks``), into
     ``values`` (block b's X, instance i, row a, column j at
     ``values[xoff + (i k + a)(k + m) + j]``) from the group's raw Jacobian
@@ -31,11 +31,9 @@ def invert_blocks(raw, values, blocks, order, cells, which, pivot_min, until_reg
     rows o0..o1 of ``order``: (e, a, r0, r1), equation e solved for own
     unknown a, the equation's entries the rows r0..r1 of ``cells``: (p, c),
     pattern entry p in column c of [B | A_er]. ``ok[w]``: whether block
-    ``which[w]`` is regular, each pivot above ``pivot_min`` times the
-    largest entry of its row that multiplies a known unknown (as
-    :meth:`softflow.solve.condense._Block.invert`). ``until_regular``: stop
-    at the first regular block; returns the blocks done."""
-    done = 0
+    ``which[w]`` is regular, each pivot above ``pivot_min``
+    (:data:`softflow.solve.condense.PIVOT_MIN`) times the largest entry of
+    its row that multiplies a known unknown."""
     for w in range(which.size):
         b = which[w]
         j0, n, npat, xoff = blocks[b, J0], blocks[b, N], blocks[b, NPAT], blocks[b, XOFF]
@@ -76,7 +74,3 @@ def invert_blocks(raw, values, blocks, order, cells, which, pivot_min, until_reg
             if not regular:
                 break
         ok[w] = regular
-        done += 1
-        if regular and until_regular:
-            break
-    return done
