@@ -515,3 +515,20 @@ def test_interior_points_are_the_interpolant_on_bitwise(linear):
         at += 1
     _, _, _, none, _ = dense_mod.insert_interior(dense, counts, t_end, X, S, None)
     assert none is None
+    # in place (softflow.laws.output.interior_in_place): into the arrays the
+    # records lead, where they have the rows, bitwise the same points
+    total = len(t2)
+    bases = [np.full((total + 3, a.shape[1]), np.nan) for a in (X, S, Q)]
+    for base, a in zip(bases, (X, S, Q)):
+        base[:n_entries] = a
+    t3, X3, S3, Q3, dense3 = dense_mod.insert_interior(
+        dense, counts, t_end, *(base[:n_entries] for base in bases), in_place=True)
+    for got, base, ref in zip((X3, S3, Q3), bases, (X2, S2, Q2)):
+        assert got.base is base and got.shape == ref.shape
+        np.testing.assert_array_equal(got.view(np.int64), ref.view(np.int64))
+    assert np.array_equal(t3, t2) and np.array_equal(dense3.row, dense2.row)
+    # without room (or not asked): new arrays, the given ones untouched
+    kept = [a.copy() for a in (X, S, Q)]
+    t4, X4, S4, Q4, _ = dense_mod.insert_interior(dense, counts, t_end, X, S, Q, in_place=True)
+    assert X4.base is None and np.array_equal(X4, X2) and np.array_equal(Q4, Q2)
+    assert all(np.array_equal(a, b) for a, b in zip((X, S, Q), kept))

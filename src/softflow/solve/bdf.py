@@ -854,7 +854,10 @@ class BDF(Integrator):
             counts = refine_counts(dense, self._read_weights(S))
         else:
             counts = np.full(dense.k.size, self.refine)
-        t, X, S, Q, dense = insert_interior(dense, counts, t, X, S, Q)
+        rec = self.rec
+        own = (X.base is rec._X and S.base is rec._S
+               and (Q is None or Q.base is rec._Q))      # the records themselves
+        t, X, S, Q, dense = insert_interior(dense, counts, t, X, S, Q, in_place=own)
         return t, X, S, Q, dense
 
     def _read_weights(self, S):
