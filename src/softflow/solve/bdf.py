@@ -854,9 +854,11 @@ class BDF(Integrator):
             counts = refine_counts(dense, self._read_weights(S))
         else:
             counts = np.full(dense.k.size, self.refine)
+        # X, S, Q the records' own first rows: refine's points may go into
+        # those arrays (the run's last use of its recorder)
         rec = self.rec
         own = (X.base is rec._X and S.base is rec._S
-               and (Q is None or Q.base is rec._Q))      # the records themselves
+               and (Q is None or Q.base is rec._Q))
         t, X, S, Q, dense = insert_interior(dense, counts, t, X, S, Q, in_place=own)
         return t, X, S, Q, dense
 
