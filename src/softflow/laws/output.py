@@ -118,25 +118,26 @@ def interior(t_end, h, k, row, off, diffs, linear, discrete, extra, counts, t, X
     kmax = _kmax(k, extra)
     C = np.zeros(max(kmax, 1))
     d = np.empty(diffs.shape[1])
-    q = 0           # the next old row to copy
-    out = 0
+    # old row q goes to row q + shift, shift the points inserted before it
+    # (rows as sums and range indices: a row counted up from a literal 0 had
+    # numba compile _row once more for that literal)
+    shift = 0
+    q0 = 0          # the first old row not yet copied
     for i in range(k.size):
         if extra[i] <= 0:
             continue
-        while q < row[i]:
-            _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, out)
-            q += 1
-            out += 1
         r = row[i]
+        for q in range(q0, r):
+            _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, q + shift)
+        q0 = r
         start = row[i - 1] if i > 0 else row[k.size - 1]
         for m in range(1, extra[i] + 1):
             _inside(t_end[i], h[i], k[i], counts[i], m, off[i], diffs, linear, discrete, kmax,
-                    C, d, X, S, Q, r, max(r - 1, 0), start, t_out, X_out, S_out, Q_out, out)
-            out += 1
-    while q < t.size:
-        _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, out)
-        q += 1
-        out += 1
+                    C, d, X, S, Q, r, max(r - 1, 0), start, t_out, X_out, S_out, Q_out,
+                    r + shift + m - 1)
+        shift += extra[i]
+    for q in range(q0, t.size):
+        _row(t, X, S, Q, q, t_out, X_out, S_out, Q_out, q + shift)
 
 
 @jit
