@@ -373,21 +373,15 @@ class CondensationPlan:
         X = self.values[b.xoff:b.xoff + b.xsize].reshape(g.n, b.k, b.k + b.m)
         return b.invert_dense(J, X)
 
-    def _inverted(self, raw, which):
-        """Whether each block of ``which`` (positions in ``blocks``, the
-        triangular ones) is regular, its X = B^-1 [I | A_er] into the values
-        (one compiled call)."""
+    def singular(self, raw):
+        """The indices (in asm.groups) of the groups whose blocks are (nearly)
+        singular in ``raw``, their inverses X = B^-1 [I | A_er] formed in this
+        plan's values (the triangular blocks in one compiled call)."""
+        blocks, which = self.blocks, self._triangular
         ok = np.zeros(which.size, dtype=np.bool_)
         law_module("condense").invert_blocks(raw, self.values, self._table, self._order,
                                              self._cells, which, PIVOT_MIN, ok)
-        return ok
-
-    def singular(self, raw):
-        """The indices (in asm.groups) of the groups whose blocks are (nearly)
-        singular in ``raw``, their inverses formed in this plan's values."""
-        blocks = self.blocks
-        ok = self._inverted(raw, self._triangular)
-        out = {blocks[j].index for j in self._triangular[~ok].tolist()}
+        out = {blocks[j].index for j in which[~ok].tolist()}
         out.update(blocks[j].index for j in self._dense if not self._invert_dense(j, raw))
         return frozenset(out)
 

@@ -68,21 +68,21 @@ _SAMPLES = np.array([0.0, -0.5, -1.0])
 
 
 def _second_derivatives(k):
-    """(3, k): phi_j''(s) at the samples s of :data:`_SAMPLES`, j = 1..k."""
-    out = np.zeros((_SAMPLES.size, k))
-    for j in range(1, k + 1):
+    """(3, k - 1): phi_j''(s) at the samples s of :data:`_SAMPLES`, j = 2..k
+    (phi_1'' is 0), C-contiguous (refine_counts' compiled pass)."""
+    out = np.zeros((_SAMPLES.size, max(k - 1, 0)))
+    for j in range(2, k + 1):
         # phi_j as a polynomial in s: prod_{m<j} (s + m) / j!
         poly = np.poly1d([1.0])
         for m in range(j):
             poly = poly * np.poly1d([1.0, float(m)])
         poly = poly / math.factorial(j)
-        out[:, j - 1] = poly.deriv(2)(_SAMPLES) if j >= 2 else 0.0
+        out[:, j - 2] = poly.deriv(2)(_SAMPLES)
     return out
 
 
+#: phi_2''..phi_k'' at the samples, for each order k
 _D2 = [None] + [_second_derivatives(k) for k in range(1, 7)]
-#: phi_2''..phi_k'' at the samples, contiguous (refine_counts' compiled pass)
-_D2C = [None] + [np.ascontiguousarray(d[:, 1:]) for d in _D2[1:]]
 
 
 def expected_rows(done, t, T):
@@ -383,7 +383,7 @@ def refine_counts(dense, weights, most=AUTO_REFINE_MAX, target=AUTO_REFINE_TARGE
     law_module("output").refine_counts(
         np.ascontiguousarray(k, dtype=np.int64), np.ascontiguousarray(dense.off, dtype=np.int64),
         np.ascontiguousarray(dense.diffs), int(weights.size), np.ascontiguousarray(inv),
-        _D2C[kmax], int(most), float(target), r)
+        _D2[kmax], int(most), float(target), r)
     return r
 
 
