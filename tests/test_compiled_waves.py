@@ -335,7 +335,8 @@ def test_source_values_fill_out_in_place():
 
 def _called_back(P, monkeypatch, times=(0.0, 0.05, 0.1, 0.25, 0.9)):
     """A group with a signal the laws do not state: described with the
-    PYTHON code (called back), its compiled values the group's own at each
+    PYTHON code (compiled, softflow.solve.usercompile, or called back), its
+    compiled values the group's own at each
     of ``times``; with settings.COMPILED_USER off, left to Python (None)."""
     from softflow.solve import settings
     described = wavecodes.describe(P)
@@ -360,11 +361,15 @@ def test_a_python_function_is_called_back(monkeypatch):
     _called_back(P, monkeypatch)
 
 
-def test_a_python_function_that_raises_gives_nan_and_keeps_the_error():
-    """The compiled values are NaN where the function raised; the error is
-    kept for the Python path (softflow.solve.usercall.RAISED), which raises
-    it naming the source (tests/solve/test_usercall.py)."""
-    from softflow.solve import usercall
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_python_function_that_raises_gives_nan_and_keeps_the_error(compiled, monkeypatch):
+    """The compiled values are NaN where the function raised, compiled
+    (softflow.solve.usercompile) or called back; a call-back keeps the
+    error for the Python path (softflow.solve.usercall.RAISED), which raises
+    it naming the source (tests/solve/test_usercall.py,
+    tests/solve/test_usercompile.py)."""
+    from softflow.solve import settings, usercall
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", compiled)
 
     def signal(t):
         if t > 0.5:
@@ -378,7 +383,10 @@ def test_a_python_function_that_raises_gives_nan_and_keeps_the_error():
     usercall.RAISED.clear()
     waves.source_values(0.7, base, slot, codes, factors, starts, floats, out)
     assert np.isnan(out[0])
-    assert "no pressure past 0.5 s" in str(usercall.RAISED[-1])
+    if compiled:
+        assert not usercall.RAISED
+    else:
+        assert "no pressure past 0.5 s" in str(usercall.RAISED[-1])
 
 
 def test_a_waveform_subclass_is_called_back(monkeypatch):

@@ -1,7 +1,10 @@
 """User components and Python-function sources called back from the compiled
 loop (softflow.solve.usercall): the same equations, runs and errors as the
 per-group path and the Python step loop, which settings.COMPILED_USER = False
-keeps."""
+keeps. (The paper's actuator is compiled where numba can compile it,
+softflow.solve.usercompile, tested in test_usercompile.py; the tests here
+that need its call-back ask for it, or raise from a wrapper numba cannot
+compile.)"""
 import sys
 import warnings
 from pathlib import Path
@@ -46,7 +49,7 @@ def test_the_papers_network_is_the_per_group_residual_to_round_off():
         sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
     asm = sim.asm
     net = asm.residual.network
-    assert len(net.callbacks) == 1
+    assert len(net.callbacks) + len(net.kernels) == 1
     g = next(g for g in asm.groups if g.row is not None)
     rng = np.random.default_rng(3)
     for trial in range(20):
@@ -139,10 +142,15 @@ def test_an_error_in_user_code_names_the_component_and_the_time(monkeypatch, whe
 
 def _user_group():
     """(asm, the actuator's group, its call-back key, x, S) of the paper's
-    scene at a point off its initial values."""
+    scene at a point off its initial values (called back: not compiled,
+    softflow.solve.usercompile)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
+        settings.COMPILED_USER_CODE = False
+        try:
+            sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
+        finally:
+            settings.COMPILED_USER_CODE = True
     asm = sim.asm
     net = asm.residual.network
     g = next(g for g in asm.groups if g.row is not None)
@@ -165,10 +173,12 @@ def test_pure_python_dispatch_is_the_callback():
     assert usercall.dispatch(key, 0.1, 1e-3, True, x[:1], S, F1, raw1, S1) == 1
 
 
-def test_batches_of_user_scenes_share_their_steps():
+def test_batches_of_user_scenes_share_their_steps(monkeypatch):
     """The batched variants' threads run on each variant's own arrays, which
     a call-back (on the batch network's) does not know: a user component's
-    scene keeps the shared steps, and says why."""
+    scene called back keeps the shared steps, and says why (compiled, its
+    variants run on their own clocks: test_usercompile.py)."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(paper_system(inertance=False), duration=0.2)

@@ -226,13 +226,16 @@ def _tank_scene(pressure, **wall):
 
 
 @pytest.mark.parametrize("case", ["wall", "user", "fixed", "refine"])
-def test_scenes_outside_the_loop_share_one_step_sequence(case):
+def test_scenes_outside_the_loop_share_one_step_sequence(case, monkeypatch):
     """A wall whose h A a correlation sets at each step (the loop takes no
-    per-step coefficients), a user's component (called back on the batch
-    network's arrays, not a variant's), fixed steps and refine=: not in the
+    per-step coefficients), a user's component called back (on the batch
+    network's arrays, not a variant's; one numba compiles runs in the loop:
+    tests/solve/test_usercompile.py), fixed steps and refine=: not in the
     loop; the batch shares one step sequence, says why, and each variant
     meets the tolerance of its own run."""
     from helpers import UserChamber
+    from softflow.solve import settings
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
     thermal, kw = "isothermal", {}
     if case == "wall":
         system = _tank_scene(sf.Q_(1.3, "bar"), heat_transfer_coefficient=sf.FreeConvection(),

@@ -328,6 +328,10 @@ class CompiledNetwork:
     #: the evaluators of the user components the loop calls back
     #: (:mod:`softflow.solve.usercall`), held while the network lives
     callbacks: list = []
+    #: the layouts of the user components compiled
+    #: (:mod:`softflow.solve.usercompile`: their addresses are the kernels'
+    #: keys), held while the network lives
+    kernels: list = []
     #: ``refresh()`` copies the h A that heat-transfer correlations set at
     #: each step's start (``asm.begin_step``) into ``fpar``; None where none
     refresh = None
@@ -433,6 +437,7 @@ def compiled_residual(asm, failures):
     rows, cols, fpar, varying, refresh, sources = [], [], [], [], [], []
     sizes = []      # per group: its shared floats, each instance's floats, whether it has u
     callbacks: list = []     # the user components' evaluators (softflow.solve.usercall)
+    kernels: list = []       # the compiled user components' layouts (usercompile)
     n_u = 0
     u_parts = []
     # each group's row as a list (made one array below), and the running sizes
@@ -464,10 +469,17 @@ def compiled_residual(asm, failures):
         row[net.OPTION] = option
         row[net.U0] = n_u
         if cls_id == net.USER:
-            from . import usercall
-            evaluator = usercall.Evaluator(g)
-            callbacks.append(evaluator)         # held by the network: see usercall
-            row[net.OPTION], row[net.U0] = usercall.register(evaluator), usercall.ADDRESS
+            from . import usercall, usercompile
+            address = usercompile.kernel_address(g.row)
+            if address is not None:
+                # compiled: its kernel at address, its layout's address as the key
+                lay = usercompile.layout(g)
+                kernels.append(lay)                 # held by the network
+                row[net.OPTION], row[net.U0] = lay.ctypes.data, address
+            else:
+                evaluator = usercall.Evaluator(g)
+                callbacks.append(evaluator)         # held by the network: see usercall
+                row[net.OPTION], row[net.U0] = usercall.register(evaluator), usercall.ADDRESS
         if values is not None:
             u_parts.append(np.asarray(values.values(0.0), dtype=float).copy())
             sources.append(values)
@@ -493,6 +505,7 @@ def compiled_residual(asm, failures):
         varying.append((None, refreshed, None, None))
     network = CompiledNetwork(asm, groups, cols, fpar, u, trows, tcols, varying, sources)
     network.callbacks = callbacks
+    network.kernels = kernels
     network.refresh = refreshed
     network.float_sizes = np.array(sizes, dtype=np.int64).reshape(-1, 3)
     if varying:

@@ -360,6 +360,15 @@ COMPILED_VARIANTS = True
 #: its scenes run in the compiled loop; False: such a network keeps the
 #: per-group path (and the Python step loop).
 COMPILED_USER = True
+#: Whether a user's component whose functions numba can compile as written
+#: (the paper's Actuator) is compiled, with its finite-difference Jacobian,
+#: and called natively by the compiled loop (softflow.solve.usercompile:
+#: compiled once, cached under numba's cache directory); False, or where
+#: numba cannot compile them: called back in Python (COMPILED_USER)
+COMPILED_USER_CODE = True
+#: A compile of a user's component longer than this [s] is said once (an
+#: INFO line on the 'softflow' logger); loading it from the cache is not
+COMPILE_NOTICE = 0.5
 #: Views a call-back keeps of the loop's arrays, by their addresses and sizes
 #: (softflow.solve.usercall: the loop passes the same few arrays at every
 #: call); past this many (arrays of earlier runs) they are dropped

@@ -26,8 +26,10 @@ alone (its Result then says why, where it fails).
 
 What this covers (:func:`reason_not` and :class:`_Template`): adaptive
 runs without ``refine`` of scenes whose network the compiled loop serves
-(the compiled residual, no user component, sources of any kind (a Python
-function called back), no heat-transfer correlation's per-step h A; its
+(the compiled residual, user components compiled
+(:mod:`softflow.solve.usercompile`) but none called back, sources of any
+kind (a Python function called back), no heat-transfer correlation's
+per-step h A; its
 dense, banded or sparse LU, each start on a dense LU: up to
 :data:`~softflow.solve.settings.DENSE_MAX` unknowns a variant); check
 valves, flow sources and thermal scenes included (their starts solved
@@ -164,7 +166,8 @@ def reason_not(sim):
     if net is None:
         return "a component the compiled network does not cover"
     if net.callbacks:
-        return "a user component (called back in Python on the network's own arrays)"
+        return ("a user component that numba does not compile (called back in Python on "
+                "the network's own arrays)")
     if asm.has_begin_step:
         from .steploop import per_step_coefficients
         return f"{per_step_coefficients(asm)}, called back on the network's own floats"

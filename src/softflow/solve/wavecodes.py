@@ -9,11 +9,14 @@ signals themselves (``_varying``). A signal is compiled when it is a waveform
 of exactly one of the classes of :mod:`softflow.curves.waveforms` that
 :mod:`softflow.laws.waves` covers (Constant, Step, Ramp, PiecewiseLinear,
 PiecewiseConstant, Trapezoid, Sine, Square; not a subclass, which may
-override ``_scalar``), scaled to the source's unit; anything else (a Python
-function, a fons wave, a user's Waveform) is called back in Python from the
-compiled code (:data:`softflow.laws.waves.PYTHON`, :mod:`softflow.solve.usercall`:
-the signal's own call, its units checked), unless
-``settings.COMPILED_USER`` is off: :func:`describe` then returns None.
+override ``_scalar``), scaled to the source's unit; a Python function that
+numba compiles as written (returning SI floats) is compiled and called by
+address (:func:`softflow.solve.usercompile.signal_address`); anything else
+(a function numba cannot compile or returning pint Quantities, a fons wave,
+a user's Waveform) is called back in Python from the compiled code
+(:data:`softflow.laws.waves.PYTHON`, :mod:`softflow.solve.usercall`: the
+signal's own call, its units checked), unless ``settings.COMPILED_USER`` is
+off: :func:`describe` then returns None.
 
 The waveform's attributes are read when :func:`describe` is called: a
 waveform edited afterwards needs describing again.
@@ -117,9 +120,14 @@ def describe(params: Any) -> Described | None:
             from . import settings
             if not settings.COMPILED_USER:
                 return None
-            # a Python function (or a waveform the laws do not state): called back
+            # a Python function (or a waveform the laws do not state): compiled
+            # where numba can compile it as written, else called back
             from .usercall import signal_floats
-            factor, described = 1.0, (law_module("waves").PYTHON, signal_floats(signal))
+            from .usercompile import signal_address
+            address = (signal_address(signal) if getattr(signal, "func", None) is not None
+                       else None)
+            key_at = signal_floats(signal) if address is None else [0.0, float(address)]
+            factor, described = 1.0, (law_module("waves").PYTHON, key_at)
         else:
             factor = found[1]
         code, values = described

@@ -1,0 +1,564 @@
+"""User components compiled: the paper's ``evaluate`` / ``update_state``
+called natively from the compiled loop where numba can compile them as written.
+
+A user's component (any ``evaluate`` / ``update_state`` / ``state_rates``
+component, the paper's ``Actuator``) is otherwise called back in Python from
+the compiled loop (:mod:`softflow.solve.usercall`, a few microseconds a
+call plus the user's own Python: the paper's listing spends most of its run
+there). Here its functions are compiled with numba as they are written, and
+its kernel (the residual rows, the finite-difference Jacobian and the states
+at the end of the step, the arithmetic of
+:meth:`softflow.solve.userkernel.UserKernel.kernel_row`) becomes a C function
+with the call-back's signature, which the loop calls by address with the
+component's layout (where its variables, rows, Jacobian entries and states
+lie) in place of the call-back's key.
+
+What a user's function may use. Numbers, tuples of numbers, NumPy arrays,
+``math`` and NumPy's functions that numba compiles, from the paper's listing
+a :class:`~softflow.curves.pvcurve.PVCurve` (``fdf_volume`` of one volume)
+and a fluid (its ``rho``), and the user's own plain functions (compiled
+with it, by the same rules), found in the function's closure or among its
+globals. These are read when the Simulation is built (a closure's values as
+they are then: a curve or an array changed during a run is not seen). Where
+anything else is met, or numba cannot compile the function, the component is
+called back in Python as before, and the reason is logged once (DEBUG, on
+the ``'softflow'`` logger).
+
+Compiled once. The kernel is written as a small module (its source names the
+user's functions and its own integer and float constants only) under the
+compile cache, in a file named by a hash of that source, of the user
+functions' code and of the values read from their closures and globals, and
+of softflow's and numba's versions; numba caches the compiled kernel beside
+it, so a later process loads it (milliseconds) instead of compiling it again
+(a few seconds, said once on the ``'softflow'`` logger). A function whose
+compile numba refused is remembered the same way and not tried again.
+Where no cache directory can be written the kernel is compiled in a
+temporary directory, for this process only.
+
+Errors. The compiled kernel raises nothing into the loop: an exception in the
+user's compiled code (an index out of range, a division by zero, a volume
+beyond a curve made with ``extrapolate='error'``), a residual of the wrong
+length or a missing state make it return 1, and the loop then evaluates the
+component in Python, which raises the error naming the component and the
+time (or, for a curve's range, cuts the step), as for a call-back.
+"""
+from __future__ import annotations
+
+import collections
+import dis
+import functools
+import hashlib
+import importlib.util
+import logging
+import math
+import os
+import pickle
+import re
+import sys
+import tempfile
+import time
+import types as pytypes
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numba
+import numpy as np
+from numba import types
+from numba.extending import intrinsic, overload_method
+
+from .. import __version__
+from ..curves.pvcurve import PVCurve
+from ..fluids.base import Fluid
+from . import settings
+
+log = logging.getLogger("softflow")
+
+#: the C signature the compiled loop calls (softflow.laws.call_user): the key
+#: (here: the address of the component's layout), t, dt, jac, then each of
+#: x, S, F, raw and Sout as its data pointer and size
+_P = types.CPointer(types.float64)
+SIGNATURE = types.int64(types.int64, types.float64, types.float64, types.int64,
+                        _P, types.int64, _P, types.int64, _P, types.int64, _P, types.int64,
+                        _P, types.int64)
+
+#: the C signature of a source's signal (softflow.laws.call_signal): its value at t
+SIGNAL_SIGNATURE = types.float64(types.int64, types.float64)
+
+#: a layout's fields before the component's columns: the least size of x,
+#: the offsets of its rows, its Jacobian entries (start, end), its states
+#: (start, end), and whether it has states
+LAYOUT_HEAD = 7
+
+#: a PV curve as compiled code reads it (its lookup's table: softflow.laws.volumes)
+CurveImage = collections.namedtuple("CurveImage", "knots table lo hi refuse")
+#: a fluid as compiled code reads it: the paper's ``fluid.rho``
+FluidImage = collections.namedtuple("FluidImage", "rho")
+
+
+class NotCompiled(Exception):
+    """Why a user's function is called back instead of compiled."""
+
+
+@intrinsic
+def layout_at(typingctx, address):
+    """The int64 pointer at ``address`` (int64): a component's layout."""
+    sig = types.CPointer(types.int64)(address)
+
+    def codegen(context, builder, sig, args):
+        from llvmlite import ir
+        return builder.inttoptr(args[0], ir.IntType(64).as_pointer())
+    return sig, codegen
+
+
+@overload_method(types.NamedTuple, "fdf_volume")
+def _fdf_volume(curve, volume):
+    """A :class:`CurveImage`'s ``fdf_volume`` of one volume: (p, dp/dV), as
+    :meth:`PVCurve.fdf_volume` of a float gives them; a volume the curve
+    refuses raises (the caller's Python path then raises CurveRangeError)."""
+    if getattr(curve, "instance_class", None) is not CurveImage:
+        return None
+    if not isinstance(volume, (types.Float, types.Integer)):
+        return None
+    from ..laws.volumes import curve_point
+
+    def impl(curve, volume):
+        x = float(volume)
+        if curve.refuse and not (curve.lo <= x <= curve.hi):
+            raise ValueError("a volume beyond the PV curve's data")
+        return curve_point(curve.knots, curve.table, x)
+    return impl
+
+
+def image(value: Any, where: str, depth: int = 0) -> tuple:
+    """(``value`` as compiled code may read it, what keys it): a number, a
+    tuple of numbers or an array as it is (an array copied), ``math`` or
+    ``numpy`` (keyed by name), a curve's or a fluid's image, or a plain
+    Python function compiled the same way (keyed by its code and values);
+    anything else raises NotCompiled."""
+    if isinstance(value, (bool, int, float, complex, np.number, np.bool_)):
+        return value, value
+    if isinstance(value, tuple) and all(isinstance(v, (int, float)) for v in value):
+        return value, value
+    if isinstance(value, np.ndarray) and value.dtype.kind in "biuf":
+        copy = np.array(value)
+        return copy, copy
+    if isinstance(value, pytypes.ModuleType) and value in (np, math):
+        return value, f"module {value.__name__}"
+    if (isinstance(value, PVCurve) and type(value).fdf_volume is PVCurve.fdf_volume
+            and type(value)._scalar is PVCurve._scalar):
+        got = CurveImage(value._knots.copy(), value._table.copy(), float(value._lo),
+                         float(value._hi), bool(value._refuse))
+        return got, got
+    if isinstance(value, Fluid):
+        got = FluidImage(float(value.rho))
+        return got, got
+    if isinstance(value, pytypes.FunctionType) and depth < _DEPTH:
+        copy, key = imaged(value, depth + 1)
+        return numba.njit(boundscheck=True)(copy), key
+    raise NotCompiled(f"{where} is a {type(value).__name__}, which compiled code cannot read")
+
+
+#: how deep functions that call functions are compiled (a deeper one, or a
+#: recursive one, is called back)
+_DEPTH = 4
+
+
+@functools.lru_cache(maxsize=256)
+def _global_names(code) -> frozenset:
+    """The global names ``code`` (and the code nested in it) loads."""
+    names = {ins.argval for ins in dis.get_instructions(code)
+             if ins.opname in ("LOAD_GLOBAL", "LOAD_NAME")}
+    for const in code.co_consts:
+        if isinstance(const, pytypes.CodeType):
+            names |= _global_names(const)
+    return frozenset(names)
+
+
+def imaged(func: Any, depth: int = 0) -> tuple:
+    """(a copy of ``func`` whose closure and globals hold images of its own,
+    the bytes that identify its code and those values: see :func:`image`)."""
+    if not isinstance(func, pytypes.FunctionType):
+        raise NotCompiled(f"{func!r} is not a plain Python function")
+    name = func.__name__
+    if func.__defaults__ or func.__kwdefaults__:
+        raise NotCompiled(f"{name} has default arguments")
+    code = func.__code__
+    cells, keys = [], []
+    for var, cell in zip(code.co_freevars, func.__closure__ or ()):
+        try:
+            content = cell.cell_contents
+        except ValueError:
+            raise NotCompiled(f"{name}: {var} is not set") from None
+        got, key = image(content, f"{name}'s {var}", depth)
+        cells.append(pytypes.CellType(got))
+        keys.append((var, key))
+    glob: dict = {"__builtins__": func.__globals__.get("__builtins__", __builtins__)}
+    for var in sorted(_global_names(code)):
+        if var in func.__globals__:
+            glob[var], key = image(func.__globals__[var], f"{name}'s global {var}", depth)
+            keys.append((var, key))
+    copy = pytypes.FunctionType(code, glob, name, None, tuple(cells) or None)
+    copy.__qualname__ = func.__qualname__
+    try:
+        data = pickle.dumps(keys, protocol=4)
+    except Exception as err:
+        raise NotCompiled(f"{name}'s values cannot be keyed: {err}") from None
+    return copy, _code_key(code) + data
+
+
+@functools.lru_cache(maxsize=256)
+def _code_key(code) -> bytes:
+    """Bytes that identify ``code``'s meaning (its bytecode, constants, names,
+    and the code nested in it; marshal's bytes are not stable: they depend
+    on reference counts)."""
+    parts = [code.co_code, repr((code.co_names, code.co_varnames, code.co_freevars,
+                                 code.co_cellvars, code.co_argcount, code.co_flags,
+                                 code.co_filename, getattr(code, "co_qualname", code.co_name))).encode()]
+    for const in code.co_consts:
+        parts.append(_code_key(const) if isinstance(const, pytypes.CodeType)
+                     else repr((type(const).__name__, const)).encode())
+    return b"\0".join(hashlib.sha256(p).digest() for p in parts)
+
+
+#: the kernel's module, filled in per component (see :func:`_source`)
+_TEMPLATE = '''\
+"""softflow: the compiled kernel of a user component (generated by
+softflow.solve.usercompile for {owner}; do not edit)."""
+import numpy as np
+from numba import carray, cfunc, njit
+
+from softflow.solve.usercompile import SIGNATURE, functions_for, layout_at
+
+ev, up = functions_for(__name__)
+NV, NS, NEQ = {nv}, {ns}, {neq}
+VSCALE = np.array({vscale!r})
+SSCALE = np.array({sscale!r})
+REL = {rel!r}
+EV_V = np.array({ev_v!r}, dtype=np.int64)
+EV_S = np.array({ev_s!r}, dtype=np.int64)
+UP_V = np.array({up_v!r}, dtype=np.int64)
+
+
+@njit
+def _residual(t, v, s):
+    r = ev({ev_picks})
+    if len(r) != NEQ:
+        raise ValueError("evaluate returned another number of residuals")
+    out = np.empty(NEQ)
+    for i in range(NEQ):
+        out[i] = r[i]
+    return out
+
+
+@njit
+def _states(v, s, dt):
+{states_body}
+
+
+@njit
+def _evaluate(lay, t, dt, jac, x, S, F, raw, Sout):
+    r0, j0, j1, s0, has_states = lay[1], lay[2], lay[3], lay[4], lay[6]
+    v = np.empty(NV)
+    for k in range(NV):
+        v[k] = x[lay[{head} + k]]
+    s_old = np.empty(NS)
+    for k in range(NS):
+        s_old[k] = S[s0 + k]
+    s = _states(v, s_old, dt)
+    Fr = _residual(t, v, s)
+    if jac:
+        J = np.zeros((NEQ, NV))
+        for k in EV_V:
+            h = REL * max(abs(v[k]), VSCALE[k])
+            vk = v[k]
+            v[k] = vk + h
+            Fp = _residual(t, v, s)
+            for e in range(NEQ):
+                J[e, k] = (Fp[e] - Fr[e]) / h
+            v[k] = vk
+        if {chain}:
+            dFds = np.zeros((NEQ, NS))
+            for k in EV_S:
+                h = REL * max(abs(s[k]), SSCALE[k])
+                sp = s.copy()
+                sp[k] += h
+                Fp = _residual(t, v, sp)
+                for e in range(NEQ):
+                    dFds[e, k] = (Fp[e] - Fr[e]) / h
+            dSdv = np.zeros((NS, NV))
+            for k in UP_V:
+                h = REL * max(abs(v[k]), VSCALE[k])
+                vk = v[k]
+                v[k] = vk + h
+                sp = _states(v, s_old, dt)
+                for j in range(NS):
+                    dSdv[j, k] = (sp[j] - s[j]) / h
+                v[k] = vk
+            for e in range(NEQ):
+                for k in range(NV):
+                    acc = 0.0
+                    for j in range(NS):
+                        acc += dFds[e, j] * dSdv[j, k]
+                    J[e, k] += acc
+        if j1 > j0:
+            for e in range(NEQ):
+                for k in range(NV):
+                    raw[j0 + e * NV + k] = J[e, k]
+    for e in range(NEQ):
+        F[r0 + e] = Fr[e]
+    if Sout.size and has_states:
+        for k in range(NS):
+            Sout[s0 + k] = s[k]
+    return 0
+
+
+@cfunc(SIGNATURE, cache=True)
+def kernel(key, t, dt, jac, xp, nx, Sp, nS, Fp, nF, rawp, nraw, Soutp, nSout):
+    lay = carray(layout_at(key), ({head} + NV,))
+    if (nx < lay[0] or nS < lay[5] or nF < lay[1] + NEQ or nraw < lay[3]
+            or (nSout != 0 and nSout < lay[5])):
+        return 1
+    try:
+        return _evaluate(lay, t, dt, jac, carray(xp, (nx,)), carray(Sp, (nS,)),
+                         carray(Fp, (nF,)), carray(rawp, (nraw,)), carray(Soutp, (nSout,)))
+    except Exception:
+        return 1
+'''
+
+#: the module of a source's signal given as a Python function
+_SIGNAL_TEMPLATE = '''\
+"""softflow: a source's signal compiled (generated by softflow.solve.usercompile
+for {owner}; do not edit)."""
+import math
+
+from numba import cfunc
+
+from softflow.solve.usercompile import SIGNAL_SIGNATURE, functions_for
+
+signal, _ = functions_for(__name__)
+
+
+@cfunc(SIGNAL_SIGNATURE, cache=True)
+def kernel(key, t):
+    try:
+        return float(signal(t))
+    except Exception:
+        return math.nan
+'''
+
+_NO_STATES = "    return s"
+
+
+def _picks(binding, first):
+    return ", ".join(first if kind == "t" else f"{kind}[{int(k)}]" for kind, k in binding)
+
+
+def _states_body(uk) -> str:
+    """``_states``' body: the states at the end of the step, from the user's
+    ``update_state`` (or ``state_rates``) as :class:`UserKernel` calls it."""
+    if uk.up is None:
+        return _NO_STATES
+    rates = getattr(uk.comp, "state_rates", None)
+    if rates is not None:
+        raise NotCompiled("state_rates is called back (not compiled)")
+    picks = _picks(uk.up_args, "dt")
+    outs = "\n".join(f"    out[{i}] = o[{name!r}]" for i, name in enumerate(uk.snames))
+    return (f"    o = up({picks})\n    out = np.empty(NS)\n{outs}\n    return out")
+
+
+def source(uk) -> str:
+    """The kernel module's text for the user kernel ``uk``."""
+    chain = bool(uk.up is not None and uk.ev_s)
+    return _TEMPLATE.format(
+        owner=_quiet(uk.comp.describe()),
+        nv=uk.nv, ns=uk.ns, neq=uk.neq,
+        vscale=[float(x) for x in uk.vscale] or [0.0],
+        sscale=[float(x) for x in uk.sscale] or [0.0],
+        rel=float(_rel()), head=LAYOUT_HEAD,
+        ev_picks=_picks(uk.ev_args, "t"), states_body=_states_body(uk),
+        ev_v=[int(k) for k in uk.ev_v], ev_s=[int(k) for k in uk.ev_s],
+        up_v=[int(k) for k in uk.up_v], chain=chain)
+
+
+def _rel() -> float:
+    from .userkernel import _REL
+    return _REL
+
+
+#: the user's compiled functions handed to a kernel module as it is imported
+_HANDED: dict = {}
+#: kernel modules imported in this process, by name: (the module, its C address)
+_LOADED: dict = {}
+#: names whose compile failed in this process: the reason
+_FAILED: dict = {}
+
+
+def functions_for(name: str) -> tuple:
+    """The (evaluate, update) a kernel module named ``name`` compiles."""
+    return _HANDED.pop(name)
+
+
+def cache_root() -> Path:
+    """Where kernel modules are written: ``softflow-user`` in numba's cache
+    directory (NUMBA_CACHE_DIR, else the user's cache directory)."""
+    base = numba.config.CACHE_DIR
+    if not base:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"),
+                                                                ".cache")
+        base = os.path.join(base, "numba")
+    return Path(base) / "softflow-user"
+
+
+def _writable(root: Path) -> Path:
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        probe = root / f".probe-{os.getpid()}"
+        probe.write_text("")
+        probe.unlink()
+        return root
+    except OSError:
+        tmp = Path(tempfile.mkdtemp(prefix="softflow-user-"))
+        warnings.warn(f"softflow cannot write compiled user components under {root}; they "
+                      f"are compiled in {tmp} for this process only (set NUMBA_CACHE_DIR to a "
+                      "writable directory to keep them)", RuntimeWarning, stacklevel=2)
+        return tmp
+
+
+def _write_once(path: Path, text: str) -> None:
+    """Write ``path`` unless it exists (atomically: a concurrent writer's file
+    is kept, so numba's cache beside it stays valid)."""
+    if path.exists():
+        return
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(text)
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        pass
+    except OSError:            # no hard links here: a rename (last writer wins)
+        os.replace(tmp, path)
+        return
+    tmp.unlink(missing_ok=True)
+
+
+@functools.lru_cache(maxsize=1)
+def _own_stamp() -> bytes:
+    """What every kernel's name also hashes: softflow's, numba's and Python's
+    versions and this module's text (the template and the images)."""
+    h = hashlib.sha256()
+    for part in (__version__, numba.__version__, sys.version, Path(__file__).read_text()):
+        h.update(part.encode())
+    return h.digest()
+
+
+def kernel_address(uk) -> int | None:
+    """The C address of the compiled kernel of the user kernel ``uk`` (see
+    the module), or None where it is called back (the reason logged)."""
+    if numba.config.DISABLE_JIT or not settings.COMPILED_USER_CODE:
+        return None
+    who = uk.comp.describe()
+    try:
+        text = source(uk)
+        funcs = [imaged(uk.ev.func)] + ([imaged(uk.up.func)] if uk.up is not None else [])
+    except NotCompiled as why:
+        _note(who, str(why))
+        return None
+    what = "evaluate, update_state" if uk.up is not None else "evaluate"
+    return _address(text, funcs, f"the user component {who} ({what})", who)
+
+
+def signal_address(signal) -> int | None:
+    """The C address of a source's signal given as a Python function
+    (``signal``: the source's ``_Signal``), compiled as
+    :data:`SIGNAL_SIGNATURE` (its value in SI, NaN where it raised), or None
+    where it is called back (the reason logged). Its function must return
+    SI floats (a pint Quantity is not compiled)."""
+    if numba.config.DISABLE_JIT or not settings.COMPILED_USER_CODE:
+        return None
+    who = f"{signal.owner}: {signal.name}"
+    try:
+        funcs = [imaged(signal.func)]
+    except NotCompiled as why:
+        _note(who, str(why))
+        return None
+    return _address(_SIGNAL_TEMPLATE.format(owner=_quiet(who)), funcs, f"{who} (t)", who)
+
+
+def _quiet(text: str) -> str:
+    """``text`` fit for a generated module's docstring."""
+    return text.replace('"', "'").replace("\\", "/")
+
+
+def _address(text: str, funcs: list, what: str, who: str) -> int | None:
+    """The address of ``kernel`` in the module ``text`` that compiles the
+    functions ``funcs`` ((copy, key) pairs from :func:`imaged`): loaded in
+    this process, or from numba's cache, or compiled now; None where numba
+    cannot compile them (remembered)."""
+    h = hashlib.sha256(_own_stamp())
+    for part in [text.encode()] + [key for _, key in funcs]:
+        h.update(hashlib.sha256(part).digest())
+    name = f"softflow_user_{h.hexdigest()[:32]}"
+    got = _LOADED.get(name)
+    if got is not None:
+        return got[1]
+    if name in _FAILED:
+        _note(who, _FAILED[name])
+        return None
+    root = _writable(cache_root())
+    failed = root / f"{name}.failed"
+    if failed.exists():
+        _FAILED[name] = failed.read_text()
+        _note(who, _FAILED[name])
+        return None
+    path = root / f"{name}.py"
+    _write_once(path, text)
+    start = time.perf_counter()
+    # bounds checked: an index out of range raises (the Python path then
+    # raises it naming the component) instead of reading past an array
+    jitted = [numba.njit(boundscheck=True)(copy) for copy, _ in funcs]
+    _HANDED[name] = tuple(jitted + [None] * (2 - len(jitted)))
+    try:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)      # type: ignore[arg-type]
+        sys.modules[name] = module
+        spec.loader.exec_module(module)                      # type: ignore[union-attr]
+    except numba.core.errors.NumbaError as err:
+        sys.modules.pop(name, None)
+        reason = f"numba cannot compile it: {_first_reason(err)}"
+        _FAILED[name] = reason
+        try:
+            failed.write_text(reason)
+        except OSError:
+            pass
+        _note(who, reason)
+        return None
+    finally:
+        _HANDED.pop(name, None)
+    took = time.perf_counter() - start
+    if not module.kernel.cache_hits and took > settings.COMPILE_NOTICE:
+        log.info("compiled %s with numba in %.1f s, once; cached in %s", what, took, root)
+    address = int(module.kernel.address)
+    _LOADED[name] = (module, address)
+    return address
+
+
+def _first_reason(err: Exception) -> str:
+    """The line of numba's message that says what it could not compile."""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(err))      # numba's colours
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    said = [line for line in lines if not line.startswith(("Failed in ", "During:"))]
+    return (said or lines or [type(err).__name__])[0]
+
+
+def _note(who: str, why: str) -> None:
+    log.debug("%s is called back in Python, not compiled: %s", who, why)
+
+
+def layout(g) -> np.ndarray:
+    """The layout a compiled kernel reads for the user group ``g`` (see
+    :data:`LAYOUT_HEAD`): its address is the kernel's key."""
+    col = np.asarray(g.col[0], dtype=np.int64)
+    head = [int(col.max()) + 1 if col.size else 0, g.r0, g.j0, g.j1, g.s0, g.s1,
+            int(bool(g.has_states))]
+    return np.ascontiguousarray(np.concatenate([np.array(head, dtype=np.int64), col]))

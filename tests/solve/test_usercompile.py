@@ -1,0 +1,379 @@
+"""User components compiled with numba as written (softflow.solve.usercompile):
+the compiled kernel's rows, Jacobian entries and states are the Python
+path's, runs agree with the call-back's, errors are the Python path's, and a
+kernel is compiled once, keyed on the user's code and the values it reads."""
+import logging
+import math
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import softflow as sf
+from softflow.demo import balloon_csv, paper_system
+from softflow.laws.network import U0
+from softflow.solve import settings, usercall, usercompile
+
+P0 = sf.pressure_atmospheric
+
+
+def _sim(system, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        return sf.Simulation(system, **kw)
+
+
+def _user_row(sim):
+    """(the user group, its row of the compiled network's groups)."""
+    asm = sim.asm
+    net = asm.residual.network
+    g = next(g for g in asm.groups if g.row is not None)
+    return g, net.groups[asm.groups.index(g)]
+
+
+def test_the_papers_actuator_is_compiled_and_its_rows_are_the_python_paths():
+    """The paper's actuator (a PV curve and a fluid's rho in its closure, a
+    dict from update_state) runs as a compiled kernel, not a call-back; at
+    random states, steps and times its residual rows, Jacobian entries and
+    end-of-step states are those of the per-group Python path, bit for bit."""
+    sim = _sim(paper_system(inertance=False), duration=1.0)
+    asm = sim.asm
+    g, row = _user_row(sim)
+    assert row[U0] != usercall.ADDRESS
+    rng = np.random.default_rng(5)
+    for trial in range(20):
+        x = asm.x0 * (1 + 0.1 * rng.standard_normal(asm.n))
+        S = asm.S0 * (1 + 0.05 * rng.standard_normal(asm.S0.size))
+        t, dt = rng.uniform(0, 1), 10 ** rng.uniform(-6, -2)
+        F = asm.residual(x, S, t, dt, True)
+        raw = asm.raw.copy()
+        Fp = asm.python_residual(x, S, t, dt, True)
+        assert np.array_equal(F[g.r0:g.r1], Fp[g.r0:g.r1]), trial
+        assert np.array_equal(raw[g.j0:g.j1], asm.raw[g.j0:g.j1]), trial
+        np.testing.assert_array_equal(asm.residual.network.update_states(x, S, dt),
+                                      asm.update_states(x, S, dt))
+
+
+def _both(make, monkeypatch, **kw):
+    """(compiled kernel, call-back) runs of the scene ``make()``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        a = _sim(make(), **kw).run(raise_on_failure=False)
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+        sim = _sim(make(), **kw)
+        assert _user_row(sim)[1][U0] == usercall.ADDRESS
+        b = sim.run(raise_on_failure=False)
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    return a, b
+
+
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_the_papers_listing_compiled_runs_as_called_back(monkeypatch, step):
+    """Fixed steps: the same numbers to 1e-10 relative; adaptive: the same
+    steps, within the tolerance."""
+    kw = {"duration": 1.0} if step is None else {"duration": 1.0, "step": step}
+    a, b = _both(lambda: paper_system(inertance=False), monkeypatch, **kw)
+    assert a.success and b.success
+    assert a.stats["steps"] == b.stats["steps"]
+    rtol = 1e-10 if step is not None else 1e-6
+    np.testing.assert_allclose(a.get("actu", "pressure") - P0, b.get("actu", "pressure") - P0,
+                               rtol=0, atol=rtol * np.ptp(b.get("actu", "pressure")))
+    np.testing.assert_allclose(a.get("actu", "mass"), b.get("actu", "mass"), rtol=rtol)
+
+
+class _Actuator(sf.Component):
+    """The paper's actuator, its evaluate raising past ``after`` seconds
+    (compiled as written: the raise is numba's)."""
+
+    def __init__(self, label, fluid, pvcurve, after=np.inf):
+        super().__init__(label)
+        p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf_ = sf.Variable("massflow", "through", label="mf")
+        m_ = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p_, mf_]))
+        self.set_states(m_)
+
+        def evaluate(t, p, mass):
+            if t > after:
+                raise ZeroDivisionError("the user's model broke")
+            return [p - pvcurve.fdf_volume(volume=mass / fluid.rho)[0]]
+
+        def update_state(dt, mass, mf):
+            return {"mass": mass + mf * dt}
+        self.evaluate = self.auto(evaluate)
+        self.update_state = self.auto_state(update_state)
+
+
+def _scene(curve, after=np.inf, amplitude=0.3e5):
+    s = sf.System()
+    s += sf.PressureSource("source", pressure=lambda t: P0 + (amplitude if t < 0.5 else 0.0))
+    s += sf.CircularTube("tube", sf.water, length=0.6, diameter=1e-3)
+    s += _Actuator("actu", sf.water, curve, after)
+    s.connect("tube", "source")
+    s.connect("tube", "actu")
+    return s
+
+
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_an_error_raised_in_compiled_user_code_is_the_python_paths(monkeypatch, step):
+    """Raised inside the compiled kernel, the error reaches the user as from
+    the call-back: the failed result names the component, the time and the
+    error."""
+    curve = sf.PVCurve(balloon_csv())
+    kw = {"duration": 1.0} if step is None else {"duration": 1.0, "step": step}
+    sim = _sim(_scene(curve, after=0.3), **kw)
+    assert _user_row(sim)[1][U0] != usercall.ADDRESS
+    a, b = _both(lambda: _scene(curve, after=0.3), monkeypatch, **kw)
+    assert a.status == b.status == "failed"
+    assert "'actu': evaluate raised" in a.message
+    assert "ZeroDivisionError: the user's model broke" in a.message
+    assert a.message == b.message
+    assert a.times[-1] == pytest.approx(b.times[-1], rel=1e-12)
+
+
+def test_a_volume_beyond_a_refusing_curve_is_handled_as_in_python(monkeypatch):
+    """A PV curve made with extrapolate='error' refuses volumes beyond its
+    data: inside the compiled kernel too (the Python path then raises the
+    curve's error, which cuts the step or names the curve)."""
+    v = np.linspace(0.0, 2e-6, 9)
+    curve = sf.PVCurve(volume=v, pressure=P0 + 2e9 * v + 1e15 * v ** 2, extrapolate="error")
+    a, b = _both(lambda: _scene(curve, amplitude=2e5), monkeypatch, duration=0.5)
+    assert a.status == b.status
+    assert a.message == b.message
+    assert "PVCurve" in a.message and "beyond its data" in a.message
+    assert len(a.times) == len(b.times)
+    np.testing.assert_allclose(a.X, b.X, rtol=1e-9, atol=1e-12)
+
+
+class _Leak(sf.Component):
+    """A leak to the atmosphere, mf = k (p - p0), written by a user; with
+    ``numba_refuses`` its evaluate calls what numba cannot compile."""
+
+    def __init__(self, label, k, numba_refuses=False):
+        super().__init__(label)
+        p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf_ = sf.Variable("massflow", "through", label="mf")
+        self.set_terminals(sf.Terminal("a", [p_, mf_]))
+        if numba_refuses:
+            self.evaluate = self.auto(lambda p, mf: [mf - k * (p - P0) + 0 * eval("1")])
+        else:
+            self.evaluate = self.auto(lambda p, mf: [mf - k * (p - P0)])
+
+
+def _leaky(k=1e-9, numba_refuses=False):
+    s = sf.System()
+    s += sf.PressureSource("source", pressure=1.5e5)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Container("tank", sf.air, volume=1e-5)
+    s += _Leak("leak", k, numba_refuses)
+    s.connect("tube", "source")
+    s.connect("tube", "tank")
+    s.connect("tank", "leak")
+    return s
+
+
+def _kernel_of(system):
+    sim = _sim(system, duration=0.05)
+    return next(g for g in sim.asm.groups if g.row is not None).row
+
+
+@pytest.fixture
+def fresh_root(tmp_path, monkeypatch):
+    """Kernels written under a new directory, none loaded in this process."""
+    monkeypatch.setattr(usercompile, "cache_root", lambda: tmp_path / "kernels")
+    monkeypatch.setattr(usercompile, "_LOADED", {})
+    monkeypatch.setattr(usercompile, "_FAILED", {})
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)   # built as call-backs
+    yield tmp_path / "kernels"
+
+
+def test_a_kernel_is_compiled_once_then_loaded_keyed_on_the_values_it_reads(fresh_root,
+                                                                           monkeypatch,
+                                                                           caplog):
+    """The first call compiles (said once, INFO) and writes the kernel's
+    module; in a process that has not loaded it, the kernel comes from
+    numba's cache; other closure values are another kernel; the same values
+    the same one."""
+    uk = _kernel_of(_leaky(1e-9))
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    monkeypatch.setattr(settings, "COMPILE_NOTICE", 0.0)
+    with caplog.at_level(logging.INFO, logger="softflow"):
+        first = usercompile.kernel_address(uk)
+    assert first and "compiled the user component _Leak 'leak'" in caplog.text
+    (name, (module, address)), = usercompile._LOADED.items()
+    assert address == first and module.kernel.cache_hits == 0
+    assert (fresh_root / f"{name}.py").exists()
+    assert usercompile.kernel_address(_kernel_of(_leaky(1e-9))) == first   # the same values
+    # another process: nothing loaded yet
+    usercompile._LOADED.clear()
+    sys.modules.pop(name)
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="softflow"):
+        again = usercompile.kernel_address(uk)
+    assert again and usercompile._LOADED[name][0].kernel.cache_hits == 1
+    assert "compiled the user component" not in caplog.text
+    other = usercompile.kernel_address(_kernel_of(_leaky(2e-9)))
+    assert other and other != again and len(usercompile._LOADED) == 2
+
+
+def test_what_numba_cannot_compile_is_called_back_and_remembered(fresh_root, monkeypatch,
+                                                                 caplog):
+    """A function numba refuses is called back (the reason logged, DEBUG),
+    runs as before, and is not tried again, in this process or the next."""
+    uk = _kernel_of(_leaky(numba_refuses=True))
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    with caplog.at_level(logging.DEBUG, logger="softflow"):
+        assert usercompile.kernel_address(uk) is None
+    assert "_Leak 'leak' is called back in Python, not compiled: numba cannot" in caplog.text
+    marker, = fresh_root.glob("*.failed")
+    usercompile._FAILED.clear()
+    monkeypatch.setattr(usercompile, "_write_once", None)      # not written, not imported
+    assert usercompile.kernel_address(uk) is None
+    res = _sim(_leaky(numba_refuses=True), duration=0.05).run()
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+    ref = _sim(_leaky(numba_refuses=True), duration=0.05).run()
+    np.testing.assert_array_equal(res.X, ref.X)
+
+
+def test_values_compiled_code_cannot_read_are_called_back(caplog):
+    """A closure over an object other than numbers, arrays, a PV curve or a
+    fluid (here the component itself) is called back, the reason logged."""
+    class Reads(sf.Component):
+        def __init__(self, label):
+            super().__init__(label)
+            p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
+            mf_ = sf.Variable("massflow", "through", label="mf")
+            self.set_terminals(sf.Terminal("a", [p_, mf_]))
+            self.k = 1e-9
+            self.evaluate = self.auto(lambda p, mf: [mf - self.k * (p - P0)])
+    s2 = sf.System()
+    s2 += sf.PressureSource("source", pressure=1.5e5)
+    s2 += Reads("reads")
+    s2.connect("source", "reads")
+    with caplog.at_level(logging.DEBUG, logger="softflow"):
+        sim = _sim(s2, duration=0.01)
+    assert "Reads 'reads' is called back in Python, not compiled: <lambda>'s self is a Reads" \
+        in caplog.text
+    assert _user_row(sim)[1][U0] == usercall.ADDRESS
+    assert sim.run().success
+
+
+def test_an_unwritable_cache_compiles_in_a_temporary_directory(tmp_path, monkeypatch):
+    """Where the cache directory cannot be written, one RuntimeWarning, and
+    the kernel is compiled in a temporary directory for this process."""
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")
+    monkeypatch.setattr(usercompile, "cache_root", lambda: blocked / "kernels")
+    monkeypatch.setattr(usercompile, "_LOADED", {})
+    with pytest.warns(RuntimeWarning, match="cannot write compiled user components"):
+        assert usercompile.kernel_address(_kernel_of(_leaky(3e-9)))
+
+
+def test_no_kernel_where_numba_is_off(monkeypatch):
+    """Pure-Python mode (NUMBA_DISABLE_JIT=1) and COMPILED_USER_CODE = False
+    call the component back."""
+    uk = _kernel_of(_leaky())
+    monkeypatch.setattr(usercompile.numba.config, "DISABLE_JIT", True)
+    assert usercompile.kernel_address(uk) is None
+    monkeypatch.setattr(usercompile.numba.config, "DISABLE_JIT", False)
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+    assert usercompile.kernel_address(uk) is None
+
+
+def test_a_python_function_signal_is_compiled_and_gives_its_values():
+    """The paper's source (``lambda t: p0 + (0.3e5 if t < 0.5 else 0)``, p0
+    in its closure) is compiled: its C function gives the signal's values,
+    bit for bit, on both sides of its step."""
+    import ctypes
+    source = paper_system(inertance=False).get("source")
+    signal = source.signal
+    address = usercompile.signal_address(signal)
+    assert address
+    call = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_int64, ctypes.c_double)(address)
+    for t in (0.0, 0.1, 0.4999999, 0.5, 0.7, 3.0):
+        assert call(0, t) == signal(t)
+
+
+def _signalled(signal):
+    s = sf.System()
+    s += sf.PressureSource("source", pressure=signal)
+    s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+    s += sf.Container("tank", sf.air, volume=1e-5)
+    s.connect("tube", "source")
+    s.connect("tube", "tank")
+    return s
+
+
+def _breaking(t):
+    if t > 0.02:
+        raise ValueError("the user's signal broke")
+    return P0 + 3e4 * min(t / 0.01, 1.0)
+
+
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_an_error_raised_in_a_compiled_signal_is_the_python_paths(monkeypatch, step):
+    """A compiled signal that raises: the run fails with the Python path's
+    message, naming the source; before that, the same numbers."""
+    assert usercompile.signal_address(sf.PressureSource("s", pressure=_breaking).signal)
+    kw = {"duration": 0.05} if step is None else {"duration": 0.05, "step": step}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        a = sf.Simulation(_signalled(_breaking), **kw).run(raise_on_failure=False)
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+        b = sf.Simulation(_signalled(_breaking), **kw).run(raise_on_failure=False)
+    assert a.status == b.status == "failed"
+    assert "PressureSource 'source'" in a.message and "the user's signal broke" in a.message
+    assert a.message == b.message
+    assert len(a.times) == len(b.times)
+    np.testing.assert_allclose(a.X, b.X, rtol=1e-10, atol=0)
+
+
+def test_a_signal_returning_quantities_is_called_back(caplog):
+    """A function returning pint Quantities (its units checked at each call)
+    is not compiled: called back, and it runs."""
+    source = sf.PressureSource("source", pressure=lambda t: sf.Q_(1.2 + t, "bar"))
+    with caplog.at_level(logging.DEBUG, logger="softflow"):
+        assert usercompile.signal_address(source.signal) is None
+    assert "PressureSource 'source': pressure is called back in Python" in caplog.text
+    res = sf.Simulation(_signalled(lambda t: sf.Q_(1.2 + t, "bar")), duration=0.02).run()
+    assert res.success
+
+
+def test_variants_of_a_compiled_user_scene_run_on_their_own_clocks():
+    """A compiled user component reads the arrays it is given: a batched
+    sweep of its scene runs each variant in the compiled loop on its own
+    clock (softflow.solve.variants), each as its own serial run to within
+    the tolerance."""
+    from softflow.solve import variants
+    sim = _sim(paper_system(inertance=False), duration=0.5)
+    assert variants.reason_not(sim) is None
+    diameters = [0.8e-3, 1.2e-3]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.ModelWarning)
+        out = sf.sweep(sim, {"tube.diameter": diameters}, engine="batched")
+        serial = [sim.run(params={"tube.diameter": d}) for d in diameters]
+    assert out.status == ["success", "success"]
+    for i, run in enumerate(serial):
+        p = run.at(out.times, "actu", "pressure")
+        assert np.max(np.abs(out["actu.pressure"][i] - p)) < 2e-3 * np.ptp(p)
+
+
+def _conductance(dp):
+    """A user's helper function (compiled with the function that calls it)."""
+    return 1e-9 * math.tanh(dp / 1e3) * 1e3 / np.maximum(np.abs(dp), 1e3) * np.sign(dp) ** 2
+
+
+def test_helper_functions_numpy_and_math_compile_with_the_component(monkeypatch):
+    """An evaluate that calls the user's own helper function, NumPy and
+    math (module globals) is compiled, and runs as called back."""
+    def leaky():
+        s = _leaky()
+        leak = s.get("leak")
+        leak.evaluate = leak.auto(lambda p, mf: [mf - _conductance(p - P0) * (p - P0)])
+        return s
+    sim = _sim(leaky(), duration=0.05)
+    assert _user_row(sim)[1][U0] != usercall.ADDRESS
+    a, b = _both(leaky, monkeypatch, duration=0.05)
+    assert a.success and b.success and a.stats["steps"] == b.stats["steps"]
+    np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=0)
