@@ -137,23 +137,28 @@ def bench_paper(repeat, fonsim):
                 c0 = time.process_time()
                 run_sf(None)
                 (cpu_on if on else cpu_off).append(time.process_time() - c0)
-    # user components and Python signals called back from the compiled loop
-    # (settings.COMPILED_USER, issue 38) or every step in Python, in turns (CPU
-    # of run() alone, the Simulation built once per setting)
+    # the user component and the Python signal compiled (the default,
+    # settings.COMPILED_USER_CODE, issue 38 item 4), called back from the
+    # compiled loop (COMPILED_USER_CODE off), or every step in Python
+    # (COMPILED_USER off), in turns (CPU of run() alone, the Simulation built
+    # once per setting)
     callbacks = None
+    modes = {"compiled": (True, True), "called back": (True, False),
+             "Python steps": (False, False)}
     try:
         from softflow.solve import settings as _settings
-        if hasattr(_settings, "COMPILED_USER"):
+        if hasattr(_settings, "COMPILED_USER_CODE"):
             callbacks = {}
             for i in range(repeat):
-                for on in ((True, False) if i % 2 == 0 else (False, True)):
-                    _settings.COMPILED_USER = on
+                order = list(modes) if i % 2 == 0 else list(modes)[::-1]
+                for mode in order:
+                    _settings.COMPILED_USER, _settings.COMPILED_USER_CODE = modes[mode]
                     for step in (1e-3, None):
                         sim_cb = run_sf(step)
                         c0 = time.process_time()
                         sim_cb.run()
-                        callbacks.setdefault((on, step), []).append(time.process_time() - c0)
-            _settings.COMPILED_USER = True
+                        callbacks.setdefault((mode, step), []).append(time.process_time() - c0)
+            _settings.COMPILED_USER = _settings.COMPILED_USER_CODE = True
     except ImportError:
         pass
     with LoopSpy() as spy:
@@ -170,10 +175,11 @@ def bench_paper(repeat, fonsim):
     if callbacks:
         med = statistics.median
         for step, name in ((1e-3, "fixed 1 ms"), (None, "adaptive")):
-            on, off = med(callbacks[(True, step)]), med(callbacks[(False, step)])
-            print(f"  run() CPU, {name}: user component called back from the compiled loop "
-                  f"{on * 1e3:.2f} ms / every step in Python (COMPILED_USER off) "
-                  f"{off * 1e3:.2f} ms ({on / off:.2f})")
+            got = {mode: med(callbacks[(mode, step)]) for mode in modes}
+            print(f"  run() CPU, {name}: user component compiled {got['compiled'] * 1e3:.2f} ms"
+                  f" / called back from the compiled loop (COMPILED_USER_CODE off) "
+                  f"{got['called back'] * 1e3:.2f} ms / every step in Python (COMPILED_USER "
+                  f"off) {got['Python steps'] * 1e3:.2f} ms")
     if fonsim:
         p_sf = sim.result.get("actu", "pressure")
         n = min(len(p_sf), len(ref["p_actu"]))

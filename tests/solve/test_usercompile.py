@@ -184,6 +184,7 @@ def fresh_root(tmp_path, monkeypatch):
     monkeypatch.setattr(usercompile, "cache_root", lambda: tmp_path / "kernels")
     monkeypatch.setattr(usercompile, "_LOADED", {})
     monkeypatch.setattr(usercompile, "_FAILED", {})
+    monkeypatch.setattr(usercompile, "_COMPILES", {})
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)   # built as call-backs
     yield tmp_path / "kernels"
 
@@ -215,6 +216,20 @@ def test_a_kernel_is_compiled_once_then_loaded_keyed_on_the_values_it_reads(fres
     assert "compiled the user component" not in caplog.text
     other = usercompile.kernel_address(_kernel_of(_leaky(2e-9)))
     assert other and other != again and len(usercompile._LOADED) == 2
+
+
+def test_a_design_loop_over_a_closure_value_stops_compiling(fresh_root, monkeypatch, caplog):
+    """Each new value a function reads is a compile of its own: past
+    settings.USER_COMPILES_MAX compiles of one code in a process, new values
+    are called back (said once); kernels already compiled still load."""
+    kernels = [_kernel_of(_leaky(k)) for k in (1e-9, 2e-9, 3e-9, 4e-9)]
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    monkeypatch.setattr(settings, "USER_COMPILES_MAX", 2)
+    with caplog.at_level(logging.INFO, logger="softflow"):
+        got = [usercompile.kernel_address(uk) for uk in kernels]
+    assert got[0] and got[1] and got[2] is None and got[3] is None
+    assert caplog.text.count("is called back in Python from now on") == 1
+    assert usercompile.kernel_address(kernels[0]) == got[0]
 
 
 def test_what_numba_cannot_compile_is_called_back_and_remembered(fresh_root, monkeypatch,

@@ -366,6 +366,12 @@ COMPILED_USER = True
 #: compiled once, cached under numba's cache directory); False, or where
 #: numba cannot compile them: called back in Python (COMPILED_USER)
 COMPILED_USER_CODE = True
+#: How many kernels a process compiles for one user function's code, each
+#: for other values read from its closure or globals (compiled in as
+#: constants: a design loop that changes one would compile at every run);
+#: past this, the function is called back (said once, INFO). Kernels found
+#: in the cache do not count
+USER_COMPILES_MAX = 4
 #: A compile of a user's component longer than this [s] is said once (an
 #: INFO line on the 'softflow' logger); loading it from the cache is not
 COMPILE_NOTICE = 0.5
