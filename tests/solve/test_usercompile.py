@@ -392,3 +392,83 @@ def test_helper_functions_numpy_and_math_compile_with_the_component(monkeypatch)
     a, b = _both(leaky, monkeypatch, duration=0.05)
     assert a.success and b.success and a.stats["steps"] == b.stats["steps"]
     np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=0)
+
+
+def test_an_update_states_dict_is_compiled_as_a_tuple_of_the_same_values():
+    """update_state's ``return {'state': value}`` (every return, a lambda's
+    body) is compiled as a tuple of the same expressions in the same order
+    (numba's typed dict takes seconds to compile); anything else keeps its
+    dict."""
+    def two_returns(dt, a, b, mf):
+        if mf > 0:
+            return {"b": b + dt, "a": a + mf * dt}
+        return {"b": b - dt, "a": a}
+
+    def other_orders(dt, a, b, mf):
+        if mf > 0:
+            return {"b": b + dt, "a": a + mf * dt}
+        return {"a": a, "b": b}
+
+    def named(dt, a, b, mf):
+        d = {"a": a, "b": b}
+        return d
+
+    def rewritten(f):
+        return usercompile.tuple_update(f, usercompile.imaged(f)[0], ["a", "b"])
+    fn, order = rewritten(two_returns)
+    assert order == [1, 0]
+    assert fn(0.1, 1.0, 2.0, 3.0) == (2.1, 1.0 + 3.0 * 0.1)
+    assert fn(0.1, 1.0, 2.0, -3.0) == (2.0 - 0.1, 1.0)
+    assert rewritten(other_orders) is None and rewritten(named) is None
+    up = lambda dt, mass, mf: {"mass": mass + mf * dt}    # noqa: E731
+    fn, order = usercompile.tuple_update(up, usercompile.imaged(up)[0], ["mass"])
+    assert fn(0.5, 1.0, 2.0) == (2.0,) and order == [0]
+    # a function whose source is not its code (no source, or edited since)
+    space: dict = {}
+    exec("def made(dt, a, b, mf):\n    return {'a': a, 'b': b}\n", space)
+    assert rewritten(space["made"]) is None
+    node = __import__("ast").parse("def two_returns(dt, a, b, mf):\n    return {'a': a}\n")
+    assert not usercompile._compiles_to(node.body[0], two_returns.__code__)
+
+
+class _Kept(sf.Component):
+    """A chamber whose update_state returns a dict made before its return
+    (compiled as numba's typed dict), with an extra key past ``after``."""
+
+    def __init__(self, label, after):
+        super().__init__(label)
+        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf = sf.Variable("massflow", "through", label="mf")
+        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p, mf]))
+        self.set_states(m)
+        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
+
+        def update_state(dt, mass, mf):
+            out = {"mass": mass + mf * dt}
+            if mass > after:
+                out["extra"] = 0.0
+            return out
+        self.update_state = self.auto_state(update_state)
+
+
+def test_a_dict_kept_as_written_runs_and_an_extra_state_is_refused(monkeypatch):
+    """update_state's dict compiled as numba's dict gives the call-back's
+    run; an answer with a state the component does not have stops the run
+    with the Python path's message."""
+    def scene(after):
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 1e4)
+        s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+        s += _Kept("tank", after)
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        return s
+    sim = _sim(scene(np.inf), duration=0.05)
+    assert _user_row(sim)[1][U0] != usercall.ADDRESS
+    a, b = _both(lambda: scene(np.inf), monkeypatch, duration=0.05)
+    assert a.success and b.success
+    np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=0)
+    a, b = _both(lambda: scene(1.0e-3 + 1e-9), monkeypatch, duration=0.05)
+    assert a.status == b.status == "failed"
+    assert "unknown ['extra']" in a.message and a.message == b.message

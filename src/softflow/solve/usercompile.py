@@ -44,11 +44,13 @@ time (or, for a curve's range, cuts the step), as for a call-back.
 """
 from __future__ import annotations
 
+import ast
 import collections
 import dis
 import functools
 import hashlib
 import importlib.util
+import inspect
 import logging
 import math
 import os
@@ -56,6 +58,7 @@ import pickle
 import re
 import sys
 import tempfile
+import textwrap
 import time
 import types as pytypes
 import warnings
@@ -283,7 +286,7 @@ def _row_of(names: list) -> str:
     return ", ".join(names) + ("," if len(names) == 1 else "")
 
 
-def source(uk) -> str:
+def source(uk, order: list | None = None) -> str:
     """The kernel module's text for the user kernel ``uk``: the arithmetic
     of :meth:`UserKernel.kernel_row` (its finite differences, their steps,
     the chain rule through the states) on scalars, each variable, state,
@@ -322,8 +325,13 @@ def source(uk) -> str:
         if uk.up is None:
             out.append(f"    return {_row_of(O)}")
         else:
-            out += [f"    o = up({pick(uk.up_args, 'dt', V, O)})",
-                    f"    return {_row_of([f'float(o[{n!r}])' for n in uk.snames])}"]
+            out.append(f"    o = up({pick(uk.up_args, 'dt', V, O)})")
+            if order is None:       # the dict the user's update_state returns
+                out += [f"    if len(o) != {ns}:",
+                        "        raise KeyError('update_state returned other states')",
+                        f"    return {_row_of([f'float(o[{n!r}])' for n in uk.snames])}"]
+            else:                   # its dict rewritten as a tuple (tuple_update)
+                out.append(f"    return {_row_of([f'float(o[{i}])' for i in order])}")
         out += ["", ""]
     out += ["@njit", "def _evaluate(lay, t, dt, jac, x, S, F, raw, Sout):",
             "    r0, j0, j1, s0, has_states = lay[1], lay[2], lay[3], lay[4], lay[6]"]
@@ -446,13 +454,124 @@ def kernel_address(uk) -> int | None:
         return None
     who = uk.comp.describe()
     try:
-        text = source(uk)
-        funcs = [imaged(uk.ev.func)] + ([imaged(uk.up.func)] if uk.up is not None else [])
+        funcs = [imaged(uk.ev.func)]
+        order = None
+        if uk.up is not None:
+            copy, key = imaged(uk.up.func)
+            rewritten = tuple_update(uk.up.func, copy, uk.snames)
+            if rewritten is not None:
+                copy, order = rewritten
+            funcs.append((copy, key))
+        text = source(uk, order)
     except NotCompiled as why:
         _note(who, str(why))
         return None
     what = "evaluate, update_state" if uk.up is not None else "evaluate"
     return _address(text, funcs, f"the user component {who} ({what})", who)
+
+
+def tuple_update(func: Any, copy: Any, snames: list) -> tuple | None:
+    """(``copy`` of the user's ``update_state`` ``func`` whose dict answer
+    ``return {'state': value, ...}`` is written as a tuple of its values,
+    the tuple's position of each of ``snames``), or None where its source
+    is not that (then the dict is compiled as written).
+
+    Why: the dict is numba's typed dict, whose compile takes ~4.6 s the
+    first time in a process; the tuple, a fraction of a second. Only the
+    answer's form changes: the values are the same expressions, in the same
+    order. Every ``return`` of the function must be a dict display of the
+    same string keys, each state once (a lambda's body likewise); its source
+    (``inspect``) must compile to the running function's own bytecode (a
+    file edited since it was imported is not rewritten). ``copy`` (from
+    :func:`imaged`) gives the globals and the closure's values, which the
+    rewritten function reads as its globals."""
+    code = func.__code__
+    try:
+        lines, first = inspect.getsourcelines(func)
+        tree = ast.parse(textwrap.dedent("".join(lines)))
+    except (OSError, TypeError, SyntaxError, IndentationError):
+        return None
+    line = code.co_firstlineno - max(first, 1) + 1
+    args = list(code.co_varnames[:code.co_argcount])
+    lam = func.__name__ == "<lambda>"
+    found = [n for n in ast.walk(tree)
+             if (isinstance(n, ast.Lambda) if lam else
+                 isinstance(n, ast.FunctionDef) and n.name == func.__name__)
+             and n.lineno == line and [a.arg for a in n.args.args] == args
+             and not (n.args.posonlyargs or n.args.kwonlyargs or n.args.vararg
+                      or n.args.kwarg or n.args.defaults)
+             and not getattr(n, "decorator_list", None)]
+    if len(found) != 1 or not _compiles_to(found[0], code):
+        return None
+    node = found[0]
+    answers = [node.body] if lam else [r.value for r in _returns(node)]
+    keys = None
+    for answer in answers:
+        if not (isinstance(answer, ast.Dict) and all(
+                isinstance(k, ast.Constant) and isinstance(k.value, str) for k in answer.keys)):
+            return None
+        got = [k.value for k in answer.keys]      # type: ignore[union-attr]
+        if keys is None:
+            keys = got
+        elif got != keys:
+            return None
+    if not keys or len(set(keys)) != len(keys) or sorted(keys) != sorted(snames):
+        return None
+    for answer in answers:
+        answer.__class__ = ast.Tuple                    # the same values, in order
+        answer.elts, answer.ctx = answer.values, ast.Load()    # type: ignore[attr-defined]
+    body = [ast.Return(value=node.body)] if lam else node.body
+    fdef = ast.FunctionDef(name="_softflow_update", args=node.args, body=body,
+                           decorator_list=[], returns=None, type_comment=None)
+    module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
+    space = dict(copy.__globals__)
+    space.update((var, cell.cell_contents)
+                 for var, cell in zip(code.co_freevars, copy.__closure__ or ()))
+    exec(compile(module, code.co_filename, "exec"), space)     # defines the function only
+    return space["_softflow_update"], [keys.index(n) for n in snames]
+
+
+def _returns(node) -> list:
+    """The ``return`` statements of the function ``node`` (not of functions
+    nested in it); none with no value."""
+    found, todo = [], list(node.body)
+    while todo:
+        n = todo.pop()
+        if isinstance(n, ast.Return):
+            found.append(n)
+        elif not isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda,
+                                ast.ClassDef)):
+            todo.extend(ast.iter_child_nodes(n))
+    if any(r.value is None for r in found):
+        return []
+    return found
+
+
+def _compiles_to(node, code) -> bool:
+    """Whether the function or lambda ``node``, compiled where its free
+    variables are an enclosing function's, has ``code``'s bytecode, names
+    and constants."""
+    inner = (node if isinstance(node, ast.FunctionDef)
+             else ast.Assign(targets=[ast.Name(id="_f", ctx=ast.Store())], value=node))
+    outer = ast.FunctionDef(
+        name="_outer", args=ast.arguments(posonlyargs=[], args=[ast.arg(arg=v) for v in
+                                                               code.co_freevars],
+                                          kwonlyargs=[], kw_defaults=[], defaults=[]),
+        body=[inner], decorator_list=[], returns=None, type_comment=None)
+    try:
+        top = compile(ast.fix_missing_locations(ast.Module(body=[outer], type_ignores=[])),
+                      code.co_filename, "exec")
+    except (SyntaxError, ValueError, TypeError):
+        return False
+    stack = list(top.co_consts)
+    while stack:
+        c = stack.pop()
+        if isinstance(c, pytypes.CodeType):
+            if (c.co_name == code.co_name and c.co_code == code.co_code
+                    and c.co_names == code.co_names and c.co_consts == code.co_consts):
+                return True
+            stack.extend(c.co_consts)
+    return False
 
 
 def signal_address(signal) -> int | None:
