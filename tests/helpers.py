@@ -230,3 +230,26 @@ def check_valve_pulses():
     s.connect(("cv", "b"), "tank", ("leak", "a"))
     s.connect(("leak", "b"), "atm")
     return s
+
+
+def assert_user_rows_are_the_python_paths(sim, seed, trials=20):
+    """At random states, steps and times: the compiled network residual of
+    ``sim`` (a scene with one user component) is the per-group Python
+    path's to round-off, its Jacobian entries too, the user component's
+    rows and entries bit for bit, and the end-of-step states the same."""
+    asm = sim.asm
+    g = next(g for g in asm.groups if g.row is not None)
+    rng = np.random.default_rng(seed)
+    for trial in range(trials):
+        x = asm.x0 * (1 + 0.1 * rng.standard_normal(asm.n))
+        S = asm.S0 * (1 + 0.05 * rng.standard_normal(asm.S0.size))
+        t, dt = rng.uniform(0, 1), 10 ** rng.uniform(-6, -2)
+        F = asm.residual(x, S, t, dt, True)
+        raw = asm.raw.copy()
+        Fp = asm.python_residual(x, S, t, dt, True)
+        np.testing.assert_allclose(F, Fp, rtol=1e-13, atol=1e-12 * np.abs(Fp).max())
+        np.testing.assert_allclose(raw, asm.raw, rtol=1e-13, atol=1e-300)
+        assert np.array_equal(F[g.r0:g.r1], Fp[g.r0:g.r1]), trial
+        assert np.array_equal(raw[g.j0:g.j1], asm.raw[g.j0:g.j1]), trial
+        np.testing.assert_array_equal(asm.residual.network.update_states(x, S, dt),
+                                      asm.update_states(x, S, dt))

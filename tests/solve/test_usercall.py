@@ -16,7 +16,7 @@ import softflow as sf
 from softflow.demo import paper_system
 from softflow.solve import settings, steploop, usercall
 from softflow.solve import variants as variants_mod
-from helpers import UserChamber
+from helpers import UserChamber, assert_user_rows_are_the_python_paths
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from scenes import walled_tank  # noqa: E402
@@ -39,31 +39,18 @@ def _both(make, monkeypatch, **kw):
     return a, b
 
 
-def test_the_papers_network_is_the_per_group_residual_to_round_off():
-    """The paper's scene (a Python-function source, a user actuator): the
-    compiled residual's rows and Jacobian entries are the per-group path's
-    at random states, steps and times; the actuator's rows bitwise (the same
-    kernel called back)."""
+def test_the_papers_network_is_the_per_group_residual_to_round_off(monkeypatch):
+    """The paper's scene (a Python-function source, a user actuator called
+    back): the compiled residual's rows and Jacobian entries are the
+    per-group path's at random states, steps and times; the actuator's rows
+    bitwise (the same kernel called back)."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
         sim = sf.Simulation(paper_system(inertance=False), duration=1.0)
-    asm = sim.asm
-    net = asm.residual.network
-    assert len(net.callbacks) + len(net.kernels) == 1
-    g = next(g for g in asm.groups if g.row is not None)
-    rng = np.random.default_rng(3)
-    for trial in range(20):
-        x = asm.x0 * (1 + 0.1 * rng.standard_normal(asm.n))
-        S = asm.S0 * (1 + 0.05 * rng.standard_normal(asm.S0.size))
-        t, dt = rng.uniform(0, 1), 10 ** rng.uniform(-6, -2)
-        F = asm.residual(x, S, t, dt, True)
-        raw = asm.raw.copy()
-        Fp = asm.python_residual(x, S, t, dt, True)
-        np.testing.assert_allclose(F, Fp, rtol=1e-13, atol=1e-12 * np.abs(Fp).max())
-        np.testing.assert_allclose(raw, asm.raw, rtol=1e-13, atol=1e-300)
-        assert np.array_equal(F[g.r0:g.r1], Fp[g.r0:g.r1]), trial
-        np.testing.assert_array_equal(net.update_states(x, S, dt),
-                                      asm.update_states(x, S, dt))
+    net = sim.asm.residual.network
+    assert len(net.callbacks) == 1 and not net.kernels
+    assert_user_rows_are_the_python_paths(sim, seed=3)
 
 
 @pytest.mark.parametrize("step", [1e-3, None])

@@ -59,6 +59,7 @@ import re
 import sys
 import tempfile
 import textwrap
+import threading
 import time
 import types as pytypes
 import warnings
@@ -600,11 +601,25 @@ def _address(text: str, funcs: list, what: str, who: str) -> int | None:
     """The address of ``kernel`` in the module ``text`` that compiles the
     functions ``funcs`` ((copy, key) pairs from :func:`imaged`): loaded in
     this process, or from numba's cache, or compiled now; None where numba
-    cannot compile them (remembered)."""
+    cannot compile them (remembered). One thread at a time (Simulations
+    built in threads: a module is imported once)."""
     h = hashlib.sha256(_own_stamp())
     for part in [text.encode()] + [key for _, key in funcs]:
         h.update(hashlib.sha256(part).digest())
     name = f"softflow_user_{h.hexdigest()[:32]}"
+    got = _LOADED.get(name)
+    if got is not None:
+        return got[1]
+    with _LOCK:
+        return _load(name, text, funcs, what, who)
+
+
+#: held while a kernel module is found, loaded or compiled
+_LOCK = threading.RLock()
+
+
+def _load(name: str, text: str, funcs: list, what: str, who: str) -> int | None:
+    """:func:`_address`'s work for the module ``name``, under its lock."""
     got = _LOADED.get(name)
     if got is not None:
         return got[1]
