@@ -346,23 +346,55 @@ def test_a_signal_returning_quantities_is_called_back(caplog):
     assert res.success
 
 
+def _chamber_scene():
+    from helpers import UserChamber
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 1e4)
+    s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+    s += UserChamber("tank")
+    s.connect("tube", "src")
+    s.connect("tube", "tank")
+    return s
+
+
 def test_variants_of_a_compiled_user_scene_run_on_their_own_clocks():
     """A compiled user component reads the arrays it is given: a batched
     sweep of its scene runs each variant in the compiled loop on its own
-    clock (softflow.solve.variants), each as its own serial run to within
-    the tolerance."""
+    clock (softflow.solve.variants), each with its own serial run's steps
+    and end."""
     from softflow.solve import variants
-    sim = _sim(paper_system(inertance=False), duration=0.5)
+    from softflow.solve.batched import _run_batched
+    sim = _sim(_chamber_scene(), duration=0.05)
     assert variants.reason_not(sim) is None
-    diameters = [0.8e-3, 1.2e-3]
+    chosen = [{"tube.diameter": d} for d in (0.8e-3, 1.2e-3)]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sf.ModelWarning)
-        out = sf.sweep(sim, {"tube.diameter": diameters}, engine="batched")
-        serial = [sim.run(params={"tube.diameter": d}) for d in diameters]
-    assert out.status == ["success", "success"]
-    for i, run in enumerate(serial):
-        p = run.at(out.times, "actu", "pressure")
-        assert np.max(np.abs(out["actu.pressure"][i] - p)) < 2e-3 * np.ptp(p)
+        out = _run_batched(sim, chosen, own_clocks=True)
+        serial = [sim.run(params=v) for v in chosen]
+    for b, run in zip(out, serial):
+        assert b.success and b.stats.get("engine") == "compiled loop", b.stats
+        assert b.stats["steps"] == run.stats["steps"]
+        np.testing.assert_allclose(b.get("tank", "pressure")[-1],
+                                   run.get("tank", "pressure")[-1], rtol=1e-9)
+
+
+def test_components_alike_but_for_their_labels_share_one_kernel(fresh_root, monkeypatch):
+    """Six chambers of one class and values: one kernel (its text names no
+    component), however many there are."""
+    from helpers import UserChamber
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 1e4)
+    for i in range(6):
+        s += sf.CircularTube(f"tube{i}", sf.water, length=0.3, diameter=1e-3)
+        s += UserChamber(f"tank{i}")
+        s.connect(f"tube{i}", "src")
+        s.connect(f"tube{i}", f"tank{i}")
+    sim = _sim(s, duration=0.01)
+    net = sim.asm.residual.network
+    assert len(net.kernels) == 6 and not net.callbacks
+    assert len(usercompile._LOADED) == 1 and len(list(fresh_root.glob("*.py"))) == 1
+    assert sim.run().success
 
 
 def _conductance(dp):
@@ -463,3 +495,90 @@ def test_a_dict_kept_as_written_runs_and_an_extra_state_is_refused(monkeypatch):
     a, b = _both(lambda: scene(1.0e-3 + 1e-9), monkeypatch, duration=0.05)
     assert a.status == b.status == "failed"
     assert "unknown ['extra']" in a.message and a.message == b.message
+
+
+def _sqrt_scene(limit):
+    """A tank whose user-written leak takes math.sqrt of limit - p: negative
+    (Python raises, numba gives nan) once the tank's pressure passes it."""
+    s = _leaky()
+    leak = s.get("leak")
+    leak.evaluate = leak.auto(lambda p, mf: [mf - 1e-12 * math.sqrt(limit - p)])
+    return s
+
+
+def test_what_numbas_math_gives_for_pythons_errors_is_handed_back(monkeypatch):
+    """math.sqrt of a negative number: nan in numba, ValueError in Python;
+    a residual that is not finite is handed back, and the run stops with the
+    Python path's message."""
+    assert _user_row(_sim(_sqrt_scene(1.3e5), duration=0.05))[1][U0] != usercall.ADDRESS
+    a, b = _both(lambda: _sqrt_scene(1.3e5), monkeypatch, duration=0.05)
+    assert a.status == b.status == "failed"
+    assert "math domain error" in a.message and a.message == b.message
+
+
+def test_a_nonlocal_in_update_state_builds_and_runs(monkeypatch):
+    """Source that does not compile on its own (``nonlocal``) is not
+    rewritten: the component is compiled or called back, and runs."""
+    def scene():
+        count = 0
+
+        def update_state(dt, mass, mf):
+            nonlocal count
+            return {"mass": mass + mf * dt}
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=P0 + 1e4)
+        s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+        tank = UserTank("own")
+        tank.update_state = tank.auto_state(update_state)
+        s += tank
+        s.connect("tube", "src")
+        s.connect("tube", "own")
+        return s
+    a, b = _both(scene, monkeypatch, duration=0.02)
+    assert a.success and b.success
+    np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=0)
+
+
+class UserTank(sf.Component):
+    def __init__(self, label):
+        super().__init__(label)
+        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf = sf.Variable("massflow", "through", label="mf")
+        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p, mf]))
+        self.set_states(m)
+        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
+
+
+def test_a_value_changed_after_the_simulation_was_built_is_seen(monkeypatch):
+    """The kernel holds the values its functions read as constants: where
+    one changes between building the Simulation and running it (or between
+    two runs), the run takes the kernel of the values now, as the call-back
+    reads them; a value compiled code cannot read is called back."""
+    class Changing(sf.Component):
+        def __init__(self, label):
+            super().__init__(label)
+            p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
+            mf_ = sf.Variable("massflow", "through", label="mf")
+            self.set_terminals(sf.Terminal("a", [p_, mf_]))
+            self.evaluate = self.auto(lambda p, mf: [mf - K_LEAK * (p - P0)])
+
+    def scene():
+        s = _leaky()
+        s.get("leak").evaluate = Changing("x").evaluate
+        return s
+    monkeypatch.setitem(globals(), "K_LEAK", 1e-9)
+    sim = _sim(scene(), duration=0.05)
+    first = sim.run()
+    monkeypatch.setitem(globals(), "K_LEAK", 3e-9)
+    second = sim.run()
+    fresh = _sim(scene(), duration=0.05).run()
+    tank = second.get("tank", "pressure")
+    np.testing.assert_allclose(tank, fresh.get("tank", "pressure"), rtol=1e-6)
+    assert abs(tank[-1] - first.get("tank", "pressure")[-1]) > 100.0
+    net = sim.asm.residual.network
+    assert not net.callbacks
+    monkeypatch.setitem(globals(), "K_LEAK", {"not": "a number"})     # not compiled
+    with pytest.raises(Exception):
+        sim.run()
+    assert net.callbacks

@@ -206,10 +206,11 @@ else:
         """Call the C function at ``address`` (int64) as ``int64 f(int64 key,
         double t, double dt, int64 jac, double *x, int64 n_x, double *S,
         int64 n_S, double *F, int64 n_F, double *raw, int64 n_raw, double
-        *Sout, int64 n_Sout)``: softflow's one callback into Python
+        *Sout, int64 n_Sout)``, which evaluates a user component's group in
+        place: its kernel compiled by numba (:mod:`softflow.solve.usercompile`,
+        ``key`` the address of its layout), or softflow's callback into Python
         (:mod:`softflow.solve.usercall`, a ctypes function that takes the
-        interpreter's lock itself), which evaluates a user component's group
-        in place. Each array (contiguous float64, as the loop's own are) is
+        interpreter's lock itself). Each array (contiguous float64, as the loop's own are) is
         passed by its data pointer and its size (Sout's 0: no states wanted).
         Returns the callback's code (0: done)."""
         arrays = (x, S, F, raw, Sout)

@@ -332,9 +332,38 @@ class CompiledNetwork:
     #: (:mod:`softflow.solve.usercompile`: their addresses are the kernels'
     #: keys), held while the network lives
     kernels: list = []
+    #: each compiled user component's (row in ``groups``, group, the key of
+    #: the values its functions read when compiled): see
+    #: :meth:`check_user_values`
+    watched: list = []
     #: ``refresh()`` copies the h A that heat-transfer correlations set at
     #: each step's start (``asm.begin_step``) into ``fpar``; None where none
     refresh = None
+
+    def check_user_values(self) -> None:
+        """Where a compiled user component's functions now read other values
+        than they were compiled with (a global or a closure's value changed
+        since the Simulation was built: the compiled kernel holds them as
+        constants), its row takes the kernel of the values now (from the
+        cache, or compiled), or its call-back, which reads them as they are.
+        Called at the start of each run."""
+        if not self.watched:
+            return
+        from . import usercall, usercompile
+        net = law_module("network")
+        for k, (gi, g, key) in enumerate(self.watched):
+            now = usercompile.values_key(g.row)
+            if now == key:
+                continue
+            address = usercompile.kernel_address(g.row) if now is not None else None
+            if address is None:
+                evaluator = usercall.Evaluator(g)
+                self.callbacks.append(evaluator)
+                self.groups[gi, net.OPTION] = usercall.register(evaluator)
+                self.groups[gi, net.U0] = usercall.ADDRESS
+            else:
+                self.groups[gi, net.U0] = address
+            self.watched[k] = (gi, g, now if address is not None else b"called back")
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
         laws = law_module("network")
@@ -438,6 +467,7 @@ def compiled_residual(asm, failures):
     sizes = []      # per group: its shared floats, each instance's floats, whether it has u
     callbacks: list = []     # the user components' evaluators (softflow.solve.usercall)
     kernels: list = []       # the compiled user components' layouts (usercompile)
+    watched: list = []       # and their rows, groups and values' keys
     n_u = 0
     u_parts = []
     # each group's row as a list (made one array below), and the running sizes
@@ -475,6 +505,7 @@ def compiled_residual(asm, failures):
                 # compiled: its kernel at address, its layout's address as the key
                 lay = usercompile.layout(g)
                 kernels.append(lay)                 # held by the network
+                watched.append((len(rows), g, usercompile.values_key(g.row)))
                 row[net.OPTION], row[net.U0] = lay.ctypes.data, address
             else:
                 evaluator = usercall.Evaluator(g)
@@ -505,7 +536,7 @@ def compiled_residual(asm, failures):
         varying.append((None, refreshed, None, None))
     network = CompiledNetwork(asm, groups, cols, fpar, u, trows, tcols, varying, sources)
     network.callbacks = callbacks
-    network.kernels = kernels
+    network.kernels, network.watched = kernels, watched
     network.refresh = refreshed
     network.float_sizes = np.array(sizes, dtype=np.int64).reshape(-1, 3)
     if varying:

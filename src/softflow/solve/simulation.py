@@ -543,6 +543,11 @@ class Simulation:
         """
         self._set_parameters(params)
         asm = self.asm
+        network = getattr(asm.residual, "network", None)
+        if network is not None:
+            # user components compiled for values since changed
+            # (softflow.solve.usercompile): their kernels for the values now
+            network.check_user_values()
         # what the inputs alone show (an actuator starting beyond its curve's data,
         # a tube too thin to matter): warned now, before the run's time, and kept
         # in result.warnings with the findings on the solution

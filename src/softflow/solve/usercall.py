@@ -3,8 +3,9 @@ from the compiled loop.
 
 The compiled network residual (:func:`softflow.laws.network.residual`)
 evaluates a group of user-written components (the paper's ``Actuator``, any
-``evaluate`` / ``update_state`` / ``auto*`` component) by calling back into
-Python: one C function made once per process with :mod:`ctypes` (it takes
+``evaluate`` / ``update_state`` / ``auto*`` component) that numba does not
+compile as written (:mod:`softflow.solve.usercompile` compiles those it
+can) by calling back into Python: one C function made once per process with :mod:`ctypes` (it takes
 the interpreter's lock itself, so the loop may run without it), whose address
 the group's row of the loop's arrays carries, and a key per group into
 :data:`_EVALUATORS`. The callback wraps the loop's arrays (passed by their

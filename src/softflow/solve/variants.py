@@ -253,7 +253,12 @@ def _gather_index(tn, bn, K, lay):
         if (found[:, :, 0] != b[:, None]).any():
             raise Unsupported("a variant's components of one group of the scene are in "
                               "several of the batch's")
-        if ((bg[b][:, same] != tg[gi, same]).any()
+        # a compiled user component (softflow.solve.usercompile): the same
+        # kernel (U0); its key (OPTION) is its own network's layout, which the
+        # variants' runs read through the scene's (their places are checked below)
+        cols = same if tg[gi, net.CLS] != net.USER else [net.CLS, net.NV, net.NEQ, net.NJ,
+                                                          net.U0]
+        if ((bg[b][:, cols] != tg[gi, cols]).any()
                 or (bn.float_sizes[b] != tn.float_sizes[gi]).any()):
             raise Unsupported("a variant's network group differs from the scene's")
         _same_places(t_asm_g, [bn.asm.groups[v] for v in b], inst, lay)
