@@ -519,18 +519,37 @@ def tuple_update(func: Any, copy: Any, snames: list) -> tuple | None:
     file edited since it was imported is not rewritten). ``copy`` (from
     :func:`imaged`) gives the globals and the closure's values, which the
     rewritten function reads as its globals."""
+    rewritten = _rewritten(func.__code__, func.__name__, tuple(snames))
+    if rewritten is None:
+        return None
+    module, order = rewritten
     code = func.__code__
+    space = dict(copy.__globals__)
+    space.update((var, cell.cell_contents)
+                 for var, cell in zip(code.co_freevars, copy.__closure__ or ()))
+    try:            # defines the function only
+        exec(module, space)
+    except Exception:
+        return None
+    return space["_softflow_update"], order
+
+
+@functools.lru_cache(maxsize=256)
+def _rewritten(code, name: str, snames: tuple) -> tuple | None:
+    """:func:`tuple_update`'s rewrite of the function of ``code``, named
+    ``name``: (the compiled module that defines it, the order), or None;
+    found once a process for each code."""
     try:
-        lines, first = inspect.getsourcelines(func)
+        lines, first = inspect.getsourcelines(code)
         tree = ast.parse(textwrap.dedent("".join(lines)))
     except (OSError, TypeError, SyntaxError, IndentationError):
         return None
     line = code.co_firstlineno - max(first, 1) + 1
     args = list(code.co_varnames[:code.co_argcount])
-    lam = func.__name__ == "<lambda>"
+    lam = name == "<lambda>"
     found = [n for n in ast.walk(tree)
              if (isinstance(n, ast.Lambda) if lam else
-                 isinstance(n, ast.FunctionDef) and n.name == func.__name__)
+                 isinstance(n, ast.FunctionDef) and n.name == name)
              and n.lineno == line and [a.arg for a in n.args.args] == args
              and not (n.args.posonlyargs or n.args.kwonlyargs or n.args.vararg
                       or n.args.kwarg or n.args.defaults)
@@ -558,14 +577,11 @@ def tuple_update(func: Any, copy: Any, snames: list) -> tuple | None:
     fdef = ast.FunctionDef(name="_softflow_update", args=node.args, body=body,
                            decorator_list=[], returns=None, type_comment=None)
     module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
-    space = dict(copy.__globals__)
-    space.update((var, cell.cell_contents)
-                 for var, cell in zip(code.co_freevars, copy.__closure__ or ()))
-    try:            # defines the function only (a `nonlocal` there, say, does not compile)
-        exec(compile(module, code.co_filename, "exec"), space)
+    try:            # (a `nonlocal` there, say, does not compile)
+        return (compile(module, code.co_filename, "exec"),
+                [keys.index(n) for n in snames])
     except Exception:
         return None
-    return space["_softflow_update"], [keys.index(n) for n in snames]
 
 
 def _returns(node) -> list:
