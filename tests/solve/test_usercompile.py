@@ -12,7 +12,7 @@ import pytest
 
 import softflow as sf
 from softflow.demo import balloon_csv, paper_system
-from softflow.laws.network import U0
+from softflow.laws.network import OPTION, U0
 from softflow.solve import settings, usercall, usercompile
 from helpers import assert_user_rows_are_the_python_paths
 
@@ -582,3 +582,8 @@ def test_a_value_changed_after_the_simulation_was_built_is_seen(monkeypatch):
     with pytest.raises(Exception):
         sim.run()
     assert net.callbacks
+    monkeypatch.setitem(globals(), "K_LEAK", 3e-9)                    # compiled again
+    again = sim.run()
+    np.testing.assert_allclose(again.get("tank", "pressure"), tank, rtol=1e-6)
+    (gi, g, key, lay), = net.watched
+    assert net.groups[gi, U0] != usercall.ADDRESS and net.groups[gi, OPTION] == lay.ctypes.data

@@ -465,6 +465,9 @@ def _run_batched(sim, variants, progress=None, batch_size=BATCH_SIZE, prepared=N
     (False: one shared step sequence per batch)."""
     from . import variants as compiled
     from .simulation import _huge_pages_off
+    network = getattr(sim.asm.residual, "network", None)
+    if network is not None:
+        network.check_user_values()     # user components' values changed since built
     if prepared is None:
         prepared = prepare(sim, variants)
     variants = prepared.variants

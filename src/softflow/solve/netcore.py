@@ -333,7 +333,7 @@ class CompiledNetwork:
     #: keys), held while the network lives
     kernels: list = []
     #: each compiled user component's (row in ``groups``, group, the key of
-    #: the values its functions read when compiled): see
+    #: the values its functions read when compiled, its layout): see
     #: :meth:`check_user_values`
     watched: list = []
     #: ``refresh()`` copies the h A that heat-transfer correlations set at
@@ -351,7 +351,7 @@ class CompiledNetwork:
             return
         from . import usercall, usercompile
         net = law_module("network")
-        for k, (gi, g, key) in enumerate(self.watched):
+        for k, (gi, g, key, lay) in enumerate(self.watched):
             now = usercompile.values_key(g.row)
             if now == key:
                 continue
@@ -362,8 +362,8 @@ class CompiledNetwork:
                 self.groups[gi, net.OPTION] = usercall.register(evaluator)
                 self.groups[gi, net.U0] = usercall.ADDRESS
             else:
-                self.groups[gi, net.U0] = address
-            self.watched[k] = (gi, g, now if address is not None else b"called back")
+                self.groups[gi, net.OPTION], self.groups[gi, net.U0] = lay.ctypes.data, address
+            self.watched[k] = (gi, g, now if address is not None else b"called back", lay)
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
         laws = law_module("network")
@@ -505,7 +505,7 @@ def compiled_residual(asm, failures):
                 # compiled: its kernel at address, its layout's address as the key
                 lay = usercompile.layout(g)
                 kernels.append(lay)                 # held by the network
-                watched.append((len(rows), g, usercompile.values_key(g.row)))
+                watched.append((len(rows), g, usercompile.values_key(g.row), lay))
                 row[net.OPTION], row[net.U0] = lay.ctypes.data, address
             else:
                 evaluator = usercall.Evaluator(g)
