@@ -454,25 +454,19 @@ def test_an_update_states_dict_is_compiled_as_a_tuple_of_the_same_values():
     assert not usercompile._compiles_to(node.body[0], two_returns.__code__)
 
 
-class _Kept(sf.Component):
+def _kept(label, after):
     """A chamber whose update_state returns a dict made before its return
     (compiled as numba's typed dict), with an extra key past ``after``."""
+    from helpers import UserChamber
 
-    def __init__(self, label, after):
-        super().__init__(label)
-        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
-        mf = sf.Variable("massflow", "through", label="mf")
-        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
-        self.set_terminals(sf.Terminal("a", [p, mf]))
-        self.set_states(m)
-        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
-
-        def update_state(dt, mass, mf):
-            out = {"mass": mass + mf * dt}
-            if mass > after:
-                out["extra"] = 0.0
-            return out
-        self.update_state = self.auto_state(update_state)
+    def update_state(dt, mass, mf):
+        out = {"mass": mass + mf * dt}
+        if mass > after:
+            out["extra"] = 0.0
+        return out
+    tank = UserChamber(label)
+    tank.update_state = tank.auto_state(update_state)
+    return tank
 
 
 def test_a_dict_kept_as_written_runs_and_an_extra_state_is_refused(monkeypatch):
@@ -483,7 +477,7 @@ def test_a_dict_kept_as_written_runs_and_an_extra_state_is_refused(monkeypatch):
         s = sf.System()
         s += sf.PressureSource("src", pressure=P0 + 1e4)
         s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
-        s += _Kept("tank", after)
+        s += _kept("tank", after)
         s.connect("tube", "src")
         s.connect("tube", "tank")
         return s
@@ -519,6 +513,7 @@ def test_what_numbas_math_gives_for_pythons_errors_is_handed_back(monkeypatch):
 def test_a_nonlocal_in_update_state_builds_and_runs(monkeypatch):
     """Source that does not compile on its own (``nonlocal``) is not
     rewritten: the component is compiled or called back, and runs."""
+    from helpers import UserChamber
     def scene():
         count = 0
 
@@ -528,7 +523,7 @@ def test_a_nonlocal_in_update_state_builds_and_runs(monkeypatch):
         s = sf.System()
         s += sf.PressureSource("src", pressure=P0 + 1e4)
         s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
-        tank = UserTank("own")
+        tank = UserChamber("own")
         tank.update_state = tank.auto_state(update_state)
         s += tank
         s.connect("tube", "src")
@@ -537,17 +532,6 @@ def test_a_nonlocal_in_update_state_builds_and_runs(monkeypatch):
     a, b = _both(scene, monkeypatch, duration=0.02)
     assert a.success and b.success
     np.testing.assert_allclose(a.X, b.X, rtol=1e-12, atol=0)
-
-
-class UserTank(sf.Component):
-    def __init__(self, label):
-        super().__init__(label)
-        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
-        mf = sf.Variable("massflow", "through", label="mf")
-        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
-        self.set_terminals(sf.Terminal("a", [p, mf]))
-        self.set_states(m)
-        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
 
 
 def test_a_value_changed_after_the_simulation_was_built_is_seen(monkeypatch):
