@@ -391,6 +391,7 @@ def source(uk, order: list | None = None) -> str:
     out.append("    return 0")
     return "\n".join(out) + "\n" + _TAIL.format(head=LAYOUT_HEAD + nv, neq=neq)
 
+
 def _rel() -> float:
     from .userkernel import _REL
     return _REL
