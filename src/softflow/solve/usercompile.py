@@ -28,12 +28,14 @@ called back in Python as before, and the reason is logged once (DEBUG, on
 the ``'softflow'`` logger).
 
 Compiled once. The kernel is written as a small module (its source names the
-user's functions and its own integer and float constants only) under the
-compile cache, in a file named by a hash of that source, of the user
-functions' code and of the values read from their closures and globals, and
-of softflow's and numba's versions; numba caches the compiled kernel beside
-it, so a later process loads it (milliseconds) instead of compiling it again
-(a few seconds, said once on the ``'softflow'`` logger). A function whose
+user's functions, the component's state names and its own integer and
+float constants only, no component's label: components alike share it)
+under the compile cache, in a file named by a hash of that source, of the
+user functions' code and of the values read from their closures and
+globals, and of the text of softflow's laws and softflow's, numba's and
+Python's versions; numba caches the compiled kernel beside it, so a later
+process loads it (milliseconds) instead of compiling it again (a second or
+two, said once on the ``'softflow'`` logger). A function whose
 compile numba refused is remembered the same way and not tried again.
 Where no cache directory can be written the kernel is compiled in a
 temporary directory, for this process only.
