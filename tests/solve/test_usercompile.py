@@ -539,17 +539,10 @@ def test_a_value_changed_after_the_simulation_was_built_is_seen(monkeypatch):
     one changes between building the Simulation and running it (or between
     two runs), the run takes the kernel of the values now, as the call-back
     reads them; a value compiled code cannot read is called back."""
-    class Changing(sf.Component):
-        def __init__(self, label):
-            super().__init__(label)
-            p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
-            mf_ = sf.Variable("massflow", "through", label="mf")
-            self.set_terminals(sf.Terminal("a", [p_, mf_]))
-            self.evaluate = self.auto(lambda p, mf: [mf - K_LEAK * (p - P0)])
-
     def scene():
         s = _leaky()
-        s.get("leak").evaluate = Changing("x").evaluate
+        leak = s.get("leak")
+        leak.evaluate = leak.auto(lambda p, mf: [mf - K_LEAK * (p - P0)])
         return s
     monkeypatch.setitem(globals(), "K_LEAK", 1e-9)
     sim = _sim(scene(), duration=0.05)

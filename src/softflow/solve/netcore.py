@@ -349,21 +349,16 @@ class CompiledNetwork:
         Called at the start of each run."""
         if not self.watched:
             return
-        from . import usercall, usercompile
+        from . import usercompile
         net = law_module("network")
         for k, (gi, g, key, lay) in enumerate(self.watched):
-            now = usercompile.values_key(g.row)
-            if now == key:
+            if usercompile.values_key(g.row) == key:
                 continue
-            address = usercompile.kernel_address(g.row) if now is not None else None
-            if address is None:
-                evaluator = usercall.Evaluator(g)
-                self.callbacks.append(evaluator)
-                self.groups[gi, net.OPTION] = usercall.register(evaluator)
-                self.groups[gi, net.U0] = usercall.ADDRESS
-            else:
-                self.groups[gi, net.OPTION], self.groups[gi, net.U0] = lay.ctypes.data, address
-            self.watched[k] = (gi, g, now if address is not None else b"called back", lay)
+            option, u0, held, now = _user_entry(g, lay)
+            self.groups[gi, net.OPTION], self.groups[gi, net.U0] = option, u0
+            if now is None:
+                self.callbacks.append(held)
+            self.watched[k] = (gi, g, b"called back" if now is None else now, lay)
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
         laws = law_module("network")
@@ -452,6 +447,21 @@ def compiled_update(asm):
     return None if network is None else network.update_states
 
 
+def _user_entry(g, lay=None):
+    """(OPTION, U0, what the network holds, the values' key) of the user
+    group ``g``'s row: its compiled kernel's (the key its layout's address,
+    ``lay`` or a new one; the key of the values it was compiled with:
+    :mod:`softflow.solve.usercompile`), or its call-back's (its evaluator,
+    key None: :mod:`softflow.solve.usercall`)."""
+    from . import usercall, usercompile
+    address, key = usercompile.kernel(g.row)
+    if address is not None:
+        lay = usercompile.layout(g) if lay is None else lay
+        return lay.ctypes.data, address, lay, key
+    evaluator = usercall.Evaluator(g)
+    return usercall.register(evaluator), usercall.ADDRESS, evaluator, None
+
+
 def compiled_residual(asm, failures):
     """``residual(x, S, t, dt, jac=False)`` of the assembly ``asm`` as one
     compiled call, or None where a group is not covered (see the module).
@@ -499,18 +509,12 @@ def compiled_residual(asm, failures):
         row[net.OPTION] = option
         row[net.U0] = n_u
         if cls_id == net.USER:
-            from . import usercall, usercompile
-            address = usercompile.kernel_address(g.row)
-            if address is not None:
-                # compiled: its kernel at address, its layout's address as the key
-                lay = usercompile.layout(g)
-                kernels.append(lay)                 # held by the network
-                watched.append((len(rows), g, usercompile.values_key(g.row), lay))
-                row[net.OPTION], row[net.U0] = lay.ctypes.data, address
+            row[net.OPTION], row[net.U0], held, key = _user_entry(g)
+            if key is None:
+                callbacks.append(held)              # held by the network: see usercall
             else:
-                evaluator = usercall.Evaluator(g)
-                callbacks.append(evaluator)         # held by the network: see usercall
-                row[net.OPTION], row[net.U0] = usercall.register(evaluator), usercall.ADDRESS
+                kernels.append(held)                # held by the network
+                watched.append((len(rows), g, key, held))
         if values is not None:
             u_parts.append(np.asarray(values.values(0.0), dtype=float).copy())
             sources.append(values)

@@ -372,6 +372,13 @@ COMPILED_USER_CODE = True
 #: past this, the function is called back (said once, INFO). Kernels found
 #: in the cache do not count
 USER_COMPILES_MAX = 4
+#: The most variables times rows (or states) of a user component whose
+#: compiled kernel (softflow.solve.usercompile) is unrolled, each entry a
+#: name of its own; a larger component is called back
+USER_UNROLL_MAX = 256
+#: How deep a user's functions that call the user's other functions are
+#: compiled with them (deeper, or recursive: called back)
+USER_CALL_DEPTH = 4
 #: A compile of a user's component longer than this [s] is said once (an
 #: INFO line on the 'softflow' logger); loading it from the cache is not
 COMPILE_NOTICE = 0.5

@@ -162,15 +162,12 @@ def image(value: Any, where: str, depth: int = 0) -> tuple:
     if isinstance(value, Fluid):
         got = FluidImage(float(value.rho))
         return got, got
-    if isinstance(value, pytypes.FunctionType) and depth < _DEPTH:
+    if isinstance(value, pytypes.FunctionType) and depth < settings.USER_CALL_DEPTH:
         copy, key = imaged(value, depth + 1)
         return numba.njit(boundscheck=True)(copy), key
     raise NotCompiled(f"{where} is a {type(value).__name__}, which compiled code cannot read")
 
 
-#: how deep functions that call functions are compiled (a deeper one, or a
-#: recursive one, is called back)
-_DEPTH = 4
 
 
 @functools.lru_cache(maxsize=256)
@@ -283,9 +280,6 @@ def kernel(key, t, dt, jac, xp, nx, Sp, nS, Fp, nF, rawp, nraw, Soutp, nSout):
         return 1
 '''
 
-#: the most variables times rows (or states) a compiled kernel unrolls
-#: (a larger component is called back)
-UNROLL_MAX = 256
 
 
 def _names(prefix: str, n: int) -> list:
@@ -303,7 +297,7 @@ def source(uk, order: list | None = None) -> str:
     the chain rule through the states) on scalars, each variable, state,
     row and Jacobian entry a name of its own (no array is made)."""
     nv, ns, neq = uk.nv, uk.ns, uk.neq
-    if neq < 1 or nv * max(neq, ns, 1) > UNROLL_MAX:
+    if neq < 1 or nv * max(neq, ns, 1) > settings.USER_UNROLL_MAX:
         raise NotCompiled(f"{nv} variables, {ns} states and {neq} rows: not a size a "
                           "compiled kernel unrolls")
     if uk.up is not None and getattr(uk.comp, "state_rates", None) is not None:
@@ -484,8 +478,14 @@ def _own_stamp() -> bytes:
 def kernel_address(uk) -> int | None:
     """The C address of the compiled kernel of the user kernel ``uk`` (see
     the module), or None where it is called back (the reason logged)."""
+    return kernel(uk)[0]
+
+
+def kernel(uk) -> tuple:
+    """(:func:`kernel_address`, the :func:`values_key` of the values it was
+    compiled with; None, None where ``uk`` is called back)."""
     if numba.config.DISABLE_JIT or not settings.COMPILED_USER_CODE:
-        return None
+        return None, None
     who = uk.comp.describe()
     try:
         funcs = [imaged(uk.ev.func)]
@@ -499,12 +499,18 @@ def kernel_address(uk) -> int | None:
         text = source(uk, order)
     except NotCompiled as why:
         _note(who, str(why))
-        return None
+        return None, None
     except Exception as err:        # the user's objects, read: called back as before
         _note(who, f"{type(err).__name__}: {err}")
-        return None
+        return None, None
     what = "evaluate, update_state" if uk.up is not None else "evaluate"
-    return _address(text, funcs, f"the user component {who} ({what})", who)
+    address = _address(text, funcs, f"the user component {who} ({what})", who)
+    return address, (None if address is None else _key_of(key for _, key in funcs))
+
+
+def _key_of(keys) -> bytes:
+    """:func:`values_key` of the functions' keys from :func:`imaged`."""
+    return hashlib.sha256(b"".join(keys)).digest()
 
 
 def tuple_update(func: Any, copy: Any, snames: list) -> tuple | None:
@@ -652,7 +658,7 @@ def values_key(uk) -> bytes | None:
     compares it with the key of the values its kernel was compiled with."""
     try:
         funcs = [uk.ev.func] + ([uk.up.func] if uk.up is not None else [])
-        return hashlib.sha256(b"".join(imaged(f)[1] for f in funcs)).digest()
+        return _key_of(imaged(f)[1] for f in funcs)
     except Exception:
         return None
 
