@@ -185,10 +185,11 @@ def test_a_kernel_is_compiled_once_then_loaded_keyed_on_the_values_it_reads(fres
                                                                            caplog):
     """The first call compiles (said once, INFO) and writes the kernel's
     module; in a process that has not loaded it, the kernel comes from
-    numba's cache; other closure values are another kernel; the same values
-    the same one."""
+    numba's cache; other values compiled in as constants are another
+    kernel; the same values the same one."""
     uk = _kernel_of(_leaky(1e-9))
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    monkeypatch.setattr(settings, "USER_RUNTIME_VALUES", False)     # k a constant
     monkeypatch.setattr(settings, "COMPILE_NOTICE", 0.0)
     with caplog.at_level(logging.INFO, logger="softflow"):
         first = usercompile.kernel_address(uk)
@@ -210,11 +211,13 @@ def test_a_kernel_is_compiled_once_then_loaded_keyed_on_the_values_it_reads(fres
 
 
 def test_a_design_loop_over_a_closure_value_stops_compiling(fresh_root, monkeypatch, caplog):
-    """Each new value a function reads is a compile of its own: past
-    settings.USER_COMPILES_MAX compiles of one code in a process, new values
-    are called back (said once); kernels already compiled still load."""
+    """Each new value a function reads compiled in as a constant is a
+    compile of its own: past settings.USER_COMPILES_MAX compiles of one code
+    in a process, new values are called back (said once); kernels already
+    compiled still load."""
     kernels = [_kernel_of(_leaky(k)) for k in (1e-9, 2e-9, 3e-9, 4e-9)]
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    monkeypatch.setattr(settings, "USER_RUNTIME_VALUES", False)     # k a constant
     monkeypatch.setattr(settings, "USER_COMPILES_MAX", 2)
     with caplog.at_level(logging.INFO, logger="softflow"):
         got = [usercompile.kernel_address(uk) for uk in kernels]
@@ -226,13 +229,15 @@ def test_a_design_loop_over_a_closure_value_stops_compiling(fresh_root, monkeypa
 def test_what_numba_cannot_compile_is_called_back_and_remembered(fresh_root, monkeypatch,
                                                                  caplog):
     """A function numba refuses is called back (the reason logged, DEBUG),
-    runs as before, and is not tried again, in this process or the next."""
+    runs as before, and is not tried again, in this process or the next
+    (tried twice: its closure's float k as a run-time value, then as a
+    constant)."""
     uk = _kernel_of(_leaky(numba_refuses=True))
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
     with caplog.at_level(logging.DEBUG, logger="softflow"):
         assert usercompile.kernel_address(uk) is None
     assert "_Leak 'leak' is called back in Python, not compiled: numba cannot" in caplog.text
-    marker, = fresh_root.glob("*.failed")
+    assert len(list(fresh_root.glob("*.failed"))) == 2
     usercompile._FAILED.clear()
     monkeypatch.setattr(usercompile, "_write_once", None)      # not written, not imported
     assert usercompile.kernel_address(uk) is None
@@ -294,11 +299,36 @@ def test_a_python_function_signal_is_compiled_and_gives_its_values():
     import ctypes
     source = paper_system(inertance=False).get("source")
     signal = source.signal
-    address = usercompile.signal_address(signal)
-    assert address
+    address, key = usercompile.signal_address(signal)
+    assert address and key          # p0, a run-time float: the key its array's address
+    assert list(signal._softflow_runtime[1]) == [sf.pressure_atmospheric]
     call = ctypes.CFUNCTYPE(ctypes.c_double, ctypes.c_int64, ctypes.c_double)(address)
     for t in (0.0, 0.1, 0.4999999, 0.5, 0.7, 3.0):
-        assert call(0, t) == signal(t)
+        assert call(key, t) == signal(t)
+
+
+def _step_source(amplitude):
+    return lambda t: P0 + (amplitude if t < 0.02 else 0.0)
+
+
+def test_a_signal_loop_over_closure_floats_compiles_once(fresh_root, monkeypatch):
+    """A source's function over a closure's float: one compile for every
+    value, each run its own value, the call-back's numbers."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    monkeypatch.setattr(settings, "USER_COMPILES_MAX", 1)
+    for amplitude in (1e4, 2e4, 3e4):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", sf.ModelWarning)
+            sim = sf.Simulation(_signalled(_step_source(amplitude)), duration=0.05, step=1e-3)
+            floats = sim.asm.residual.network.source_arrays()[5]
+            assert floats[1] != usercall.SIGNAL_ADDRESS          # compiled, not called back
+            a = sim.run()
+            monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+            b = sf.Simulation(_signalled(_step_source(amplitude)), duration=0.05,
+                              step=1e-3).run()
+            monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+        np.testing.assert_array_equal(a.X, b.X)
+    assert len(usercompile._LOADED) == 1
 
 
 def _signalled(signal):
@@ -562,5 +592,146 @@ def test_a_value_changed_after_the_simulation_was_built_is_seen(monkeypatch):
     monkeypatch.setitem(globals(), "K_LEAK", 3e-9)                    # compiled again
     again = sim.run()
     np.testing.assert_allclose(again.get("tank", "pressure"), tank, rtol=1e-6)
-    (gi, g, key, lay), = net.watched
+    (gi, g, key, lay, plan), = net.watched
     assert net.groups[gi, U0] != usercall.ADDRESS and net.groups[gi, OPTION] == lay.ctypes.data
+
+
+def _curve(scale):
+    """The balloon's PV curve with its pressures' rise scaled by ``scale``."""
+    base = sf.PVCurve(str(balloon_csv()))
+    v = base._knots
+    p = np.array([base.fdf_volume(volume=x)[0] for x in v])
+    return sf.PVCurve(volume=v, pressure=P0 + scale * (p - P0), gauge=False)
+
+
+def test_closure_floats_fluids_and_curves_are_run_time_values_of_one_kernel(fresh_root,
+                                                                           monkeypatch):
+    """The paper's actuator reads a curve, a fluid and a float from its
+    closure: actuators of other curves, fluids and floats share one kernel
+    (one compile), each reading its own values from its layout, and each
+    run is the call-back's bit for bit at fixed steps."""
+    glycol = sf.ConstantLiquid("glycol", density=1110.0, viscosity=1.6e-2)
+    cases = [(sf.water, 1.0, np.inf), (glycol, 1.0, 5.0), (sf.water, 1.3, np.inf),
+             (glycol, 0.8, 7.0)]
+
+    def make(fluid, scale, after):
+        def build():
+            s = sf.System()
+            s += sf.PressureSource("source", pressure=P0 + 0.3e5)
+            s += sf.CircularTube("tube", fluid, length=0.6, diameter=1e-3)
+            s += _Actuator("actu", fluid, _curve(scale), after)
+            s.connect("tube", "source")
+            s.connect("tube", "actu")
+            return s
+        return build
+
+    monkeypatch.setattr(settings, "USER_COMPILES_MAX", 1)
+    ends = set()
+    for fluid, scale, after in cases:
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+        a, b = _both(make(fluid, scale, after), monkeypatch, duration=0.3, step=1e-3)
+        assert a.success and b.success
+        np.testing.assert_array_equal(a.X, b.X)
+        np.testing.assert_array_equal(a.S, b.S)
+        ends.add(round(float(a.get("actu", "pressure")[-1]), 3))
+    assert len(ends) == len(cases)                  # each its own values
+    assert len(usercompile._LOADED) == 1            # one kernel (one compile) for all
+    name, = usercompile._LOADED
+    assert not list(fresh_root.glob("*.failed"))
+
+
+def test_a_closure_value_changed_between_runs_is_read_again_or_compiled(fresh_root,
+                                                                        monkeypatch):
+    """A run-time float changed between runs (the closure's cell set anew) is
+    read into the layout at the next run, the kernel kept; where the value
+    becomes another kind (a tuple, compiled in as a constant) the run takes
+    a kernel of its own, and the answers are the call-back's."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    sim = _sim(_leaky(1e-9), duration=0.05)
+    net = sim.asm.residual.network
+    (gi, g, key, lay, plan), = net.watched
+    assert [kind for _, _, kind in plan] == ["float"]
+    first = sim.run()
+    func = g.row.ev.func
+    cell = func.__closure__[func.__code__.co_freevars.index("k")]
+    cell.cell_contents = 4e-9
+    second = sim.run()
+    assert net.watched[0][3] is lay and len(usercompile._LOADED) == 1
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+    ref = _sim(_leaky(4e-9), duration=0.05).run()
+    # (the second run starts from the first's consistent point, solved again)
+    np.testing.assert_allclose(second.X, ref.X, rtol=1e-9, atol=1e-15)
+    assert abs(second.get("tank", "pressure")[-1] - first.get("tank", "pressure")[-1]) > 1.0
+    # a float no longer: a kernel of its own, which reads it as a constant
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    cell.cell_contents = np.array([4e-9])[0].astype(np.float32)
+    third = sim.run()
+    assert len(usercompile._LOADED) == 2 and not net.callbacks
+    assert net.watched[0][4] == ()
+    np.testing.assert_allclose(third.get("tank", "pressure"), ref.get("tank", "pressure"),
+                               rtol=1e-6)
+
+
+def test_a_design_loop_over_closure_floats_compiles_once(fresh_root, monkeypatch):
+    """Past settings.USER_COMPILES_MAX values of a closure's float, every
+    run is still compiled: one kernel, each value its own answer."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    monkeypatch.setattr(settings, "USER_COMPILES_MAX", 1)
+    ends = []
+    for k in (1e-9, 2e-9, 3e-9, 5e-9, 8e-9):
+        sim = _sim(_leaky(k), duration=0.05)
+        assert not sim.asm.residual.network.callbacks
+        ends.append(sim.run().get("tank", "pressure")[-1])
+    assert len(usercompile._LOADED) == 1
+    assert np.all(np.diff(ends) < 0)                # more leak, less pressure
+
+
+class _GainChamber(sf.Component):
+    """A user's chamber whose update_state reads a float from its closure
+    (and returns the paper's dict)."""
+
+    def __init__(self, label, gain):
+        super().__init__(label)
+        p = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf = sf.Variable("massflow", "through", label="mf")
+        m = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p, mf]))
+        self.set_states(m)
+        self.evaluate = self.auto(lambda t, p, mass: [p - (P0 + 1e9 * (mass - 1e-3))])
+
+        def update_state(dt, mass, mf):
+            return {"mass": mass + gain * mf * dt}
+        self.update_state = self.auto_state(update_state)
+
+
+def _gain_scene(gain):
+    def build():
+        s = sf.System()
+        s += sf.PressureSource("src", pressure=1.3e5)
+        s += sf.CircularTube("tube", sf.air, length=0.3, diameter=1e-3)
+        s += _GainChamber("tank", gain)
+        s.connect("tube", "src")
+        s.connect("tube", "tank")
+        return s
+    return build
+
+
+def test_an_update_states_closure_float_is_a_run_time_value(fresh_root, monkeypatch):
+    """update_state's closure float is its run-time argument (its dict still
+    compiled as a tuple): one kernel for two gains, each run the
+    call-back's bit for bit at fixed steps."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    for gain in (1.0, 0.5):
+        sim = _sim(_gain_scene(gain)(), duration=0.02, step=1e-3)
+        (gi, g, key, lay, plan), = sim.asm.residual.network.watched
+        assert plan == ((1, "gain", "float"),)
+        text = next(fresh_root.glob("*.py")).read_text()
+        assert "o = up(dt, o0, v1, a0)" in text         # gain: read from the layout
+        a = sim.run()
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+        b = _sim(_gain_scene(gain)(), duration=0.02, step=1e-3).run()
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+        np.testing.assert_array_equal(a.X, b.X)
+        np.testing.assert_array_equal(a.S, b.S)
+    assert len(usercompile._LOADED) == 1
+    assert "n0 = float(o[0])" in text                   # the dict as a tuple

@@ -333,8 +333,8 @@ class CompiledNetwork:
     #: keys), held while the network lives
     kernels: list = []
     #: each compiled user component's (row in ``groups``, group, the key of
-    #: the values its functions read when compiled, its layout): see
-    #: :meth:`check_user_values`
+    #: the values its functions read when compiled, its layout, its kernel's
+    #: plan of run-time values): see :meth:`check_user_values`
     watched: list = []
     #: ``refresh()`` copies the h A that heat-transfer correlations set at
     #: each step's start (``asm.begin_step``) into ``fpar``; None where none
@@ -343,22 +343,28 @@ class CompiledNetwork:
     def check_user_values(self) -> None:
         """Where a compiled user component's functions now read other values
         than they were compiled with (a global or a closure's value changed
-        since the Simulation was built: the compiled kernel holds them as
-        constants), its row takes the kernel of the values now (from the
-        cache, or compiled), or its call-back, which reads them as they are.
-        Called at the start of each run."""
+        since the Simulation was built, that the compiled kernel holds as a
+        constant), its row takes the kernel of the values now (from the
+        cache, or compiled), or its call-back, which reads them as they are;
+        its run-time values (floats, fluids and curves of its closures:
+        :func:`softflow.solve.usercompile.layout`) are read again into its
+        layout. Called at the start of each run."""
         if not self.watched:
             return
         from . import usercompile
         net = law_module("network")
-        for k, (gi, g, key, lay) in enumerate(self.watched):
-            if usercompile.values_key(g.row) == key:
+        for k, (gi, g, key, lay, plan) in enumerate(self.watched):
+            if (usercompile.values_key(g.row, plan) == key
+                    and usercompile.refill(lay, g.row, plan)):
                 continue
-            option, u0, held, now = _user_entry(g, lay)
+            option, u0, held, now, plan = _user_entry(g, lay)
             self.groups[gi, net.OPTION], self.groups[gi, net.U0] = option, u0
             if now is None:
                 self.callbacks.append(held)
-            self.watched[k] = (gi, g, b"called back" if now is None else now, lay)
+            elif held is not lay:
+                self.kernels.append(held)
+            self.watched[k] = (gi, g, b"called back" if now is None else now,
+                               lay if now is None else held, plan)
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
         laws = law_module("network")
@@ -448,18 +454,20 @@ def compiled_update(asm):
 
 
 def _user_entry(g, lay=None):
-    """(OPTION, U0, what the network holds, the values' key) of the user
-    group ``g``'s row: its compiled kernel's (the key its layout's address,
-    ``lay`` or a new one; the key of the values it was compiled with:
-    :mod:`softflow.solve.usercompile`), or its call-back's (its evaluator,
-    key None: :mod:`softflow.solve.usercall`)."""
+    """(OPTION, U0, what the network holds, the values' key, the kernel's
+    plan) of the user group ``g``'s row: its compiled kernel's (the key its
+    layout's address, ``lay`` refilled where it has the kernel's size, or a
+    new one; the key of the values it was compiled with and the plan of its
+    run-time values: :mod:`softflow.solve.usercompile`), or its call-back's
+    (its evaluator, key and plan None: :mod:`softflow.solve.usercall`)."""
     from . import usercall, usercompile
-    address, key = usercompile.kernel(g.row)
+    address, key, plan = usercompile.kernel(g.row)
     if address is not None:
-        lay = usercompile.layout(g) if lay is None else lay
-        return lay.ctypes.data, address, lay, key
+        if lay is None or not usercompile.refill(lay, g.row, plan):
+            lay = usercompile.layout(g, plan)
+        return lay.ctypes.data, address, lay, key, plan
     evaluator = usercall.Evaluator(g)
-    return usercall.register(evaluator), usercall.ADDRESS, evaluator, None
+    return usercall.register(evaluator), usercall.ADDRESS, evaluator, None, None
 
 
 def compiled_residual(asm, failures):
@@ -509,12 +517,12 @@ def compiled_residual(asm, failures):
         row[net.OPTION] = option
         row[net.U0] = n_u
         if cls_id == net.USER:
-            row[net.OPTION], row[net.U0], held, key = _user_entry(g)
+            row[net.OPTION], row[net.U0], held, key, plan = _user_entry(g)
             if key is None:
                 callbacks.append(held)              # held by the network: see usercall
             else:
                 kernels.append(held)                # held by the network
-                watched.append((len(rows), g, key, held))
+                watched.append((len(rows), g, key, held, plan))
         if values is not None:
             u_parts.append(np.asarray(values.values(0.0), dtype=float).copy())
             sources.append(values)

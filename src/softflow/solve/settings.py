@@ -366,9 +366,16 @@ COMPILED_USER = True
 #: compiled once, cached under numba's cache directory); False, or where
 #: numba cannot compile them: called back in Python (COMPILED_USER)
 COMPILED_USER_CODE = True
+#: Whether the floats, fluids and PV curves that a compiled user component's
+#: ``evaluate`` / ``update_state`` read from their closures are run-time data
+#: of one kernel (read from the component's layout at each call: a design
+#: loop over a stiffness or a curve compiles once) rather than constants
+#: compiled in (a kernel per set of values). Off: constants, as before
+USER_RUNTIME_VALUES = True
 #: How many kernels a process compiles for one user function's code, each
-#: for other values read from its closure or globals (compiled in as
-#: constants: a design loop that changes one would compile at every run);
+#: for other values read from its closure or globals that are compiled in
+#: as constants (a global, an int, a tuple, an array, a helper function's
+#: closure: a design loop that changes one would compile at every run);
 #: past this, the function is called back (said once, INFO). Kernels found
 #: in the cache do not count
 USER_COMPILES_MAX = 4

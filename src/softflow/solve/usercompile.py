@@ -18,11 +18,17 @@ What a user's function may use. Numbers, tuples of numbers, NumPy arrays,
 a :class:`~softflow.curves.pvcurve.PVCurve` (``fdf_volume`` of one volume)
 and a fluid (its ``rho``), and the user's own plain functions (compiled
 with it, by the same rules), found in the function's closure or among its
-globals. They are compiled in as constants, read when the Simulation is
-built and checked at the start of each run
-(:meth:`softflow.solve.netcore.CompiledNetwork.check_user_values`: values
-changed since get their own kernel, or the call-back); a curve or an array
-changed during a run is not seen. Where
+globals. The floats, fluids and curves in the closures of ``evaluate`` and
+``update_state`` (and the floats in a source function's closure) are
+run-time values (settings.USER_RUNTIME_VALUES): the function is rewritten
+from its source to take them as its last arguments, and the kernel reads
+them from the component's layout at each call (:func:`layout`), so one
+kernel serves every value (a design loop over a curve or a stiffness
+compiles once). The rest is compiled in as constants. All are read when the
+Simulation is built and checked at the start of each run
+(:meth:`softflow.solve.netcore.CompiledNetwork.check_user_values`: run-time
+values read again, changed constants get their own kernel, or the
+call-back); a value changed during a run is not seen. Where
 anything else is met, or numba cannot compile the function, the component is
 called back in Python as before, and the reason is logged once (DEBUG, on
 the ``'softflow'`` logger).
@@ -31,8 +37,8 @@ Compiled once. The kernel is written as a small module (its source names the
 user's functions, the component's state names and its own integer and
 float constants only, no component's label: components alike share it)
 under the compile cache, in a file named by a hash of that source, of the
-user functions' code and of the values read from their closures and
-globals, and of the text of softflow's laws and softflow's, numba's and
+user functions' code and of the constants read from their closures and
+globals (of the run-time values, their kinds), and of the text of softflow's laws and softflow's, numba's and
 Python's versions; numba caches the compiled kernel beside it, so a later
 process loads it (milliseconds) instead of compiling it again (a second or
 two, said once on the ``'softflow'`` logger). A function whose
@@ -55,7 +61,7 @@ import dis
 import functools
 import hashlib
 import importlib.util
-import inspect
+import linecache
 import logging
 import math
 import os
@@ -63,7 +69,6 @@ import pickle
 import re
 import sys
 import tempfile
-import textwrap
 import threading
 import time
 import types as pytypes
@@ -101,6 +106,10 @@ LAYOUT_HEAD = 7
 
 #: a PV curve as compiled code reads it (its lookup's table: softflow.laws.volumes)
 CurveImage = collections.namedtuple("CurveImage", "knots table lo hi refuse")
+#: a PV curve as a kernel reads it at run time (:func:`layout`): the
+#: addresses of its knots and of its table's rows (end to end), the number
+#: of knots, the ends of its data and whether it refuses volumes beyond them
+CurveRef = collections.namedtuple("CurveRef", "knots n table lo hi refuse")
 #: a fluid as compiled code reads it: the paper's ``fluid.rho``
 FluidImage = collections.namedtuple("FluidImage", "rho")
 
@@ -120,16 +129,39 @@ def layout_at(typingctx, address):
     return sig, codegen
 
 
+@intrinsic
+def floats_at(typingctx, address):
+    """The float64 pointer at ``address`` (int64): a layout's slots read as
+    floats, or an array's data (:func:`layout`'s run-time values)."""
+    sig = types.CPointer(types.float64)(address)
+
+    def codegen(context, builder, sig, args):
+        from llvmlite import ir
+        return builder.inttoptr(args[0], ir.DoubleType().as_pointer())
+    return sig, codegen
+
+
 @overload_method(types.NamedTuple, "fdf_volume")
 def _fdf_volume(curve, volume):
     """A :class:`CurveImage`'s ``fdf_volume`` of one volume: (p, dp/dV), as
     :meth:`PVCurve.fdf_volume` of a float gives them; a volume the curve
     refuses raises (the caller's Python path then raises CurveRangeError)."""
-    if getattr(curve, "instance_class", None) is not CurveImage:
+    kind = getattr(curve, "instance_class", None)
+    if kind not in (CurveImage, CurveRef):
         return None
     if not isinstance(volume, (types.Float, types.Integer)):
         return None
-    from ..laws.volumes import curve_point
+    from ..laws.volumes import curve_point, curve_point_flat
+
+    if kind is CurveRef:        # (a run-time curve: its arrays at their addresses)
+        def ref(curve, volume):
+            x = float(volume)
+            if curve.refuse and not (curve.lo <= x <= curve.hi):
+                raise ValueError("a volume beyond the PV curve's data")
+            n = curve.n
+            return curve_point_flat(numba.carray(floats_at(curve.knots), (n,)),
+                                    numba.carray(floats_at(curve.table), (5 * n + 5,)), x)
+        return ref
 
     def impl(curve, volume):
         x = float(volume)
@@ -168,6 +200,43 @@ def image(value: Any, where: str, depth: int = 0) -> tuple:
     raise NotCompiled(f"{where} is a {type(value).__name__}, which compiled code cannot read")
 
 
+#: the layout slots each kind of run-time value takes (after the component's
+#: columns): a float its bits; a fluid its density's bits; a PV curve its
+#: knots' address and number, its table's address, rows and columns, the
+#: bits of its data's ends and whether it refuses volumes beyond them
+_SLOTS = {"float": 1, "fluid": 1, "curve": 8}
+
+
+def _runtime_kind(value: Any) -> str | None:
+    """The kind of run-time value ``value`` is (a key of :data:`_SLOTS`), or
+    None where it is compiled in as a constant."""
+    if type(value) in (float, np.float64):
+        return "float"
+    if isinstance(value, Fluid):
+        return "fluid"
+    if (isinstance(value, PVCurve) and type(value).fdf_volume is PVCurve.fdf_volume
+            and type(value)._scalar is PVCurve._scalar):
+        return "curve"
+    return None
+
+
+def _runtime_vars(func: Any) -> tuple:
+    """The (name, kind) of the closure's values of the user's function
+    ``func`` that its kernel reads as run-time data (:func:`layout`):
+    its floats, fluids and PV curves (settings.USER_RUNTIME_VALUES)."""
+    if not settings.USER_RUNTIME_VALUES:
+        return ()
+    found = []
+    for var, cell in zip(func.__code__.co_freevars, func.__closure__ or ()):
+        try:
+            kind = _runtime_kind(cell.cell_contents)
+        except ValueError:          # not set: imaged says so
+            return ()
+        if kind is not None:
+            found.append((var, kind))
+    return tuple(found)
+
+
 
 
 @functools.lru_cache(maxsize=256)
@@ -181,9 +250,12 @@ def _global_names(code) -> frozenset:
     return frozenset(names)
 
 
-def imaged(func: Any, depth: int = 0) -> tuple:
+def imaged(func: Any, depth: int = 0, runtime: dict | None = None) -> tuple:
     """(a copy of ``func`` whose closure and globals hold images of its own,
-    the bytes that identify its code and those values: see :func:`image`)."""
+    the bytes that identify its code and those values: see :func:`image`).
+    ``runtime``: {name: kind} of closure values read at run time (their kind
+    keyed, not their value; the copy's cell holds None: the function that
+    reads them is :func:`_rewrite`'s)."""
     if not isinstance(func, pytypes.FunctionType):
         raise NotCompiled(f"{func!r} is not a plain Python function")
     name = func.__name__
@@ -196,6 +268,13 @@ def imaged(func: Any, depth: int = 0) -> tuple:
             content = cell.cell_contents
         except ValueError:
             raise NotCompiled(f"{name}: {var} is not set") from None
+        if runtime and var in runtime:
+            kind = _runtime_kind(content)
+            if kind != runtime[var]:
+                raise NotCompiled(f"{name}'s {var} is no longer a {runtime[var]}")
+            cells.append(pytypes.CellType(None))
+            keys.append((var, ("run-time", kind)))
+            continue
         got, key = image(content, f"{name}'s {var}", depth)
         cells.append(pytypes.CellType(got))
         keys.append((var, key))
@@ -227,29 +306,39 @@ def _code_key(code) -> bytes:
     return b"\0".join(hashlib.sha256(p).digest() for p in parts)
 
 
-#: the module of a source's signal given as a Python function
-_SIGNAL_TEMPLATE = '''\
+#: the module of a source's signal given as a Python function: its head,
+#: then its kernel (:func:`_signal_source`)
+_SIGNAL_HEAD = '''\
 """softflow: a source's signal compiled (generated by softflow.solve.usercompile;
 do not edit)."""
 import math
 
-from numba import cfunc
+from numba import carray, cfunc
 
-from softflow.solve.usercompile import SIGNAL_SIGNATURE, functions_for
+from softflow.solve.usercompile import SIGNAL_SIGNATURE, floats_at, functions_for
 
 signal, _ = functions_for(__name__)
 
 
 @cfunc(SIGNAL_SIGNATURE, cache=True)
 def kernel(key, t):
-    try:
-        value = float(signal(t))
-    except Exception:
-        return math.nan
-    # not finite: NaN, handed back (numba's math gives inf or nan where
-    # Python's raises; the Python path says which)
-    return value if math.isfinite(value) else math.nan
 '''
+
+
+def _signal_source(n: int) -> str:
+    """The text of a signal's module whose function takes ``n`` run-time
+    floats after t, read from the float array at the key's address."""
+    args = "".join(f", flay[{k}]" for k in range(n))
+    return _SIGNAL_HEAD + "".join([
+        f"    flay = carray(floats_at(key), ({n},))\n" if n else "",
+        "    try:\n",
+        f"        value = float(signal(t{args}))\n",
+        "    except Exception:\n",
+        "        return math.nan\n",
+        "    # not finite: NaN, handed back (numba's math gives inf or nan where\n",
+        "    # Python's raises; the Python path says which)\n",
+        "    return value if math.isfinite(value) else math.nan\n"])
+
 
 #: the kernel's module: its head, then what :func:`source` writes for the
 #: component (its variables, states and rows as scalars: no arrays made)
@@ -260,7 +349,8 @@ import math
 
 from numba import carray, cfunc, njit
 
-from softflow.solve.usercompile import SIGNATURE, functions_for, layout_at
+from softflow.solve.usercompile import (SIGNATURE, CurveRef, FluidImage, floats_at,
+                                       functions_for, layout_at)
 
 ev, up = functions_for(__name__)
 '''
@@ -270,11 +360,12 @@ _TAIL = '''
 @cfunc(SIGNATURE, cache=True)
 def kernel(key, t, dt, jac, xp, nx, Sp, nS, Fp, nF, rawp, nraw, Soutp, nSout):
     lay = carray(layout_at(key), ({head},))
+    flay = carray(floats_at(key), ({head},))
     if (nx < lay[0] or nS < lay[5] or nF < lay[1] + {neq} or nraw < lay[3]
             or (nSout != 0 and nSout < lay[5])):
         return 1
     try:
-        return _evaluate(lay, t, dt, jac, carray(xp, (nx,)), carray(Sp, (nS,)),
+        return _evaluate(lay, flay, t, dt, jac, carray(xp, (nx,)), carray(Sp, (nS,)),
                          carray(Fp, (nF,)), carray(rawp, (nraw,)), carray(Soutp, (nSout,)))
     except Exception:
         return 1
@@ -291,11 +382,14 @@ def _row_of(names: list) -> str:
     return ", ".join(names) + ("," if len(names) == 1 else "")
 
 
-def source(uk, order: list | None = None) -> str:
+def source(uk, order: list | None = None, plan: tuple = ()) -> str:
     """The kernel module's text for the user kernel ``uk``: the arithmetic
     of :meth:`UserKernel.kernel_row` (its finite differences, their steps,
     the chain rule through the states) on scalars, each variable, state,
-    row and Jacobian entry a name of its own (no array is made)."""
+    row and Jacobian entry a name of its own (no array is made); ``order``:
+    the tuple :func:`tuple_update` made of ``update_state``'s dict; ``plan``
+    (:func:`kernel`): the run-time values read from the layout and passed to
+    evaluate (0) and update_state (1) as their last arguments."""
     nv, ns, neq = uk.nv, uk.ns, uk.neq
     if neq < 1 or nv * max(neq, ns, 1) > settings.USER_UNROLL_MAX:
         raise NotCompiled(f"{nv} variables, {ns} states and {neq} rows: not a size a "
@@ -304,6 +398,8 @@ def source(uk, order: list | None = None) -> str:
         raise NotCompiled("state_rates is called back (not compiled)")
     V, O, N, Fn = _names("v", nv), _names("o", ns), _names("n", ns), _names("f", neq)
     P, M = _names("p", neq), _names("m", ns)
+    A = [f"a{k}" for k, entry in enumerate(plan) if entry[0] == 0]
+    B = [f"a{k}" for k, entry in enumerate(plan) if entry[0] == 1]
     rel = float(_rel())
 
     def pick(binding, first, v, s):
@@ -311,17 +407,20 @@ def source(uk, order: list | None = None) -> str:
                          for kind, k in binding)
 
     def residual(v, s):
-        return f"_residual(t, {', '.join(v + s)})"
+        return f"_residual(t, {', '.join(A + v + s)})"
 
     def states(v):
-        return f"_states(dt, {', '.join(v + O)})"
+        return f"_states(dt, {', '.join(B + v + O)})"
+
+    def extra(names):
+        return "".join(f", {n}" for n in names)
 
     def step(x, scale):
         return f"        h = {rel!r} * max(abs({x}), {float(scale)!r})"
 
     out = [_HEAD, "",
-           "@njit", f"def _residual(t, {', '.join(V + N)}):",
-           f"    r = ev({pick(uk.ev_args, 't', V, N)})",
+           "@njit", f"def _residual(t, {', '.join(A + V + N)}):",
+           f"    r = ev({pick(uk.ev_args, 't', V, N)}{extra(A)})",
            f"    if len(r) != {neq}:",
            "        raise ValueError('evaluate returned another number of residuals')",
            *[f"    f{i} = float(r[{i}])" for i in range(neq)],
@@ -331,11 +430,11 @@ def source(uk, order: list | None = None) -> str:
            "        raise ValueError('a residual is not finite')",
            f"    return {_row_of(Fn)}", "", ""]
     if ns:
-        out += ["@njit", f"def _states(dt, {', '.join(V + O)}):"]
+        out += ["@njit", f"def _states(dt, {', '.join(B + V + O)}):"]
         if uk.up is None:
             out.append(f"    return {_row_of(O)}")
         else:
-            out.append(f"    o = up({pick(uk.up_args, 'dt', V, O)})")
+            out.append(f"    o = up({pick(uk.up_args, 'dt', V, O)}{extra(B)})")
             if order is None:       # the dict the user's update_state returns
                 out += [f"    if len(o) != {ns}:",
                         "        raise KeyError('update_state returned other states')"]
@@ -346,8 +445,18 @@ def source(uk, order: list | None = None) -> str:
                     "        raise ValueError('a state is not finite')",
                     f"    return {_row_of(N)}"]
         out += ["", ""]
-    out += ["@njit", "def _evaluate(lay, t, dt, jac, x, S, F, raw, Sout):",
+    out += ["@njit", "def _evaluate(lay, flay, t, dt, jac, x, S, F, raw, Sout):",
             "    r0, j0, j1, s0, has_states = lay[1], lay[2], lay[3], lay[4], lay[6]"]
+    at = LAYOUT_HEAD + nv
+    for k, (_, _, kind) in enumerate(plan):
+        if kind == "float":
+            out.append(f"    a{k} = flay[{at}]")
+        elif kind == "fluid":
+            out.append(f"    a{k} = FluidImage(flay[{at}])")
+        else:
+            out.append(f"    a{k} = CurveRef(lay[{at}], lay[{at + 1}], lay[{at + 2}], "
+                       f"flay[{at + 5}], flay[{at + 6}], lay[{at + 7}] != 0)")
+        at += _SLOTS[kind]
     out += [f"    v{k} = x[lay[{LAYOUT_HEAD + k}]]" for k in range(nv)]
     out += [f"    o{k} = S[s0 + {k}]" for k in range(ns)]
     if ns:
@@ -385,7 +494,7 @@ def source(uk, order: list | None = None) -> str:
     out += [f"        raw[j0 + {e * nv + k}] = {J[e, k]}" for e in range(neq)
             for k in range(nv)]
     out.append("    return 0")
-    return "\n".join(out) + "\n" + _TAIL.format(head=LAYOUT_HEAD + nv, neq=neq)
+    return "\n".join(out) + "\n" + _TAIL.format(head=at, neq=neq)
 
 
 def _rel() -> float:
@@ -483,29 +592,62 @@ def kernel_address(uk) -> int | None:
 
 def kernel(uk) -> tuple:
     """(:func:`kernel_address`, the :func:`values_key` of the values it was
-    compiled with; None, None where ``uk`` is called back)."""
+    compiled with, its plan: the run-time values its layout holds, see
+    :func:`layout`; None, None, None where ``uk`` is called back)."""
     if numba.config.DISABLE_JIT or not settings.COMPILED_USER_CODE:
-        return None, None
+        return None, None, None
     who = uk.comp.describe()
-    try:
-        funcs = [imaged(uk.ev.func)]
-        order = None
-        if uk.up is not None:
-            copy, key = imaged(uk.up.func)
-            rewritten = tuple_update(uk.up.func, copy, uk.snames)
-            if rewritten is not None:
-                copy, order = rewritten
-            funcs.append((copy, key))
-        text = source(uk, order)
-    except NotCompiled as why:
-        _note(who, str(why))
-        return None, None
-    except Exception as err:        # the user's objects, read: called back as before
-        _note(who, f"{type(err).__name__}: {err}")
-        return None, None
     what = "evaluate, update_state" if uk.up is not None else "evaluate"
-    address = _address(text, funcs, f"the user component {who} ({what})", who)
-    return address, (None if address is None else _key_of(key for _, key in funcs))
+    roles = [(uk.ev.func, None)] + ([(uk.up.func, tuple(uk.snames))] if uk.up is not None
+                                    else [])
+    runtime = True
+    while True:
+        try:
+            funcs, plan, order = [], [], None
+            for i, (func, snames) in enumerate(roles):
+                copy, key, got, rt = _prepared(func, snames, runtime)
+                funcs.append((copy, key))
+                plan += [(i, var, kind) for var, kind in rt]
+                if snames is not None:
+                    order = got
+            text = source(uk, order, tuple(plan))
+            for i, var, kind in plan:          # readable now (a fluid's density, say)
+                _slots(kind, _cell(roles[i][0], var), [])
+        except NotCompiled as why:
+            _note(who, str(why))
+            return None, None, None
+        except Exception as err:        # the user's objects, read: called back as before
+            _note(who, f"{type(err).__name__}: {err}")
+            return None, None, None
+        address = _address(text, funcs, f"the user component {who} ({what})", who)
+        if address is None and plan:
+            runtime = False     # (numba refused the values as arguments: as constants)
+            continue
+        return (address, None if address is None else _key_of(key for _, key in funcs),
+                None if address is None else tuple(plan))
+
+
+def _prepared(func: Any, snames: tuple | None, runtime: bool,
+              only: tuple | None = None) -> tuple:
+    """(the user's function ``func`` to compile, its key, the order of its
+    dict's states or None, its run-time values' (name, kind)): its closure's
+    floats, fluids and curves (``only`` these (name, kind) where given) as
+    its last arguments where ``runtime`` and its source can be rewritten so
+    (:func:`_rewrite`), else compiled in."""
+    rt = (_runtime_vars(func) if only is None else only) if runtime else ()
+    if rt:
+        copy, key = imaged(func, runtime=dict(rt))
+        got = _rewrite(func, copy, snames, tuple(var for var, _ in rt))
+        if got is not None:
+            return got[0], key, got[1], rt
+    copy, key = imaged(func)
+    got = _rewrite(func, copy, snames, ()) if snames is not None else None
+    return (copy, key, None, ()) if got is None else (got[0], key, got[1], ())
+
+
+def _cell(func: Any, var: str) -> Any:
+    """The value of ``func``'s closure variable ``var``."""
+    return func.__closure__[func.__code__.co_freevars.index(var)].cell_contents
 
 
 def _key_of(keys) -> bytes:
@@ -517,43 +659,59 @@ def tuple_update(func: Any, copy: Any, snames: list) -> tuple | None:
     """(``copy`` of the user's ``update_state`` ``func`` whose dict answer
     ``return {'state': value, ...}`` is written as a tuple of its values,
     the tuple's position of each of ``snames``), or None where its source
-    is not that (then the dict is compiled as written).
+    is not that (then the dict is compiled as written): :func:`_rewrite`
+    with no run-time values.
 
     Why: the dict is numba's typed dict, whose compile takes ~4.6 s the
     first time in a process; the tuple, a fraction of a second. Only the
     answer's form changes: the values are the same expressions, in the same
     order. Every ``return`` of the function must be a dict display of the
-    same string keys, each state once (a lambda's body likewise); its source
-    (``inspect``) must compile to the running function's own bytecode (a
-    file edited since it was imported is not rewritten). ``copy`` (from
-    :func:`imaged`) gives the globals and the closure's values, which the
-    rewritten function reads as its globals."""
-    rewritten = _rewritten(func.__code__, func.__name__, tuple(snames))
+    same string keys, each state once (a lambda's body likewise)."""
+    return _rewrite(func, copy, tuple(snames), ())
+
+
+def _rewrite(func: Any, copy: Any, snames: tuple | None, extra: tuple) -> tuple | None:
+    """The user's function ``func`` written again from its source: (the
+    function, the order of its dict's states or None), or None where there
+    is nothing to rewrite or it cannot be rewritten. ``snames`` (an
+    ``update_state``'s states): its dict answer written as a tuple
+    (:func:`tuple_update`) where it has that form; ``extra``: closure
+    variables that become the function's last arguments (run-time values,
+    :func:`layout`; needed: None where they cannot be). Its source (its
+    file's text as ``linecache`` has it) must compile to the running
+    function's own bytecode (a file edited since it was imported is not
+    rewritten). ``copy`` (from
+    :func:`imaged`) gives the globals and the closure's other values, which
+    the rewritten function reads as its globals."""
+    rewritten = _rewritten(func.__code__, func.__name__, snames, extra)
     if rewritten is None:
         return None
     module, order = rewritten
     code = func.__code__
     space = dict(copy.__globals__)
     space.update((var, cell.cell_contents)
-                 for var, cell in zip(code.co_freevars, copy.__closure__ or ()))
+                 for var, cell in zip(code.co_freevars, copy.__closure__ or ())
+                 if var not in extra)
     try:            # defines the function only
         exec(module, space)
     except Exception:
         return None
-    return space["_softflow_update"], order
+    return space["_softflow_fn"], order
 
 
 @functools.lru_cache(maxsize=256)
-def _rewritten(code, name: str, snames: tuple) -> tuple | None:
-    """:func:`tuple_update`'s rewrite of the function of ``code``, named
-    ``name``: (the compiled module that defines it, the order), or None;
-    found once a process for each code."""
-    try:
-        lines, first = inspect.getsourcelines(code)
-        tree = ast.parse(textwrap.dedent("".join(lines)))
-    except (OSError, TypeError, SyntaxError, IndentationError):
+def _rewritten(code, name: str, snames: tuple | None, extra: tuple) -> tuple | None:
+    """:func:`_rewrite`'s rewrite of the function of ``code``, named
+    ``name``: (the compiled module that defines it, the order or None), or
+    None; found once a process for each code."""
+    if snames is None and not extra:
         return None
-    line = code.co_firstlineno - max(first, 1) + 1
+    try:        # the whole file: a lambda may sit inside a call over several lines
+        linecache.checkcache(code.co_filename)
+        tree = ast.parse("".join(linecache.getlines(code.co_filename)))
+    except (OSError, TypeError, SyntaxError, ValueError):
+        return None
+    line = code.co_firstlineno
     args = list(code.co_varnames[:code.co_argcount])
     lam = name == "<lambda>"
     found = [n for n in ast.walk(tree)
@@ -566,6 +724,25 @@ def _rewritten(code, name: str, snames: tuple) -> tuple | None:
     if len(found) != 1 or not _compiles_to(found[0], code):
         return None
     node = found[0]
+    order = _as_tuple(node, lam, snames) if snames is not None else None
+    if order is None and not extra:
+        return None
+    body = [ast.Return(value=node.body)] if lam else node.body
+    node.args.args = node.args.args + [ast.arg(arg=v) for v in extra]
+    fdef = ast.FunctionDef(name="_softflow_fn", args=node.args, body=body,
+                           decorator_list=[], returns=None, type_comment=None)
+    module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
+    try:            # (a `nonlocal` there, say, does not compile)
+        return compile(module, code.co_filename, "exec"), order
+    except Exception:
+        return None
+
+
+def _as_tuple(node, lam: bool, snames: tuple) -> list | None:
+    """Rewrite the dict answers of the function or lambda ``node`` as tuples
+    of the same values where each is a display of the states ``snames``
+    (in place): each state's position in them; None (nothing changed) where
+    they are not that."""
     answers = [node.body] if lam else [r.value for r in _returns(node)]
     keys = None
     for answer in answers:
@@ -582,15 +759,7 @@ def _rewritten(code, name: str, snames: tuple) -> tuple | None:
     for answer in answers:
         answer.__class__ = ast.Tuple                    # the same values, in order
         answer.elts, answer.ctx = answer.values, ast.Load()    # type: ignore[attr-defined]
-    body = [ast.Return(value=node.body)] if lam else node.body
-    fdef = ast.FunctionDef(name="_softflow_update", args=node.args, body=body,
-                           decorator_list=[], returns=None, type_comment=None)
-    module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
-    try:            # (a `nonlocal` there, say, does not compile)
-        return (compile(module, code.co_filename, "exec"),
-                [keys.index(n) for n in snames])
-    except Exception:
-        return None
+    return [keys.index(n) for n in snames]
 
 
 def _returns(node) -> list:
@@ -651,36 +820,59 @@ def _same_code(a, b) -> bool:
     return True
 
 
-def values_key(uk) -> bytes | None:
+def values_key(uk, plan: tuple = ()) -> bytes | None:
     """A key of the values the user kernel ``uk``'s functions read now (from
-    their closures and globals, as :func:`imaged` reads them), or None where
-    they cannot be read so: :meth:`CompiledNetwork.check_user_values`
+    their closures and globals, as :func:`imaged` reads them; of the
+    run-time values of ``plan``, from :func:`kernel`, their kinds alone), or
+    None where they cannot be read so: :meth:`CompiledNetwork.check_user_values`
     compares it with the key of the values its kernel was compiled with."""
     try:
         funcs = [uk.ev.func] + ([uk.up.func] if uk.up is not None else [])
-        return _key_of(imaged(f)[1] for f in funcs)
+        return _key_of(imaged(f, runtime={var: kind for i, var, kind in plan if i == k})[1]
+                       for k, f in enumerate(funcs))
     except Exception:
         return None
 
 
-def signal_address(signal) -> int | None:
-    """The C address of a source's signal given as a Python function
-    (``signal``: the source's ``_Signal``), compiled as
+def signal_address(signal) -> tuple | None:
+    """(the C address, its key) of a source's signal given as a Python
+    function (``signal``: the source's ``_Signal``), compiled as
     :data:`SIGNAL_SIGNATURE` (its value in SI, NaN where it raised), or None
     where it is called back (the reason logged). Its function must return
-    SI floats (a pint Quantity is not compiled)."""
+    SI floats (a pint Quantity is not compiled). The floats of its closure
+    are run-time values (settings.USER_RUNTIME_VALUES: one compile for all
+    their values), read now into an array the signal holds, whose address
+    is the key (0 where there are none)."""
     if numba.config.DISABLE_JIT or not settings.COMPILED_USER_CODE:
         return None
     who = f"{signal.owner}: {signal.name}"
-    try:
-        funcs = [imaged(signal.func)]
-    except NotCompiled as why:
-        _note(who, str(why))
-        return None
-    except Exception as err:
-        _note(who, f"{type(err).__name__}: {err}")
-        return None
-    return _address(_SIGNAL_TEMPLATE, funcs, f"{who} (t)", who)
+    runtime = True
+    while True:
+        try:
+            rt = tuple((var, kind) for var, kind in _runtime_vars(signal.func)
+                       if kind == "float") if runtime else ()
+            func, key, _, rt = _prepared(signal.func, None, bool(rt), only=rt)
+            values = np.array([float(_cell(signal.func, var)) for var, _ in rt])
+        except NotCompiled as why:
+            _note(who, str(why))
+            return None
+        except Exception as err:
+            _note(who, f"{type(err).__name__}: {err}")
+            return None
+        address = _address(_signal_source(len(rt)), [(func, key)], f"{who} (t)", who)
+        if address is None and rt:
+            runtime = False
+            continue
+        if address is None:
+            return None
+        if not rt:
+            return address, 0
+        # the signal's array of these run-time values (one per number of
+        # them, written in place: a Simulation run before keeps a valid key)
+        held = signal.__dict__.setdefault("_softflow_runtime", {})
+        data = held.setdefault(len(rt), np.zeros(len(rt)))
+        data[:] = values
+        return address, data.ctypes.data
 
 
 def _address(text: str, funcs: list, what: str, who: str) -> int | None:
@@ -780,9 +972,18 @@ def _note(who: str, why: str) -> None:
     log.debug("%s is called back in Python, not compiled: %s", who, why)
 
 
-def layout(g) -> np.ndarray:
+class Layout(np.ndarray):
+    """A compiled user component's layout (int64, see :func:`layout`), which
+    holds the arrays its run-time values point to (``keep``) and a digest
+    of those values (``digest``: equal for equal values)."""
+    keep: list = []
+    digest: bytes = b""
+
+
+def layout(g, plan: tuple = ()) -> Layout:
     """The layout a compiled kernel reads for the user group ``g`` (see
-    :data:`LAYOUT_HEAD`): its address is the kernel's key."""
+    :data:`LAYOUT_HEAD`), its run-time values (``plan`` from :func:`kernel`)
+    after the component's columns: its address is the kernel's key."""
     col = np.asarray(g.col[0], dtype=np.int64)
     uk = g.row
     if (g.r1 - g.r0 != uk.neq or g.j1 - g.j0 not in (0, uk.neq * uk.nv) or col.size != uk.nv
@@ -791,4 +992,55 @@ def layout(g) -> np.ndarray:
                            "its kernel's sizes")
     head = [int(col.max()) + 1 if col.size else 0, g.r0, g.j0, g.j1, g.s0, g.s1,
             int(bool(g.has_states))]
-    return np.ascontiguousarray(np.concatenate([np.array(head, dtype=np.int64), col]))
+    n_rt = sum(_SLOTS[kind] for _, _, kind in plan)
+    lay = np.concatenate([np.array(head, dtype=np.int64), col,
+                          np.zeros(n_rt, dtype=np.int64)]).view(Layout)
+    refill(lay, uk, plan)
+    return lay
+
+
+def refill(lay: Layout, uk, plan: tuple) -> bool:
+    """Write the run-time values of the user kernel ``uk`` now into its
+    layout ``lay`` (its slots after the columns, as ``plan`` lays them out);
+    False (nothing written) where the layout has not their size."""
+    funcs = [uk.ev.func] + ([uk.up.func] if uk.up is not None else [])
+    keep: list = []
+    slots = []
+    h = hashlib.sha256()
+    for i, var, kind in plan:
+        got = _slots(kind, _cell(funcs[i], var), keep)
+        slots += got
+        # (a curve's digest: its arrays' contents, not their addresses)
+        h.update(repr(got[5:] if kind == "curve" else got).encode())
+    for a in keep:
+        h.update(a.tobytes())
+    at = LAYOUT_HEAD + uk.nv
+    if lay.size != at + len(slots):
+        return False
+    lay[at:] = slots
+    lay.keep = keep
+    lay.digest = h.digest()
+    return True
+
+
+def _bits(x: float) -> int:
+    """The int64 of the float ``x``'s bits."""
+    return int(np.array([x], dtype=np.float64).view(np.int64)[0])
+
+
+def _slots(kind: str, value: Any, keep: list) -> list:
+    """The layout slots of a run-time value of ``kind`` (:data:`_SLOTS`);
+    the arrays they point to appended to ``keep``."""
+    if _runtime_kind(value) != kind:
+        raise NotCompiled(f"a {type(value).__name__} where a {kind} was compiled for")
+    if kind == "float":
+        return [_bits(float(value))]
+    if kind == "fluid":
+        return [_bits(float(value.rho))]
+    knots = np.ascontiguousarray(value._knots, dtype=np.float64)
+    table = np.ascontiguousarray(value._table, dtype=np.float64)
+    if table.shape != (knots.size + 1, 5):
+        raise NotCompiled(f"a PV curve's table of shape {table.shape} for {knots.size} knots")
+    keep += [knots, table]
+    return [knots.ctypes.data, knots.size, table.ctypes.data, table.shape[0], table.shape[1],
+            _bits(float(value._lo)), _bits(float(value._hi)), int(bool(value._refuse))]

@@ -261,6 +261,9 @@ def _gather_index(tn, bn, K, lay):
         if ((bg[b][:, cols] != tg[gi, cols]).any()
                 or (bn.float_sizes[b] != tn.float_sizes[gi]).any()):
             raise Unsupported("a variant's network group differs from the scene's")
+        if tg[gi, net.CLS] == net.USER and not _same_runtime(tn, gi, bn, b):
+            raise Unsupported("a variant's user component reads other run-time values than "
+                              "the scene's")
         _same_places(t_asm_g, [bn.asm.groups[v] for v in b], inst, lay)
         f0 = bg[b, net.F0][:, None]
         f_parts.append(f0 + np.arange(n_shared))
@@ -274,6 +277,18 @@ def _gather_index(tn, bn, K, lay):
     if f_idx.shape[1] != tn.fpar.size or u_idx.shape[1] != tn.u.size:
         raise Unsupported("the variants' network floats differ from the scene's")
     return f_idx, u_idx
+
+
+def _same_runtime(tn, gi, bn, b):
+    """Whether the compiled user component of the scene's group ``gi`` and
+    its copies in the batch's groups ``b`` hold the same run-time values
+    (:func:`softflow.solve.usercompile.layout`: the variants' runs read the
+    scene's layout)."""
+    mine = {row: lay for row, _, _, lay, _ in tn.watched}
+    theirs = {row: lay for row, _, _, lay, _ in bn.watched}
+    if gi not in mine or any(int(v) not in theirs for v in b):
+        return False
+    return all(theirs[int(v)].digest == mine[gi].digest for v in b)
 
 
 def _same_places(tg, groups, inst, lay):

@@ -124,9 +124,11 @@ def describe(params: Any) -> Described | None:
             # where numba can compile it as written, else called back
             from .usercall import signal_floats
             from .usercompile import signal_address
-            address = (signal_address(signal) if getattr(signal, "func", None) is not None
-                       else None)
-            key_at = signal_floats(signal) if address is None else [0.0, float(address)]
+            got = (signal_address(signal) if getattr(signal, "func", None) is not None
+                   else None)
+            # (the compiled signal's key: the address of its run-time floats)
+            key_at = (signal_floats(signal) if got is None
+                      else [float(got[1]), float(got[0])])
             factor, described = 1.0, (law_module("waves").PYTHON, key_at)
         else:
             factor = found[1]
