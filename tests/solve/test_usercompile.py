@@ -176,6 +176,7 @@ def fresh_root(tmp_path, monkeypatch):
     monkeypatch.setattr(usercompile, "_LOADED", {})
     monkeypatch.setattr(usercompile, "_FAILED", {})
     monkeypatch.setattr(usercompile, "_COMPILES", {})
+    monkeypatch.setattr(usercompile, "_PRUNED", set())
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)   # built as call-backs
     yield tmp_path / "kernels"
 
@@ -735,3 +736,36 @@ def test_an_update_states_closure_float_is_a_run_time_value(fresh_root, monkeypa
         np.testing.assert_array_equal(a.S, b.S)
     assert len(usercompile._LOADED) == 1
     assert "n0 = float(o[0])" in text                   # the dict as a tuple
+
+
+def test_kernels_unused_for_a_month_are_deleted_at_a_processs_first_compile(fresh_root,
+                                                                          monkeypatch):
+    """Modules, numba's cache files of them and refusal markers not used for
+    settings.USER_CACHE_DAYS days go at the first compile of a process; those
+    used since stay, and a kernel loaded is marked used."""
+    import os
+    import time
+    fresh_root.mkdir(parents=True)
+    (fresh_root / "__pycache__").mkdir()
+    month = time.time() - 31 * 86400.0
+    old = [fresh_root / "softflow_user_old.py", fresh_root / "softflow_user_gone.failed",
+           fresh_root / "__pycache__" / "softflow_user_old.kernel-70.py311.nbi",
+           fresh_root / "__pycache__" / "softflow_user_old.kernel-70.py311.1.nbc"]
+    kept = [fresh_root / "softflow_user_new.py",
+            fresh_root / "__pycache__" / "softflow_user_new.kernel-70.py311.nbi",
+            fresh_root / "other.txt"]
+    for p in old + kept:
+        p.write_text("", encoding="utf-8")
+    for p in old + [kept[2]]:
+        os.utime(p, (month, month))
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    uk = _kernel_of(_leaky(1e-9))
+    assert usercompile.kernel_address(uk)
+    assert not any(p.exists() for p in old) and all(p.exists() for p in kept)
+    (name, _), = usercompile._LOADED.items()
+    module = fresh_root / f"{name}.py"
+    os.utime(module, (month, month))
+    usercompile._LOADED.clear()
+    sys.modules.pop(name)
+    assert usercompile.kernel_address(uk)            # loaded from numba's cache: marked
+    assert module.stat().st_mtime > time.time() - 3600.0

@@ -386,6 +386,11 @@ USER_UNROLL_MAX = 256
 #: How deep a user's functions that call the user's other functions are
 #: compiled with them (deeper, or recursive: called back)
 USER_CALL_DEPTH = 4
+#: Compiled user components (their modules under numba's cache directory,
+#: softflow.solve.usercompile) not loaded for this many days are deleted, with
+#: numba's cache of them, when a process first compiles one (each new set of
+#: constants and each softflow version adds a module)
+USER_CACHE_DAYS = 30
 #: A compile of a user's component longer than this [s] is said once (an
 #: INFO line on the 'softflow' logger); loading it from the cache is not
 COMPILE_NOTICE = 0.5

@@ -43,6 +43,8 @@ Python's versions; numba caches the compiled kernel beside it, so a later
 process loads it (milliseconds) instead of compiling it again (a second or
 two, said once on the ``'softflow'`` logger). A function whose
 compile numba refused is remembered the same way and not tried again.
+Modules not used for settings.USER_CACHE_DAYS days are deleted at a
+process's first compile (:func:`_prune`).
 Where no cache directory can be written the kernel is compiled in a
 temporary directory, for this process only.
 
@@ -907,6 +909,7 @@ def _load(name: str, text: str, funcs: list, what: str, who: str) -> int | None:
     root = _writable(cache_root())
     failed = root / f"{name}.failed"
     if failed.exists():
+        _touch(failed)
         _FAILED[name] = failed.read_text(encoding="utf-8")
         _note(who, _FAILED[name])
         return None
@@ -926,7 +929,9 @@ def _load(name: str, text: str, funcs: list, what: str, who: str) -> int | None:
             _note(who, "compiled for other values too often in this process")
             return None
         _COMPILES[code] = done + 1
+        _prune(root)
     _write_once(path, text)
+    _touch(path)
     start = time.perf_counter()
     # bounds checked: an index out of range raises (the Python path then
     # raises it naming the component) instead of reading past an array
@@ -958,6 +963,45 @@ def _load(name: str, text: str, funcs: list, what: str, who: str) -> int | None:
     address = int(module.kernel.address)
     _LOADED[name] = (module, address)
     return address
+
+
+def _touch(path: Path) -> None:
+    """Mark the module ``path`` as used now (its modification time: what
+    :func:`_prune` keeps by), where it can be."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
+#: the cache roots pruned in this process
+_PRUNED: set = set()
+
+
+def _prune(root: Path) -> None:
+    """Delete the kernel modules under ``root`` not used (loaded or
+    compiled, :func:`_touch`) for settings.USER_CACHE_DAYS days, their
+    refusal markers and numba's cache files of them: once a process, at its
+    first compile (each new set of constants and each version of softflow,
+    numba or Python writes modules of its own, which would pile up)."""
+    if root in _PRUNED:
+        return
+    _PRUNED.add(root)
+    cutoff = time.time() - 86400.0 * settings.USER_CACHE_DAYS
+    cache = root / "__pycache__"
+    try:
+        old = [p for p in root.glob("softflow_user_*")
+               if p.suffix in (".py", ".failed") and p.stat().st_mtime < cutoff]
+    except OSError:
+        return
+    for p in old:
+        try:
+            p.unlink()
+            if p.suffix == ".py":
+                for q in cache.glob(f"{p.stem}.*"):
+                    q.unlink()
+        except OSError:
+            pass
 
 
 def _first_reason(err: Exception) -> str:
