@@ -769,3 +769,42 @@ def test_kernels_unused_for_a_month_are_deleted_at_a_processs_first_compile(fres
     sys.modules.pop(name)
     assert usercompile.kernel_address(uk)            # loaded from numba's cache: marked
     assert module.stat().st_mtime > time.time() - 3600.0
+
+
+class _Balloon(sf.Component):
+    """writing-a-component's example: state_rates, and a module's number
+    (sf.pressure_atmospheric) and a closure's float read by evaluate."""
+
+    def __init__(self, label, stiffness=1e10):      # [Pa/kg]
+        super().__init__(label)
+        self.set_terminals(sf.Terminal("a", [sf.Variable("pressure", "across", label="p"),
+                                             sf.Variable("massflow", "through", label="mf")]))
+        self.set_states(sf.Variable("mass", "local", label="mass", initial_value=1e-6))
+        self.evaluate = self.auto(
+            lambda p, mass: [p - (sf.pressure_atmospheric + stiffness * (mass - 1e-6))])
+        self.state_rates = self.auto_rates(lambda mf: {"mass": mf})   # d(mass)/dt
+
+
+def _balloon_scene():
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=1.3e5)
+    s += sf.CircularTube("tube", sf.water, length=0.3, diameter=1e-3)
+    s += _Balloon("balloon")
+    s.connect("tube", "src")
+    s.connect("tube", "balloon")
+    return s
+
+
+@pytest.mark.parametrize("step", [1e-3, None])
+def test_state_rates_and_a_modules_numbers_are_compiled(monkeypatch, step):
+    """A component giving state_rates (the guide's Balloon, which also reads
+    sf.pressure_atmospheric) is compiled, and runs as called back: bit for
+    bit, at fixed steps and adaptive."""
+    kw = {"duration": 0.2} if step is None else {"duration": 0.2, "step": step}
+    sim = _sim(_balloon_scene(), **kw)
+    assert _user_row(sim)[1][U0] != usercall.ADDRESS
+    assert_user_rows_are_the_python_paths(sim, seed=3)
+    a, b = _both(_balloon_scene, monkeypatch, **kw)
+    assert a.success and b.success and a.stats["steps"] == b.stats["steps"]
+    np.testing.assert_array_equal(a.X, b.X)
+    np.testing.assert_array_equal(a.S, b.S)

@@ -14,12 +14,15 @@ component's layout (where its variables, rows, Jacobian entries and states
 lie) in place of the call-back's key.
 
 What a user's function may use. Numbers, tuples of numbers, NumPy arrays,
-``math`` and NumPy's functions that numba compiles, from the paper's listing
+a module's numbers (``sf.pressure_atmospheric``: the module's numbers that
+the code names, as a named tuple of constants), ``math`` and NumPy's
+functions that numba compiles, from the paper's listing
 a :class:`~softflow.curves.pvcurve.PVCurve` (``fdf_volume`` of one volume)
 and a fluid (its ``rho``), and the user's own plain functions (compiled
 with it, by the same rules), found in the function's closure or among its
 globals. The floats, fluids and curves in the closures of ``evaluate`` and
-``update_state`` (and the floats in a source function's closure) are
+``update_state`` or ``state_rates`` (and the floats in a source function's
+closure) are
 run-time values (settings.USER_RUNTIME_VALUES): the function is rewritten
 from its source to take them as its last arguments, and the kernel reads
 them from the component's layout at each call (:func:`layout`), so one
@@ -173,12 +176,14 @@ def _fdf_volume(curve, volume):
     return impl
 
 
-def image(value: Any, where: str, depth: int = 0) -> tuple:
+def image(value: Any, where: str, depth: int = 0, names: frozenset = frozenset()) -> tuple:
     """(``value`` as compiled code may read it, what keys it): a number, a
     tuple of numbers or an array as it is (an array copied), ``math`` or
-    ``numpy`` (keyed by name), a curve's or a fluid's image, or a plain
-    Python function compiled the same way (keyed by its code and values);
-    anything else raises NotCompiled."""
+    ``numpy`` (keyed by name), another module as the numbers among its
+    attributes that the code names (``names``: ``sf.pressure_atmospheric``),
+    a curve's or a fluid's image, or a plain Python function compiled the
+    same way (keyed by its code and values); anything else raises
+    NotCompiled."""
     if isinstance(value, (bool, int, float, complex, np.number, np.bool_)):
         return value, value
     if isinstance(value, tuple) and all(isinstance(v, (int, float)) for v in value):
@@ -188,6 +193,12 @@ def image(value: Any, where: str, depth: int = 0) -> tuple:
         return copy, copy
     if isinstance(value, pytypes.ModuleType) and value in (np, math):
         return value, f"module {value.__name__}"
+    if isinstance(value, pytypes.ModuleType):
+        attrs = tuple((n, getattr(value, n)) for n in sorted(names)
+                      if type(getattr(value, n, None)) in (int, float))
+        if attrs:
+            return _numbers_of(value.__name__, tuple(n for n, _ in attrs))(
+                *(v for _, v in attrs)), ("module", value.__name__, attrs)
     if (isinstance(value, PVCurve) and type(value).fdf_volume is PVCurve.fdf_volume
             and type(value)._scalar is PVCurve._scalar):
         got = CurveImage(value._knots.copy(), value._table.copy(), float(value._lo),
@@ -241,6 +252,23 @@ def _runtime_vars(func: Any) -> tuple:
 
 
 
+@functools.lru_cache(maxsize=64)
+def _numbers_of(module: str, fields: tuple) -> type:
+    """The named tuple that stands for the numbers ``fields`` of a module."""
+    return collections.namedtuple(f"numbers_of_{module.replace('.', '_')}", fields)
+
+
+@functools.lru_cache(maxsize=256)
+def _attribute_names(code) -> frozenset:
+    """The names ``code`` (and the code nested in it) loads as globals or
+    attributes."""
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, pytypes.CodeType):
+            names |= _attribute_names(const)
+    return frozenset(names)
+
+
 @functools.lru_cache(maxsize=256)
 def _global_names(code) -> frozenset:
     """The global names ``code`` (and the code nested in it) loads."""
@@ -277,13 +305,14 @@ def imaged(func: Any, depth: int = 0, runtime: dict | None = None) -> tuple:
             cells.append(pytypes.CellType(None))
             keys.append((var, ("run-time", kind)))
             continue
-        got, key = image(content, f"{name}'s {var}", depth)
+        got, key = image(content, f"{name}'s {var}", depth, _attribute_names(code))
         cells.append(pytypes.CellType(got))
         keys.append((var, key))
     glob: dict = {"__builtins__": func.__globals__.get("__builtins__", __builtins__)}
     for var in sorted(_global_names(code)):
         if var in func.__globals__:
-            glob[var], key = image(func.__globals__[var], f"{name}'s global {var}", depth)
+            glob[var], key = image(func.__globals__[var], f"{name}'s global {var}", depth,
+                                   _attribute_names(code))
             keys.append((var, key))
     copy = pytypes.FunctionType(code, glob, name, None, tuple(cells) or None)
     copy.__qualname__ = func.__qualname__
@@ -396,8 +425,7 @@ def source(uk, order: list | None = None, plan: tuple = ()) -> str:
     if neq < 1 or nv * max(neq, ns, 1) > settings.USER_UNROLL_MAX:
         raise NotCompiled(f"{nv} variables, {ns} states and {neq} rows: not a size a "
                           "compiled kernel unrolls")
-    if uk.up is not None and getattr(uk.comp, "state_rates", None) is not None:
-        raise NotCompiled("state_rates is called back (not compiled)")
+    rates = _rates_of(uk) is not None
     V, O, N, Fn = _names("v", nv), _names("o", ns), _names("n", ns), _names("f", neq)
     P, M = _names("p", neq), _names("m", ns)
     A = [f"a{k}" for k, entry in enumerate(plan) if entry[0] == 0]
@@ -435,6 +463,13 @@ def source(uk, order: list | None = None, plan: tuple = ()) -> str:
         out += ["@njit", f"def _states(dt, {', '.join(B + V + O)}):"]
         if uk.up is None:
             out.append(f"    return {_row_of(O)}")
+        elif rates:     # state_rates(variables) -> {state: rate}: the state + dt rate
+            # (userkernel._update_from_rates: its binding is dt, the states, then
+            # the rates' variables)
+            out.append(f"    o = up({pick(uk.up_args[1 + ns:], 'dt', V, O)}{extra(B)})")
+            got = ([f"o[{n!r}]" for n in uk.snames] if order is None
+                   else [f"o[{i}]" for i in order])
+            out += [f"    n{k} = o{k} + dt * float({g})" for k, g in enumerate(got)]
         else:
             out.append(f"    o = up({pick(uk.up_args, 'dt', V, O)}{extra(B)})")
             if order is None:       # the dict the user's update_state returns
@@ -443,6 +478,7 @@ def source(uk, order: list | None = None, plan: tuple = ()) -> str:
                 out += [f"    n{k} = float(o[{n!r}])" for k, n in enumerate(uk.snames)]
             else:                   # its dict rewritten as a tuple (tuple_update)
                 out += [f"    n{k} = float(o[{i}])" for k, i in enumerate(order)]
+        if ns and uk.up is not None:
             out += [f"    if not ({' and '.join(f'math.isfinite({n})' for n in N)}):",
                     "        raise ValueError('a state is not finite')",
                     f"    return {_row_of(N)}"]
@@ -599,9 +635,9 @@ def kernel(uk) -> tuple:
     if numba.config.DISABLE_JIT or not settings.COMPILED_USER_CODE:
         return None, None, None
     who = uk.comp.describe()
-    what = "evaluate, update_state" if uk.up is not None else "evaluate"
-    roles = [(uk.ev.func, None)] + ([(uk.up.func, tuple(uk.snames))] if uk.up is not None
-                                    else [])
+    what = ("evaluate" if uk.up is None else "evaluate, state_rates"
+            if _rates_of(uk) is not None else "evaluate, update_state")
+    roles = [(f, None if k == 0 else tuple(uk.snames)) for k, f in enumerate(_functions(uk))]
     runtime = True
     while True:
         try:
@@ -645,6 +681,22 @@ def _prepared(func: Any, snames: tuple | None, runtime: bool,
     copy, key = imaged(func)
     got = _rewrite(func, copy, snames, ()) if snames is not None else None
     return (copy, key, None, ()) if got is None else (got[0], key, got[1], ())
+
+
+def _rates_of(uk) -> Any:
+    """The user's ``state_rates`` function of the user kernel ``uk``, or None
+    (then ``uk.up`` is the user's ``update_state``, if any)."""
+    rates = getattr(uk.comp, "state_rates", None) if uk.up is not None else None
+    return getattr(rates, "func", rates)
+
+
+def _functions(uk) -> list:
+    """The user's functions a kernel of ``uk`` compiles: ``evaluate``, then
+    ``update_state`` or ``state_rates`` where it has states."""
+    if uk.up is None:
+        return [uk.ev.func]
+    rates = _rates_of(uk)
+    return [uk.ev.func, uk.up.func if rates is None else rates]
 
 
 def _cell(func: Any, var: str) -> Any:
@@ -829,7 +881,7 @@ def values_key(uk, plan: tuple = ()) -> bytes | None:
     None where they cannot be read so: :meth:`CompiledNetwork.check_user_values`
     compares it with the key of the values its kernel was compiled with."""
     try:
-        funcs = [uk.ev.func] + ([uk.up.func] if uk.up is not None else [])
+        funcs = _functions(uk)
         return _key_of(imaged(f, runtime={var: kind for i, var, kind in plan if i == k})[1]
                        for k, f in enumerate(funcs))
     except Exception:
@@ -1047,7 +1099,7 @@ def refill(lay: Layout, uk, plan: tuple) -> bool:
     """Write the run-time values of the user kernel ``uk`` now into its
     layout ``lay`` (its slots after the columns, as ``plan`` lays them out);
     False (nothing written) where the layout has not their size."""
-    funcs = [uk.ev.func] + ([uk.up.func] if uk.up is not None else [])
+    funcs = _functions(uk)
     keep: list = []
     slots = []
     h = hashlib.sha256()
