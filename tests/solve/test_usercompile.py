@@ -248,25 +248,42 @@ def test_what_numba_cannot_compile_is_called_back_and_remembered(fresh_root, mon
     np.testing.assert_array_equal(res.X, ref.X)
 
 
-def test_values_compiled_code_cannot_read_are_called_back(caplog):
-    """A closure over an object other than numbers, arrays, a PV curve or a
-    fluid (here the component itself) is called back, the reason logged."""
-    class Reads(sf.Component):
-        def __init__(self, label):
-            super().__init__(label)
-            p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
-            mf_ = sf.Variable("massflow", "through", label="mf")
-            self.set_terminals(sf.Terminal("a", [p_, mf_]))
-            self.k = 1e-9
-            self.evaluate = self.auto(lambda p, mf: [mf - self.k * (p - P0)])
+class _Reads(sf.Component):
+    """A leak whose evaluate reads what compiled code cannot (a dict), or
+    uses the component other than by reading its attributes (a method)."""
+
+    def __init__(self, label, how):
+        super().__init__(label)
+        p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf_ = sf.Variable("massflow", "through", label="mf")
+        self.set_terminals(sf.Terminal("a", [p_, mf_]))
+        self.k = 1e-9
+        table = {"k": 1e-9}
+        if how == "dict":
+            self.evaluate = self.auto(lambda p, mf: [mf - table["k"] * (p - P0)])
+        else:
+            self.evaluate = self.auto(lambda p, mf: [mf - self.leak(p)])
+
+    def leak(self, p):
+        return self.k * (p - P0)
+
+
+@pytest.mark.parametrize("how, why", [
+    ("dict", "<lambda>'s table is a dict, which compiled code cannot read"),
+    ("method", "<lambda>'s self.leak is a method, which compiled code cannot read"),
+])
+def test_values_compiled_code_cannot_read_are_called_back(caplog, how, why):
+    """A closure over an object other than numbers, arrays, a PV curve, a
+    fluid or an object whose attributes it reads (here a dict; a method of
+    the component) is called back, the reason logged."""
     s2 = sf.System()
     s2 += sf.PressureSource("source", pressure=1.5e5)
-    s2 += Reads("reads")
+    s2 += _Reads("reads", how)
     s2.connect("source", "reads")
     with caplog.at_level(logging.DEBUG, logger="softflow"):
         sim = _sim(s2, duration=0.01)
-    assert "Reads 'reads' is called back in Python, not compiled: <lambda>'s self is a Reads" \
-        in caplog.text
+    assert "_Reads 'reads' is called back in Python, not compiled: " in caplog.text
+    assert why in caplog.text or "numba cannot compile" in caplog.text
     assert _user_row(sim)[1][U0] == usercall.ADDRESS
     assert sim.run().success
 
@@ -808,3 +825,73 @@ def test_state_rates_and_a_modules_numbers_are_compiled(monkeypatch, step):
     assert a.success and b.success and a.stats["steps"] == b.stats["steps"]
     np.testing.assert_array_equal(a.X, b.X)
     np.testing.assert_array_equal(a.S, b.S)
+
+
+class _Method(sf.Component):
+    """The paper's actuator written with methods that read the component's
+    attributes (a curve, a fluid, a float)."""
+
+    def __init__(self, label, fluid, curve, gain=1.0):
+        super().__init__(label)
+        p_ = sf.Variable("pressure", "across", label="p", initial_value=P0)
+        mf_ = sf.Variable("massflow", "through", label="mf")
+        m_ = sf.Variable("mass", "local", label="mass", initial_value=1e-3)
+        self.set_terminals(sf.Terminal("a", [p_, mf_]))
+        self.set_states(m_)
+        self.fluid, self.curve, self.gain = fluid, curve, gain
+        self.evaluate = self.auto(self.residual)
+        self.update_state = self.auto_state(self.update)
+
+    def residual(self, t, p, mass):
+        return [p - self.curve.fdf_volume(volume=mass / self.fluid.rho)[0]]
+
+    def update(self, dt, mass, mf):
+        return {"mass": mass + self.gain * mf * dt}
+
+
+def _method_scene(comp):
+    s = sf.System()
+    s += sf.PressureSource("src", pressure=P0 + 0.3e5)
+    s += sf.CircularTube("tube", sf.water, length=0.6, diameter=1e-3)
+    s += comp
+    s.connect("tube", "src")
+    s.connect("tube", comp.label)
+    return s
+
+
+def test_methods_and_closures_reading_the_components_attributes_are_compiled(fresh_root,
+                                                                            monkeypatch):
+    """Bound methods (``self.auto(self.residual)``) and lambdas that read
+    ``self.k`` are compiled, the attributes read as the closures' values
+    are (curves, fluids and floats at run time, one kernel for all): bit for
+    bit the call-back's runs; an attribute changed between runs is seen."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    curve = sf.PVCurve(str(balloon_csv()))
+    for gain in (1.0, 0.7):
+        make = lambda: _method_scene(_Method("act", sf.water, curve, gain))  # noqa: E731
+        sim = _sim(make(), duration=0.3, step=1e-3)
+        (gi, g, key, lay, plan), = sim.asm.residual.network.watched
+        assert {(i, var, kind) for i, var, kind in plan} == {
+            (0, "_sf_4_self_curve", "curve"), (0, "_sf_4_self_fluid", "fluid"),
+            (1, "_sf_4_self_gain", "float")}
+        a, b = _both(make, monkeypatch, duration=0.3, step=1e-3)
+        np.testing.assert_array_equal(a.X, b.X)
+        np.testing.assert_array_equal(a.S, b.S)
+    assert len(usercompile._LOADED) == 1
+    # an attribute changed between runs: read again (the kernel kept)
+    comp = _Method("act", sf.water, curve, 1.0)
+    sim = _sim(_method_scene(comp), duration=0.3, step=1e-3)
+    first = sim.run()
+    comp.gain = 0.7
+    second = sim.run()
+    assert len(usercompile._LOADED) == 1
+    np.testing.assert_allclose(second.get("act", "mass"), a.get("act", "mass"), rtol=1e-9)
+    assert abs(second.get("act", "mass")[-1] - first.get("act", "mass")[-1]) > 1e-6
+    # a lambda over self reading self.k
+    leaky = _leaky()
+    leak = leaky.get("leak")
+    leak.k = 2e-9
+    leak.evaluate = leak.auto(lambda p, mf: [mf - leak.k * (p - P0)])
+    sim = _sim(leaky, duration=0.05, step=1e-3)
+    assert not sim.asm.residual.network.callbacks
+    assert sim.asm.residual.network.watched[0][4] == ((0, "_sf_4_leak_k", "float"),)

@@ -20,7 +20,9 @@ functions that numba compiles, from the paper's listing
 a :class:`~softflow.curves.pvcurve.PVCurve` (``fdf_volume`` of one volume)
 and a fluid (its ``rho``), and the user's own plain functions (compiled
 with it, by the same rules), found in the function's closure or among its
-globals. The floats, fluids and curves in the closures of ``evaluate`` and
+globals, or as an attribute of an object it reads (a bound method's
+``self``, or a closure's object: ``self.k``; :func:`_desugared` makes each
+``obj.attr`` a closure variable of a function of the same code). The floats, fluids and curves in the closures of ``evaluate`` and
 ``update_state`` or ``state_rates`` (and the floats in a source function's
 closure) are
 run-time values (settings.USER_RUNTIME_VALUES): the function is rewritten
@@ -297,15 +299,17 @@ def imaged(func: Any, depth: int = 0, runtime: dict | None = None) -> tuple:
         try:
             content = cell.cell_contents
         except ValueError:
-            raise NotCompiled(f"{name}: {var} is not set") from None
+            raise NotCompiled(f"{name}: {_SHOWN.get(var, var)} is not set") from None
         if runtime and var in runtime:
             kind = _runtime_kind(content)
             if kind != runtime[var]:
-                raise NotCompiled(f"{name}'s {var} is no longer a {runtime[var]}")
+                raise NotCompiled(f"{name}'s {_SHOWN.get(var, var)} is no longer a "
+                                  f"{runtime[var]}")
             cells.append(pytypes.CellType(None))
             keys.append((var, ("run-time", kind)))
             continue
-        got, key = image(content, f"{name}'s {var}", depth, _attribute_names(code))
+        got, key = image(content, f"{name}'s {_SHOWN.get(var, var)}", depth,
+                         _attribute_names(code))
         cells.append(pytypes.CellType(got))
         keys.append((var, key))
     glob: dict = {"__builtins__": func.__globals__.get("__builtins__", __builtins__)}
@@ -637,10 +641,11 @@ def kernel(uk) -> tuple:
     who = uk.comp.describe()
     what = ("evaluate" if uk.up is None else "evaluate, state_rates"
             if _rates_of(uk) is not None else "evaluate, update_state")
-    roles = [(f, None if k == 0 else tuple(uk.snames)) for k, f in enumerate(_functions(uk))]
     runtime = True
     while True:
         try:
+            roles = [(f, None if k == 0 else tuple(uk.snames))
+                     for k, f in enumerate(_functions(uk))]
             funcs, plan, order = [], [], None
             for i, (func, snames) in enumerate(roles):
                 copy, key, got, rt = _prepared(func, snames, runtime)
@@ -694,9 +699,9 @@ def _functions(uk) -> list:
     """The user's functions a kernel of ``uk`` compiles: ``evaluate``, then
     ``update_state`` or ``state_rates`` where it has states."""
     if uk.up is None:
-        return [uk.ev.func]
+        return [_desugared(uk.ev.func)]
     rates = _rates_of(uk)
-    return [uk.ev.func, uk.up.func if rates is None else rates]
+    return [_desugared(uk.ev.func), _desugared(uk.up.func if rates is None else rates)]
 
 
 def _cell(func: Any, var: str) -> Any:
@@ -737,7 +742,7 @@ def _rewrite(func: Any, copy: Any, snames: tuple | None, extra: tuple) -> tuple 
     rewritten). ``copy`` (from
     :func:`imaged`) gives the globals and the closure's other values, which
     the rewritten function reads as its globals."""
-    rewritten = _rewritten(func.__code__, func.__name__, snames, extra)
+    rewritten = _rewritten(func.__code__, func.__code__.co_name, snames, extra)
     if rewritten is None:
         return None
     module, order = rewritten
@@ -760,6 +765,28 @@ def _rewritten(code, name: str, snames: tuple | None, extra: tuple) -> tuple | N
     None; found once a process for each code."""
     if snames is None and not extra:
         return None
+    node = _node_of(code, name)
+    if node is None:
+        return None
+    lam = isinstance(node, ast.Lambda)
+    order = _as_tuple(node, lam, snames) if snames is not None else None
+    if order is None and not extra:
+        return None
+    body = [ast.Return(value=node.body)] if lam else node.body
+    node.args.args = node.args.args + [ast.arg(arg=v) for v in extra]
+    fdef = ast.FunctionDef(name="_softflow_fn", args=node.args, body=body,
+                           decorator_list=[], returns=None, type_comment=None)
+    module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
+    try:            # (a `nonlocal` there, say, does not compile)
+        return compile(module, code.co_filename, "exec"), order
+    except Exception:
+        return None
+
+
+def _node_of(code, name: str) -> Any:
+    """The syntax tree (a new one) of the function or lambda of ``code``,
+    named ``name``, from its file's text as ``linecache`` has it, where it
+    compiles to ``code``'s own bytecode (:func:`_compiles_to`); else None."""
     try:        # the whole file: a lambda may sit inside a call over several lines
         linecache.checkcache(code.co_filename)
         tree = ast.parse("".join(linecache.getlines(code.co_filename)))
@@ -777,19 +804,117 @@ def _rewritten(code, name: str, snames: tuple | None, extra: tuple) -> tuple | N
              and not getattr(n, "decorator_list", None)]
     if len(found) != 1 or not _compiles_to(found[0], code):
         return None
-    node = found[0]
-    order = _as_tuple(node, lam, snames) if snames is not None else None
-    if order is None and not extra:
+    return found[0]
+
+
+def _holds(value: Any) -> bool:
+    """Whether ``value`` is an object whose attributes a user's function may
+    read (``self.k``, ``self.curve``): not a value :func:`image` reads
+    itself, a function, a class or a module."""
+    return (hasattr(value, "__dict__") and _runtime_kind(value) is None
+            and not isinstance(value, (type, pytypes.ModuleType, pytypes.FunctionType,
+                                       pytypes.MethodType, np.ndarray, PVCurve, Fluid)))
+
+
+def _desugared(func: Any) -> Any:
+    """``func`` itself, or where it reads attributes of objects (a bound
+    method's ``self``, or a closure's object: ``self.k``, ``self.curve``) a
+    function of the same code with each such ``obj.attr`` a closure variable
+    holding the attribute's value now (:func:`_attribute_code`), which
+    compiles as the closures do (run-time values or constants); raises
+    NotCompiled where an object is used otherwise."""
+    method = isinstance(func, pytypes.MethodType)
+    base = func.__func__ if method else func
+    if not isinstance(base, pytypes.FunctionType):
+        return func
+    code = base.__code__
+    holders = {}
+    if method:
+        holders[code.co_varnames[0]] = func.__self__
+    values = {}
+    for var, cell in zip(code.co_freevars, base.__closure__ or ()):
+        try:
+            values[var] = cell.cell_contents
+        except ValueError:
+            continue
+        if _holds(values[var]):
+            holders[var] = values[var]
+    if not holders:
+        return func
+    made = _attribute_code(code, base.__name__, tuple(sorted(holders)), method)
+    if made is None:
+        raise NotCompiled(f"{base.__name__} uses {', '.join(sorted(holders))} other than "
+                          "by reading its attributes")
+    inner, attrs = made
+    cells = []
+    for var in inner.co_freevars:
+        if var in attrs:
+            holder, attr = attrs[var]
+            try:
+                cells.append(pytypes.CellType(getattr(holders[holder], attr)))
+            except Exception as err:
+                raise NotCompiled(f"{base.__name__}: {holder}.{attr}: {err}") from None
+        else:
+            cells.append(pytypes.CellType(values[var]))
+    fn = pytypes.FunctionType(inner, base.__globals__, base.__name__, None, tuple(cells))
+    fn.__qualname__ = base.__qualname__
+    return fn
+
+
+#: what a variable of :func:`_attribute_code` stands for, as messages say it
+_SHOWN: dict = {}
+
+
+@functools.lru_cache(maxsize=256)
+def _attribute_code(code, name: str, holders: tuple, method: bool) -> tuple | None:
+    """(the code of the function of ``code`` with each ``h.attr`` of the
+    names ``holders`` a free variable ``_sf_<len(h)>_h_attr`` (a method's first
+    argument dropped), {that variable: (h, attr)}), or None where a holder
+    is used other than by reading an attribute or the source is not had.
+    Its text is kept in ``linecache`` under a name of its own (the run-time
+    values' rewrite, :func:`_rewritten`, reads it there)."""
+    node = _node_of(code, name)
+    if node is None:
         return None
-    body = [ast.Return(value=node.body)] if lam else node.body
-    node.args.args = node.args.args + [ast.arg(arg=v) for v in extra]
-    fdef = ast.FunctionDef(name="_softflow_fn", args=node.args, body=body,
-                           decorator_list=[], returns=None, type_comment=None)
-    module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
-    try:            # (a `nonlocal` there, say, does not compile)
-        return compile(module, code.co_filename, "exec"), order
+    attrs: dict = {}
+
+    class Reads(ast.NodeTransformer):
+        def visit_Attribute(self, n):
+            if (isinstance(n.value, ast.Name) and n.value.id in holders
+                    and isinstance(n.ctx, ast.Load)):
+                var = f"_sf_{len(n.value.id)}_{n.value.id}_{n.attr}"     # (unambiguous)
+                attrs[var] = (n.value.id, n.attr)
+                _SHOWN[var] = f"{n.value.id}.{n.attr}"
+                return ast.copy_location(ast.Name(id=var, ctx=ast.Load()), n)
+            return self.generic_visit(n)
+    node = Reads().visit(node)
+    if any(isinstance(n, ast.Name) and n.id in holders for n in ast.walk(node)):
+        return None
+    args = node.args
+    if method:
+        args.args = args.args[1:]
+    body = [ast.Return(value=node.body)] if isinstance(node, ast.Lambda) else node.body
+    fname = "_sf_lambda" if isinstance(node, ast.Lambda) else name
+    inner = ast.FunctionDef(name=fname, args=args, body=body, decorator_list=[],
+                            returns=None, type_comment=None)
+    free = [v for v in code.co_freevars if v not in holders] + sorted(attrs)
+    outer = ast.FunctionDef(
+        name="_sf_outer", args=ast.arguments(posonlyargs=[], args=[ast.arg(arg=v) for v in free],
+                                             kwonlyargs=[], kw_defaults=[], defaults=[]),
+        body=[inner, ast.Return(value=ast.Name(id=fname, ctx=ast.Load()))],
+        decorator_list=[], returns=None, type_comment=None)
+    module = ast.fix_missing_locations(ast.Module(body=[outer], type_ignores=[]))
+    try:
+        text = ast.unparse(module) + "\n"
+        filename = f"<softflow attributes {hashlib.sha256(text.encode()).hexdigest()[:16]}>"
+        top = compile(text, filename, "exec")
     except Exception:
         return None
+    linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
+    outer_code = next(c for c in top.co_consts if isinstance(c, pytypes.CodeType))
+    inner_code = next(c for c in outer_code.co_consts if isinstance(c, pytypes.CodeType)
+                      and c.co_name == fname)
+    return inner_code, attrs
 
 
 def _as_tuple(node, lam: bool, snames: tuple) -> list | None:
@@ -1091,23 +1216,29 @@ def layout(g, plan: tuple = ()) -> Layout:
     n_rt = sum(_SLOTS[kind] for _, _, kind in plan)
     lay = np.concatenate([np.array(head, dtype=np.int64), col,
                           np.zeros(n_rt, dtype=np.int64)]).view(Layout)
-    refill(lay, uk, plan)
+    if not refill(lay, uk, plan):
+        raise RuntimeError(f"softflow: {uk.comp.describe()}'s run-time values could not be "
+                           "read into its layout")
     return lay
 
 
 def refill(lay: Layout, uk, plan: tuple) -> bool:
     """Write the run-time values of the user kernel ``uk`` now into its
     layout ``lay`` (its slots after the columns, as ``plan`` lays them out);
-    False (nothing written) where the layout has not their size."""
-    funcs = _functions(uk)
+    False (nothing written) where the layout has not their size or they
+    cannot be read as its kernel reads them."""
     keep: list = []
     slots = []
     h = hashlib.sha256()
-    for i, var, kind in plan:
-        got = _slots(kind, _cell(funcs[i], var), keep)
-        slots += got
-        # (a curve's digest: its arrays' contents, not their addresses)
-        h.update(repr(got[5:] if kind == "curve" else got).encode())
+    try:
+        funcs = _functions(uk)
+        for i, var, kind in plan:
+            got = _slots(kind, _cell(funcs[i], var), keep)
+            slots += got
+            # (a curve's digest: its arrays' contents, not their addresses)
+            h.update(repr(got[5:] if kind == "curve" else got).encode())
+    except Exception:
+        return False
     for a in keep:
         h.update(a.tobytes())
     at = LAYOUT_HEAD + uk.nv
