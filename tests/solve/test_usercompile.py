@@ -895,3 +895,72 @@ def test_methods_and_closures_reading_the_components_attributes_are_compiled(fre
     sim = _sim(leaky, duration=0.05, step=1e-3)
     assert not sim.asm.residual.network.callbacks
     assert sim.asm.residual.network.watched[0][4] == ((0, "_sf_4_leak_k", "float"),)
+
+
+def _leak_with(ev):
+    """_leaky's scene with the leak's evaluate ``ev``."""
+    s = _leaky()
+    leak = s.get("leak")
+    leak.evaluate = leak.auto(ev)
+    return s
+
+
+def _annotated_helper(k):
+    def ev(p, mf):
+        def g(x: float) -> float:         # (annotations compiled as the user's file does)
+            return k * x
+        return [mf - g(p - P0)]
+    return ev
+
+
+COEF = (1.0,)
+
+
+def _with_global(k):
+    def ev(p, mf):
+        return [mf - k * COEF[0] * (p - P0)]
+    return ev
+
+
+def test_review_cases_of_run_time_values(fresh_root, monkeypatch):
+    """A nested annotated helper keeps k a run-time value; constants past
+    USER_COMPILES_MAX are called back, not compiled again as constants
+    instead of run-time values; a fluid whose density cannot be read at a
+    run's start fails that run naming the component, as the call-back."""
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+    sim = _sim(_leak_with(_annotated_helper(1e-9)), duration=0.02, step=1e-3)
+    assert sim.asm.residual.network.watched[0][4] == ((0, "k", "float"),)
+    monkeypatch.setattr(settings, "USER_COMPILES_MAX", 2)
+    for i in range(1, 5):
+        monkeypatch.setitem(globals(), "COEF", (float(i),))
+        net = _sim(_leak_with(_with_global(1e-9)), duration=0.01).asm.residual.network
+        assert bool(net.callbacks) == (i > 2)
+    assert len(list(fresh_root.glob("*.py"))) == 3        # the helper's, COEF 1 and 2
+
+    class Flaky(sf.ConstantLiquid):
+        broken = False
+
+        @property
+        def rho(self):
+            if self.broken:
+                raise RuntimeError("rho unavailable")
+            return 1000.0
+    for compiled in (True, False):
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", compiled)
+        fluid = Flaky("flaky", density=1000.0, viscosity=1e-3)
+        sim = _sim(_scene_of(fluid), duration=0.05, step=1e-3)
+        fluid.broken = True
+        res = sim.run(raise_on_failure=False)
+        assert res.status == "failed"
+        assert res.message == "_Actuator 'actu': evaluate raised at t = 0 s: RuntimeError: " \
+            "rho unavailable"
+
+
+def _scene_of(fluid):
+    s = sf.System()
+    s += sf.PressureSource("source", pressure=P0 + 0.3e5)
+    s += sf.CircularTube("tube", sf.water, length=0.6, diameter=1e-3)
+    s += _Actuator("actu", fluid, sf.PVCurve(str(balloon_csv())))
+    s.connect("tube", "source")
+    s.connect("tube", "actu")
+    return s

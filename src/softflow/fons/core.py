@@ -321,6 +321,10 @@ def _values_only(func):
                 and isinstance(out[0], (np.ndarray, list, dict))):
             return out[0]
         return out
+    # the user's own function, which softflow.solve.usercompile compiles
+    # where it returns the values alone (a tuple with a Jacobian does not
+    # pass the kernel's checks there: the call then runs this wrapper)
+    call._softflow_values_of = func  # type: ignore[attr-defined]
     return call
 
 

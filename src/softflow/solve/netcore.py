@@ -51,6 +51,8 @@ tested).
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .._laws import law_module
@@ -86,8 +88,36 @@ def _names():
             CircularTube=CircularTube, InertialCircularTube=InertialCircularTube,
             CheckValve=CheckValve, Orifice=Orifice, SnappingValve=SnappingValve,
             TeslaValve=TeslaValve, pressure_atmospheric=pressure_atmospheric,
-            ISO_6358_RHO0=ISO_6358_RHO0, ISO_6358_T0=ISO_6358_T0)
+            ISO_6358_RHO0=ISO_6358_RHO0, ISO_6358_T0=ISO_6358_T0,
+            laws=frozenset({PressureSource, MassFlowSource, VolumeFlowSource, CircularTube,
+                            InertialCircularTube, TeslaValve, SnappingValve, Container,
+                            Orifice, CheckValve, Actuator, HystereticActuator,
+                            LinearAccumulator}))
     return _NAMES
+
+
+#: what a subclass of a library class may define of that class's own names
+#: and still be evaluated by its compiled law: its constructor (how it reads
+#: its arguments) and how its results are read (softflow.fons's classes)
+_SAME_LAW = frozenset({"__init__", "get", "__doc__", "__module__", "__qualname__",
+                       "__annotations__", "__dict__", "__weakref__", "__firstlineno__",
+                       "__static_attributes__"})
+
+
+@functools.lru_cache(maxsize=256)
+def _law_class(cls):
+    """The library class whose compiled law evaluates ``cls``'s groups: the
+    first of :func:`_covered`'s classes in its order of bases, where no class
+    before it redefines any name that class has (a law, a constant, a
+    method) other than those of :data:`_SAME_LAW`; else ``cls`` itself."""
+    k = _NAMES if _NAMES is not None else _names()
+    for i, lib in enumerate(cls.__mro__):
+        if lib in k.laws:
+            names = set().union(*(vars(c) for c in lib.__mro__))
+            if any((set(vars(c)) & names) - _SAME_LAW for c in cls.__mro__[:i]):
+                return cls
+            return lib
+    return cls
 
 
 def _covered(g):
@@ -117,6 +147,8 @@ def _covered(g):
     cls, P = getattr(g, "cls", None), getattr(g, "params", None)
     if cls is None or P is None:
         return None
+    # a subclass that keeps its library class's law (softflow.fons's classes)
+    cls = _law_class(cls)
     if cls is PressureSource or cls is MassFlowSource:
         kind = net.PRESSURE_SOURCE if cls is PressureSource else net.MASS_FLOW_SOURCE
         return kind, 0, (), None, P

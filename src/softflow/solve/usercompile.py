@@ -62,6 +62,7 @@ time (or, for a curve's range, cuts the step), as for a call-back.
 """
 from __future__ import annotations
 
+import __future__
 import ast
 import collections
 import dis
@@ -663,7 +664,7 @@ def kernel(uk) -> tuple:
             _note(who, f"{type(err).__name__}: {err}")
             return None, None, None
         address = _address(text, funcs, f"the user component {who} ({what})", who)
-        if address is None and plan:
+        if address is None and plan and _refused(text, funcs):
             runtime = False     # (numba refused the values as arguments: as constants)
             continue
         return (address, None if address is None else _key_of(key for _, key in funcs),
@@ -698,10 +699,11 @@ def _rates_of(uk) -> Any:
 def _functions(uk) -> list:
     """The user's functions a kernel of ``uk`` compiles: ``evaluate``, then
     ``update_state`` or ``state_rates`` where it has states."""
-    if uk.up is None:
-        return [_desugared(uk.ev.func)]
-    rates = _rates_of(uk)
-    return [_desugared(uk.ev.func), _desugared(uk.up.func if rates is None else rates)]
+    funcs = [uk.ev.func] if uk.up is None else [
+        uk.ev.func, uk.up.func if _rates_of(uk) is None else _rates_of(uk)]
+    # (softflow.fons wraps a function to drop the Jacobian fonsim lets it
+    # return: its own function compiled, whose answer the kernel checks)
+    return [_desugared(getattr(f, "_softflow_values_of", f)) for f in funcs]
 
 
 def _cell(func: Any, var: str) -> Any:
@@ -742,7 +744,8 @@ def _rewrite(func: Any, copy: Any, snames: tuple | None, extra: tuple) -> tuple 
     rewritten). ``copy`` (from
     :func:`imaged`) gives the globals and the closure's other values, which
     the rewritten function reads as its globals."""
-    rewritten = _rewritten(func.__code__, func.__code__.co_name, snames, extra)
+    code = func.__code__
+    rewritten = _rewritten(code, code.co_filename, code.co_name, snames, extra)
     if rewritten is None:
         return None
     module, order = rewritten
@@ -759,10 +762,12 @@ def _rewrite(func: Any, copy: Any, snames: tuple | None, extra: tuple) -> tuple 
 
 
 @functools.lru_cache(maxsize=256)
-def _rewritten(code, name: str, snames: tuple | None, extra: tuple) -> tuple | None:
+def _rewritten(code, filename: str, name: str, snames: tuple | None,
+               extra: tuple) -> tuple | None:
     """:func:`_rewrite`'s rewrite of the function of ``code``, named
     ``name``: (the compiled module that defines it, the order or None), or
-    None; found once a process for each code."""
+    None; found once a process for each code and its file (equal code
+    objects of other files are one key of a cache otherwise)."""
     if snames is None and not extra:
         return None
     node = _node_of(code, name)
@@ -778,9 +783,22 @@ def _rewritten(code, name: str, snames: tuple | None, extra: tuple) -> tuple | N
                            decorator_list=[], returns=None, type_comment=None)
     module = ast.fix_missing_locations(ast.Module(body=[fdef], type_ignores=[]))
     try:            # (a `nonlocal` there, say, does not compile)
-        return compile(module, code.co_filename, "exec"), order
+        return compile(module, code.co_filename, "exec", flags=_futures(code),
+                       dont_inherit=True), order
     except Exception:
         return None
+
+
+def _futures(code) -> int:
+    """The ``from __future__`` flags ``code`` was compiled with (what its
+    text compiles with again; not this module's own)."""
+    return code.co_flags & _FUTURE_FLAGS
+
+
+#: every ``__future__`` feature's compiler flag
+_FUTURE_FLAGS = functools.reduce(
+    lambda a, b: a | b, (getattr(__future__, f).compiler_flag
+                         for f in __future__.all_feature_names), 0)
 
 
 def _node_of(code, name: str) -> Any:
@@ -841,7 +859,8 @@ def _desugared(func: Any) -> Any:
             holders[var] = values[var]
     if not holders:
         return func
-    made = _attribute_code(code, base.__name__, tuple(sorted(holders)), method)
+    made = _attribute_code(code, code.co_filename, base.__name__, tuple(sorted(holders)),
+                           method)
     if made is None:
         raise NotCompiled(f"{base.__name__} uses {', '.join(sorted(holders))} other than "
                           "by reading its attributes")
@@ -866,7 +885,8 @@ _SHOWN: dict = {}
 
 
 @functools.lru_cache(maxsize=256)
-def _attribute_code(code, name: str, holders: tuple, method: bool) -> tuple | None:
+def _attribute_code(code, filename: str, name: str, holders: tuple,
+                    method: bool) -> tuple | None:
     """(the code of the function of ``code`` with each ``h.attr`` of the
     names ``holders`` a free variable ``_sf_<len(h)>_h_attr`` (a method's first
     argument dropped), {that variable: (h, attr)}), or None where a holder
@@ -907,7 +927,7 @@ def _attribute_code(code, name: str, holders: tuple, method: bool) -> tuple | No
     try:
         text = ast.unparse(module) + "\n"
         filename = f"<softflow attributes {hashlib.sha256(text.encode()).hexdigest()[:16]}>"
-        top = compile(text, filename, "exec")
+        top = compile(text, filename, "exec", flags=_futures(code), dont_inherit=True)
     except Exception:
         return None
     linecache.cache[filename] = (len(text), None, text.splitlines(True), filename)
@@ -970,7 +990,7 @@ def _compiles_to(node, code) -> bool:
         body=[inner], decorator_list=[], returns=None, type_comment=None)
     try:
         top = compile(ast.fix_missing_locations(ast.Module(body=[outer], type_ignores=[])),
-                      code.co_filename, "exec")
+                      code.co_filename, "exec", flags=_futures(code), dont_inherit=True)
     except (SyntaxError, ValueError, TypeError):
         return False
     stack = list(top.co_consts)
@@ -1038,9 +1058,10 @@ def signal_address(signal) -> tuple | None:
         except Exception as err:
             _note(who, f"{type(err).__name__}: {err}")
             return None
-        address = _address(_signal_source(len(rt)), [(func, key)], f"{who} (t)", who)
-        if address is None and rt:
-            runtime = False
+        text = _signal_source(len(rt))
+        address = _address(text, [(func, key)], f"{who} (t)", who)
+        if address is None and rt and _refused(text, [(func, key)]):
+            runtime = False     # (numba refused the values as arguments: as constants)
             continue
         if address is None:
             return None
@@ -1060,15 +1081,26 @@ def _address(text: str, funcs: list, what: str, who: str) -> int | None:
     this process, or from numba's cache, or compiled now; None where numba
     cannot compile them (remembered). One thread at a time (Simulations
     built in threads: a module is imported once)."""
-    h = hashlib.sha256(_own_stamp())
-    for part in [text.encode()] + [key for _, key in funcs]:
-        h.update(hashlib.sha256(part).digest())
-    name = f"softflow_user_{h.hexdigest()[:32]}"
+    name = _name_of(text, funcs)
     got = _LOADED.get(name)
     if got is not None:
         return got[1]
     with _LOCK:
         return _load(name, text, funcs, what, who)
+
+
+def _name_of(text: str, funcs: list) -> str:
+    """The name of the kernel module ``text`` that compiles ``funcs``."""
+    h = hashlib.sha256(_own_stamp())
+    for part in [text.encode()] + [key for _, key in funcs]:
+        h.update(hashlib.sha256(part).digest())
+    return f"softflow_user_{h.hexdigest()[:32]}"
+
+
+def _refused(text: str, funcs: list) -> bool:
+    """Whether numba refused to compile the module ``text`` (not: the
+    compile was not tried, settings.USER_COMPILES_MAX)."""
+    return _name_of(text, funcs) in _FAILED
 
 
 #: held while a kernel module is found, loaded or compiled
