@@ -118,3 +118,58 @@ def test_a_fonsim_style_user_component_is_compiled(monkeypatch, jacobian):
     b = _run(lambda: listing(jacobian), step=1e-3)
     assert b.asm.residual.network.callbacks
     np.testing.assert_array_equal(a.result.X, b.result.X)
+
+
+class ArrayTank(fons.Component):
+    """A tank in fonsim's array form: methods that fill fonsim's arrays and
+    read the component's attributes, a closure's float and the module's
+    number (fons.pressure_atmospheric)."""
+
+    def __init__(self, label, volume, order):
+        super().__init__(label)
+        self.set_terminals(fons.Terminal("a", fons.terminal_fluidic,
+                                         {"pressure": "p", "massflow": "mf"}))
+        self.rho, self.volume, self.order = fons.air.rho, volume, order
+        self.set_states(fons.Variable("mass", "local", label="m",
+                                      initial_value=volume * self.rho))
+        if order:
+            self.set_arguments(self.terminals[0]("pressure"), self.terminals[0]("massflow"))
+        self.nb_equations = 1
+
+    def evaluate(self, values, jacobian_state, jacobian_arguments, state, arguments,
+                 elapsed_time):
+        p = arguments[0] if self.order else arguments[1]
+        values[0] = state[0] * fons.pressure_atmospheric - p * self.volume * self.rho
+        jacobian_state[0, 0] = fons.pressure_atmospheric
+
+    def update_state(self, state_new, jacobian, state, arguments, dt):
+        mf = arguments[1] if self.order else arguments[0]
+        state_new[0] = state[0] + dt * mf
+
+
+@pytest.mark.parametrize("order", [False, True])
+def test_a_fonsim_array_form_component_is_compiled(monkeypatch, order):
+    """fonsim's array form (evaluate / update_state filling arrays, with or
+    without set_arguments) is compiled with an adaptor that makes fonsim's
+    arrays; its runs are the call-back's bit for bit."""
+    def build():
+        s = fons.System()
+        s.add(fons.PressureSource("src", pressure=2e5))
+        s.add(fons.CircularTube("tube", fluid=fons.air))
+        s.add(ArrayTank("tank", 20e-6, order))
+        s.connect("src", "tube")
+        s.connect("tube", "tank")
+        return s
+
+    def run():
+        sim = fons.Simulation(build(), duration=0.1, step=1e-3)
+        sim.run()
+        return sim
+    a = run()
+    net = a.asm.residual.network
+    assert not net.callbacks and len(net.kernels) == 1
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+    b = run()
+    assert b.asm.residual.network.callbacks
+    np.testing.assert_array_equal(a.result.X, b.result.X)
+    np.testing.assert_array_equal(a.result.S, b.result.S)

@@ -432,6 +432,10 @@ class _ArrayForm(AutoFunction):
     the component's variables and its states, by name; it gathers the
     variables into fonsim's ``arguments`` array and calls the method."""
 
+    #: softflow.solve.usercompile compiles ``method`` with an adaptor that
+    #: makes these arrays as :attr:`func` does
+    array_form = True
+
     def __init__(self, comp, method, kind):
         self.comp, self.method, self.kind = comp, method, kind
 

@@ -16,21 +16,22 @@ lie) in place of the call-back's key.
 What a user's function may use. Numbers, tuples of numbers, NumPy arrays,
 a module's numbers (``sf.pressure_atmospheric``: the module's numbers that
 the code names, as a named tuple of constants), ``math`` and NumPy's
-functions that numba compiles, from the paper's listing
-a :class:`~softflow.curves.pvcurve.PVCurve` (``fdf_volume`` of one volume)
+functions that numba compiles, from the paper's listing a
+:class:`~softflow.curves.pvcurve.PVCurve` (``fdf_volume`` of one volume)
 and a fluid (its ``rho``), and the user's own plain functions (compiled
 with it, by the same rules), found in the function's closure or among its
 globals, or as an attribute of an object it reads (a bound method's
 ``self``, or a closure's object: ``self.k``; :func:`_desugared` makes each
-``obj.attr`` a closure variable of a function of the same code). The floats, fluids and curves in the closures of ``evaluate`` and
+``obj.attr`` a closure variable of a function of the same code). The
+floats, fluids and curves in the closures of ``evaluate`` and
 ``update_state`` or ``state_rates`` (and the floats in a source function's
-closure) are
-run-time values (settings.USER_RUNTIME_VALUES): the function is rewritten
-from its source to take them as its last arguments, and the kernel reads
-them from the component's layout at each call (:func:`layout`), so one
-kernel serves every value (a design loop over a curve or a stiffness
-compiles once). The rest is compiled in as constants. All are read when the
-Simulation is built and checked at the start of each run
+closure) are run-time values (settings.USER_RUNTIME_VALUES): the function
+is rewritten from its source to take them as its last arguments, and the
+kernel reads them from the component's layout at each call
+(:func:`layout`), so one kernel serves every value (a design loop over a
+curve or a stiffness compiles once). The rest is compiled in as
+constants. All are read when the Simulation is built and checked at the
+start of each run
 (:meth:`softflow.solve.netcore.CompiledNetwork.check_user_values`: run-time
 values read again, changed constants get their own kernel, or the
 call-back); a value changed during a run is not seen. Where
@@ -43,7 +44,8 @@ user's functions, the component's state names and its own integer and
 float constants only, no component's label: components alike share it)
 under the compile cache, in a file named by a hash of that source, of the
 user functions' code and of the constants read from their closures and
-globals (of the run-time values, their kinds), and of the text of softflow's laws and softflow's, numba's and
+globals (of the run-time values, their kinds), and of the text of
+softflow's laws and softflow's, numba's and
 Python's versions; numba caches the compiled kernel beside it, so a later
 process loads it (milliseconds) instead of compiling it again (a second or
 two, said once on the ``'softflow'`` logger). A function whose
@@ -253,8 +255,6 @@ def _runtime_vars(func: Any) -> tuple:
     return tuple(found)
 
 
-
-
 @functools.lru_cache(maxsize=64)
 def _numbers_of(module: str, fields: tuple) -> type:
     """The named tuple that stands for the numbers ``fields`` of a module."""
@@ -383,12 +383,29 @@ _HEAD = '''\
 softflow.solve.usercompile; do not edit)."""
 import math
 
+import numpy as np
 from numba import carray, cfunc, njit
 
 from softflow.solve.usercompile import (SIGNATURE, CurveRef, FluidImage, floats_at,
                                        functions_for, layout_at)
 
 ev, up = functions_for(__name__)
+'''
+
+#: an array-form function's adaptor (softflow.fons's ``_ArrayForm``): the
+#: arrays fonsim's method fills, made from the scalars, as the Python path
+#: makes them
+_ARRAY_ADAPTOR = '''
+{name}_method = {name}
+
+
+@njit
+def {name}({params}):
+    out = np.zeros({n_out})
+    arguments = np.empty({na})
+{fill_args}    state = np.empty({ns})
+{fill_state}    {name}_method({call})
+    return out
 '''
 
 _TAIL = '''
@@ -418,6 +435,39 @@ def _row_of(names: list) -> str:
     return ", ".join(names) + ("," if len(names) == 1 else "")
 
 
+def _array_adaptor(name: str, form: tuple, n_extra: int, evaluate: bool) -> str:
+    """The adaptor of an array-form ``evaluate`` (``update_state``) for the
+    kernel's module: a function of (t or dt, the variables, the states, the
+    run-time values) that fills fonsim's arrays and calls the method (its
+    values, or its new states, returned as an array); ``form`` from
+    :func:`_array_form`."""
+    picks, nv, ns, na, n_out = form
+    extra = [f"x{k}" for k in range(n_extra)]
+    params = ["t"] + [f"v{k}" for k in range(nv)] + [f"s{k}" for k in range(ns)] + extra
+    fill_args = "".join(f"    arguments[{j}] = v{int(k)}\n" for j, k in enumerate(picks))
+    fill_state = "".join(f"    state[{k}] = s{k}\n" for k in range(ns))
+    if evaluate:
+        call = (f"out, np.zeros(({n_out}, {ns})), np.zeros(({n_out}, {na})), state, "
+                "arguments, t")
+    else:
+        call = f"out, np.zeros(({n_out}, {na})), state, arguments, t"
+    return _ARRAY_ADAPTOR.format(name=name, params=", ".join(params), n_out=n_out, na=na,
+                                 ns=ns, fill_args=fill_args, fill_state=fill_state,
+                                 call=", ".join([call] + extra))
+
+
+def _array_form(f: Any) -> tuple | None:
+    """(picks, number of variables, of states, of arguments, of outputs) of
+    a fonsim array-form function (softflow.fons's ``_ArrayForm``: a method
+    filling arrays, called with the variables its ``arguments`` picks), or
+    None for any other function."""
+    if not getattr(f, "array_form", False):
+        return None
+    picks, nv, ns, na = f._layout()
+    n_out = f.comp.nb_equations if f.kind == "evaluate" else ns
+    return tuple(int(k) for k in picks), int(nv), int(ns), int(na), int(n_out)
+
+
 def source(uk, order: list | None = None, plan: tuple = ()) -> str:
     """The kernel module's text for the user kernel ``uk``: the arithmetic
     of :meth:`UserKernel.kernel_row` (its finite differences, their steps,
@@ -431,6 +481,10 @@ def source(uk, order: list | None = None, plan: tuple = ()) -> str:
         raise NotCompiled(f"{nv} variables, {ns} states and {neq} rows: not a size a "
                           "compiled kernel unrolls")
     rates = _rates_of(uk) is not None
+    ev_form = _array_form(uk.ev)
+    up_form = _array_form(uk.up) if uk.up is not None else None
+    if up_form is not None:
+        order = list(range(ns))             # (its new states, an array in their order)
     V, O, N, Fn = _names("v", nv), _names("o", ns), _names("n", ns), _names("f", neq)
     P, M = _names("p", neq), _names("m", ns)
     A = [f"a{k}" for k, entry in enumerate(plan) if entry[0] == 0]
@@ -453,7 +507,12 @@ def source(uk, order: list | None = None, plan: tuple = ()) -> str:
     def step(x, scale):
         return f"        h = {rel!r} * max(abs({x}), {float(scale)!r})"
 
-    out = [_HEAD, "",
+    out = [_HEAD]
+    if ev_form is not None:
+        out.append(_array_adaptor("ev", ev_form, len(A), True))
+    if up_form is not None:
+        out.append(_array_adaptor("up", up_form, len(B), False))
+    out += ["",
            "@njit", f"def _residual(t, {', '.join(A + V + N)}):",
            f"    r = ev({pick(uk.ev_args, 't', V, N)}{extra(A)})",
            f"    if len(r) != {neq}:",
@@ -699,11 +758,18 @@ def _rates_of(uk) -> Any:
 def _functions(uk) -> list:
     """The user's functions a kernel of ``uk`` compiles: ``evaluate``, then
     ``update_state`` or ``state_rates`` where it has states."""
-    funcs = [uk.ev.func] if uk.up is None else [
-        uk.ev.func, uk.up.func if _rates_of(uk) is None else _rates_of(uk)]
-    # (softflow.fons wraps a function to drop the Jacobian fonsim lets it
-    # return: its own function compiled, whose answer the kernel checks)
-    return [_desugared(getattr(f, "_softflow_values_of", f)) for f in funcs]
+    wrapped = [uk.ev] if uk.up is None else [uk.ev, uk.up if _rates_of(uk) is None else None]
+    funcs = []
+    for w in wrapped:
+        if w is None:
+            funcs.append(_rates_of(uk))
+        elif _array_form(w) is not None:
+            funcs.append(w.method)        # (fonsim's array form: called by an adaptor)
+        else:
+            # (softflow.fons wraps a function to drop the Jacobian fonsim lets it
+            # return: its own function compiled, whose answer the kernel checks)
+            funcs.append(getattr(w.func, "_softflow_values_of", w.func))
+    return [_desugared(f) for f in funcs]
 
 
 def _cell(func: Any, var: str) -> Any:
