@@ -88,8 +88,10 @@ def test_fons_library_components_run_on_their_compiled_laws(monkeypatch, build):
 
 def test_a_class_that_changes_its_law_keeps_its_own(monkeypatch):
     """A subclass that redefines a name of its library class (fons's
-    FlowRestrictor, fonsim's own residual) is not evaluated by the library
-    class's compiled law; one that adds names of its own is."""
+    FlowRestrictor, fonsim's own residual) or defines a hook the assembly
+    reads (begin_step, switching, ...) is not evaluated by the library
+    class's compiled law, also where it is given one after a first build;
+    one that adds names of its own is."""
     assert netcore._law_class(fons.FlowRestrictor) is fons.FlowRestrictor
     assert netcore._law_class(fons.CircularTube) is sf.CircularTube
 
@@ -101,8 +103,15 @@ def test_a_class_that_changes_its_law_keeps_its_own(monkeypatch):
         @classmethod
         def residual(cls, P, V, S, t, jac):
             return super().residual(P, V, S, t, jac)
+    class Hooked(sf.CircularTube):          # a hook CircularTube does not have
+        @classmethod
+        def wants_begin_step(cls, P):
+            return True
     assert netcore._law_class(Labelled) is sf.CircularTube
     assert netcore._law_class(OwnLaw) is OwnLaw
+    assert netcore._law_class(Hooked) is Hooked
+    Labelled.residual = OwnLaw.residual             # changed since: seen at the next build
+    assert netcore._law_class(Labelled) is Labelled
 
 
 @pytest.mark.parametrize("jacobian", [False, True])

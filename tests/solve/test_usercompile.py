@@ -759,7 +759,9 @@ def test_kernels_unused_for_a_month_are_deleted_at_a_processs_first_compile(fres
                                                                           monkeypatch):
     """Modules, numba's cache files of them and refusal markers not used for
     settings.USER_CACHE_DAYS days go at the first compile of a process; those
-    used since stay, and a kernel loaded is marked used."""
+    used since stay, and a kernel loaded is marked used (a marker beside it:
+    the module's own time is left alone, which numba before 0.68 checks its
+    cache against)."""
     import os
     import time
     fresh_root.mkdir(parents=True)
@@ -781,11 +783,15 @@ def test_kernels_unused_for_a_month_are_deleted_at_a_processs_first_compile(fres
     assert not any(p.exists() for p in old) and all(p.exists() for p in kept)
     (name, _), = usercompile._LOADED.items()
     module = fresh_root / f"{name}.py"
-    os.utime(module, (month, month))
+    used = fresh_root / f"{name}.py.used"
+    for p in (module, used):
+        os.utime(p, (month, month))
     usercompile._LOADED.clear()
     sys.modules.pop(name)
     assert usercompile.kernel_address(uk)            # loaded from numba's cache: marked
-    assert module.stat().st_mtime > time.time() - 3600.0
+    assert usercompile._LOADED[name][0].kernel.cache_hits == 1
+    assert used.stat().st_mtime > time.time() - 3600.0
+    assert module.stat().st_mtime == pytest.approx(month)
 
 
 class _Balloon(sf.Component):
@@ -964,3 +970,25 @@ def _scene_of(fluid):
     s.connect("tube", "source")
     s.connect("tube", "actu")
     return s
+
+
+def test_a_nested_functions_parameter_of_a_holders_name_is_not_rewritten(monkeypatch):
+    """``obj.rho`` inside a nested function whose parameter is named ``obj``
+    reads that parameter, not the closure's object: such a function is
+    called back (not rewritten), and runs as the call-back."""
+    class Holder:
+        rho = 1.0
+
+    def make():
+        obj = Holder()
+
+        def ev(p, mf):
+            def f(obj):
+                return obj.rho
+            return [mf - 1e-9 * f(sf.water) * (p - P0) / 1000.0 - 0.0 * obj.rho]
+        return _leak_with(ev)
+    sim = _sim(make(), duration=0.02, step=1e-3)
+    assert sim.asm.residual.network.callbacks
+    a = sim.run()
+    monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+    np.testing.assert_array_equal(a.X, _sim(make(), duration=0.02, step=1e-3).run().X)

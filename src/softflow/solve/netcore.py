@@ -51,8 +51,6 @@ tested).
 """
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from .._laws import law_module
@@ -104,16 +102,29 @@ _SAME_LAW = frozenset({"__init__", "get", "__doc__", "__module__", "__qualname__
                        "__static_attributes__"})
 
 
-@functools.lru_cache(maxsize=256)
+#: the names the assembly and the step equations look up on a library class
+#: (softflow.solve.assembly, softflow.solve.discretize), which a subclass
+#: that keeps its class's law must not define, whether that class has them
+#: or not (a hook such as begin_step or switching changes the group's law)
+_LAW_HOOKS = frozenset({"affine", "begin_step", "discrete_states", "fold_pressure",
+                        "jac_pattern", "kernel", "kinks", "make_params", "param_jacobian",
+                        "rate_pattern", "rates", "regime", "residual", "residual_pattern",
+                        "state_jac_pattern", "state_spec", "switch", "switching", "update",
+                        "wants_begin_step"})
+
+
 def _law_class(cls):
     """The library class whose compiled law evaluates ``cls``'s groups: the
     first of :func:`_covered`'s classes in its order of bases, where no class
-    before it redefines any name that class has (a law, a constant, a
-    method) other than those of :data:`_SAME_LAW`; else ``cls`` itself."""
+    before it defines a name that class has (a law, a constant, a method)
+    or a hook of :data:`_LAW_HOOKS`, other than those of :data:`_SAME_LAW`;
+    else ``cls`` itself. Asked at each build (a class changed since is seen)."""
     k = _NAMES if _NAMES is not None else _names()
+    if cls in k.laws:
+        return cls
     for i, lib in enumerate(cls.__mro__):
         if lib in k.laws:
-            names = set().union(*(vars(c) for c in lib.__mro__))
+            names = _LAW_HOOKS.union(*(vars(c) for c in lib.__mro__))
             if any((set(vars(c)) & names) - _SAME_LAW for c in cls.__mro__[:i]):
                 return cls
             return lib

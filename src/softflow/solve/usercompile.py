@@ -199,8 +199,8 @@ def image(value: Any, where: str, depth: int = 0, names: frozenset = frozenset()
     if isinstance(value, pytypes.ModuleType) and value in (np, math):
         return value, f"module {value.__name__}"
     if isinstance(value, pytypes.ModuleType):
-        attrs = tuple((n, getattr(value, n)) for n in sorted(names)
-                      if type(getattr(value, n, None)) in (int, float))
+        attrs = tuple((n, getattr(value, n)) for n in sorted(names)   # (a named tuple's)
+                      if not n.startswith("_") and type(getattr(value, n, None)) in (int, float))
         if attrs:
             return _numbers_of(value.__name__, tuple(n for n, _ in attrs))(
                 *(v for _, v in attrs)), ("module", value.__name__, attrs)
@@ -928,6 +928,9 @@ def _desugared(func: Any) -> Any:
     made = _attribute_code(code, code.co_filename, base.__name__, tuple(sorted(holders)),
                            method)
     if made is None:
+        if _node_of(code, base.__name__) is None:
+            raise NotCompiled(f"{base.__name__}'s source cannot be read as written (a "
+                              "decorated function, or one without a file)")
         raise NotCompiled(f"{base.__name__} uses {', '.join(sorted(holders))} other than "
                           "by reading its attributes")
     inner, attrs = made
@@ -962,6 +965,10 @@ def _attribute_code(code, filename: str, name: str, holders: tuple,
     node = _node_of(code, name)
     if node is None:
         return None
+    own = node.args.args[0] if method and node.args.args else None
+    if any(isinstance(n, ast.arg) and n.arg in holders and n is not own
+           for n in ast.walk(node)):
+        return None         # (a nested function's parameter of that name: another object)
     attrs: dict = {}
 
     class Reads(ast.NodeTransformer):
@@ -1241,10 +1248,13 @@ def _load(name: str, text: str, funcs: list, what: str, who: str) -> int | None:
 
 
 def _touch(path: Path) -> None:
-    """Mark the module ``path`` as used now (its modification time: what
-    :func:`_prune` keeps by), where it can be."""
+    """Mark the module (or refusal marker) ``path`` as used now: the
+    modification time of ``path`` + ``.used`` beside it, which
+    :func:`_prune` keeps by (not the module's own: numba before 0.68 takes a
+    module whose time changed for an edited one and compiles it again)."""
     try:
-        os.utime(path)
+        used = path.with_name(path.name + ".used")
+        used.touch()
     except OSError:
         pass
 
@@ -1263,18 +1273,27 @@ def _prune(root: Path) -> None:
         return
     _PRUNED.add(root)
     cutoff = time.time() - 86400.0 * settings.USER_CACHE_DAYS
-    cache = root / "__pycache__"
+
+    def last_used(p: Path) -> float:
+        used = p.with_name(p.name + ".used")
+        return max(p.stat().st_mtime, used.stat().st_mtime if used.exists() else 0.0)
+    # numba's cache files: beside the modules, or under NUMBA_CACHE_DIR in a
+    # folder named after this one (numba's own layout for a set cache dir)
+    caches = [root / "__pycache__"] + sorted(Path(numba.config.CACHE_DIR).glob(
+        f"{root.name}_*")) if numba.config.CACHE_DIR else [root / "__pycache__"]
     try:
         old = [p for p in root.glob("softflow_user_*")
-               if p.suffix in (".py", ".failed") and p.stat().st_mtime < cutoff]
+               if p.suffix in (".py", ".failed") and last_used(p) < cutoff]
     except OSError:
         return
     for p in old:
         try:
             p.unlink()
+            p.with_name(p.name + ".used").unlink(missing_ok=True)
             if p.suffix == ".py":
-                for q in cache.glob(f"{p.stem}.*"):
-                    q.unlink()
+                for cache in caches:
+                    for q in cache.glob(f"{p.stem}.*"):
+                        q.unlink()
         except OSError:
             pass
 
