@@ -668,7 +668,7 @@ def test_a_closure_value_changed_between_runs_is_read_again_or_compiled(fresh_ro
     sim = _sim(_leaky(1e-9), duration=0.05)
     net = sim.asm.residual.network
     (gi, g, key, lay, plan), = net.watched
-    assert [kind for _, _, kind in plan] == ["float"]
+    assert [var for _, var, _ in plan] == ["k", "P0"]      # (P0: the module's float)
     first = sim.run()
     func = g.row.ev.func
     cell = func.__closure__[func.__code__.co_freevars.index("k")]
@@ -685,7 +685,7 @@ def test_a_closure_value_changed_between_runs_is_read_again_or_compiled(fresh_ro
     cell.cell_contents = np.array([4e-9])[0].astype(np.float32)
     third = sim.run()
     assert len(usercompile._LOADED) == 2 and not net.callbacks
-    assert net.watched[0][4] == ()
+    assert [var for _, var, _ in net.watched[0][4]] == ["P0"]     # k now a constant
     np.testing.assert_allclose(third.get("tank", "pressure"), ref.get("tank", "pressure"),
                                rtol=1e-6)
 
@@ -742,9 +742,9 @@ def test_an_update_states_closure_float_is_a_run_time_value(fresh_root, monkeypa
     for gain in (1.0, 0.5):
         sim = _sim(_gain_scene(gain)(), duration=0.02, step=1e-3)
         (gi, g, key, lay, plan), = sim.asm.residual.network.watched
-        assert plan == ((1, "gain", "float"),)
+        assert plan == ((0, "P0", "float"), (1, "gain", "float"))
         text = next(fresh_root.glob("*.py")).read_text()
-        assert "o = up(dt, o0, v1, a0)" in text         # gain: read from the layout
+        assert "o = up(dt, o0, v1, a1)" in text         # gain: read from the layout
         a = sim.run()
         monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
         b = _sim(_gain_scene(gain)(), duration=0.02, step=1e-3).run()
@@ -900,7 +900,8 @@ def test_methods_and_closures_reading_the_components_attributes_are_compiled(fre
     leak.evaluate = leak.auto(lambda p, mf: [mf - leak.k * (p - P0)])
     sim = _sim(leaky, duration=0.05, step=1e-3)
     assert not sim.asm.residual.network.callbacks
-    assert sim.asm.residual.network.watched[0][4] == ((0, "_sf_4_leak_k", "float"),)
+    assert sim.asm.residual.network.watched[0][4] == ((0, "_sf_4_leak_k", "float"),
+                                                      (0, "P0", "float"))
 
 
 def _leak_with(ev):
@@ -935,7 +936,7 @@ def test_review_cases_of_run_time_values(fresh_root, monkeypatch):
     run's start fails that run naming the component, as the call-back."""
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
     sim = _sim(_leak_with(_annotated_helper(1e-9)), duration=0.02, step=1e-3)
-    assert sim.asm.residual.network.watched[0][4] == ((0, "k", "float"),)
+    assert sim.asm.residual.network.watched[0][4] == ((0, "k", "float"), (0, "P0", "float"))
     monkeypatch.setattr(settings, "USER_COMPILES_MAX", 2)
     for i in range(1, 5):
         monkeypatch.setitem(globals(), "COEF", (float(i),))
@@ -992,3 +993,25 @@ def test_a_nested_functions_parameter_of_a_holders_name_is_not_rewritten(monkeyp
     a = sim.run()
     monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
     np.testing.assert_array_equal(a.X, _sim(make(), duration=0.02, step=1e-3).run().X)
+
+
+K_SCRIPT = 1e-9
+
+
+def test_a_loop_over_a_module_global_float_compiles_once(fresh_root, monkeypatch):
+    """A script's loop that rebinds a module-level float its component reads
+    (``for K in ...:``): the float is a run-time value, one kernel for
+    every value, each run the call-back's bit for bit."""
+    monkeypatch.setattr(settings, "USER_COMPILES_MAX", 1)
+    for k in (1e-9, 2e-9, 4e-9):
+        monkeypatch.setitem(globals(), "K_SCRIPT", k)
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", True)
+        sim = _sim(_leak_with(lambda p, mf: [mf - K_SCRIPT * (p - P0)]), duration=0.05,
+                   step=1e-3)
+        assert not sim.asm.residual.network.callbacks
+        a = sim.run()
+        monkeypatch.setattr(settings, "COMPILED_USER_CODE", False)
+        b = _sim(_leak_with(lambda p, mf: [mf - K_SCRIPT * (p - P0)]), duration=0.05,
+                 step=1e-3).run()
+        np.testing.assert_array_equal(a.X, b.X)
+    assert len(usercompile._LOADED) == 1

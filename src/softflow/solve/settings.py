@@ -367,7 +367,8 @@ COMPILED_USER = True
 #: numba cannot compile them: called back in Python (COMPILED_USER)
 COMPILED_USER_CODE = True
 #: Whether the floats, fluids and PV curves that a compiled user component's
-#: ``evaluate`` / ``update_state`` read from their closures are run-time data
+#: ``evaluate`` / ``update_state`` read from their closures (or attributes, or
+#: module globals) are run-time data
 #: of one kernel (read from the component's layout at each call: a design
 #: loop over a stiffness or a curve compiles once) rather than constants
 #: compiled in (a kernel per set of values). Off: constants, as before

@@ -23,9 +23,9 @@ with it, by the same rules), found in the function's closure or among its
 globals, or as an attribute of an object it reads (a bound method's
 ``self``, or a closure's object: ``self.k``; :func:`_desugared` makes each
 ``obj.attr`` a closure variable of a function of the same code). The
-floats, fluids and curves in the closures of ``evaluate`` and
-``update_state`` or ``state_rates`` (and the floats in a source function's
-closure) are run-time values (settings.USER_RUNTIME_VALUES): the function
+floats, fluids and curves in the closures and module globals of
+``evaluate`` and ``update_state`` or ``state_rates`` (and the floats of a
+source function's) are run-time values (settings.USER_RUNTIME_VALUES): the function
 is rewritten from its source to take them as its last arguments, and the
 kernel reads them from the component's layout at each call
 (:func:`layout`), so one kernel serves every value (a design loop over a
@@ -239,18 +239,24 @@ def _runtime_kind(value: Any) -> str | None:
 
 
 def _runtime_vars(func: Any) -> tuple:
-    """The (name, kind) of the closure's values of the user's function
-    ``func`` that its kernel reads as run-time data (:func:`layout`):
-    its floats, fluids and PV curves (settings.USER_RUNTIME_VALUES)."""
+    """The (name, kind) of the values of the user's function ``func`` that
+    its kernel reads as run-time data (:func:`layout`): the floats, fluids
+    and PV curves of its closure and of the module globals it reads (a
+    script's ``K = 1e-9`` rebound in a loop; settings.USER_RUNTIME_VALUES)."""
     if not settings.USER_RUNTIME_VALUES:
         return ()
     found = []
-    for var, cell in zip(func.__code__.co_freevars, func.__closure__ or ()):
+    code = func.__code__
+    for var, cell in zip(code.co_freevars, func.__closure__ or ()):
         try:
             kind = _runtime_kind(cell.cell_contents)
         except ValueError:          # not set: imaged says so
             return ()
         if kind is not None:
+            found.append((var, kind))
+    for var in sorted(_global_names(code)):
+        kind = _runtime_kind(func.__globals__.get(var))
+        if kind is not None and var not in code.co_freevars:
             found.append((var, kind))
     return tuple(found)
 
@@ -316,6 +322,12 @@ def imaged(func: Any, depth: int = 0, runtime: dict | None = None) -> tuple:
     glob: dict = {"__builtins__": func.__globals__.get("__builtins__", __builtins__)}
     for var in sorted(_global_names(code)):
         if var in func.__globals__:
+            if runtime and var in runtime and var not in code.co_freevars:
+                kind = _runtime_kind(func.__globals__[var])
+                if kind != runtime[var]:
+                    raise NotCompiled(f"{name}'s global {var} is no longer a {runtime[var]}")
+                keys.append((var, ("run-time", kind)))
+                continue
             glob[var], key = image(func.__globals__[var], f"{name}'s global {var}", depth,
                                    _attribute_names(code))
             keys.append((var, key))
@@ -773,8 +785,12 @@ def _functions(uk) -> list:
 
 
 def _cell(func: Any, var: str) -> Any:
-    """The value of ``func``'s closure variable ``var``."""
-    return func.__closure__[func.__code__.co_freevars.index(var)].cell_contents
+    """The value of ``func``'s closure variable ``var``, or of its module's
+    global ``var``."""
+    code = func.__code__
+    if var in code.co_freevars:
+        return func.__closure__[code.co_freevars.index(var)].cell_contents
+    return func.__globals__[var]
 
 
 def _key_of(keys) -> bytes:
