@@ -604,9 +604,10 @@ def test_a_value_changed_after_the_simulation_was_built_is_seen(monkeypatch):
     net = sim.asm.residual.network
     assert not net.callbacks
     monkeypatch.setitem(globals(), "K_LEAK", {"not": "a number"})     # not compiled
-    with pytest.raises(Exception):
-        sim.run()
-    assert net.callbacks
+    for _ in range(3):
+        with pytest.raises(Exception):
+            sim.run()
+    assert len(net.callbacks) == 1          # one call-back, not one a run
     monkeypatch.setitem(globals(), "K_LEAK", 3e-9)                    # compiled again
     again = sim.run()
     np.testing.assert_allclose(again.get("tank", "pressure"), tank, rtol=1e-6)

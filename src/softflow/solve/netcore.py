@@ -397,7 +397,12 @@ class CompiledNetwork:
         from . import usercompile
         net = law_module("network")
         for k, (gi, g, key, lay, plan) in enumerate(self.watched):
-            if (usercompile.values_key(g.row, plan) == key
+            if key == _CALLED_BACK:
+                # called back since its values changed: its call-back stays
+                # while they still do not compile (no new one at each run)
+                if usercompile.kernel(g.row)[0] is None:
+                    continue
+            elif (usercompile.values_key(g.row, plan) == key
                     and usercompile.refill(lay, g.row, plan)):
                 continue
             option, u0, held, now, plan = _user_entry(g, lay)
@@ -406,7 +411,7 @@ class CompiledNetwork:
                 self.callbacks.append(held)
             elif held is not lay:
                 self.kernels.append(held)
-            self.watched[k] = (gi, g, b"called back" if now is None else now,
+            self.watched[k] = (gi, g, _CALLED_BACK if now is None else now,
                                lay if now is None else held, plan)
 
     def __init__(self, asm, groups, cols, fpar, u, trows, tcols, varying, sources):
@@ -494,6 +499,11 @@ def compiled_update(asm):
     run with new parameters."""
     network = getattr(asm.residual, "network", None)
     return None if network is None else network.update_states
+
+
+#: a watched user component's key once its values changed to ones that
+#: compiled code cannot read (:meth:`CompiledNetwork.check_user_values`)
+_CALLED_BACK = b"called back"
 
 
 def _user_entry(g, lay=None):
