@@ -181,6 +181,13 @@ def _fdf_volume(curve, volume):
     return impl
 
 
+def _plain_curve(value: Any) -> bool:
+    """Whether ``value`` is a PVCurve whose lookup is PVCurve's own (a
+    subclass that overrides it is not compiled)."""
+    return (isinstance(value, PVCurve) and type(value).fdf_volume is PVCurve.fdf_volume
+            and type(value)._scalar is PVCurve._scalar)
+
+
 def image(value: Any, where: str, depth: int = 0, names: frozenset = frozenset()) -> tuple:
     """(``value`` as compiled code may read it, what keys it): a number, a
     tuple of numbers or an array as it is (an array copied), ``math`` or
@@ -204,8 +211,7 @@ def image(value: Any, where: str, depth: int = 0, names: frozenset = frozenset()
         if attrs:
             return _numbers_of(value.__name__, tuple(n for n, _ in attrs))(
                 *(v for _, v in attrs)), ("module", value.__name__, attrs)
-    if (isinstance(value, PVCurve) and type(value).fdf_volume is PVCurve.fdf_volume
-            and type(value)._scalar is PVCurve._scalar):
+    if _plain_curve(value):
         got = CurveImage(value._knots.copy(), value._table.copy(), float(value._lo),
                          float(value._hi), bool(value._refuse))
         return got, got
@@ -232,8 +238,7 @@ def _runtime_kind(value: Any) -> str | None:
         return "float"
     if isinstance(value, Fluid):
         return "fluid"
-    if (isinstance(value, PVCurve) and type(value).fdf_volume is PVCurve.fdf_volume
-            and type(value)._scalar is PVCurve._scalar):
+    if _plain_curve(value):
         return "curve"
     return None
 
